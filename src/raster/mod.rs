@@ -1,1 +1,30 @@
-//! Raster pipeline.
+//! The raster pipeline, Larrabee style, on the CPU: a programmable vertex
+//! stage, homogeneous clipping (vertices at infinity welcome), fixed-point
+//! setup with exact edge functions and the top-left rule, binning into
+//! 64×64 tiles rasterized in parallel, 8×8 block descent, and 8-lane SIMD
+//! coverage, depth, stencil and fragment batches.
+
+mod bin;
+mod clip;
+mod fragment;
+mod framebuffer;
+mod pipeline;
+mod setup;
+mod simd;
+mod state;
+mod tile;
+mod vertex;
+
+pub use bin::TileBins;
+pub use clip::{clip_triangle, ClippedPolygon};
+pub use fragment::{FragmentBatch, FragmentStage, NoFragmentStage};
+pub use framebuffer::{
+    DepthStencilTile, Framebuffer, TileGrid, TiledTarget, FAR_DEPTH, TILE_PIXELS, TILE_SIZE,
+};
+pub use pipeline::{draw, DrawStats};
+pub use setup::{
+    EdgeFunction, Plane, SetupTriangle, Viewport, GUARD_BAND, MAX_SIDE, SUBPIXEL_BITS,
+};
+pub use simd::LANES;
+pub use state::{CompareFunc, CullMode, RasterState, StencilFace, StencilOp, StencilState};
+pub use vertex::{run_vertex_stage, ClipVertex};

@@ -1,0 +1,216 @@
+//! Tile-major buffers: the depth/stencil framebuffer and typed render
+//! targets of any element type.
+//!
+//! Everything is stored tile by tile (64×64 pixels, row-major inside a
+//! tile) so a tile's depth, stencil and targets are contiguous and stay in
+//! cache while one thread rasterizes that tile.
+
+use super::setup::MAX_SIDE;
+use crate::error::{Error, Result};
+
+/// Tile side in pixels.
+pub const TILE_SIZE: usize = 64;
+/// Pixels per tile.
+pub const TILE_PIXELS: usize = TILE_SIZE * TILE_SIZE;
+
+/// How an image of `width × height` pixels is cut into tiles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TileGrid {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Tiles per row.
+    pub tiles_x: usize,
+    /// Tile rows.
+    pub tiles_y: usize,
+}
+
+impl TileGrid {
+    /// The grid for an image; refuses sizes the rasterizer cannot address.
+    pub fn new(width: u32, height: u32) -> Result<Self> {
+        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+            return Err(Error::param(
+                "width/height",
+                format!("{width}×{height} is outside 1..={MAX_SIDE} pixels per side"),
+            ));
+        }
+        Ok(TileGrid {
+            width,
+            height,
+            tiles_x: (width as usize).div_ceil(TILE_SIZE),
+            tiles_y: (height as usize).div_ceil(TILE_SIZE),
+        })
+    }
+
+    /// Number of tiles.
+    pub fn tile_count(&self) -> usize {
+        self.tiles_x * self.tiles_y
+    }
+
+    /// Pixel coordinates of a tile's top-left corner.
+    pub fn tile_origin(&self, tile: usize) -> (i32, i32) {
+        (
+            ((tile % self.tiles_x) * TILE_SIZE) as i32,
+            ((tile / self.tiles_x) * TILE_SIZE) as i32,
+        )
+    }
+
+    /// (tile index, index inside the tile) of pixel `(x, y)`.
+    #[inline]
+    pub fn locate(&self, x: u32, y: u32) -> (usize, usize) {
+        let (x, y) = (x as usize, y as usize);
+        let tile = (y / TILE_SIZE) * self.tiles_x + x / TILE_SIZE;
+        (tile, (y % TILE_SIZE) * TILE_SIZE + x % TILE_SIZE)
+    }
+}
+
+/// A per-pixel render target of any `Copy` type, stored tile-major.
+///
+/// This is what fragment stages write besides depth and stencil: G-buffer
+/// channels, per-pixel counters, bit masks, ...
+#[derive(Debug, Clone)]
+pub struct TiledTarget<T> {
+    grid: TileGrid,
+    tiles: Vec<Box<[T]>>,
+}
+
+impl<T: Copy + Send + Sync> TiledTarget<T> {
+    /// A target filled with `value`.
+    pub fn new(grid: TileGrid, value: T) -> Self {
+        TiledTarget {
+            grid,
+            tiles: (0..grid.tile_count())
+                .map(|_| vec![value; TILE_PIXELS].into_boxed_slice())
+                .collect(),
+        }
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> TileGrid {
+        self.grid
+    }
+
+    /// Value at pixel `(x, y)`.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> T {
+        let (t, i) = self.grid.locate(x, y);
+        self.tiles[t][i]
+    }
+
+    /// Sets pixel `(x, y)`.
+    #[inline]
+    pub fn set(&mut self, x: u32, y: u32, value: T) {
+        let (t, i) = self.grid.locate(x, y);
+        self.tiles[t][i] = value;
+    }
+
+    /// Sets every pixel.
+    pub fn fill(&mut self, value: T) {
+        for t in &mut self.tiles {
+            t.fill(value);
+        }
+    }
+
+    /// One tile's pixels (row-major, 64 per row, including the part of edge
+    /// tiles outside the image).
+    pub fn tile(&self, tile: usize) -> &[T] {
+        &self.tiles[tile]
+    }
+
+    /// All tiles, mutably, for per-tile parallel passes.
+    pub fn tiles_mut(&mut self) -> &mut [Box<[T]>] {
+        &mut self.tiles
+    }
+
+    /// Row-major copy of the image (row 0 at the top).
+    pub fn to_image(&self) -> Vec<T> {
+        let mut out = Vec::with_capacity(self.grid.width as usize * self.grid.height as usize);
+        for y in 0..self.grid.height {
+            for x in 0..self.grid.width {
+                out.push(self.get(x, y));
+            }
+        }
+        out
+    }
+}
+
+/// One tile of the depth/stencil framebuffer.
+#[derive(Debug, Clone)]
+pub struct DepthStencilTile {
+    /// f32 depth (reversed Z, see [`super::RasterState`]). f32 because the
+    /// depth is `near / w`: a float keeps constant relative precision from
+    /// the near plane to infinity, where fixed-point depth would not.
+    pub depth: Box<[f32]>,
+    /// i32 stencil counts, allocated only once a pass uses the stencil.
+    pub stencil: Option<Box<[i32]>>,
+}
+
+/// The depth/stencil framebuffer.
+#[derive(Debug, Clone)]
+pub struct Framebuffer {
+    grid: TileGrid,
+    tiles: Vec<DepthStencilTile>,
+}
+
+/// Depth value of "nothing drawn yet": infinitely far in reversed Z.
+pub const FAR_DEPTH: f32 = 0.0;
+
+impl Framebuffer {
+    /// A framebuffer cleared to [`FAR_DEPTH`], with no stencil yet.
+    pub fn new(grid: TileGrid) -> Self {
+        Framebuffer {
+            grid,
+            tiles: (0..grid.tile_count())
+                .map(|_| DepthStencilTile {
+                    depth: vec![FAR_DEPTH; TILE_PIXELS].into_boxed_slice(),
+                    stencil: None,
+                })
+                .collect(),
+        }
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> TileGrid {
+        self.grid
+    }
+
+    /// Clears the stencil of every tile to `value` (allocating it).
+    pub fn clear_stencil(&mut self, value: i32) {
+        for t in &mut self.tiles {
+            match &mut t.stencil {
+                Some(s) => s.fill(value),
+                None => t.stencil = Some(vec![value; TILE_PIXELS].into_boxed_slice()),
+            }
+        }
+    }
+
+    /// Clears depth to `value`.
+    pub fn clear_depth(&mut self, value: f32) {
+        for t in &mut self.tiles {
+            t.depth.fill(value);
+        }
+    }
+
+    /// Depth at pixel `(x, y)`.
+    pub fn depth(&self, x: u32, y: u32) -> f32 {
+        let (t, i) = self.grid.locate(x, y);
+        self.tiles[t].depth[i]
+    }
+
+    /// Stencil at pixel `(x, y)` (0 if no stencil was ever allocated).
+    pub fn stencil(&self, x: u32, y: u32) -> i32 {
+        let (t, i) = self.grid.locate(x, y);
+        self.tiles[t].stencil.as_ref().map_or(0, |s| s[i])
+    }
+
+    /// The tiles, mutably.
+    pub(crate) fn tiles_mut(&mut self) -> &mut [DepthStencilTile] {
+        &mut self.tiles
+    }
+
+    /// A tile.
+    pub fn tile(&self, tile: usize) -> &DepthStencilTile {
+        &self.tiles[tile]
+    }
+}

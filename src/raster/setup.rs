@@ -1,0 +1,276 @@
+//! Triangle setup: projection to fixed-point screen coordinates, exact
+//! integer edge functions with the top-left fill rule, bounding boxes and
+//! interpolation planes.
+//!
+//! Screen space has its origin at the top-left corner of the image, `x` to
+//! the right and `y` down; pixel `(i, j)` is sampled at its centre
+//! `(i + 0.5, j + 0.5)`. Vertices snap to 1/256 pixel (8 sub-pixel bits).
+//! Edge functions are evaluated exactly in `i64` (products of two
+//! coordinates of at most 2^26 sub-pixels stay below 2^53, so their `f64`
+//! images in the SIMD inner loop are exact too): two triangles sharing an
+//! edge compute exactly negated edge values, and the top-left rule gives
+//! every sample on the edge to exactly one of them. That is watertightness.
+
+use super::clip::ClippedPolygon;
+
+/// Sub-pixel precision of snapped vertices, in bits.
+pub const SUBPIXEL_BITS: u32 = 8;
+/// Sub-pixel units per pixel.
+pub const SUBPIXEL: i64 = 1 << SUBPIXEL_BITS;
+const HALF_PIXEL: i64 = SUBPIXEL / 2;
+
+/// Pixels of guard band around the screen. Triangles reaching further are
+/// clipped; inside it, the scissor (clamped bounding boxes) does the work.
+/// `(16384 + 2 * GUARD_BAND) * 256 < 2^25` keeps edge products exact.
+pub const GUARD_BAND: i64 = 8192;
+
+/// Largest image side the rasterizer accepts.
+pub const MAX_SIDE: u32 = 16384;
+
+/// An edge function `E(X, Y) = a X + b Y + c` over sub-pixel sample
+/// coordinates, with the top-left bias folded into `c`: a sample is inside
+/// the edge iff `E >= 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EdgeFunction {
+    /// Coefficient of X.
+    pub a: i64,
+    /// Coefficient of Y.
+    pub b: i64,
+    /// Constant, including the fill-rule bias.
+    pub c: i64,
+}
+
+impl EdgeFunction {
+    /// Edge from `p` to `q` of a triangle with positive orientation.
+    fn new(p: (i64, i64), q: (i64, i64)) -> Self {
+        let a = p.1 - q.1;
+        let b = q.0 - p.0;
+        // Top edge (horizontal, interior below) or left edge (going up):
+        // samples exactly on them are inside; on other edges, outside.
+        let top_left = a > 0 || (a == 0 && b > 0);
+        let c = -(a * p.0 + b * p.1) - i64::from(!top_left);
+        EdgeFunction { a, b, c }
+    }
+
+    /// Value at the centre of pixel `(x, y)`.
+    #[inline]
+    pub fn at_pixel(&self, x: i64, y: i64) -> i64 {
+        self.a * (x * SUBPIXEL + HALF_PIXEL) + self.b * (y * SUBPIXEL + HALF_PIXEL) + self.c
+    }
+
+    /// Change of the value from one pixel to the next along x.
+    #[inline]
+    pub fn step_x(&self) -> i64 {
+        self.a * SUBPIXEL
+    }
+
+    /// Change of the value from one pixel to the next along y.
+    #[inline]
+    pub fn step_y(&self) -> i64 {
+        self.b * SUBPIXEL
+    }
+}
+
+/// A quantity interpolated linearly in screen space:
+/// `value(x, y) = v0 + dx (x - x0) + dy (y - y0)` at pixel centres.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Plane {
+    /// Reference point x (pixels, screen space).
+    pub x0: f32,
+    /// Reference point y.
+    pub y0: f32,
+    /// Value at the reference point.
+    pub v0: f32,
+    /// Derivative along x.
+    pub dx: f32,
+    /// Derivative along y.
+    pub dy: f32,
+}
+
+impl Plane {
+    /// Plane through three screen points `(x, y, value)` (f64 for the
+    /// solve; the triangle is non-degenerate here).
+    fn through(p: [(f64, f64, f64); 3]) -> Self {
+        let (x0, y0, v0) = p[0];
+        let (x1, y1, v1) = (p[1].0 - x0, p[1].1 - y0, p[1].2 - v0);
+        let (x2, y2, v2) = (p[2].0 - x0, p[2].1 - y0, p[2].2 - v0);
+        let det = x1 * y2 - x2 * y1;
+        Plane {
+            x0: x0 as f32,
+            y0: y0 as f32,
+            v0: v0 as f32,
+            dx: ((v1 * y2 - v2 * y1) / det) as f32,
+            dy: ((v2 * x1 - v1 * x2) / det) as f32,
+        }
+    }
+
+    /// Value at the first pixel centre of a row of lanes: `x`, `y` are
+    /// pixel indices. Lanes then add `k * dx`.
+    #[inline]
+    pub fn row_start(&self, x: i32, y: i32) -> f32 {
+        let cx = x as f32 + 0.5 - self.x0;
+        let cy = y as f32 + 0.5 - self.y0;
+        self.v0 + self.dy * cy + self.dx * cx
+    }
+}
+
+/// A triangle ready for tile traversal.
+#[derive(Debug, Clone, Copy)]
+pub struct SetupTriangle<const N: usize> {
+    /// The three edge functions, inside where all are >= 0.
+    pub edges: [EdgeFunction; 3],
+    /// Covered pixel range, inclusive: `[x0, x1] × [y0, y1]`, clamped to the
+    /// screen.
+    pub bbox: [i32; 4],
+    /// Depth `z / w` (reversed Z: 1 at the near plane, 0 at infinity).
+    pub depth: Plane,
+    /// `1 / w`, for perspective correction.
+    pub inv_w: Plane,
+    /// `varying / w` for each varying.
+    pub varyings: [Plane; N],
+    /// Counter-clockwise in the world, seen from the camera.
+    pub front_facing: bool,
+    /// Index of the input triangle it came from.
+    pub primitive: u32,
+}
+
+/// Screen dimensions and guard band for setup.
+#[derive(Debug, Clone, Copy)]
+pub struct Viewport {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl Viewport {
+    /// Guard band extents in NDC units, for the clipper.
+    pub fn guard_ndc(&self) -> (f32, f32) {
+        let gx = 1.0 + 2.0 * GUARD_BAND as f64 / self.width as f64;
+        let gy = 1.0 + 2.0 * GUARD_BAND as f64 / self.height as f64;
+        // Round inward so that a vertex on the clip plane stays inside the
+        // fixed-point range.
+        (gx as f32 * (1.0 - 1e-6), gy as f32 * (1.0 - 1e-6))
+    }
+}
+
+/// Sets up the fan triangles of a clipped polygon, appending to `out`.
+pub fn setup_polygon<const N: usize>(
+    polygon: &ClippedPolygon<N>,
+    viewport: Viewport,
+    cull_front: bool,
+    cull_back: bool,
+    primitive: u32,
+    out: &mut Vec<SetupTriangle<N>>,
+) {
+    let n = polygon.len;
+    if n < 3 {
+        return;
+    }
+    let mut screen = [(0i64, 0i64); super::clip::MAX_CLIPPED_VERTICES];
+    let mut exact = [(0f64, 0f64); super::clip::MAX_CLIPPED_VERTICES];
+    let mut inv_w = [0f64; super::clip::MAX_CLIPPED_VERTICES];
+    let (w, h) = (viewport.width as f64, viewport.height as f64);
+    for k in 0..n {
+        let p = polygon.vertices[k].position;
+        if !(p.w > 0.0) {
+            return; // degenerate (only a zero vector can get here)
+        }
+        let iw = 1.0 / p.w as f64;
+        let sx = (p.x as f64 * iw * 0.5 + 0.5) * w;
+        let sy = (0.5 - p.y as f64 * iw * 0.5) * h;
+        screen[k] = (
+            (sx * SUBPIXEL as f64).round() as i64,
+            (sy * SUBPIXEL as f64).round() as i64,
+        );
+        exact[k] = (sx, sy);
+        inv_w[k] = iw;
+    }
+    for k in 1..n - 1 {
+        let idx = [0, k, k + 1];
+        if let Some(t) = setup_triangle(
+            polygon, &idx, &screen, &exact, &inv_w, viewport, cull_front, cull_back, primitive,
+        ) {
+            out.push(t);
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn setup_triangle<const N: usize>(
+    polygon: &ClippedPolygon<N>,
+    idx: &[usize; 3],
+    screen: &[(i64, i64)],
+    exact: &[(f64, f64)],
+    inv_w: &[f64],
+    viewport: Viewport,
+    cull_front: bool,
+    cull_back: bool,
+    primitive: u32,
+) -> Option<SetupTriangle<N>> {
+    let p = idx.map(|i| screen[i]);
+    let area2 = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[2].0 - p[0].0) * (p[1].1 - p[0].1);
+    if area2 == 0 {
+        return None;
+    }
+    // y points down on screen, so a counter-clockwise world triangle has
+    // negative area here.
+    let front_facing = area2 < 0;
+    if (front_facing && cull_front) || (!front_facing && cull_back) {
+        return None;
+    }
+    let ordered = if area2 > 0 {
+        *idx
+    } else {
+        [idx[0], idx[2], idx[1]]
+    };
+    let q = ordered.map(|i| screen[i]);
+    let edges = [
+        EdgeFunction::new(q[0], q[1]),
+        EdgeFunction::new(q[1], q[2]),
+        EdgeFunction::new(q[2], q[0]),
+    ];
+
+    // Bounding box of covered pixel centres: pixel i is sampled at
+    // i * 256 + 128.
+    let min_x = q.iter().map(|v| v.0).min()?;
+    let max_x = q.iter().map(|v| v.0).max()?;
+    let min_y = q.iter().map(|v| v.1).min()?;
+    let max_y = q.iter().map(|v| v.1).max()?;
+    let first = |m: i64| (m - HALF_PIXEL + SUBPIXEL - 1).div_euclid(SUBPIXEL);
+    let last = |m: i64| (m - HALF_PIXEL).div_euclid(SUBPIXEL);
+    let x0 = first(min_x).max(0);
+    let y0 = first(min_y).max(0);
+    let x1 = last(max_x).min(viewport.width as i64 - 1);
+    let y1 = last(max_y).min(viewport.height as i64 - 1);
+    if x0 > x1 || y0 > y1 {
+        return None;
+    }
+
+    // Interpolation planes from a canonical first vertex (the smallest
+    // snapped position): the plane solve is then bit-identical whatever the
+    // winding or starting vertex, so a shadow-volume cap gets exactly the
+    // depth of the scene triangle it copies.
+    let mut canon = *idx;
+    let first_k = (0..3).min_by_key(|&k| (screen[canon[k]], k)).unwrap_or(0);
+    canon.rotate_left(first_k);
+    // Planes use the unsnapped positions: snapping moves a vertex by up to
+    // 1/512 pixel, which near the horizon is a visible error in 1/w.
+    let pts = canon.map(|i| exact[i]);
+    let plane = |value: &dyn Fn(usize) -> f64| {
+        Plane::through([0, 1, 2].map(|k| (pts[k].0, pts[k].1, value(canon[k]))))
+    };
+    let verts = &polygon.vertices;
+    let depth = plane(&|i| verts[i].position.z as f64 * inv_w[i]);
+    let inv_w_plane = plane(&|i| inv_w[i]);
+    let varyings = std::array::from_fn(|a| plane(&|i| verts[i].varyings[a] as f64 * inv_w[i]));
+    Some(SetupTriangle {
+        edges,
+        bbox: [x0 as i32, y0 as i32, x1 as i32, y1 as i32],
+        depth,
+        inv_w: inv_w_plane,
+        varyings,
+        front_facing,
+        primitive,
+    })
+}
