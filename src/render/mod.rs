@@ -1,0 +1,284 @@
+//! One render from start to end: G-buffer, shadow technique, shading, AOVs.
+
+mod shading;
+
+pub use shading::shade;
+
+use crate::error::{Error, Result};
+use crate::gbuffer::{gbuffer_pass, GBuffer};
+use crate::geom::SceneGeometry;
+use crate::output::Layer;
+use crate::raster::DrawStats;
+use crate::report::Progress;
+use crate::scene::Scene;
+use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowTechnique, Unshadowed};
+use crate::view::{near_for_bounds, View};
+use glam::Vec3;
+use std::str::FromStr;
+use std::time::Instant;
+
+/// An output layer besides radiance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Aov {
+    /// `depth.Z`: view-space depth along the camera's forward axis.
+    Depth,
+    /// `position.X/Y/Z`: world position.
+    Position,
+    /// `normal.X/Y/Z`: shading normal facing the viewer.
+    Normal,
+    /// `albedo.R/G/B`.
+    Albedo,
+    /// `mask.Y`: 1 where a surface is seen.
+    Mask,
+    /// `vcoef.<k>`: visibility coefficient per light.
+    Vcoef,
+}
+
+impl Aov {
+    /// Every AOV, in output order.
+    pub const ALL: [Aov; 6] = [
+        Aov::Depth,
+        Aov::Position,
+        Aov::Normal,
+        Aov::Albedo,
+        Aov::Mask,
+        Aov::Vcoef,
+    ];
+
+    /// The layer name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Aov::Depth => "depth",
+            Aov::Position => "position",
+            Aov::Normal => "normal",
+            Aov::Albedo => "albedo",
+            Aov::Mask => "mask",
+            Aov::Vcoef => "vcoef",
+        }
+    }
+}
+
+impl FromStr for Aov {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Aov> {
+        Aov::ALL.into_iter().find(|a| a.name() == s).ok_or_else(|| {
+            let names: Vec<_> = Aov::ALL.iter().map(|a| a.name()).collect();
+            Error::param(
+                "--aov",
+                format!("unknown layer `{s}` (known: {})", names.join(", ")),
+            )
+        })
+    }
+}
+
+/// Which shadow technique renders the image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Technique {
+    /// No shadows.
+    None,
+}
+
+impl Technique {
+    /// All technique names.
+    pub const NAMES: [&'static str; 1] = ["none"];
+
+    fn build(self) -> Box<dyn ShadowTechnique> {
+        match self {
+            Technique::None => Box::new(Unshadowed),
+        }
+    }
+}
+
+impl FromStr for Technique {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Technique> {
+        match s {
+            "none" => Ok(Technique::None),
+            _ => Err(Error::param(
+                "--technique",
+                format!(
+                    "unknown technique `{s}` (known: {})",
+                    Technique::NAMES.join(", ")
+                ),
+            )),
+        }
+    }
+}
+
+/// Options of one render.
+#[derive(Debug, Clone)]
+pub struct RenderOptions {
+    /// Overrides the camera's width.
+    pub width: Option<u32>,
+    /// Overrides the camera's height.
+    pub height: Option<u32>,
+    /// AOV layers to produce.
+    pub aovs: Vec<Aov>,
+    /// The shadow technique.
+    pub technique: Technique,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            width: None,
+            height: None,
+            aovs: Vec::new(),
+            technique: Technique::None,
+        }
+    }
+}
+
+/// A finished render.
+#[derive(Debug, Clone)]
+pub struct RenderOutput {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Linear radiance, row-major, row 0 at the top.
+    pub radiance: Vec<Vec3>,
+    /// Requested AOV layers and the technique's own.
+    pub layers: Vec<Layer>,
+    /// Every pass with its wall-clock time, in order.
+    pub passes: Vec<PassTiming>,
+    /// Raster counters of the G-buffer pass.
+    pub gbuffer_stats: DrawStats,
+}
+
+/// The view a render of `scene` with `options` uses.
+pub fn view_for(scene: &Scene, options: &RenderOptions) -> Result<View> {
+    let width = options.width.unwrap_or(scene.camera.width);
+    let height = options.height.unwrap_or(scene.camera.height);
+    View::new(
+        &scene.camera,
+        width,
+        height,
+        near_for_bounds(scene.camera.eye, scene.bounds()),
+    )
+}
+
+/// Renders a scene.
+pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Result<RenderOutput> {
+    let view = view_for(scene, options)?;
+    let mut passes = Vec::new();
+    let timed = |name: &str, passes: &mut Vec<PassTiming>, start: Instant| {
+        passes.push(PassTiming {
+            name: name.to_string(),
+            time: start.elapsed(),
+        });
+        progress.step();
+    };
+
+    progress.stage("geometry");
+    let t = Instant::now();
+    let geometry = SceneGeometry::new(scene);
+    timed("geometry", &mut passes, t);
+
+    progress.stage("g-buffer");
+    let t = Instant::now();
+    let (gbuffer, depth, gbuffer_stats) = gbuffer_pass(scene, &geometry, &view)?;
+    timed("gbuffer", &mut passes, t);
+
+    progress.stage("shadows");
+    let technique = options.technique.build();
+    let ctx = ShadowContext {
+        scene,
+        geometry: &geometry,
+        view: &view,
+        gbuffer: &gbuffer,
+        depth: &depth,
+    };
+    let shadows = technique.compute(&ctx)?;
+    passes.extend(shadows.passes.iter().cloned());
+    progress.step();
+
+    progress.stage("shading");
+    let t = Instant::now();
+    let radiance = shade(scene, &view, &gbuffer, &shadows.lights);
+    timed("shading", &mut passes, t);
+
+    let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs);
+    layers.extend(shadows.layers);
+    Ok(RenderOutput {
+        width: view.width,
+        height: view.height,
+        radiance,
+        layers,
+        passes,
+        gbuffer_stats,
+    })
+}
+
+/// Builds the requested standard AOV layers. Background pixels hold 0 in
+/// every layer (`mask.Y` tells them apart).
+pub fn aov_layers(gbuffer: &GBuffer, terms: &[LightTerm], aovs: &[Aov]) -> Vec<Layer> {
+    let s = &gbuffer.samples;
+    let channel = |name: &str, f: &dyn Fn(&crate::gbuffer::GSample) -> f32| {
+        (
+            name.to_string(),
+            s.iter()
+                .map(|g| if g.is_surface() { f(g) } else { 0.0 })
+                .collect::<Vec<f32>>(),
+        )
+    };
+    let mut layers = Vec::new();
+    for aov in Aov::ALL.into_iter().filter(|a| aovs.contains(a)) {
+        let channels = match aov {
+            Aov::Depth => vec![channel("Z", &|g| g.depth)],
+            Aov::Position => vec![
+                channel("X", &|g| g.position.x),
+                channel("Y", &|g| g.position.y),
+                channel("Z", &|g| g.position.z),
+            ],
+            Aov::Normal => vec![
+                channel("X", &|g| g.normal.x),
+                channel("Y", &|g| g.normal.y),
+                channel("Z", &|g| g.normal.z),
+            ],
+            Aov::Albedo => vec![
+                channel("R", &|g| g.albedo.x),
+                channel("G", &|g| g.albedo.y),
+                channel("B", &|g| g.albedo.z),
+            ],
+            Aov::Mask => vec![channel("Y", &|_| 1.0)],
+            Aov::Vcoef => terms
+                .iter()
+                .enumerate()
+                .filter_map(|(k, t)| match t {
+                    LightTerm::Vcoef(v) => Some((
+                        k.to_string(),
+                        v.iter()
+                            .zip(s)
+                            .map(|(v, g)| if g.is_surface() { *v } else { 0.0 })
+                            .collect(),
+                    )),
+                    LightTerm::Radiance(_) => None,
+                })
+                .collect(),
+        };
+        layers.push(Layer {
+            name: aov.name().to_string(),
+            channels,
+        });
+    }
+    layers
+}
+
+/// Runs `f` on a thread pool of `threads` threads (all cores when `None`).
+pub fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> Result<R> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 || n > 1024 {
+            return Err(Error::param(
+                "--threads",
+                format!("{n} is outside 1..=1024"),
+            ));
+        }
+        builder = builder.num_threads(n);
+    }
+    let pool = builder
+        .build()
+        .map_err(|e| Error::param("--threads", e.to_string()))?;
+    Ok(pool.install(f))
+}

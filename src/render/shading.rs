@@ -1,0 +1,66 @@
+//! The shading pass: ambient plus, per light, the unshadowed direct light
+//! times the technique's visibility coefficient (or the technique's own
+//! integrated radiance).
+
+use crate::gbuffer::GBuffer;
+use crate::scene::Scene;
+use crate::shade::{PreparedLight, SurfacePoint};
+use crate::shadow::LightTerm;
+use crate::view::View;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Radiance per pixel, row-major.
+pub fn shade(scene: &Scene, view: &View, gbuffer: &GBuffer, terms: &[LightTerm]) -> Vec<Vec3> {
+    let lights: Vec<PreparedLight> = scene
+        .lights
+        .iter()
+        .map(|l| PreparedLight::new(l, &scene.textures))
+        .collect();
+    let eye = view.eye.as_vec3();
+    let mut out = vec![scene.background; gbuffer.samples.len()];
+    out.par_chunks_mut(gbuffer.width as usize)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, radiance) in row.iter_mut().enumerate() {
+                let i = y * gbuffer.width as usize + x;
+                let g = &gbuffer.samples[i];
+                if !g.is_surface() {
+                    continue;
+                }
+                let m = &scene.materials[g.material as usize];
+                let receives = scene.objects[g.object as usize].receive_shadows;
+                let sp = SurfacePoint {
+                    p: g.position,
+                    n: g.normal,
+                    ng: g.geo_normal,
+                    wo: (eye - g.position).normalize_or_zero(),
+                    albedo: g.albedo,
+                    specular: m.specular,
+                    shininess: m.shininess,
+                };
+                let mut l = scene.ambient * g.albedo;
+                for (light, term) in lights.iter().zip(terms) {
+                    l += match term {
+                        LightTerm::Vcoef(v) => {
+                            let vis = if receives { v[i] } else { 1.0 };
+                            if vis > 0.0 {
+                                light.unshadowed_direct(&sp) * vis
+                            } else {
+                                Vec3::ZERO
+                            }
+                        }
+                        LightTerm::Radiance(r) => {
+                            if receives {
+                                r[i]
+                            } else {
+                                light.unshadowed_direct(&sp)
+                            }
+                        }
+                    };
+                }
+                *radiance = l;
+            }
+        });
+    out
+}

@@ -1,0 +1,5 @@
+//! Reporting: progress, timings (and, later, error metrics and plots).
+
+mod progress;
+
+pub use progress::Progress;
