@@ -1,1 +1,42 @@
-fn main() {}
+//! Raster benchmarks on `scenes/spheres.toml` at 1024²: the depth-only
+//! pre-pass and the G-buffer pass (visibility raster + exact resolve).
+//!
+//! Run: `cargo bench --bench raster` (set `RAYON_NUM_THREADS=2` to compare
+//! with llvmpipe's two-thread figures, see docs/performance.md).
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use penumbra::gbuffer::{depth_pass, gbuffer_pass, transform_vertices};
+use penumbra::geom::SceneGeometry;
+use penumbra::render::{view_for, RenderOptions};
+use penumbra::scene::load_scene;
+use std::path::Path;
+
+fn raster(c: &mut Criterion) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml");
+    let scene = load_scene(&path).expect("shipped scene loads");
+    let options = RenderOptions {
+        width: Some(1024),
+        height: Some(1024),
+        ..RenderOptions::default()
+    };
+    let view = view_for(&scene, &options).expect("view");
+    let geometry = SceneGeometry::new(&scene);
+    let triangles = geometry.triangles.len() as u64;
+
+    let mut group = c.benchmark_group("spheres_1024");
+    group.sample_size(30);
+    group.throughput(Throughput::Elements(triangles));
+    group.bench_function("depth_prepass", |b| {
+        b.iter(|| {
+            let vertices = transform_vertices(&geometry, &view);
+            depth_pass(&geometry, &view, &vertices).expect("draw")
+        })
+    });
+    group.bench_function("gbuffer", |b| {
+        b.iter(|| gbuffer_pass(&scene, &geometry, &view).expect("draw"))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, raster);
+criterion_main!(benches);

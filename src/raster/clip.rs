@@ -86,6 +86,35 @@ fn intersect<const N: usize>(
     }
 }
 
+/// Where a triangle lies with respect to the clip volume.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ClipClass {
+    /// Entirely inside: no clipping needed.
+    Inside,
+    /// Entirely outside one plane: nothing to draw.
+    Outside,
+    /// Crosses at least one plane.
+    Crossing,
+}
+
+/// Classifies a triangle by its vertices' outcodes.
+#[inline]
+pub fn classify<const N: usize>(
+    triangle: &[ClipVertex<N>; 3],
+    guard_x: f32,
+    guard_y: f32,
+) -> ClipClass {
+    let planes = planes(guard_x, guard_y);
+    let codes = triangle.map(|v| outcode(&planes, v.position));
+    if codes[0] & codes[1] & codes[2] != 0 {
+        ClipClass::Outside
+    } else if codes[0] | codes[1] | codes[2] == 0 {
+        ClipClass::Inside
+    } else {
+        ClipClass::Crossing
+    }
+}
+
 /// Clips a triangle. Returns `len == 0` when nothing is left, `len == 3`
 /// with the input untouched when no clipping was needed.
 pub fn clip_triangle<const N: usize>(

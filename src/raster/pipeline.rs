@@ -1,7 +1,7 @@
 //! The draw call: vertex outputs → clip → setup → bin → tiles in parallel.
 
 use super::bin::TileBins;
-use super::clip::clip_triangle;
+use super::clip::{classify, clip_triangle, ClipClass};
 use super::fragment::FragmentStage;
 use super::framebuffer::Framebuffer;
 use super::setup::{setup_polygon, SetupTriangle, Viewport};
@@ -85,8 +85,18 @@ pub fn draw<const N: usize, S: FragmentStage<N>>(
             let mut out = Vec::with_capacity(tris.len());
             for (k, tri) in tris.iter().enumerate() {
                 let prim = (chunk * SETUP_CHUNK + k) as u32;
-                let clipped = clip_triangle(tri.map(|i| vertices[i as usize]), gx, gy);
-                setup_polygon(&clipped, viewport, cull_front, cull_back, prim, &mut out);
+                let v = tri.map(|i| vertices[i as usize]);
+                match classify(&v, gx, gy) {
+                    ClipClass::Inside => {
+                        setup_polygon(&v, viewport, cull_front, cull_back, prim, &mut out)
+                    }
+                    ClipClass::Outside => {}
+                    ClipClass::Crossing => {
+                        let c = clip_triangle(v, gx, gy);
+                        let poly = &c.vertices[..c.len];
+                        setup_polygon(poly, viewport, cull_front, cull_back, prim, &mut out)
+                    }
+                }
             }
             out
         })

@@ -9,11 +9,20 @@ use super::simd::{
     compare_f32, compare_i32, load_f32, load_i32, select_f32, select_i32, stencil_op, LANE_OFFSETS,
 };
 use super::state::RasterState;
-use wide::{f32x8, f64x4, CmpGe};
+use wide::{f32x8, f64x4};
 
 const BLOCK: i32 = 8;
 const OFFSETS_LO: f64x4 = f64x4::new([0.0, 1.0, 2.0, 3.0]);
 const OFFSETS_HI: f64x4 = f64x4::new([4.0, 5.0, 6.0, 7.0]);
+
+/// One partial edge's values along a block row, stepped down the rows.
+#[derive(Clone, Copy, Default)]
+struct EdgeRows {
+    value: f64x4,
+    lanes_lo: f64x4,
+    lanes_hi: f64x4,
+    step_y: f64x4,
+}
 
 /// Per-tile counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -89,32 +98,42 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let lo = (clip[0] - bx).max(0);
         let hi = (clip[2] - bx).min(BLOCK - 1);
         let box_bits = ((0xffu32 << lo) & (0xffu32 >> (BLOCK - 1 - hi))) as u8;
-        let any_partial = partial.iter().any(|&p| p);
-        for y in by.max(clip[1])..=(by + BLOCK - 1).min(clip[3]) {
+        let first_row = by.max(clip[1]);
+        let last_row = (by + BLOCK - 1).min(clip[3]);
+        // Partial edges, stepped row by row in f64: every value is an
+        // integer below 2^53, so the additions are exact.
+        let mut rows = [EdgeRows::default(); 3];
+        let mut n = 0;
+        for (e, _) in t.edges.iter().zip(partial).filter(|(_, p)| *p) {
+            let step = f64x4::splat(e.step_x() as f64);
+            rows[n] = EdgeRows {
+                value: f64x4::splat(e.at_pixel(bx as i64, first_row as i64) as f64),
+                lanes_lo: OFFSETS_LO * step,
+                lanes_hi: OFFSETS_HI * step,
+                step_y: f64x4::splat(e.step_y() as f64),
+            };
+            n += 1;
+        }
+        for y in first_row..=last_row {
             let mut mask = box_bits;
-            if any_partial {
-                mask &= self.row_coverage(t, &partial, bx, y);
+            if n > 0 {
+                // A lane is outside when any partial edge is negative
+                // there: OR the values and read the sign bits. (Values are
+                // never -0.0: they are sums of integers starting from a
+                // converted i64.)
+                let (mut lo, mut hi) = (f64x4::splat(0.0), f64x4::splat(0.0));
+                for r in &mut rows[..n] {
+                    lo = lo | (r.value + r.lanes_lo);
+                    hi = hi | (r.value + r.lanes_hi);
+                    r.value += r.step_y;
+                }
+                let outside = lo.move_mask() | (hi.move_mask() << 4);
+                mask &= !(outside as u8);
             }
             if mask != 0 {
                 self.row(t, bx, y, mask, ds, target, stats);
             }
         }
-    }
-
-    /// Exact coverage of 8 pixel centres by the partial edges: edge values
-    /// are integers below 2^53, so the f64 lanes compute them exactly.
-    #[inline]
-    fn row_coverage(&self, t: &SetupTriangle<N>, partial: &[bool; 3], x: i32, y: i32) -> u8 {
-        let mut lo = f64x4::splat(f64::INFINITY);
-        let mut hi = lo;
-        for (e, _) in t.edges.iter().zip(partial).filter(|(_, &p)| p) {
-            let base = f64x4::splat(e.at_pixel(x as i64, y as i64) as f64);
-            let step = f64x4::splat(e.step_x() as f64);
-            lo = lo.min(base + OFFSETS_LO * step);
-            hi = hi.min(base + OFFSETS_HI * step);
-        }
-        let zero = f64x4::splat(0.0);
-        (lo.cmp_ge(zero).move_mask() | (hi.cmp_ge(zero).move_mask() << 4)) as u8
     }
 
     /// Tests, updates and shades one row of 8 fragments.
