@@ -1,9 +1,758 @@
-//! Scene loading (placeholder).
-use super::Scene;
+//! Scene loading: the TOML contract (`shared/spec/scene-format.md`) into a
+//! validated [`Scene`]. What we accept beyond the contract, and every error
+//! we detect, is listed in `docs/scene-format.md`.
+//!
+//! Parsing is serde with `deny_unknown_fields`; every value that a semantic
+//! check can reject is a `toml::Spanned`, so each error names the scene file
+//! and the line of the offending key.
+
+use super::{shapes, Camera, Light, LightShape, Material, Object, Scene, Texture};
 use crate::error::{Error, Result};
-use std::path::Path;
+use crate::geom::Mesh;
+use glam::{Mat3, Vec3};
+use serde::de::{self, Deserializer, SeqAccess, Visitor};
+use serde::Deserialize;
+use std::collections::HashMap;
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// Image size used when `[camera]` gives none.
+const DEFAULT_IMAGE_SIZE: u32 = 1024;
+/// Largest accepted image width or height.
+const MAX_IMAGE_SIDE: i64 = 65536;
+/// Largest accepted image area, in pixels.
+const MAX_IMAGE_PIXELS: i64 = 1 << 28;
+/// Accepted sphere tessellations.
+const SEGMENTS: Range<i64> = 3..4097;
+const RINGS: Range<i64> = 2..4097;
+
+/// Index of the default material (albedo 0.8, opaque) in `Scene::materials`.
+pub(super) const DEFAULT_MATERIAL: u32 = 0;
+
+// ---------------------------------------------------------------- TOML ----
+
+/// A number (the same on all three components) or an array of three.
+#[derive(Debug, Clone, Copy)]
+struct Triple([f32; 3]);
+
+impl<'de> Deserialize<'de> for Triple {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Triple;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number or an array of 3 numbers")
+            }
+            fn visit_f64<E: de::Error>(self, x: f64) -> std::result::Result<Triple, E> {
+                Ok(Triple([x as f32; 3]))
+            }
+            fn visit_i64<E: de::Error>(self, x: i64) -> std::result::Result<Triple, E> {
+                Ok(Triple([x as f32; 3]))
+            }
+            fn visit_u64<E: de::Error>(self, x: u64) -> std::result::Result<Triple, E> {
+                Ok(Triple([x as f32; 3]))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> std::result::Result<Triple, A::Error> {
+                let mut out = [0.0; 3];
+                for (i, slot) in out.iter_mut().enumerate() {
+                    *slot = seq
+                        .next_element()?
+                        .ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                }
+                if seq.next_element::<de::IgnoredAny>()?.is_some() {
+                    return Err(de::Error::invalid_length(4, &self));
+                }
+                Ok(Triple(out))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+type Sp<T> = Spanned<T>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    scene: SceneSection,
+    camera: Sp<CameraSection>,
+    #[serde(default)]
+    light: Vec<Sp<LightEntry>>,
+    #[serde(default)]
+    object: Vec<Sp<ObjectEntry>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct SceneSection {
+    name: Option<String>,
+    ambient: Option<Sp<Triple>>,
+    background: Option<Sp<Triple>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraSection {
+    eye: Sp<[f32; 3]>,
+    target: Sp<[f32; 3]>,
+    up: Option<Sp<[f32; 3]>>,
+    fov_y: Sp<f32>,
+    width: Option<Sp<i64>>,
+    height: Option<Sp<i64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightEntry {
+    #[serde(rename = "type")]
+    kind: Sp<String>,
+    center: Sp<[f32; 3]>,
+    radiance: Sp<Triple>,
+    u: Option<Sp<[f32; 3]>>,
+    v: Option<Sp<[f32; 3]>>,
+    radius: Option<Sp<f32>>,
+    texture: Option<Sp<String>>,
+    two_sided: Option<Sp<bool>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectEntry {
+    name: Option<String>,
+    obj: Option<Sp<String>>,
+    shape: Option<Sp<String>>,
+    radius: Option<Sp<f32>>,
+    segments: Option<Sp<i64>>,
+    rings: Option<Sp<i64>>,
+    size: Option<Sp<Vec<f32>>>,
+    translate: Option<Sp<[f32; 3]>>,
+    rotate: Option<Sp<[f32; 3]>>,
+    scale: Option<Sp<Triple>>,
+    material: Option<Sp<MaterialEntry>>,
+    cast_shadows: Option<bool>,
+    receive_shadows: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialEntry {
+    albedo: Option<Sp<Triple>>,
+    albedo_texture: Option<Sp<String>>,
+    specular: Option<Sp<Triple>>,
+    shininess: Option<Sp<f32>>,
+    opacity: Option<Sp<f32>>,
+    opacity_texture: Option<Sp<String>>,
+}
+
+// ------------------------------------------------------------- context ----
+
+/// The scene file being loaded: turns spans into lines and relative paths
+/// into paths next to the scene.
+struct Ctx<'a> {
+    path: &'a Path,
+    dir: &'a Path,
+    line_starts: Vec<usize>,
+}
+
+impl Ctx<'_> {
+    /// 1-based line of a byte offset.
+    fn line(&self, offset: usize) -> usize {
+        self.line_starts.partition_point(|&s| s <= offset)
+    }
+
+    fn err(&self, span: Range<usize>, message: impl Into<String>) -> Error {
+        Error::file(self.path, Some(self.line(span.start)), message)
+    }
+
+    /// The numbers of a value, which must all be finite.
+    fn finite<const N: usize>(
+        &self,
+        span: Range<usize>,
+        key: &str,
+        xs: [f32; N],
+    ) -> Result<[f32; N]> {
+        match xs.iter().all(|x| x.is_finite()) {
+            true => Ok(xs),
+            false => Err(self.err(span, format!("`{key}` must be finite"))),
+        }
+    }
+
+    fn vec3(&self, v: &Sp<[f32; 3]>, key: &str) -> Result<Vec3> {
+        self.finite(v.span(), key, *v.get_ref()).map(Vec3::from)
+    }
+
+    fn triple(&self, v: &Sp<Triple>, key: &str) -> Result<Vec3> {
+        self.finite(v.span(), key, v.get_ref().0).map(Vec3::from)
+    }
+
+    fn number(&self, v: &Sp<f32>, key: &str) -> Result<f32> {
+        self.finite(v.span(), key, [*v.get_ref()]).map(|[x]| x)
+    }
+
+    /// A colour-like triple that must not be negative, or `default`.
+    fn color(&self, v: Option<&Sp<Triple>>, key: &str, default: Vec3) -> Result<Vec3> {
+        let Some(v) = v else { return Ok(default) };
+        let c = self.triple(v, key)?;
+        match c.min_element() >= 0.0 {
+            true => Ok(c),
+            false => Err(self.err(v.span(), format!("`{key}` must not be negative"))),
+        }
+    }
+
+    /// An integer in `range`, or `default`.
+    fn int(&self, v: &Option<Sp<i64>>, key: &str, range: Range<i64>, default: i64) -> Result<i64> {
+        let Some(v) = v else { return Ok(default) };
+        match range.contains(v.get_ref()) {
+            true => Ok(*v.get_ref()),
+            false => Err(self.err(
+                v.span(),
+                format!(
+                    "`{key}` = {} is outside {}..={}",
+                    v.get_ref(),
+                    range.start,
+                    range.end - 1
+                ),
+            )),
+        }
+    }
+
+    /// A path from the scene file, relative to the scene's directory.
+    fn resolve(&self, p: &str) -> PathBuf {
+        self.dir.join(p)
+    }
+
+    /// The index of a texture named in the scene file, if one is given.
+    fn texture(
+        &self,
+        assets: &mut Assets,
+        file: Option<&Sp<String>>,
+        kind: TextureKind,
+    ) -> Result<Option<usize>> {
+        file.map(|t| {
+            let line = Some(self.line(t.span().start));
+            assets.texture(&self.resolve(t.get_ref()), kind, self.path, line)
+        })
+        .transpose()
+    }
+}
+
+// -------------------------------------------------------------- assets ----
+
+/// How a texture's texels are decoded; part of the texture cache key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(super) enum TextureKind {
+    /// sRGB colour (albedo, light).
+    Color,
+    /// Linear opacity (alpha or luminance).
+    Opacity,
+}
+
+/// Materials and textures shared by all objects and lights of a scene.
+pub(super) struct Assets {
+    pub(super) materials: Vec<Material>,
+    pub(super) textures: Vec<Texture>,
+    texture_ids: HashMap<(PathBuf, TextureKind), usize>,
+}
+
+impl Assets {
+    fn new() -> Self {
+        Assets {
+            materials: vec![Material::default()],
+            textures: Vec::new(),
+            texture_ids: HashMap::new(),
+        }
+    }
+
+    /// The index of a texture, loaded once per file and kind. `from:line`
+    /// is the statement referencing it, where errors point.
+    pub(super) fn texture(
+        &mut self,
+        path: &Path,
+        kind: TextureKind,
+        from: &Path,
+        line: Option<usize>,
+    ) -> Result<usize> {
+        // Canonical paths make `a/../t.png` and `t.png` one texture; a path
+        // that does not resolve fails in the loader with a proper message.
+        let key = (
+            std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
+            kind,
+        );
+        if let Some(&i) = self.texture_ids.get(&key) {
+            return Ok(i);
+        }
+        let texture = match kind {
+            TextureKind::Color => Texture::load_color(path, from, line)?,
+            TextureKind::Opacity => Texture::load_opacity(path, from, line)?,
+        };
+        self.textures.push(texture);
+        self.texture_ids.insert(key, self.textures.len() - 1);
+        Ok(self.textures.len() - 1)
+    }
+
+    /// The index of a material; identical materials (the default, repeated
+    /// inline ones) share one.
+    pub(super) fn material(&mut self, m: Material) -> Result<u32> {
+        let i = self
+            .materials
+            .iter()
+            .position(|x| *x == m)
+            .unwrap_or_else(|| {
+                self.materials.push(m);
+                self.materials.len() - 1
+            });
+        u32::try_from(i).map_err(|_| Error::param("materials", "more than 2^32 materials"))
+    }
+}
+
+// ------------------------------------------------------------- builders ----
+
+fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
+    let c = c.get_ref();
+    let eye = ctx.vec3(&c.eye, "camera.eye")?;
+    let target = ctx.vec3(&c.target, "camera.target")?;
+    let up =
+        c.up.as_ref()
+            .map_or(Ok(Vec3::Y), |u| ctx.vec3(u, "camera.up"))?;
+    let fov = ctx.number(&c.fov_y, "camera.fov_y")?;
+    if !(fov > 0.0 && fov < 180.0) {
+        return Err(ctx.err(
+            c.fov_y.span(),
+            format!("`camera.fov_y` = {fov} must be in (0, 180) degrees"),
+        ));
+    }
+    let forward = target - eye;
+    if forward == Vec3::ZERO || !forward.is_finite() {
+        return Err(ctx.err(
+            c.target.span(),
+            "`camera.target` must differ from `camera.eye`",
+        ));
+    }
+    // Parallel (or zero) up leaves `right = normalize(forward × up)` undefined.
+    if forward.normalize().cross(up).length() <= 1e-6 * up.length() {
+        let span = c.up.as_ref().map_or(c.target.span(), Sp::span);
+        return Err(ctx.err(
+            span,
+            "`camera.up` must not be parallel to the view direction",
+        ));
+    }
+    let side = 1..MAX_IMAGE_SIDE + 1;
+    let default = i64::from(DEFAULT_IMAGE_SIZE);
+    let width = ctx.int(&c.width, "camera.width", side.clone(), default)?;
+    let height = ctx.int(&c.height, "camera.height", side, default)?;
+    if width * height > MAX_IMAGE_PIXELS {
+        let span = c
+            .height
+            .as_ref()
+            .or(c.width.as_ref())
+            .map_or(c.fov_y.span(), Sp::span);
+        return Err(ctx.err(
+            span,
+            format!("{width}×{height} is more than {MAX_IMAGE_PIXELS} pixels"),
+        ));
+    }
+    Ok(Camera {
+        eye,
+        target,
+        up,
+        fov_y_degrees: fov,
+        // In range by the checks above.
+        width: width as u32,
+        height: height as u32,
+    })
+}
+
+/// Rejects keys that do not apply to this kind of light or object.
+fn only(
+    ctx: &Ctx,
+    what: &str,
+    allowed: &[&str],
+    present: &[(&str, Option<Range<usize>>)],
+) -> Result<()> {
+    match present
+        .iter()
+        .find(|(k, s)| s.is_some() && !allowed.contains(k))
+    {
+        Some((key, Some(span))) => {
+            Err(ctx.err(span.clone(), format!("`{key}` does not apply to {what}")))
+        }
+        _ => Ok(()),
+    }
+}
+
+fn span<T>(v: &Option<Sp<T>>) -> Option<Range<usize>> {
+    v.as_ref().map(Sp::span)
+}
+
+fn light(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<LightEntry>) -> Result<Light> {
+    let l = entry.get_ref();
+    let key = |k: &str| format!("light[{i}].{k}");
+    let center = ctx.vec3(&l.center, &key("center"))?;
+    let radiance = ctx.color(Some(&l.radiance), &key("radiance"), Vec3::ZERO)?;
+    let present = [
+        ("u", span(&l.u)),
+        ("v", span(&l.v)),
+        ("texture", span(&l.texture)),
+        ("two_sided", span(&l.two_sided)),
+        ("radius", span(&l.radius)),
+    ];
+    let shape = match l.kind.get_ref().as_str() {
+        "rect" => {
+            only(
+                ctx,
+                "rect lights",
+                &["u", "v", "texture", "two_sided"],
+                &present,
+            )?;
+            let (Some(u_sp), Some(v_sp)) = (&l.u, &l.v) else {
+                return Err(ctx.err(entry.span(), "a rect light needs `u` and `v`"));
+            };
+            let (u, v) = (ctx.vec3(u_sp, &key("u"))?, ctx.vec3(v_sp, &key("v"))?);
+            // Relative test (also true for a zero u or v): a sliver with
+            // |u × v| ≪ |u| |v| has no usable normal or area either.
+            if u.cross(v).length() <= 1e-6 * u.length() * v.length() {
+                let at = if u == Vec3::ZERO { u_sp } else { v_sp };
+                return Err(ctx.err(
+                    at.span(),
+                    "rect light has zero area (`u` and `v` are zero or parallel)",
+                ));
+            }
+            LightShape::Rect {
+                center,
+                u,
+                v,
+                two_sided: l.two_sided.as_ref().is_some_and(|t| *t.get_ref()),
+            }
+        }
+        "sphere" => {
+            only(
+                ctx,
+                "sphere lights (no texture in version 1)",
+                &["radius"],
+                &present,
+            )?;
+            let Some(r) = &l.radius else {
+                return Err(ctx.err(entry.span(), "a sphere light needs `radius`"));
+            };
+            let radius = ctx.number(r, &key("radius"))?;
+            if radius <= 0.0 {
+                return Err(ctx.err(r.span(), "sphere light `radius` must be positive"));
+            }
+            LightShape::Sphere { center, radius }
+        }
+        other => {
+            return Err(ctx.err(
+                l.kind.span(),
+                format!("unknown light type `{other}` (expected \"rect\" or \"sphere\")"),
+            ))
+        }
+    };
+    let texture = ctx.texture(assets, l.texture.as_ref(), TextureKind::Color)?;
+    Ok(Light {
+        shape,
+        radiance,
+        texture,
+    })
+}
+
+fn inline_material(
+    ctx: &Ctx,
+    assets: &mut Assets,
+    i: usize,
+    m: &MaterialEntry,
+) -> Result<Material> {
+    let key = |k: &str| format!("object[{i}].material.{k}");
+    let d = Material::default();
+    let scalar =
+        |v: &Option<Sp<f32>>, k: &str, default: f32, ok: fn(f32) -> bool, range: &str| match v {
+            Some(v) => {
+                let x = ctx.number(v, &key(k))?;
+                match ok(x) {
+                    true => Ok(x),
+                    false => Err(ctx.err(v.span(), format!("`{}` = {x} must be {range}", key(k)))),
+                }
+            }
+            None => Ok(default),
+        };
+    Ok(Material {
+        name: "inline".into(),
+        albedo: ctx.color(m.albedo.as_ref(), &key("albedo"), d.albedo)?,
+        albedo_texture: ctx.texture(assets, m.albedo_texture.as_ref(), TextureKind::Color)?,
+        specular: ctx.color(m.specular.as_ref(), &key("specular"), d.specular)?,
+        shininess: scalar(&m.shininess, "shininess", d.shininess, |x| x >= 0.0, "≥ 0")?,
+        opacity: scalar(
+            &m.opacity,
+            "opacity",
+            d.opacity,
+            |x| (0.0..=1.0).contains(&x),
+            "in [0, 1]",
+        )?,
+        opacity_texture: ctx.texture(assets, m.opacity_texture.as_ref(), TextureKind::Opacity)?,
+    })
+}
+
+/// Object-to-world transform: scale, then rotate (X, then Y, then Z), then
+/// translate.
+struct Transform {
+    linear: Mat3,
+    normal: Mat3,
+    translate: Vec3,
+    /// An odd number of negative scale factors mirrors the mesh.
+    mirror: bool,
+}
+
+fn transform(ctx: &Ctx, i: usize, o: &ObjectEntry) -> Result<Transform> {
+    let key = |k: &str| format!("object[{i}].{k}");
+    let translate = o
+        .translate
+        .as_ref()
+        .map_or(Ok(Vec3::ZERO), |t| ctx.vec3(t, &key("translate")))?;
+    let [rx, ry, rz] = match &o.rotate {
+        Some(r) => ctx.vec3(r, &key("rotate"))?.to_array().map(f32::to_radians),
+        None => [0.0; 3],
+    };
+    let scale = match &o.scale {
+        Some(s) => {
+            let v = ctx.triple(s, &key("scale"))?;
+            if v.x * v.y * v.z == 0.0 {
+                return Err(ctx.err(s.span(), format!("`{}` must not be zero", key("scale"))));
+            }
+            v
+        }
+        None => Vec3::ONE,
+    };
+    // Column vectors: R = Rz Ry Rx applies X first.
+    let rotation =
+        Mat3::from_rotation_z(rz) * Mat3::from_rotation_y(ry) * Mat3::from_rotation_x(rx);
+    let linear = rotation * Mat3::from_diagonal(scale);
+    Ok(Transform {
+        linear,
+        normal: linear.inverse().transpose(),
+        translate,
+        mirror: scale.x * scale.y * scale.z < 0.0,
+    })
+}
+
+/// Moves a mesh to world space and drops its degenerate triangles,
+/// returning how many were dropped. Fails (at `span`) if the result is not
+/// finite.
+fn place(
+    ctx: &Ctx,
+    span: Range<usize>,
+    what: &str,
+    mesh: &mut Mesh,
+    t: &Transform,
+) -> Result<usize> {
+    let too_big = || {
+        ctx.err(
+            span.clone(),
+            format!("{what}: transformed geometry is not finite (values too large)"),
+        )
+    };
+    for p in &mut mesh.positions {
+        *p = t.linear * *p + t.translate;
+        if !p.is_finite() {
+            return Err(too_big());
+        }
+    }
+    for n in mesh.normals.iter_mut().flatten() {
+        *n = (t.normal * *n).normalize();
+        if !n.is_finite() {
+            return Err(too_big());
+        }
+    }
+    if t.mirror {
+        // Keep counter-clockwise = outside, consistent with the normals.
+        mesh.triangles.iter_mut().for_each(|tri| tri.swap(1, 2));
+    }
+    let before = mesh.triangles.len();
+    let mut keep = Vec::with_capacity(before);
+    for (tri, &material) in mesh.triangles.iter().zip(&mesh.material_ids) {
+        let corner = |i: u32| mesh.positions.get(i as usize).copied().ok_or_else(too_big);
+        let [a, b, c] = [corner(tri[0])?, corner(tri[1])?, corner(tri[2])?];
+        let n = (b - a).cross(c - a);
+        if !n.is_finite() {
+            return Err(too_big());
+        }
+        if n != Vec3::ZERO {
+            keep.push((*tri, material));
+        }
+    }
+    (mesh.triangles, mesh.material_ids) = keep.into_iter().unzip();
+    Ok(before - mesh.triangles.len())
+}
+
+fn object(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<ObjectEntry>) -> Result<Object> {
+    let o = entry.get_ref();
+    let key = |k: &str| format!("object[{i}].{k}");
+    let material = match &o.material {
+        Some(m) => {
+            let m = inline_material(ctx, assets, i, m.get_ref())?;
+            Some(assets.material(m)?)
+        }
+        None => None,
+    };
+    let transform = transform(ctx, i, o)?;
+    let present = [
+        ("radius", span(&o.radius)),
+        ("segments", span(&o.segments)),
+        ("rings", span(&o.rings)),
+        ("size", span(&o.size)),
+    ];
+    let positive = |v: &Sp<f32>, k: &str| -> Result<f32> {
+        let x = ctx.number(v, &key(k))?;
+        match x > 0.0 {
+            true => Ok(x),
+            false => Err(ctx.err(v.span(), format!("`{}` must be positive", key(k)))),
+        }
+    };
+    // `size` of the box or quad: `n` positive numbers, default all 1.
+    let size = |n: usize| -> Result<Vec<f32>> {
+        let Some(s) = &o.size else {
+            return Ok(vec![1.0; n]);
+        };
+        if s.get_ref().len() != n || !s.get_ref().iter().all(|&x| x.is_finite() && x > 0.0) {
+            return Err(ctx.err(
+                s.span(),
+                format!("`{}` must be {n} positive numbers", key("size")),
+            ));
+        }
+        Ok(s.get_ref().clone())
+    };
+    let (mut mesh, origin, name) = match (&o.obj, &o.shape) {
+        (Some(_), Some(shape)) => {
+            return Err(ctx.err(
+                shape.span(),
+                "an object has either `obj` or `shape`, not both",
+            ))
+        }
+        (None, None) => return Err(ctx.err(entry.span(), "an object needs `obj` or `shape`")),
+        (Some(file), None) => {
+            only(ctx, "obj objects", &[], &present)?;
+            let path = ctx.resolve(file.get_ref());
+            let line = ctx.line(file.span().start);
+            let mesh = super::obj::load_obj(&path, ctx.path, line, material, assets)?;
+            let stem = path
+                .file_stem()
+                .map_or("obj".into(), |s| s.to_string_lossy().into_owned());
+            (mesh, file, stem)
+        }
+        (None, Some(shape)) => {
+            let m = material.unwrap_or(DEFAULT_MATERIAL);
+            let mesh = match shape.get_ref().as_str() {
+                "sphere" => {
+                    only(ctx, "spheres", &["radius", "segments", "rings"], &present)?;
+                    let r = o
+                        .radius
+                        .as_ref()
+                        .map_or(Ok(1.0), |r| positive(r, "radius"))?;
+                    let segments = ctx.int(&o.segments, &key("segments"), SEGMENTS, 20)?;
+                    let rings = ctx.int(&o.rings, &key("rings"), RINGS, 20)?;
+                    // In range by the checks above.
+                    shapes::sphere(r, segments as u32, rings as u32, m)
+                }
+                "box" => {
+                    only(ctx, "boxes", &["size"], &present)?;
+                    shapes::cuboid(Vec3::from_slice(&size(3)?), m)
+                }
+                "quad" => {
+                    only(ctx, "quads", &["size"], &present)?;
+                    let s = size(2)?;
+                    shapes::quad(s[0], s[1], m)
+                }
+                other => {
+                    return Err(ctx.err(
+                        shape.span(),
+                        format!(
+                            "unknown shape `{other}` (expected \"sphere\", \"box\" or \"quad\")"
+                        ),
+                    ))
+                }
+            };
+            (mesh, shape, shape.get_ref().clone())
+        }
+    };
+    let name = o.name.clone().unwrap_or_else(|| format!("{name}#{i}"));
+    let dropped = place(ctx, origin.span(), &name, &mut mesh, &transform)?;
+    if dropped > 0 {
+        eprintln!(
+            "note: {}:{}: object `{name}`: dropped {dropped} degenerate triangle(s)",
+            ctx.path.display(),
+            ctx.line(origin.span().start)
+        );
+    }
+    Ok(Object {
+        name,
+        mesh,
+        cast_shadows: o.cast_shadows.unwrap_or(true),
+        receive_shadows: o.receive_shadows.unwrap_or(true),
+    })
+}
 
 /// Load and validate a scene file.
+///
+/// Every problem is an [`Error::File`] naming the file at fault and, for
+/// the scene file, the line of the offending key (an OBJ/MTL problem names
+/// that file and its line; a texture problem names the texture and points
+/// at the line that references it). Only failing to read the scene file
+/// itself is an [`Error::Io`].
 pub fn load_scene(path: &Path) -> Result<Scene> {
-    Err(Error::file(path, None, "not yet"))
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let line_starts: Vec<usize> = std::iter::once(0)
+        .chain(
+            bytes
+                .iter()
+                .enumerate()
+                .filter(|(_, &b)| b == b'\n')
+                .map(|(i, _)| i + 1),
+        )
+        .collect();
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let ctx = Ctx {
+        path,
+        dir,
+        line_starts,
+    };
+    let text = std::str::from_utf8(&bytes).map_err(|e| {
+        let at = e.valid_up_to();
+        ctx.err(at..at, "not valid UTF-8 text")
+    })?;
+    let file: SceneFile = toml::from_str(text).map_err(|e| {
+        // toml gives a span for everything it can place; the rest is at the top.
+        let line = e.span().map_or(1, |s| ctx.line(s.start));
+        Error::file(path, Some(line), e.message().trim().replace('\n', ": "))
+    })?;
+
+    let section = &file.scene;
+    let name = section.name.clone().unwrap_or_else(|| {
+        path.file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().into_owned())
+    });
+    let ambient = ctx.color(section.ambient.as_ref(), "scene.ambient", Vec3::ZERO)?;
+    let background = ctx.color(section.background.as_ref(), "scene.background", Vec3::ZERO)?;
+    let camera = camera(&ctx, &file.camera)?;
+    let mut assets = Assets::new();
+    let lights = (file.light.iter().enumerate())
+        .map(|(i, l)| light(&ctx, &mut assets, i, l))
+        .collect::<Result<_>>()?;
+    let objects = (file.object.iter().enumerate())
+        .map(|(i, o)| object(&ctx, &mut assets, i, o))
+        .collect::<Result<_>>()?;
+    Ok(Scene {
+        name,
+        path: path.to_path_buf(),
+        ambient,
+        background,
+        camera,
+        lights,
+        objects,
+        materials: assets.materials,
+        textures: assets.textures,
+    })
 }
