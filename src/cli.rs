@@ -44,6 +44,12 @@ enum Command {
         /// Shadow technique.
         #[arg(long, default_value = "none")]
         technique: String,
+        /// Light samples per pixel and light (sampling techniques).
+        #[arg(long, default_value_t = 64)]
+        samples: u32,
+        /// Seed of the per-pixel random numbers.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
         /// Print each pass's time to stderr.
         #[arg(long)]
         timings: bool,
@@ -67,6 +73,8 @@ pub fn run(cli: Cli) -> Result<()> {
             height,
             threads,
             technique,
+            samples,
+            seed,
             timings,
         } => {
             let aovs = aov
@@ -84,7 +92,15 @@ pub fn run(cli: Cli) -> Result<()> {
                 height,
                 aovs,
                 technique: technique.parse::<Technique>()?,
+                samples,
+                seed,
             };
+            if samples == 0 || samples > 1 << 20 {
+                return Err(Error::param(
+                    "--samples",
+                    format!("{samples} is outside 1..=1048576"),
+                ));
+            }
             for (name, v) in [("--width", width), ("--height", height)] {
                 if v == Some(0) {
                     return Err(Error::param(name, "must be at least 1"));

@@ -12,6 +12,7 @@ pub mod output;
 pub mod raster;
 pub mod render;
 pub mod report;
+pub mod sampling;
 pub mod scene;
 pub mod shade;
 pub mod shadow;

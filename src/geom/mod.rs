@@ -1,6 +1,7 @@
 //! Geometry: meshes, the scene's concatenated triangle list (and, as
 //! techniques need them, edge adjacency, silhouettes and the BVH).
 
+pub mod bvh;
 mod mesh;
 mod scene_geometry;
 

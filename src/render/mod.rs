@@ -82,7 +82,7 @@ impl Technique {
     /// All technique names.
     pub const NAMES: [&'static str; 1] = ["none"];
 
-    fn build(self) -> Box<dyn ShadowTechnique> {
+    fn build(self, _options: &RenderOptions) -> Box<dyn ShadowTechnique> {
         match self {
             Technique::None => Box::new(Unshadowed),
         }
@@ -116,6 +116,10 @@ pub struct RenderOptions {
     pub aovs: Vec<Aov>,
     /// The shadow technique.
     pub technique: Technique,
+    /// Light samples per pixel and light, for techniques that sample.
+    pub samples: u32,
+    /// Seed of every random choice (per-pixel keyed).
+    pub seed: u64,
 }
 
 impl Default for RenderOptions {
@@ -125,6 +129,8 @@ impl Default for RenderOptions {
             height: None,
             aovs: Vec::new(),
             technique: Technique::None,
+            samples: 64,
+            seed: 0,
         }
     }
 }
@@ -181,7 +187,7 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
     timed("gbuffer", &mut passes, t);
 
     progress.stage("shadows");
-    let technique = options.technique.build();
+    let technique = options.technique.build(options);
     let ctx = ShadowContext {
         scene,
         geometry: &geometry,
@@ -245,15 +251,15 @@ pub fn aov_layers(gbuffer: &GBuffer, terms: &[LightTerm], aovs: &[Aov]) -> Vec<L
             Aov::Vcoef => terms
                 .iter()
                 .enumerate()
-                .filter_map(|(k, t)| match t {
-                    LightTerm::Vcoef(v) => Some((
+                .filter_map(|(k, t)| {
+                    let v = t.vcoef.as_ref()?;
+                    Some((
                         k.to_string(),
                         v.iter()
                             .zip(s)
                             .map(|(v, g)| if g.is_surface() { *v } else { 0.0 })
                             .collect(),
-                    )),
-                    LightTerm::Radiance(_) => None,
+                    ))
                 })
                 .collect(),
         };

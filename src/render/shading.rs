@@ -41,22 +41,12 @@ pub fn shade(scene: &Scene, view: &View, gbuffer: &GBuffer, terms: &[LightTerm])
                 };
                 let mut l = scene.ambient * g.albedo;
                 for (light, term) in lights.iter().zip(terms) {
-                    l += match term {
-                        LightTerm::Vcoef(v) => {
-                            let vis = if receives { v[i] } else { 1.0 };
-                            if vis > 0.0 {
-                                light.unshadowed_direct(&sp) * vis
-                            } else {
-                                Vec3::ZERO
-                            }
-                        }
-                        LightTerm::Radiance(r) => {
-                            if receives {
-                                r[i]
-                            } else {
-                                light.unshadowed_direct(&sp)
-                            }
-                        }
+                    l += match (&term.radiance, &term.vcoef) {
+                        _ if !receives => light.unshadowed_direct(&sp),
+                        (Some(r), _) => r[i],
+                        (None, Some(v)) if v[i] > 0.0 => light.unshadowed_direct(&sp) * v[i],
+                        (None, Some(_)) => Vec3::ZERO,
+                        (None, None) => light.unshadowed_direct(&sp),
                     };
                 }
                 *radiance = l;

@@ -6,6 +6,8 @@
 //! it) or the shadowed direct radiance it integrated itself per light
 //! sample. It may add AOV layers of its own and reports its passes' times.
 
+pub mod reference;
+
 use crate::error::Result;
 use crate::gbuffer::GBuffer;
 use crate::geom::SceneGeometry;
@@ -31,12 +33,25 @@ pub struct ShadowContext<'a> {
 }
 
 /// A technique's result for one light, per pixel (row-major).
-#[derive(Debug, Clone)]
-pub enum LightTerm {
-    /// Visibility coefficient in [0, 1] per pixel.
-    Vcoef(Vec<f32>),
-    /// Shadowed direct radiance per pixel, integrated by the technique.
-    Radiance(Vec<Vec3>),
+#[derive(Debug, Clone, Default)]
+pub struct LightTerm {
+    /// Visibility coefficient in [0, 1] per pixel (the `vcoef` AOV). When
+    /// `radiance` is absent, shading multiplies the unshadowed direct light
+    /// by it.
+    pub vcoef: Option<Vec<f32>>,
+    /// Shadowed direct radiance per pixel, integrated by the technique per
+    /// light sample; shading uses it as is.
+    pub radiance: Option<Vec<Vec3>>,
+}
+
+impl LightTerm {
+    /// A visibility-coefficient-only term.
+    pub fn vcoef(v: Vec<f32>) -> Self {
+        LightTerm {
+            vcoef: Some(v),
+            radiance: None,
+        }
+    }
 }
 
 /// Wall-clock time of one named pass.
@@ -83,7 +98,7 @@ impl ShadowTechnique for Unshadowed {
                 .scene
                 .lights
                 .iter()
-                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
+                .map(|_| LightTerm::vcoef(vec![1.0; n]))
                 .collect(),
             ..ShadowOutput::default()
         })

@@ -1,0 +1,1 @@
+//! Bounding volume hierarchy for shadow rays (placeholder).

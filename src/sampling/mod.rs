@@ -1,0 +1,1 @@
+//! Light samples, in one place for every technique (placeholder).
