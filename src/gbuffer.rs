@@ -14,6 +14,7 @@ use crate::scene::Scene;
 use crate::view::View;
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
+use wide::{f64x4, CmpGt, CmpLt};
 
 /// Triangle id of pixels where no surface is seen.
 pub const NO_TRIANGLE: u32 = u32::MAX;
@@ -209,18 +210,74 @@ pub fn resolve(
     ids: &TiledTarget<u32>,
 ) -> GBuffer {
     let (w, h) = (view.width, view.height);
+    let frames: Vec<TriangleFrame> = geometry
+        .triangles
+        .par_iter()
+        .with_min_len(4096)
+        .map(|t| TriangleFrame::new(t.map(|i| geometry.positions[i as usize].as_dvec3())))
+        .collect();
     let mut samples = vec![GSample::BACKGROUND; (w * h) as usize];
     samples
         .par_chunks_mut(w as usize)
         .enumerate()
         .for_each(|(y, row)| {
-            for (x, s) in row.iter_mut().enumerate() {
-                let tri = ids.get(x as u32, y as u32);
-                if tri != NO_TRIANGLE {
-                    *s = shading_point(scene, geometry, view, tri, x as u32, y as u32);
+            let mut run: Option<RunTriangle> = None;
+            let y = y as u32;
+            let mut x = 0u32;
+            while x < w {
+                let tri = ids.get(x, y);
+                if tri == NO_TRIANGLE {
+                    x += 1;
+                    continue;
                 }
+                // Up to 4 neighbours on the same triangle share one SIMD
+                // evaluation.
+                let mut end = x + 1;
+                while end < w && end - x < 4 && ids.get(end, y) == tri {
+                    end += 1;
+                }
+                // Replaced in place only when the triangle changes: the
+                // struct is large, moving it per pixel would cost more than
+                // the arithmetic.
+                if run.as_ref().is_some_and(|r| r.triangle != tri) {
+                    run = None;
+                }
+                let current = run.get_or_insert_with(|| {
+                    RunTriangle::new(scene, geometry, view, frames[tri as usize], tri)
+                });
+                current.sample4(view, x, y, &mut row[x as usize..end as usize]);
+                x = end;
             }
         });
+    GBuffer {
+        width: w,
+        height: h,
+        samples,
+    }
+}
+
+/// The scalar twin of [`resolve`]: one pixel at a time through the same
+/// formulas. Kept to test the SIMD path against.
+pub fn resolve_scalar(
+    scene: &Scene,
+    geometry: &SceneGeometry,
+    view: &View,
+    ids: &TiledTarget<u32>,
+) -> GBuffer {
+    let (w, h) = (view.width, view.height);
+    let mut samples = vec![GSample::BACKGROUND; (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let tri = ids.get(x, y);
+            if tri != NO_TRIANGLE {
+                let t = geometry.triangles[tri as usize]
+                    .map(|i| geometry.positions[i as usize].as_dvec3());
+                let run = RunTriangle::new(scene, geometry, view, TriangleFrame::new(t), tri);
+                samples[(y * w + x) as usize] =
+                    run.sample(view, view.primary_ray_unnormalized(x, y));
+            }
+        }
+    }
     GBuffer {
         width: w,
         height: h,
@@ -276,77 +333,326 @@ fn interpolate_uv(
     (i * b0 + j * b1 + k * b2).as_vec2()
 }
 
-/// Rebuilds the shading point of pixel `(x, y)` on `triangle`.
-fn shading_point(
-    scene: &Scene,
-    geometry: &SceneGeometry,
-    view: &View,
+/// What the resolve needs of a triangle, precomputed once per frame in
+/// f64: its plane and the dual vectors that turn a point of the plane into
+/// barycentrics with two dot products.
+#[derive(Debug, Clone, Copy)]
+struct TriangleFrame {
+    /// First corner.
+    a: DVec3,
+    /// Unnormalised normal `(b - a) × (c - a)` (winding order).
+    normal: DVec3,
+    /// `b1 = (p - a) · dual1`.
+    dual1: DVec3,
+    /// `b2 = (p - a) · dual2`.
+    dual2: DVec3,
+    /// Centroid, for rays grazing the plane.
+    centroid: DVec3,
+}
+
+impl TriangleFrame {
+    fn new([a, b, c]: [DVec3; 3]) -> Self {
+        let (e1, e2) = (b - a, c - a);
+        let normal = e1.cross(e2);
+        let n2 = normal.length_squared();
+        // Degenerate triangles were dropped at load; a zero here can only
+        // come from f32 → f64 of a sliver and gives zero duals (centroid
+        // fallback below).
+        let inv = if n2 > 0.0 { 1.0 / n2 } else { 0.0 };
+        TriangleFrame {
+            a,
+            normal,
+            dual1: e2.cross(normal) * inv,
+            dual2: normal.cross(e1) * inv,
+            centroid: (a + b + c) / 3.0,
+        }
+    }
+}
+
+/// A triangle's attributes, gathered once per run of pixels that see it
+/// (neighbouring pixels mostly do).
+struct RunTriangle<'a> {
     triangle: u32,
-    x: u32,
-    y: u32,
-) -> GSample {
-    let (o, local) = geometry.locate(triangle);
-    let mesh = &scene.objects[o].mesh;
-    let corners = mesh.triangles[local].map(|i| mesh.positions[i as usize].as_dvec3());
-    let dir = view.primary_ray(x, y);
-    let (position, b1, b2) = match intersect(view.eye, dir, corners) {
-        Some((t, b1, b2)) => (view.eye + dir * t, b1, b2),
-        // Grazing: the ray is (numerically) in the triangle's plane. Fall
-        // back to the centroid's depth along this ray.
-        None => {
-            let c = (corners[0] + corners[1] + corners[2]) / 3.0;
-            let t = view.depth_of(c) / dir.dot(view.forward);
-            (view.eye + dir * t, 1.0 / 3.0, 1.0 / 3.0)
+    frame: TriangleFrame,
+    /// Unit geometric normal from the winding (before facing flips).
+    geo_normal: DVec3,
+    normals: Option<[DVec3; 3]>,
+    uvs: Option<[glam::DVec2; 3]>,
+    material: u32,
+    albedo: Vec3,
+    albedo_texture: Option<&'a crate::scene::Texture>,
+    object: u32,
+    /// `N · (a - eye)`, the numerator of the ray parameter.
+    numerator: f64,
+}
+
+impl<'a> RunTriangle<'a> {
+    fn new(
+        scene: &'a Scene,
+        geometry: &SceneGeometry,
+        view: &View,
+        frame: TriangleFrame,
+        triangle: u32,
+    ) -> Self {
+        let (o, local) = geometry.locate(triangle);
+        let mesh = &scene.objects[o].mesh;
+        let idx = mesh.triangles[local];
+        let material = mesh.material_ids[local];
+        let m = &scene.materials[material as usize];
+        RunTriangle {
+            triangle,
+            frame,
+            geo_normal: frame.normal.normalize_or_zero(),
+            normals: mesh
+                .normals
+                .as_ref()
+                .map(|ns| idx.map(|i| ns[i as usize].as_dvec3())),
+            uvs: mesh
+                .uvs
+                .as_ref()
+                .map(|uv| idx.map(|i| uv[i as usize].as_dvec2())),
+            material,
+            albedo: m.albedo,
+            albedo_texture: m.albedo_texture.and_then(|t| scene.textures.get(t)),
+            object: o as u32,
+            numerator: frame.normal.dot(frame.a - view.eye),
         }
-    };
-    // Attributes interpolate with barycentrics clamped into the triangle:
-    // pixel centres on an edge may land a rounding error outside it.
-    let (cb1, cb2) = (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0));
-    let (cb1, cb2) = if cb1 + cb2 > 1.0 {
-        let s = cb1 + cb2;
-        (cb1 / s, cb2 / s)
-    } else {
-        (cb1, cb2)
-    };
-    let cb0 = 1.0 - cb1 - cb2;
-    let mut geo_normal = (corners[1] - corners[0])
-        .cross(corners[2] - corners[0])
-        .normalize_or_zero();
-    let mut normal = match &mesh.normals {
-        Some(ns) => {
-            let [i, j, k] = mesh.triangles[local].map(|i| ns[i as usize].as_dvec3());
-            (i * cb0 + j * cb1 + k * cb2).normalize_or(geo_normal)
+    }
+
+    /// The shading point where the (unnormalised) camera ray `dir` meets
+    /// this triangle.
+    #[inline]
+    fn sample(&self, view: &View, dir: DVec3) -> GSample {
+        let denom = self.frame.normal.dot(dir);
+        let mut t = self.numerator / denom;
+        let (mut b1, mut b2) = (1.0 / 3.0, 1.0 / 3.0);
+        if t.is_finite() && t > 0.0 {
+            let d = view.eye + dir * t - self.frame.a;
+            b1 = d.dot(self.frame.dual1);
+            b2 = d.dot(self.frame.dual2);
+        } else {
+            // Grazing: the ray is (numerically) in the triangle's plane.
+            // Fall back to the centroid's depth along this ray.
+            t = (self.frame.centroid - view.eye).dot(view.forward);
         }
-        None => geo_normal,
-    };
-    // A mesh whose vertex normals disagree with its winding (an inverted
-    // export) is trusted for its normals: the geometric normal is turned to
-    // agree with them first. Then, two-sided surfaces: both normals face
-    // the viewer when the geometric one does not (contract, "Surfaces are
-    // two-sided").
-    if mesh.normals.is_some() && geo_normal.dot(normal) < 0.0 {
-        geo_normal = -geo_normal;
+        // `dir` has unit length along `forward` (forward + x right + y up),
+        // so `t` is the view depth itself.
+        let position = view.eye + dir * t;
+        // Attributes interpolate with barycentrics clamped into the
+        // triangle: pixel centres on an edge may land a rounding error
+        // outside it.
+        let (cb1, cb2) = (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0));
+        let (cb1, cb2) = if cb1 + cb2 > 1.0 {
+            let s = cb1 + cb2;
+            (cb1 / s, cb2 / s)
+        } else {
+            (cb1, cb2)
+        };
+        let cb0 = 1.0 - cb1 - cb2;
+        let mut geo_normal = self.geo_normal;
+        let mut normal = match &self.normals {
+            Some([i, j, k]) => (*i * cb0 + *j * cb1 + *k * cb2).normalize_or(geo_normal),
+            None => geo_normal,
+        };
+        // A mesh whose vertex normals disagree with its winding (an
+        // inverted export) is trusted for its normals: the geometric normal
+        // is turned to agree with them first. Then, two-sided surfaces:
+        // both normals face the viewer when the geometric one does not
+        // (contract, "Surfaces are two-sided").
+        if self.normals.is_some() && geo_normal.dot(normal) < 0.0 {
+            geo_normal = -geo_normal;
+        }
+        if geo_normal.dot(view.eye - position) < 0.0 {
+            geo_normal = -geo_normal;
+            normal = -normal;
+        }
+        let uv = self.uvs.map_or(Vec2::ZERO, |[i, j, k]| {
+            (i * cb0 + j * cb1 + k * cb2).as_vec2()
+        });
+        let albedo = match self.albedo_texture {
+            Some(tex) => self.albedo * tex.lookup_rgb(uv),
+            None => self.albedo,
+        };
+        GSample {
+            position: position.as_vec3(),
+            normal: normal.as_vec3(),
+            geo_normal: geo_normal.as_vec3(),
+            uv,
+            albedo,
+            depth: t as f32,
+            material: self.material,
+            object: self.object,
+            triangle: self.triangle,
+        }
     }
-    if geo_normal.dot(view.eye - position) < 0.0 {
-        geo_normal = -geo_normal;
-        normal = -normal;
+
+    /// Four pixels `(x + k, y)` at once in f64 lanes: the same arithmetic
+    /// as [`RunTriangle::sample`], 4 wide. Writes the first `out.len()`
+    /// (at most 4) lanes.
+    #[inline]
+    fn sample4(&self, view: &View, x: u32, y: u32, out: &mut [GSample]) {
+        let (w, h) = (view.width as f64, view.height as f64);
+        let sx = view.tan_half_fov * w / h;
+        let xs = ((f64x4::splat(x as f64) + LANES4 + f64x4::splat(0.5)) * f64x4::splat(2.0 / w)
+            - f64x4::splat(1.0))
+            * f64x4::splat(sx);
+        let ys = (1.0 - 2.0 * (y as f64 + 0.5) / h) * view.tan_half_fov;
+        let row = view.forward + ys * view.up;
+        let dir = V4::splat(row) + V4::splat(view.right) * xs;
+        let n = V4::splat(self.frame.normal);
+        let mut t = f64x4::splat(self.numerator) / n.dot(&dir);
+        let eye = V4::splat(view.eye);
+        let d = eye + dir * t - V4::splat(self.frame.a);
+        let mut b1 = d.dot(&V4::splat(self.frame.dual1));
+        let mut b2 = d.dot(&V4::splat(self.frame.dual2));
+        // Grazing lanes (t not finite or not positive): centroid depth.
+        let ok = t.is_finite() & t.cmp_gt(f64x4::splat(0.0));
+        let third = f64x4::splat(1.0 / 3.0);
+        let centroid_t = f64x4::splat((self.frame.centroid - view.eye).dot(view.forward));
+        t = ok.blend(t, centroid_t);
+        b1 = ok.blend(b1, third);
+        b2 = ok.blend(b2, third);
+        let position = eye + dir * t;
+        let (zero, one) = (f64x4::splat(0.0), f64x4::splat(1.0));
+        let cb1 = b1.max(zero).min(one);
+        let cb2 = b2.max(zero).min(one);
+        let sum = cb1 + cb2;
+        let over = sum.cmp_gt(one);
+        let cb1 = over.blend(cb1 / sum, cb1);
+        let cb2 = over.blend(cb2 / sum, cb2);
+        let cb0 = one - cb1 - cb2;
+        let geo = V4::splat(self.geo_normal);
+        let (mut geo_normal, mut normal) = match &self.normals {
+            Some([i, j, k]) => {
+                let m = V4::splat(*i) * cb0 + V4::splat(*j) * cb1 + V4::splat(*k) * cb2;
+                let len = m.dot(&m).sqrt();
+                let usable = len.cmp_gt(zero) & len.is_finite();
+                let m = m * (one / len);
+                let normal = V4::select(usable, &m, &geo);
+                // Trust vertex normals over an inverted winding.
+                let flip = geo.dot(&normal).cmp_lt(zero);
+                (V4::select(flip, &(-geo), &geo), normal)
+            }
+            None => (geo, geo),
+        };
+        // Two-sided: face the viewer.
+        let away = geo_normal.dot(&(eye - position)).cmp_lt(zero);
+        geo_normal = V4::select(away, &(-geo_normal), &geo_normal);
+        normal = V4::select(away, &(-normal), &normal);
+        let uv = self.uvs.map(|[i, j, k]| {
+            let u = f64x4::splat(i.x) * cb0 + f64x4::splat(j.x) * cb1 + f64x4::splat(k.x) * cb2;
+            let v = f64x4::splat(i.y) * cb0 + f64x4::splat(j.y) * cb1 + f64x4::splat(k.y) * cb2;
+            (u.to_array(), v.to_array())
+        });
+        let p = position.to_arrays();
+        let nn = normal.to_arrays();
+        let gn = geo_normal.to_arrays();
+        let depth = t.to_array();
+        for (k, s) in out.iter_mut().enumerate().take(4) {
+            let uv = uv.map_or(Vec2::ZERO, |(u, v)| Vec2::new(u[k] as f32, v[k] as f32));
+            let albedo = match self.albedo_texture {
+                Some(tex) => self.albedo * tex.lookup_rgb(uv),
+                None => self.albedo,
+            };
+            *s = GSample {
+                position: Vec3::new(p[0][k] as f32, p[1][k] as f32, p[2][k] as f32),
+                normal: Vec3::new(nn[0][k] as f32, nn[1][k] as f32, nn[2][k] as f32),
+                geo_normal: Vec3::new(gn[0][k] as f32, gn[1][k] as f32, gn[2][k] as f32),
+                uv,
+                albedo,
+                depth: depth[k] as f32,
+                material: self.material,
+                object: self.object,
+                triangle: self.triangle,
+            };
+        }
     }
-    let uv = interpolate_uv(scene, geometry, triangle, cb1, cb2);
-    let material_index = mesh.material_ids[local];
-    let m = &scene.materials[material_index as usize];
-    let tex = m
-        .albedo_texture
-        .and_then(|t| scene.textures.get(t))
-        .map_or(Vec3::ONE, |t| t.lookup_rgb(uv));
-    GSample {
-        position: position.as_vec3(),
-        normal: normal.as_vec3(),
-        geo_normal: geo_normal.as_vec3(),
-        uv,
-        albedo: m.albedo * tex,
-        depth: view.depth_of(position) as f32,
-        material: material_index,
-        object: o as u32,
-        triangle,
+}
+
+const LANES4: f64x4 = f64x4::new([0.0, 1.0, 2.0, 3.0]);
+
+/// Four 3-vectors in structure-of-arrays form.
+#[derive(Clone, Copy)]
+struct V4 {
+    x: f64x4,
+    y: f64x4,
+    z: f64x4,
+}
+
+impl V4 {
+    #[inline]
+    fn splat(v: DVec3) -> Self {
+        V4 {
+            x: f64x4::splat(v.x),
+            y: f64x4::splat(v.y),
+            z: f64x4::splat(v.z),
+        }
+    }
+
+    #[inline]
+    fn dot(&self, o: &V4) -> f64x4 {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    #[inline]
+    fn select(mask: f64x4, a: &V4, b: &V4) -> V4 {
+        V4 {
+            x: mask.blend(a.x, b.x),
+            y: mask.blend(a.y, b.y),
+            z: mask.blend(a.z, b.z),
+        }
+    }
+
+    #[inline]
+    fn to_arrays(self) -> [[f64; 4]; 3] {
+        [self.x.to_array(), self.y.to_array(), self.z.to_array()]
+    }
+}
+
+impl std::ops::Add for V4 {
+    type Output = V4;
+    #[inline]
+    fn add(self, o: V4) -> V4 {
+        V4 {
+            x: self.x + o.x,
+            y: self.y + o.y,
+            z: self.z + o.z,
+        }
+    }
+}
+
+impl std::ops::Sub for V4 {
+    type Output = V4;
+    #[inline]
+    fn sub(self, o: V4) -> V4 {
+        V4 {
+            x: self.x - o.x,
+            y: self.y - o.y,
+            z: self.z - o.z,
+        }
+    }
+}
+
+impl std::ops::Neg for V4 {
+    type Output = V4;
+    #[inline]
+    fn neg(self) -> V4 {
+        V4 {
+            x: -self.x,
+            y: -self.y,
+            z: -self.z,
+        }
+    }
+}
+
+impl std::ops::Mul<f64x4> for V4 {
+    type Output = V4;
+    #[inline]
+    fn mul(self, s: f64x4) -> V4 {
+        V4 {
+            x: self.x * s,
+            y: self.y * s,
+            z: self.z * s,
+        }
     }
 }

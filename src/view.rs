@@ -78,10 +78,17 @@ impl View {
     /// exactly as the contract defines it.
     #[inline]
     pub fn primary_ray(&self, i: u32, j: u32) -> DVec3 {
+        self.primary_ray_unnormalized(i, j).normalize()
+    }
+
+    /// The same ray's direction before normalisation (for hit points,
+    /// which do not depend on its length).
+    #[inline]
+    pub fn primary_ray_unnormalized(&self, i: u32, j: u32) -> DVec3 {
         let (w, h) = (self.width as f64, self.height as f64);
         let x = (2.0 * (i as f64 + 0.5) / w - 1.0) * self.tan_half_fov * w / h;
         let y = (1.0 - 2.0 * (j as f64 + 0.5) / h) * self.tan_half_fov;
-        (self.forward + x * self.right + y * self.up).normalize()
+        self.forward + x * self.right + y * self.up
     }
 
     /// Clip-space position of a world point.

@@ -286,9 +286,9 @@ fn ray_hits(pixel: (u32, u32), size: u32, tri: [glam::DVec4; 3], near: f64) -> O
         u >= 0.0 && v >= 0.0 && u + v <= 1.0
     } else {
         // infinite wedge: a + u (b - a) + v c, with u in [0,1], v >= 0
-        u >= 0.0 && u <= 1.0 && v >= 0.0
+        (0.0..=1.0).contains(&u) && v >= 0.0
     };
-    let z = t * -1.0; // view-space z of the hit
+    let z = -t; // view-space z of the hit
     (inside && -z >= near).then_some(t)
 }
 

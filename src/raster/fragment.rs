@@ -7,7 +7,7 @@ use wide::f32x8;
 /// 8×8 block): lane `k` is pixel `(x + k, y)`.
 #[derive(Debug, Clone, Copy)]
 pub struct FragmentBatch<const N: usize> {
-    /// Pixel x of lane 0 (a multiple of 8).
+    /// Pixel x of lane 0.
     pub x: i32,
     /// Pixel row.
     pub y: i32,
@@ -51,6 +51,10 @@ pub trait FragmentStage<const N: usize>: Sync {
     /// test); when false the pipeline skips the call.
     const DISCARDS: bool = false;
 
+    /// Whether [`FragmentStage::shade`] does anything; when false the
+    /// pipeline never builds fragment batches for it.
+    const SHADES: bool = true;
+
     /// Called before the stencil and depth tests; returns the lanes that
     /// survive (a subset of `batch.mask`).
     fn discard(&self, batch: &FragmentBatch<N>) -> u8 {
@@ -67,5 +71,6 @@ pub struct NoFragmentStage;
 
 impl<const N: usize> FragmentStage<N> for NoFragmentStage {
     type Target = ();
+    const SHADES: bool = false;
     fn shade(&self, _batch: &FragmentBatch<N>, _target: &mut ()) {}
 }

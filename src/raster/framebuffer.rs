@@ -12,6 +12,10 @@ use crate::error::{Error, Result};
 pub const TILE_SIZE: usize = 64;
 /// Pixels per tile.
 pub const TILE_PIXELS: usize = TILE_SIZE * TILE_SIZE;
+/// Depth and stencil tiles are this much longer than a tile: a batch of 8
+/// lanes may start at any column and run past the row's (and the tile's)
+/// end with its extra lanes masked off.
+const TILE_PADDING: usize = super::simd::LANES;
 
 /// How an image of `width × height` pixels is cut into tiles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -163,7 +167,7 @@ impl Framebuffer {
             grid,
             tiles: (0..grid.tile_count())
                 .map(|_| DepthStencilTile {
-                    depth: vec![FAR_DEPTH; TILE_PIXELS].into_boxed_slice(),
+                    depth: vec![FAR_DEPTH; TILE_PIXELS + TILE_PADDING].into_boxed_slice(),
                     stencil: None,
                 })
                 .collect(),
@@ -180,7 +184,9 @@ impl Framebuffer {
         for t in &mut self.tiles {
             match &mut t.stencil {
                 Some(s) => s.fill(value),
-                None => t.stencil = Some(vec![value; TILE_PIXELS].into_boxed_slice()),
+                None => {
+                    t.stencil = Some(vec![value; TILE_PIXELS + TILE_PADDING].into_boxed_slice())
+                }
             }
         }
     }

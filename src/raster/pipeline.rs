@@ -100,8 +100,17 @@ pub fn draw<const N: usize, S: FragmentStage<N>>(
             }
             out
         })
-        .flatten_iter()
-        .collect();
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold(Vec::new(), |mut all, chunk| {
+            // Whole chunks are moved with one copy each, in chunk order.
+            if all.is_empty() {
+                chunk
+            } else {
+                all.extend(chunk);
+                all
+            }
+        });
 
     let bins = TileBins::build(&grid, setup.iter().map(|t| t.bbox));
 

@@ -12,7 +12,9 @@
 //! every sample on the edge to exactly one of them. That is watertightness.
 
 use super::clip::MAX_CLIPPED_VERTICES;
+use super::simd::LANE_OFFSETS;
 use super::vertex::ClipVertex;
+use wide::f32x8;
 
 /// Sub-pixel precision of snapped vertices, in bits.
 pub const SUBPIXEL_BITS: u32 = 8;
@@ -105,13 +107,15 @@ impl Plane {
         }
     }
 
-    /// Value at the first pixel centre of a row of lanes: `x`, `y` are
-    /// pixel indices. Lanes then add `k * dx`.
+    /// Values at the centres of pixels `(x + k, y)`, k = 0..8. Each lane is
+    /// computed from its own pixel coordinates, so a pixel's value does not
+    /// depend on where a batch of lanes starts.
     #[inline]
-    pub fn row_start(&self, x: i32, y: i32) -> f32 {
-        let cx = x as f32 + 0.5 - self.x0;
+    pub fn lanes(&self, x: i32, y: i32) -> f32x8 {
         let cy = y as f32 + 0.5 - self.y0;
-        self.v0 + self.dy * cy + self.dx * cx
+        let cx =
+            (f32x8::splat(x as f32) + LANE_OFFSETS) + f32x8::splat(0.5) - f32x8::splat(self.x0);
+        f32x8::splat(self.v0 + self.dy * cy) + f32x8::splat(self.dx) * cx
     }
 }
 
@@ -133,6 +137,9 @@ pub struct SetupTriangle<const N: usize> {
     pub front_facing: bool,
     /// Index of the input triangle it came from.
     pub primitive: u32,
+    /// The snapped triangle spans less than 8 pixels in x and in y: its
+    /// edge values over its box fit `i32` (see the tile traversal).
+    pub small: bool,
 }
 
 /// Screen dimensions and guard band for setup.
@@ -196,11 +203,9 @@ pub fn setup_polygon<const N: usize>(
     }
     for k in 1..n - 1 {
         let idx = [0, k, k + 1];
-        if let Some(t) = setup_triangle(
-            polygon, &idx, &screen, &exact, &inv_w, viewport, cull_front, cull_back, primitive,
-        ) {
-            out.push(t);
-        }
+        setup_triangle(
+            polygon, &idx, &screen, &exact, &inv_w, viewport, cull_front, cull_back, primitive, out,
+        );
     }
 }
 
@@ -215,7 +220,8 @@ fn setup_triangle<const N: usize>(
     cull_front: bool,
     cull_back: bool,
     primitive: u32,
-) -> Option<SetupTriangle<N>> {
+    out: &mut Vec<SetupTriangle<N>>,
+) -> Option<()> {
     let p = idx.map(|i| screen[i]);
     let area2 = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[2].0 - p[0].0) * (p[1].1 - p[0].1);
     if area2 == 0 {
@@ -269,9 +275,15 @@ fn setup_triangle<const N: usize>(
         Plane::through([0, 1, 2].map(|k| (pts[k].0, pts[k].1, value(canon[k]))))
     };
     let depth = plane(&|i| verts[i].position.z as f64 * inv_w[i]);
-    let inv_w_plane = plane(&|i| inv_w[i]);
+    // 1/w is only needed to divide varyings: skip its solve without them.
+    let inv_w_plane = if N > 0 {
+        plane(&|i| inv_w[i])
+    } else {
+        Plane::default()
+    };
     let varyings = std::array::from_fn(|a| plane(&|i| verts[i].varyings[a] as f64 * inv_w[i]));
-    Some(SetupTriangle {
+    // Pushed in place: a returned 170-byte struct would be copied twice.
+    out.push(SetupTriangle {
         edges,
         bbox: [x0 as i32, y0 as i32, x1 as i32, y1 as i32],
         depth,
@@ -279,5 +291,7 @@ fn setup_triangle<const N: usize>(
         varyings,
         front_facing,
         primitive,
-    })
+        small: max_x - min_x < 8 * SUBPIXEL && max_y - min_y < 8 * SUBPIXEL,
+    });
+    Some(())
 }

@@ -1,28 +1,35 @@
-//! Tile traversal: hierarchical descent from a 64×64 tile to 8×8 blocks
-//! (trivial accept / reject on exact corner values), then 8-lane rows with
-//! SIMD coverage, depth and stencil.
+//! Tile traversal. Small triangles (bounding box within 8×8 pixels, most
+//! triangles of a detailed mesh) go straight to 8-lane rows over their box
+//! with `i32` edge values; larger ones descend from the 64×64 tile to 8×8
+//! blocks (trivial accept / reject on exact corner values), then rows with
+//! exact `f64` lanes on the edges that cross the block. Depth, stencil and
+//! fragment batches are 8-lane SIMD either way.
 
 use super::fragment::{FragmentBatch, FragmentStage};
 use super::framebuffer::{DepthStencilTile, TILE_SIZE};
 use super::setup::SetupTriangle;
 use super::simd::{
-    compare_f32, compare_i32, load_f32, load_i32, select_f32, select_i32, stencil_op, LANE_OFFSETS,
+    compare_f32, compare_i32, load_f32, load_i32, select_f32, select_i32, stencil_op, LANES,
 };
 use super::state::RasterState;
-use wide::{f32x8, f64x4};
+use wide::{f32x8, f64x4, i32x8};
 
 const BLOCK: i32 = 8;
 const OFFSETS_LO: f64x4 = f64x4::new([0.0, 1.0, 2.0, 3.0]);
 const OFFSETS_HI: f64x4 = f64x4::new([4.0, 5.0, 6.0, 7.0]);
+const OFFSETS_I32: i32x8 = i32x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
 
-/// One partial edge's values along a block row, stepped down the rows.
-#[derive(Clone, Copy, Default)]
-struct EdgeRows {
-    value: f64x4,
-    lanes_lo: f64x4,
-    lanes_hi: f64x4,
-    step_y: f64x4,
-}
+/// Set bits of every byte; `count_ones` is a library loop on baseline
+/// x86-64 (no POPCNT), a table is one load.
+const POPCOUNT: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut i = 0;
+    while i < 256 {
+        t[i] = (i as u8).count_ones() as u8;
+        i += 1;
+    }
+    t
+};
 
 /// Per-tile counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -31,6 +38,15 @@ pub struct TileStats {
     pub fragments: u64,
     /// Samples that passed stencil and depth tests.
     pub passed: u64,
+}
+
+/// One partial edge's values along a block row, stepped down the rows.
+#[derive(Clone, Copy, Default)]
+struct EdgeRows {
+    value: f64x4,
+    lanes_lo: f64x4,
+    lanes_hi: f64x4,
+    step_y: f64x4,
 }
 
 /// Everything constant over one tile's work.
@@ -51,24 +67,66 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let last = TILE_SIZE as i32 - 1;
         for &ti in self.bin {
             let t = &self.triangles[ti as usize];
-            let x0 = t.bbox[0].max(tx);
-            let y0 = t.bbox[1].max(ty);
-            let x1 = t.bbox[2].min(tx + last);
-            let y1 = t.bbox[3].min(ty + last);
-            if x0 > x1 || y0 > y1 {
+            let clip = [
+                t.bbox[0].max(tx),
+                t.bbox[1].max(ty),
+                t.bbox[2].min(tx + last),
+                t.bbox[3].min(ty + last),
+            ];
+            if clip[0] > clip[2] || clip[1] > clip[3] {
                 continue;
             }
-            let mut by = y0 & !(BLOCK - 1);
-            while by <= y1 {
-                let mut bx = x0 & !(BLOCK - 1);
-                while bx <= x1 {
-                    self.block(t, bx, by, [x0, y0, x1, y1], ds, target, &mut stats);
+            if t.small {
+                self.small(t, clip, ds, target, &mut stats);
+                continue;
+            }
+            let mut by = clip[1] & !(BLOCK - 1);
+            while by <= clip[3] {
+                let mut bx = clip[0] & !(BLOCK - 1);
+                while bx <= clip[2] {
+                    self.block(t, bx, by, clip, ds, target, &mut stats);
                     bx += BLOCK;
                 }
                 by += BLOCK;
             }
         }
         stats
+    }
+
+    /// A triangle spanning less than 8×8 pixels: one batch per box row,
+    /// lanes starting at the box's left column. Its edge coefficients are
+    /// below 8 · 256 and the box's samples lie within 9 pixels of every
+    /// vertex, so edge values stay below 2 · 8 · 256 · 9 · 256 < 2^31 in
+    /// magnitude: `i32` lanes hold them exactly.
+    #[inline]
+    fn small(
+        &self,
+        t: &SetupTriangle<N>,
+        clip: [i32; 4],
+        ds: &mut DepthStencilTile,
+        target: &mut S::Target,
+        stats: &mut TileStats,
+    ) {
+        let x = clip[0];
+        let lanes = (0xffu32 >> (BLOCK - 1 - (clip[2] - x))) as u8;
+        let mut value = [i32x8::splat(0); 3];
+        let mut step_y = [0i32; 3];
+        for k in 0..3 {
+            let e = &t.edges[k];
+            let base = e.at_pixel(x as i64, clip[1] as i64) as i32;
+            value[k] = i32x8::splat(base) + OFFSETS_I32 * i32x8::splat(e.step_x() as i32);
+            step_y[k] = e.step_y() as i32;
+        }
+        for y in clip[1]..=clip[3] {
+            let outside = (value[0] | value[1] | value[2]).move_mask() as u8;
+            let mask = lanes & !outside;
+            if mask != 0 {
+                self.row(t, x, y, mask, ds, target, stats);
+            }
+            for k in 0..3 {
+                value[k] += i32x8::splat(step_y[k]);
+            }
+        }
     }
 
     /// One 8×8 block: classify each edge on the block's corner samples.
@@ -123,8 +181,8 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 // converted i64.)
                 let (mut lo, mut hi) = (f64x4::splat(0.0), f64x4::splat(0.0));
                 for r in &mut rows[..n] {
-                    lo = lo | (r.value + r.lanes_lo);
-                    hi = hi | (r.value + r.lanes_hi);
+                    lo |= r.value + r.lanes_lo;
+                    hi |= r.value + r.lanes_hi;
                     r.value += r.step_y;
                 }
                 let outside = lo.move_mask() | (hi.move_mask() << 4);
@@ -136,7 +194,10 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         }
     }
 
-    /// Tests, updates and shades one row of 8 fragments.
+    /// Tests, updates and shades 8 fragments `(x + k, y)` of one row.
+    /// Live lanes lie inside the tile; the depth and stencil tiles carry 8
+    /// elements of padding so that a batch starting near a row's end may
+    /// read and write back (unchanged) lanes past it.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn row(
@@ -150,33 +211,39 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         stats: &mut TileStats,
     ) {
         let local = ((y - self.origin.1) as usize) * TILE_SIZE + (x - self.origin.0) as usize;
-        let depth = (f32x8::splat(t.depth.row_start(x, y))
-            + LANE_OFFSETS * f32x8::splat(t.depth.dx))
-        .max(f32x8::splat(0.0))
-        .min(f32x8::splat(1.0));
+        // Planes are finite, so the NaN-unaware (single instruction)
+        // clamps are exact here.
+        let depth = t
+            .depth
+            .lanes(x, y)
+            .fast_max(f32x8::splat(0.0))
+            .fast_min(f32x8::splat(1.0));
         let stored_depth = load_f32(&ds.depth[local..]);
-        let mut batch = FragmentBatch {
-            x,
-            y,
-            tile: self.tile,
-            local,
-            mask,
-            depth,
-            stored_depth,
-            varyings: [f32x8::splat(0.0); N],
-            front_facing: t.front_facing,
-            primitive: t.primitive,
+        // The batch is built only for stages that look at it: a depth or
+        // stencil pass never pays for it.
+        let batch = |mask: u8| {
+            let mut varyings = [f32x8::splat(0.0); N];
+            interpolate(t, x, y, &mut varyings);
+            FragmentBatch {
+                x,
+                y,
+                tile: self.tile,
+                local,
+                mask,
+                depth,
+                stored_depth,
+                varyings,
+                front_facing: t.front_facing,
+                primitive: t.primitive,
+            }
         };
-        let mut varyings_ready = false;
         if S::DISCARDS {
-            interpolate(t, x, y, &mut batch.varyings);
-            varyings_ready = true;
-            mask &= self.stage.discard(&batch);
+            mask &= self.stage.discard(&batch(mask));
             if mask == 0 {
                 return;
             }
         }
-        stats.fragments += mask.count_ones() as u64;
+        stats.fragments += POPCOUNT[mask as usize] as u64;
 
         let state = self.state;
         let passed = match (&state.stencil, ds.stencil.as_mut()) {
@@ -191,7 +258,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 let mut new = select_i32(s_fail, stencil_op(face.stencil_fail, stored, r), stored);
                 new = select_i32(d_fail, stencil_op(face.depth_fail, stored, r), new);
                 new = select_i32(d_pass, stencil_op(face.pass, stored, r), new);
-                stencil[local..local + 8].copy_from_slice(&new.to_array());
+                stencil[local..local + LANES].copy_from_slice(&new.to_array());
                 d_pass
             }
             _ => compare_f32(state.depth_func, depth, stored_depth) & mask,
@@ -199,16 +266,14 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         if passed == 0 {
             return;
         }
-        stats.passed += passed.count_ones() as u64;
+        stats.passed += POPCOUNT[passed as usize] as u64;
         if state.depth_write {
             let new = select_f32(passed, depth, stored_depth);
-            ds.depth[local..local + 8].copy_from_slice(&new.to_array());
+            ds.depth[local..local + LANES].copy_from_slice(&new.to_array());
         }
-        if !varyings_ready {
-            interpolate(t, x, y, &mut batch.varyings);
+        if S::SHADES {
+            self.stage.shade(&batch(passed), target);
         }
-        batch.mask = passed;
-        self.stage.shade(&batch, target);
     }
 }
 
@@ -219,11 +284,8 @@ fn interpolate<const N: usize>(t: &SetupTriangle<N>, x: i32, y: i32, out: &mut [
     if N == 0 {
         return;
     }
-    let row = |p: &super::setup::Plane| {
-        f32x8::splat(p.row_start(x, y)) + LANE_OFFSETS * f32x8::splat(p.dx)
-    };
-    let inv_w = row(&t.inv_w);
+    let inv_w = t.inv_w.lanes(x, y);
     for (o, p) in out.iter_mut().zip(t.varyings.iter()) {
-        *o = row(p) / inv_w;
+        *o = p.lanes(x, y) / inv_w;
     }
 }
