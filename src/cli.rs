@@ -50,6 +50,9 @@ enum Command {
         /// Seed of the per-pixel random numbers.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// Shadow volumes: count with z-pass instead of z-fail.
+        #[arg(long)]
+        zpass: bool,
         /// Print each pass's time to stderr.
         #[arg(long)]
         timings: bool,
@@ -75,6 +78,7 @@ pub fn run(cli: Cli) -> Result<()> {
             technique,
             samples,
             seed,
+            zpass,
             timings,
         } => {
             let aovs = aov
@@ -94,6 +98,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 technique: technique.parse::<Technique>()?,
                 samples,
                 seed,
+                zpass,
             };
             if samples == 0 || samples > 1 << 20 {
                 return Err(Error::param(

@@ -1,0 +1,236 @@
+//! Hard shadow volumes (thesis §2.2.1): per light, the volume of every
+//! opaque caster from the light's centre, extruded to infinity and counted
+//! in the 32-bit stencil with two-sided z-fail (default) or z-pass.
+//!
+//! Closed casters (every edge's face directions sum to zero) get the
+//! classic volume: light-facing faces as the front cap, back-facing faces
+//! at infinity as the back cap, and `m = Σ d` side quads per edge over the
+//! light-facing faces using it. Open and non-manifold casters get
+//! Bergeron's generalisation: every face is a two-sided occluder with its
+//! own near and far caps, and each edge is extruded `m = Σ s·d` times
+//! (s = ±1 the face's facing). The stencil then counts occluding layers;
+//! zero means lit either way.
+
+use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
+use crate::error::Result;
+use crate::geom::silhouette::faces_point;
+use crate::geom::EdgeAdjacency;
+use crate::output::Layer;
+use crate::raster::{
+    draw, ClipVertex, CompareFunc, CullMode, Framebuffer, NoFragmentStage, RasterState,
+    StencilFace, StencilOp, StencilState,
+};
+use crate::scene::{LightShape, Scene};
+use crate::view::View;
+use glam::Vec3;
+use std::time::Instant;
+
+/// The hard-shadow technique.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ShadowVolumes {
+    /// Count with z-pass (wrong when the camera is inside a volume)
+    /// instead of z-fail.
+    pub zpass: bool,
+}
+
+/// A shadow volume ready to draw: finite welded vertices first, the same
+/// vertices at infinity (`v − L`, w = 0) after them.
+#[derive(Debug, Clone, Default)]
+pub struct ShadowVolume {
+    /// Clip-space vertices.
+    pub vertices: Vec<ClipVertex<0>>,
+    /// Triangles, oriented so that their outward normals leave the volume.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// The point a light's hard shadows are cast from: its centre.
+pub fn light_point(shape: &LightShape) -> Vec3 {
+    match *shape {
+        LightShape::Rect { center, .. } | LightShape::Sphere { center, .. } => center,
+    }
+}
+
+/// Opaque shadow casters: the faces hard shadow volumes are built from.
+pub fn caster_adjacency(scene: &Scene, geometry: &crate::geom::SceneGeometry) -> EdgeAdjacency {
+    EdgeAdjacency::build(geometry, |f| {
+        let object = &scene.objects[geometry.triangle_object[f as usize] as usize];
+        let material = &scene.materials[geometry.triangle_material[f as usize] as usize];
+        object.cast_shadows && material.is_opaque()
+    })
+}
+
+/// Builds the volume of every caster in `adj` for a point light at `light`.
+pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolume {
+    let lit = faces_point(adj, light);
+    let n = adj.positions.len() as u32;
+    let mut vertices: Vec<ClipVertex<0>> = adj
+        .positions
+        .iter()
+        .map(|p| ClipVertex {
+            position: view.clip_point(*p),
+            varyings: [],
+        })
+        .collect();
+    vertices.extend(adj.positions.iter().map(|p| ClipVertex {
+        position: view.clip_direction(*p - light),
+        varyings: [],
+    }));
+    let inf = |v: u32| v + n;
+    let mut triangles = Vec::new();
+    for (slot, &[a, b, c]) in adj.face_vertices.iter().enumerate() {
+        match (adj.face_closed[slot], lit[slot]) {
+            (true, true) => triangles.push([a, b, c]),
+            (true, false) => triangles.push([inf(a), inf(b), inf(c)]),
+            (false, true) => {
+                triangles.push([a, b, c]);
+                triangles.push([inf(a), inf(c), inf(b)]);
+            }
+            (false, false) => {
+                triangles.push([a, c, b]);
+                triangles.push([inf(a), inf(b), inf(c)]);
+            }
+        }
+    }
+    for e in &adj.edges {
+        let m: i32 = e
+            .uses
+            .iter()
+            .map(|u| {
+                let s = u.slot as usize;
+                let weight = match (adj.face_closed[s], lit[s]) {
+                    (true, true) => 1,
+                    (true, false) => 0,
+                    (false, true) => 1,
+                    (false, false) => -1,
+                };
+                weight * u.direction as i32
+            })
+            .sum();
+        let [lo, hi] = e.v;
+        let quad = if m > 0 {
+            [hi, lo, inf(lo), inf(hi)]
+        } else {
+            [lo, hi, inf(hi), inf(lo)]
+        };
+        for _ in 0..m.unsigned_abs() {
+            triangles.push([quad[0], quad[1], quad[2]]);
+            triangles.push([quad[0], quad[2], quad[3]]);
+        }
+    }
+    ShadowVolume {
+        vertices,
+        triangles,
+    }
+}
+
+/// Raster state counting a volume in the stencil.
+pub fn stencil_state(zpass: bool) -> RasterState {
+    let (front, back) = if zpass {
+        (
+            StencilFace {
+                pass: StencilOp::Increment,
+                ..StencilFace::KEEP
+            },
+            StencilFace {
+                pass: StencilOp::Decrement,
+                ..StencilFace::KEEP
+            },
+        )
+    } else {
+        (
+            StencilFace {
+                depth_fail: StencilOp::Decrement,
+                ..StencilFace::KEEP
+            },
+            StencilFace {
+                depth_fail: StencilOp::Increment,
+                ..StencilFace::KEEP
+            },
+        )
+    };
+    RasterState {
+        // Closer wins in reversed Z; a volume face exactly at the surface
+        // (a near cap copying a scene triangle, bit-identical depth) fails
+        // and counts as behind, so lit faces do not shadow themselves.
+        depth_func: CompareFunc::Greater,
+        depth_write: false,
+        stencil: Some(StencilState {
+            front,
+            back,
+            reference: 0,
+        }),
+        cull: CullMode::None,
+    }
+}
+
+/// Per-pixel stencil counts of one light's volume over the scene depth.
+pub fn stencil_counts(
+    framebuffer: &mut Framebuffer,
+    volume: &ShadowVolume,
+    zpass: bool,
+) -> Result<Vec<i32>> {
+    framebuffer.clear_stencil(0);
+    let grid = framebuffer.grid();
+    let mut none = vec![(); grid.tile_count()];
+    draw(
+        framebuffer,
+        &mut none,
+        &stencil_state(zpass),
+        &volume.vertices,
+        &volume.triangles,
+        &NoFragmentStage,
+    )?;
+    let mut out = Vec::with_capacity(grid.width as usize * grid.height as usize);
+    for y in 0..grid.height {
+        for x in 0..grid.width {
+            out.push(framebuffer.stencil(x, y));
+        }
+    }
+    Ok(out)
+}
+
+impl ShadowTechnique for ShadowVolumes {
+    fn name(&self) -> &'static str {
+        "shadow-volumes"
+    }
+
+    fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
+        let mut out = ShadowOutput::default();
+        let t = Instant::now();
+        let adj = caster_adjacency(ctx.scene, ctx.geometry);
+        out.passes.push(PassTiming {
+            name: "adjacency".into(),
+            time: t.elapsed(),
+        });
+        let mut framebuffer = ctx.depth.clone();
+        let mut stencil_layer = Layer {
+            name: "stencil".into(),
+            channels: Vec::new(),
+        };
+        for (k, light) in ctx.scene.lights.iter().enumerate() {
+            let t = Instant::now();
+            let volume = build_volume(&adj, ctx.view, light_point(&light.shape));
+            out.passes.push(PassTiming {
+                name: format!("volume build light {k}"),
+                time: t.elapsed(),
+            });
+            let t = Instant::now();
+            let counts = stencil_counts(&mut framebuffer, &volume, self.zpass)?;
+            out.passes.push(PassTiming {
+                name: format!("stencil light {k}"),
+                time: t.elapsed(),
+            });
+            let vcoef = counts
+                .iter()
+                .zip(&ctx.gbuffer.samples)
+                .map(|(&c, g)| if g.is_surface() && c == 0 { 1.0 } else { 0.0 })
+                .collect();
+            stencil_layer
+                .channels
+                .push((k.to_string(), counts.iter().map(|&c| c as f32).collect()));
+            out.lights.push(LightTerm::vcoef(vcoef));
+        }
+        out.layers.push(stencil_layer);
+        Ok(out)
+    }
+}
