@@ -6,6 +6,39 @@
 use super::SceneGeometry;
 use glam::Vec3;
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// A multiply-rotate hasher for integer keys (the FxHash scheme): the
+/// standard SipHash defends against adversarial keys we do not have, at
+/// several times the cost. Iteration order is never used, so results do
+/// not depend on it.
+#[derive(Default)]
+struct FastHasher(u64);
+
+impl Hasher for FastHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u32(&mut self, v: u32) {
+        self.write_u64(v as u64);
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+}
+
+type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<FastHasher>>;
 
 /// One face's use of an edge.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -63,8 +96,8 @@ impl EdgeAdjacency {
             f32::MIN_POSITIVE
         };
         let mut adj = EdgeAdjacency::default();
-        let mut welded: HashMap<(u32, [i64; 3]), u32> = HashMap::new();
-        let mut edge_index: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut welded: FastMap<(u32, [i64; 3]), u32> = FastMap::default();
+        let mut edge_index: FastMap<(u32, u32), u32> = FastMap::default();
         for (f, tri) in geometry.triangles.iter().enumerate() {
             let f = f as u32;
             if !include(f) {

@@ -3,6 +3,7 @@
 //! depend on scheduling).
 
 use super::framebuffer::{TileGrid, TILE_SIZE};
+use super::setup::SetupTriangle;
 
 /// Triangle indices per tile, stored compactly (CSR).
 #[derive(Debug, Clone, Default)]
@@ -12,14 +13,30 @@ pub struct TileBins {
 }
 
 impl TileBins {
-    /// Bins triangles given their inclusive pixel bounding boxes.
-    pub fn build(grid: &TileGrid, bboxes: impl Iterator<Item = [i32; 4]> + Clone) -> Self {
+    /// Bins triangles: each goes to the tiles its bounding box covers and
+    /// whose pixel centres are not all outside one of its edges (long thin
+    /// triangles, such as shadow-volume sides, cross far fewer tiles than
+    /// their boxes).
+    pub fn build<const N: usize>(grid: &TileGrid, triangles: &[SetupTriangle<N>]) -> Self {
         let ts = TILE_SIZE as i32;
-        let tiles = |b: [i32; 4]| {
+        let tiles = |t: &SetupTriangle<N>| {
+            let b = t.bbox;
             let (tx0, ty0) = ((b[0] / ts) as usize, (b[1] / ts) as usize);
             let (tx1, ty1) = ((b[2] / ts) as usize, (b[3] / ts) as usize);
-            (ty0..=ty1).flat_map(move |ty| (tx0..=tx1).map(move |tx| ty * grid.tiles_x + tx))
+            let edges = t.edges;
+            (ty0..=ty1)
+                .flat_map(move |ty| (tx0..=tx1).map(move |tx| (tx, ty)))
+                .filter(move |&(tx, ty)| {
+                    let (x0, y0) = ((tx * TILE_SIZE) as i64, (ty * TILE_SIZE) as i64);
+                    let last = TILE_SIZE as i64 - 1;
+                    edges.iter().all(|e| {
+                        let corner = e.at_pixel(x0, y0);
+                        corner + (e.step_x() * last).max(0) + (e.step_y() * last).max(0) >= 0
+                    })
+                })
+                .map(move |(tx, ty)| ty * grid.tiles_x + tx)
         };
+        let bboxes = triangles.iter();
         let mut counts = vec![0u32; grid.tile_count() + 1];
         for b in bboxes.clone() {
             for t in tiles(b) {

@@ -112,7 +112,7 @@ pub fn draw<const N: usize, S: FragmentStage<N>>(
             }
         });
 
-    let bins = TileBins::build(&grid, setup.iter().map(|t| t.bbox));
+    let bins = TileBins::build(&grid, &setup);
 
     let stats = framebuffer
         .tiles_mut()

@@ -11,7 +11,7 @@ use super::setup::SetupTriangle;
 use super::simd::{
     compare_f32, compare_i32, load_f32, load_i32, select_f32, select_i32, stencil_op, LANES,
 };
-use super::state::RasterState;
+use super::state::{CompareFunc, RasterState, StencilOp};
 use wide::{f32x8, f64x4, i32x8};
 
 const BLOCK: i32 = 8;
@@ -30,6 +30,27 @@ const POPCOUNT: [u8; 256] = {
     }
     t
 };
+
+/// Side of the first level of blocks inside a tile.
+const SUPER: i32 = 16;
+
+/// Classifies the `size × size` block at `(x, y)` against each edge on its
+/// corner samples: `None` when it lies wholly outside an edge, else which
+/// edges cross it.
+#[inline]
+fn classify<const N: usize>(t: &SetupTriangle<N>, x: i32, y: i32, size: i32) -> Option<[bool; 3]> {
+    let mut partial = [false; 3];
+    for (e, p) in t.edges.iter().zip(partial.iter_mut()) {
+        let corner = e.at_pixel(x as i64, y as i64);
+        let sx = e.step_x() * (size as i64 - 1);
+        let sy = e.step_y() * (size as i64 - 1);
+        if corner + sx.max(0) + sy.max(0) < 0 {
+            return None;
+        }
+        *p = corner + sx.min(0) + sy.min(0) < 0;
+    }
+    Some(partial)
+}
 
 /// Per-tile counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -80,14 +101,36 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 self.small(t, clip, ds, target, &mut stats);
                 continue;
             }
-            let mut by = clip[1] & !(BLOCK - 1);
-            while by <= clip[3] {
-                let mut bx = clip[0] & !(BLOCK - 1);
-                while bx <= clip[2] {
-                    self.block(t, bx, by, clip, ds, target, &mut stats);
-                    bx += BLOCK;
+            // Two levels: 16×16 sub-blocks, then 8×8 blocks, each
+            // classified on exact corner values; thin triangles (shadow
+            // volume sides) skip most of their bounding box at the first
+            // level.
+            let mut sy = clip[1] & !(SUPER - 1);
+            while sy <= clip[3] {
+                let mut sx = clip[0] & !(SUPER - 1);
+                while sx <= clip[2] {
+                    if let Some(partial) = classify(t, sx, sy, SUPER) {
+                        let inside = !partial.iter().any(|&p| p);
+                        let mut by = sy.max(clip[1] & !(BLOCK - 1));
+                        while by < sy + SUPER && by <= clip[3] {
+                            let mut bx = sx.max(clip[0] & !(BLOCK - 1));
+                            while bx < sx + SUPER && bx <= clip[2] {
+                                let block_partial = if inside {
+                                    Some([false; 3])
+                                } else {
+                                    classify(t, bx, by, BLOCK)
+                                };
+                                if let Some(p) = block_partial {
+                                    self.block(t, bx, by, clip, p, ds, target, &mut stats);
+                                }
+                                bx += BLOCK;
+                            }
+                            by += BLOCK;
+                        }
+                    }
+                    sx += SUPER;
                 }
-                by += BLOCK;
+                sy += SUPER;
             }
         }
         stats
@@ -129,7 +172,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         }
     }
 
-    /// One 8×8 block: classify each edge on the block's corner samples.
+    /// One 8×8 block whose edges crossing it are `partial`.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn block(
@@ -138,20 +181,11 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         bx: i32,
         by: i32,
         clip: [i32; 4],
+        partial: [bool; 3],
         ds: &mut DepthStencilTile,
         target: &mut S::Target,
         stats: &mut TileStats,
     ) {
-        let mut partial = [false; 3];
-        for (e, p) in t.edges.iter().zip(partial.iter_mut()) {
-            let corner = e.at_pixel(bx as i64, by as i64);
-            let sx = e.step_x() * (BLOCK as i64 - 1);
-            let sy = e.step_y() * (BLOCK as i64 - 1);
-            if corner + sx.max(0) + sy.max(0) < 0 {
-                return; // the whole block is outside this edge
-            }
-            *p = corner + sx.min(0) + sy.min(0) < 0;
-        }
         // Lanes inside the scissored bounding box.
         let lo = (clip[0] - bx).max(0);
         let hi = (clip[2] - bx).min(BLOCK - 1);
@@ -160,7 +194,13 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let last_row = (by + BLOCK - 1).min(clip[3]);
         // Partial edges, stepped row by row in f64: every value is an
         // integer below 2^53, so the additions are exact.
-        let mut rows = [EdgeRows::default(); 3];
+        let zero = f64x4::splat(0.0);
+        let mut rows = [EdgeRows {
+            value: zero,
+            lanes_lo: zero,
+            lanes_hi: zero,
+            step_y: zero,
+        }; 3];
         let mut n = 0;
         for (e, _) in t.edges.iter().zip(partial).filter(|(_, p)| *p) {
             let step = f64x4::splat(e.step_x() as f64);
@@ -199,7 +239,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
     /// elements of padding so that a batch starting near a row's end may
     /// read and write back (unchanged) lanes past it.
     #[allow(clippy::too_many_arguments)]
-    #[inline]
+    #[inline(always)]
     fn row(
         &self,
         t: &SetupTriangle<N>,
@@ -250,15 +290,29 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             (Some(st), Some(stencil)) => {
                 let face = if t.front_facing { st.front } else { st.back };
                 let stored = load_i32(&stencil[local..]);
-                let s_pass = compare_i32(face.func, st.reference, stored) & mask;
-                let s_fail = mask & !s_pass;
+                let s_pass = match face.func {
+                    CompareFunc::Always => mask,
+                    func => compare_i32(func, st.reference, stored) & mask,
+                };
                 let d_pass = compare_f32(state.depth_func, depth, stored_depth) & s_pass;
-                let d_fail = s_pass & !d_pass;
+                // Only operations that change something are evaluated: a
+                // z-fail pass, say, has a single non-Keep operation.
                 let r = st.reference;
-                let mut new = select_i32(s_fail, stencil_op(face.stencil_fail, stored, r), stored);
-                new = select_i32(d_fail, stencil_op(face.depth_fail, stored, r), new);
-                new = select_i32(d_pass, stencil_op(face.pass, stored, r), new);
-                stencil[local..local + LANES].copy_from_slice(&new.to_array());
+                let mut new = stored;
+                let mut changed = false;
+                for (op, lanes) in [
+                    (face.stencil_fail, mask & !s_pass),
+                    (face.depth_fail, s_pass & !d_pass),
+                    (face.pass, d_pass),
+                ] {
+                    if lanes != 0 && !matches!(op, StencilOp::Keep) {
+                        new = select_i32(lanes, stencil_op(op, stored, r), new);
+                        changed = true;
+                    }
+                }
+                if changed {
+                    stencil[local..local + LANES].copy_from_slice(&new.to_array());
+                }
                 d_pass
             }
             _ => compare_f32(state.depth_func, depth, stored_depth) & mask,

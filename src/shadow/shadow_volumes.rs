@@ -172,7 +172,7 @@ pub fn stencil_counts(
     framebuffer.clear_stencil(0);
     let grid = framebuffer.grid();
     let mut none = vec![(); grid.tile_count()];
-    draw(
+    let _stats = draw(
         framebuffer,
         &mut none,
         &stencil_state(zpass),
@@ -180,6 +180,9 @@ pub fn stencil_counts(
         &volume.triangles,
         &NoFragmentStage,
     )?;
+    if std::env::var_os("PENUMBRA_DEBUG_STATS").is_some() {
+        eprintln!("{_stats:?}");
+    }
     let mut out = Vec::with_capacity(grid.width as usize * grid.height as usize);
     for y in 0..grid.height {
         for x in 0..grid.width {
