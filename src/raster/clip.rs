@@ -131,6 +131,9 @@ pub fn clip_triangle<const N: usize>(
     if codes[0] & codes[1] & codes[2] != 0 {
         return out; // all outside one plane
     }
+    if triangle.iter().any(|v| !v.position.is_finite()) {
+        return out; // a NaN or infinite vertex has no position to clip
+    }
     out.vertices[..3].copy_from_slice(&triangle);
     out.len = 3;
     if codes[0] | codes[1] | codes[2] == 0 {

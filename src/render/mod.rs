@@ -11,6 +11,8 @@ use crate::output::Layer;
 use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::scene::Scene;
+use crate::shadow::reference::Reference;
+use crate::shadow::shadow_volumes::ShadowVolumes;
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowTechnique, Unshadowed};
 use crate::view::{near_for_bounds, View};
 use glam::Vec3;
@@ -76,15 +78,27 @@ impl FromStr for Aov {
 pub enum Technique {
     /// No shadows.
     None,
+    /// The ray-traced reference (`options.samples` light samples).
+    Reference,
+    /// Hard shadow volumes from each light's centre (z-fail, or z-pass
+    /// with `options.zpass`).
+    ShadowVolumes,
 }
 
 impl Technique {
     /// All technique names.
-    pub const NAMES: [&'static str; 1] = ["none"];
+    pub const NAMES: [&'static str; 3] = ["none", "reference", "shadow-volumes"];
 
-    fn build(self, _options: &RenderOptions) -> Box<dyn ShadowTechnique> {
+    fn build(self, options: &RenderOptions) -> Box<dyn ShadowTechnique> {
         match self {
             Technique::None => Box::new(Unshadowed),
+            Technique::Reference => Box::new(Reference {
+                samples: options.samples,
+                seed: options.seed,
+            }),
+            Technique::ShadowVolumes => Box::new(ShadowVolumes {
+                zpass: options.zpass,
+            }),
         }
     }
 }
@@ -94,6 +108,8 @@ impl FromStr for Technique {
     fn from_str(s: &str) -> Result<Technique> {
         match s {
             "none" => Ok(Technique::None),
+            "reference" => Ok(Technique::Reference),
+            "shadow-volumes" => Ok(Technique::ShadowVolumes),
             _ => Err(Error::param(
                 "--technique",
                 format!(
@@ -120,6 +136,8 @@ pub struct RenderOptions {
     pub samples: u32,
     /// Seed of every random choice (per-pixel keyed).
     pub seed: u64,
+    /// Shadow volumes count with z-pass instead of z-fail.
+    pub zpass: bool,
 }
 
 impl Default for RenderOptions {
@@ -131,6 +149,7 @@ impl Default for RenderOptions {
             technique: Technique::None,
             samples: 64,
             seed: 0,
+            zpass: false,
         }
     }
 }
@@ -164,9 +183,49 @@ pub fn view_for(scene: &Scene, options: &RenderOptions) -> Result<View> {
     )
 }
 
+/// Bytes a render holds per pixel at its peak: the G-buffer sample, the
+/// visibility and depth tiles, radiance, one Vcoef per light and the AOV
+/// layers (f32 channels), rounded up.
+fn bytes_per_pixel(scene: &Scene, options: &RenderOptions) -> u64 {
+    let gbuffer = std::mem::size_of::<crate::gbuffer::GSample>() as u64;
+    let lights = scene.lights.len() as u64;
+    gbuffer + 8 + 12 + 12 + lights * 8 + 16 * 4 + options.aovs.len() as u64 * 12
+}
+
+/// Memory the machine can give us, from `/proc/meminfo` (`MemAvailable`),
+/// or `None` where that is not readable.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuses a render that cannot fit in memory, before allocating it.
+pub fn check_memory(scene: &Scene, options: &RenderOptions, view: &View) -> Result<()> {
+    let pixels = view.width as u64 * view.height as u64;
+    let need = pixels * bytes_per_pixel(scene, options);
+    if let Some(have) = available_memory() {
+        if need > have {
+            return Err(Error::param(
+                "--width/--height",
+                format!(
+                    "{}x{} needs about {:.1} GiB, more than the {:.1} GiB available",
+                    view.width,
+                    view.height,
+                    need as f64 / (1u64 << 30) as f64,
+                    have as f64 / (1u64 << 30) as f64
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Renders a scene.
 pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Result<RenderOutput> {
     let view = view_for(scene, options)?;
+    check_memory(scene, options, &view)?;
     let mut passes = Vec::new();
     let timed = |name: &str, passes: &mut Vec<PassTiming>, start: Instant| {
         passes.push(PassTiming {

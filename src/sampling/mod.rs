@@ -1,1 +1,343 @@
-//! Light samples, in one place for every technique (placeholder).
+//! Light samples, in one place for every technique.
+//!
+//! Every technique that integrates over a light's area takes its sample
+//! points from here, so two techniques given the same
+//! `(seed, light index, pixel, N)` see exactly the same points and their
+//! results can be compared sample by sample.
+//!
+//! # Random numbers
+//!
+//! There is no generator state: sample `k` of pixel `(x, y)` for light `l`
+//! is a pure function of `(seed, l, x, y, k)` (a counter-based generator).
+//! [`pixel_key`] hashes `(seed, l, x, y)` into a 64-bit key with the
+//! SplitMix64 finaliser (one round per field), and the two uniforms of
+//! sample `k` are outputs `2k` and `2k + 1` of the SplitMix64 sequence
+//! started at that key ([`uniform_pair`]). Results therefore never depend on
+//! thread scheduling or on the order pixels are visited.
+//!
+//! # Layout (the oracle's estimator definitions)
+//!
+//! `N` samples fill a stratified, jittered `a × b` grid on `[0, 1)²`, with
+//! `a` the largest divisor of `N` not above `√N` and `b = N / a`
+//! ([`Strata`]); sample `k` lies in column `i = k mod a`, row `j = k div a`,
+//! at `s = (i + ξ) / a`, `t = (j + ξ') / b`. Then:
+//!
+//! - **Rect lights**: `x = center + (2s − 1) u + (1 − 2t) v` (the contract's
+//!   texture mapping), uniform in area: `inv_pdf_area = |A| = 4 |u × v|`.
+//! - **Sphere lights**: uniform in solid angle over the cone the sphere
+//!   subtends from the receiver `p`: `cos θ = 1 − s (1 − cos θmax)`,
+//!   `φ = 2π t` around the axis `p → center`; `x` is the near intersection
+//!   of that direction with the sphere. The solid-angle pdf `1/Ω` becomes
+//!   the area pdf `cos_x / (Ω r²)`, so `inv_pdf_area = Ω r² / cos_x` and
+//!   [`crate::shade::PreparedLight::direct_from_samples`] (which multiplies
+//!   by `cos_x / r²`) reduces to `Ω Le f_r cos_p` per sample. A receiver
+//!   inside (or on) the sphere gets no samples.
+
+use crate::scene::{Light, LightShape};
+use glam::{DVec3, Vec2, Vec3};
+use std::f64::consts::PI;
+
+use crate::shade::LightSample;
+
+/// SplitMix64's increment (the golden ratio in 64-bit fixed point).
+const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
+
+/// SplitMix64's output function: a bijective 64-bit mixer with full
+/// avalanche, so neighbouring keys give unrelated outputs.
+#[inline]
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// The key of all samples of one light at one pixel: a hash of
+/// `(seed, light_index, x, y)`. Each field is folded in with its own
+/// multiplier before a full mixing round, so swapping `x` and `y` (or the
+/// light index and a coordinate) gives a different key.
+#[inline]
+pub fn pixel_key(seed: u64, light_index: usize, pixel: (u32, u32)) -> u64 {
+    let mut h = mix64(seed ^ 0x6a09_e667_f3bc_c909);
+    h = mix64(h ^ (light_index as u64).wrapping_mul(0xbb67_ae85_84ca_a73b));
+    h = mix64(h ^ u64::from(pixel.0).wrapping_mul(0x3c6e_f372_fe94_f82b));
+    mix64(h ^ u64::from(pixel.1).wrapping_mul(0xa54f_f53a_5f1d_36f1))
+}
+
+/// The two uniforms in `[0, 1)` of sample `k` under `key`: outputs `2k`
+/// and `2k + 1` of the SplitMix64 sequence seeded with `key`. They have
+/// 32-bit resolution, so `i + ξ` is exact in `f64` for any stratum index.
+#[inline]
+pub fn uniform_pair(key: u64, k: u32) -> (f64, f64) {
+    let c = 2 * u64::from(k);
+    let to_unit = |h: u64| (h >> 32) as f64 * (1.0 / 4_294_967_296.0);
+    (
+        to_unit(mix64(key.wrapping_add((c + 1).wrapping_mul(GOLDEN)))),
+        to_unit(mix64(key.wrapping_add((c + 2).wrapping_mul(GOLDEN)))),
+    )
+}
+
+/// The stratified `a × b` grid of `N = a b` samples: `a` is the largest
+/// divisor of `N` with `a ≤ √N` (16 × 16 for 256, 2 × 8 for 16, 1 × 7 for 7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Strata {
+    /// Columns (along `s`).
+    pub a: u32,
+    /// Rows (along `t`).
+    pub b: u32,
+}
+
+impl Strata {
+    /// The grid for `n` samples; `n = 0` gives an empty `0 × 0` grid.
+    pub fn new(n: u32) -> Strata {
+        if n == 0 {
+            return Strata { a: 0, b: 0 };
+        }
+        // Integer square root, corrected for the float estimate's rounding.
+        let mut a = f64::from(n).sqrt() as u32;
+        while u64::from(a) * u64::from(a) > u64::from(n) {
+            a -= 1;
+        }
+        while u64::from(a + 1) * u64::from(a + 1) <= u64::from(n) {
+            a += 1;
+        }
+        while !n.is_multiple_of(a) {
+            a -= 1;
+        }
+        Strata { a, b: n / a }
+    }
+
+    /// Number of samples `a b`.
+    pub fn count(&self) -> u32 {
+        self.a * self.b
+    }
+
+    /// Stratum `(i, j)` of sample `k`: column `k mod a`, row `k div a`.
+    #[inline]
+    pub fn cell(&self, k: u32) -> (u32, u32) {
+        if self.a == 0 {
+            return (0, 0);
+        }
+        (k % self.a, k / self.a)
+    }
+
+    /// The jittered point `(s, t) ∈ [0, 1)²` of sample `k` under `key`.
+    #[inline]
+    pub fn point(&self, key: u64, k: u32) -> (f64, f64) {
+        let (i, j) = self.cell(k);
+        let (xi, xi2) = uniform_pair(key, k);
+        (
+            (f64::from(i) + xi) / f64::from(self.a.max(1)),
+            (f64::from(j) + xi2) / f64::from(self.b.max(1)),
+        )
+    }
+}
+
+/// A light with the per-light constants of its sampling precomputed, so
+/// sampling many pixels does not redo them.
+#[derive(Debug, Clone, Copy)]
+pub enum LightSampler {
+    /// A parallelogram light.
+    Rect {
+        /// Centre.
+        center: DVec3,
+        /// Half-edge vector along `s`.
+        u: DVec3,
+        /// Half-edge vector along `t` (row 0 at `center + v`).
+        v: DVec3,
+        /// `|A| = 4 |u × v|`, the inverse area pdf of every sample.
+        area: f32,
+    },
+    /// A sphere light.
+    Sphere {
+        /// Centre.
+        center: DVec3,
+        /// Radius.
+        radius: f64,
+    },
+}
+
+impl LightSampler {
+    /// Precomputes `light`'s sampling constants.
+    pub fn new(light: &Light) -> LightSampler {
+        match light.shape {
+            LightShape::Rect { center, u, v, .. } => {
+                let (u, v) = (u.as_dvec3(), v.as_dvec3());
+                LightSampler::Rect {
+                    center: center.as_dvec3(),
+                    u,
+                    v,
+                    area: (4.0 * u.cross(v).length()) as f32,
+                }
+            }
+            LightShape::Sphere { center, radius } => LightSampler::Sphere {
+                center: center.as_dvec3(),
+                radius: f64::from(radius),
+            },
+        }
+    }
+
+    /// Writes the `n` samples of light `light_index` seen from receiver `p`
+    /// at `pixel` into `out` (cleared first). Sphere lights give no samples
+    /// for a receiver inside or on the sphere (the contract defines nothing
+    /// there), or one that is not finite.
+    pub fn samples_into(
+        &self,
+        light_index: usize,
+        p: Vec3,
+        pixel: (u32, u32),
+        n: u32,
+        seed: u64,
+        out: &mut Vec<LightSample>,
+    ) {
+        out.clear();
+        let strata = Strata::new(n);
+        let key = pixel_key(seed, light_index, pixel);
+        match *self {
+            LightSampler::Rect { center, u, v, area } => {
+                out.extend((0..n).map(|k| {
+                    let (s, t) = strata.point(key, k);
+                    LightSample {
+                        x: (center + u * (2.0 * s - 1.0) + v * (1.0 - 2.0 * t)).as_vec3(),
+                        st: Vec2::new(s as f32, t as f32),
+                        inv_pdf_area: area,
+                    }
+                }));
+            }
+            LightSampler::Sphere { center, radius } => {
+                if let Some(cone) = Cone::new(center, radius, p.as_dvec3()) {
+                    out.extend((0..n).map(|k| cone.sample(strata.point(key, k))));
+                }
+            }
+        }
+    }
+}
+
+/// The cone a sphere light subtends from a receiver outside it.
+struct Cone {
+    p: DVec3,
+    center: DVec3,
+    radius: f64,
+    /// Distance from `p` to the centre.
+    d: f64,
+    /// Unit axis `p → center` and two unit vectors completing a frame.
+    axis: DVec3,
+    t1: DVec3,
+    t2: DVec3,
+    /// `1 − cos θmax`, computed as `sin²θmax / (1 + cos θmax)` so that
+    /// small cones (distant lights) keep their precision.
+    h: f64,
+    /// The cone's solid angle `Ω = 2π (1 − cos θmax)`.
+    omega: f64,
+}
+
+impl Cone {
+    fn new(center: DVec3, radius: f64, p: DVec3) -> Option<Cone> {
+        let rel = center - p;
+        let d = rel.length();
+        if !(d > radius && d.is_finite()) {
+            return None;
+        }
+        let axis = rel / d;
+        let sin2 = (radius / d) * (radius / d);
+        let h = sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt());
+        let (t1, t2) = orthonormal_basis(axis);
+        Some(Cone {
+            p,
+            center,
+            radius,
+            d,
+            axis,
+            t1,
+            t2,
+            h,
+            omega: 2.0 * PI * h,
+        })
+    }
+
+    /// The sample for the grid point `(s, t)`: direction uniform in solid
+    /// angle inside the cone, `x` on the near cap.
+    fn sample(&self, (s, t): (f64, f64)) -> LightSample {
+        let one_minus_cos = s * self.h;
+        let cos_t = 1.0 - one_minus_cos;
+        // sin² = (1 − cos)(1 + cos), without cancellation near the axis.
+        let sin_t = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+        let phi = 2.0 * PI * t;
+        let w = self.axis * cos_t + (self.t1 * phi.cos() + self.t2 * phi.sin()) * sin_t;
+        // Near root of |p + τ w − c| = R; the discriminant reaches 0 on the
+        // cone's edge (tangent ray) and may round below it there.
+        let disc = (self.radius * self.radius - self.d * self.d * sin_t * sin_t).max(0.0);
+        let tau = self.d * cos_t - disc.sqrt();
+        let x = (self.p + w * tau).as_vec3();
+        LightSample {
+            x,
+            st: Vec2::new(s as f32, t as f32),
+            inv_pdf_area: self.inv_pdf_area(x),
+        }
+    }
+
+    /// `Ω r² / cos_x`, evaluated at the stored (f32) `x` with the same
+    /// expressions the estimator uses for `r²` and `cos_x`, so that their
+    /// product `cos_x / r² · inv_pdf_area` is `Ω` up to the final f32
+    /// rounding even where `cos_x` is tiny (the cone's edge). Where the
+    /// rounding of `x` makes `cos_x ≤ 0` the estimator drops the sample
+    /// anyway; 0 is returned.
+    fn inv_pdf_area(&self, x: Vec3) -> f32 {
+        let xd = x.as_dvec3();
+        let d = xd - self.p;
+        let r2 = d.length_squared();
+        if !(r2 > 0.0) {
+            return 0.0;
+        }
+        let w = d / r2.sqrt();
+        let cos_x = -(xd - self.center).dot(w) * (1.0 / self.radius);
+        if cos_x > 0.0 {
+            (self.omega * r2 / cos_x) as f32
+        } else {
+            0.0
+        }
+    }
+}
+
+/// An orthonormal basis perpendicular to the unit vector `n` (Duff et al.,
+/// "Building an Orthonormal Basis, Revisited", 2017): branch on the sign
+/// only, no normalisation, so it is exact to rounding for every `n`.
+fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1.0f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// The `n` samples of light `light_index` for the receiver `p` at `pixel`,
+/// written into `out` (cleared first): see the module documentation for
+/// the layout. Techniques sampling many pixels should build a
+/// [`LightSampler`] once per light and call
+/// [`LightSampler::samples_into`] instead.
+pub fn light_samples_into(
+    light: &Light,
+    light_index: usize,
+    p: Vec3,
+    pixel: (u32, u32),
+    n: u32,
+    seed: u64,
+    out: &mut Vec<LightSample>,
+) {
+    LightSampler::new(light).samples_into(light_index, p, pixel, n, seed, out);
+}
+
+/// [`light_samples_into`] into a new vector.
+pub fn light_samples(
+    light: &Light,
+    light_index: usize,
+    p: Vec3,
+    pixel: (u32, u32),
+    n: u32,
+    seed: u64,
+) -> Vec<LightSample> {
+    let mut out = Vec::with_capacity(n as usize);
+    light_samples_into(light, light_index, p, pixel, n, seed, &mut out);
+    out
+}

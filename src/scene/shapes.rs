@@ -33,7 +33,13 @@ pub fn sphere(r: f32, segments: u32, rings: u32, material: u32) -> Mesh {
         };
         for m in 0..cols {
             let phi = 2.0 * PI * f64::from(m) / f64::from(segments);
-            let (sin_p, cos_p) = phi.sin_cos();
+            // The seam column (phi = 2 pi) repeats column 0 exactly, so the
+            // mesh has no crack there (sin(2 pi) in floating point is not 0).
+            let (sin_p, cos_p) = if m == segments {
+                (0.0, 1.0)
+            } else {
+                phi.sin_cos()
+            };
             let dir = DVec3::new(sin_t * cos_p, cos_t, -sin_t * sin_p);
             mesh.positions.push((f64::from(r) * dir).as_vec3());
             normals.push(dir.normalize().as_vec3());

@@ -1,0 +1,62 @@
+//! Shadow rays per second of the ray-traced reference on
+//! `scenes/spheres.toml` (61,562 triangles) at 256², 16 light samples per
+//! pixel: one light pass (sampling, BVH any-hit queries, the shared
+//! radiance estimator), on 1 and on 2 threads. The BVH is built once,
+//! outside the timed loop; its build is timed separately.
+//!
+//! Run: `cargo bench --bench reference`. Criterion reports the throughput
+//! in elements/s = shadow rays (BVH traversals) per second.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use penumbra::gbuffer::gbuffer_pass;
+use penumbra::geom::SceneGeometry;
+use penumbra::render::{view_for, RenderOptions};
+use penumbra::scene::load_scene;
+use penumbra::shadow::reference::ShadowTracer;
+use penumbra::shadow::ShadowContext;
+use std::path::Path;
+
+const SAMPLES: u32 = 16;
+
+fn reference(c: &mut Criterion) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml");
+    let scene = load_scene(&path).expect("shipped scene loads");
+    let options = RenderOptions {
+        width: Some(256),
+        height: Some(256),
+        ..RenderOptions::default()
+    };
+    let view = view_for(&scene, &options).expect("view");
+    let geometry = SceneGeometry::new(&scene);
+    let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
+    let ctx = ShadowContext {
+        scene: &scene,
+        geometry: &geometry,
+        view: &view,
+        gbuffer: &gbuffer,
+        depth: &depth,
+    };
+    let tracer = ShadowTracer::new(&scene, &geometry);
+    let (_, rays) = tracer.trace_light(&ctx, 0, SAMPLES, 1);
+
+    let mut group = c.benchmark_group("reference_spheres_256");
+    group.sample_size(20);
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        group.throughput(Throughput::Elements(rays));
+        group.bench_function(format!("shadow_rays_{SAMPLES}spp_{threads}t"), |b| {
+            b.iter(|| pool.install(|| tracer.trace_light(&ctx, 0, SAMPLES, 1)))
+        });
+        group.throughput(Throughput::Elements(geometry.triangles.len() as u64));
+        group.bench_function(format!("bvh_build_{threads}t"), |b| {
+            b.iter(|| pool.install(|| ShadowTracer::new(&scene, &geometry)))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, reference);
+criterion_main!(benches);
