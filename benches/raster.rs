@@ -1,5 +1,6 @@
 //! Raster benchmarks on `scenes/spheres.toml` at 1024²: the depth-only
-//! pre-pass and the G-buffer pass (visibility raster + exact resolve).
+//! pre-pass, the G-buffer pass (visibility raster + exact resolve) and the
+//! hard-shadow stencil pass (volume build + z-fail counts).
 //!
 //! Run: `cargo bench --bench raster` (set `RAYON_NUM_THREADS=2` to compare
 //! with llvmpipe's two-thread figures, see docs/performance.md).
@@ -9,6 +10,9 @@ use penumbra::gbuffer::{depth_pass, gbuffer_pass, transform_vertices};
 use penumbra::geom::SceneGeometry;
 use penumbra::render::{view_for, RenderOptions};
 use penumbra::scene::load_scene;
+use penumbra::shadow::shadow_volumes::{
+    build_volume, caster_adjacency, light_point, stencil_counts,
+};
 use std::path::Path;
 
 fn raster(c: &mut Criterion) {
@@ -34,6 +38,18 @@ fn raster(c: &mut Criterion) {
     });
     group.bench_function("gbuffer", |b| {
         b.iter(|| gbuffer_pass(&scene, &geometry, &view).expect("draw"))
+    });
+    let (_, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("gbuffer");
+    let adjacency = caster_adjacency(&scene, &geometry);
+    let light = light_point(&scene.lights[0].shape);
+    let mut framebuffer = depth.clone();
+    group.bench_function("stencil_pass", |b| {
+        b.iter(|| {
+            // Volume build (CPU) + stencil clear + z-fail pass, as glsv's
+            // "volume build" + "stencil pass" columns.
+            let volume = build_volume(&adjacency, &view, light);
+            stencil_counts(&mut framebuffer, &volume, false).expect("stencil")
+        })
     });
     group.finish();
 }
