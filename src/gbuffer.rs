@@ -181,6 +181,19 @@ pub fn visibility_pass(
     let grid = TileGrid::new(view.width, view.height)?;
     let mut fb = Framebuffer::new(grid);
     let mut ids = TiledTarget::new(grid, NO_TRIANGLE);
+    let stats = visibility_pass_into(scene, geometry, view, vertices, &mut fb, &mut ids)?;
+    Ok((fb, ids, stats))
+}
+
+/// The visibility pass into existing, cleared buffers of the view's size.
+fn visibility_pass_into(
+    scene: &Scene,
+    geometry: &SceneGeometry,
+    view: &View,
+    vertices: &[ClipVertex<0>],
+    fb: &mut Framebuffer,
+    ids: &mut TiledTarget<u32>,
+) -> Result<DrawStats> {
     let stage = VisibilityStage {
         scene,
         geometry,
@@ -191,15 +204,14 @@ pub fn visibility_pass(
             .map(|m| m.opacity < SEE_THROUGH_OPACITY || m.opacity_texture.is_some())
             .collect(),
     };
-    let stats = draw(
-        &mut fb,
+    draw(
+        fb,
         ids.tiles_mut(),
         &RasterState::default(),
         vertices,
         &geometry.triangles,
         &stage,
-    )?;
-    Ok((fb, ids, stats))
+    )
 }
 
 /// Resolves triangle ids into shading points (parallel over rows).
@@ -209,15 +221,38 @@ pub fn resolve(
     view: &View,
     ids: &TiledTarget<u32>,
 ) -> GBuffer {
-    let (w, h) = (view.width, view.height);
-    let frames: Vec<TriangleFrame> = geometry
-        .triangles
-        .par_iter()
-        .with_min_len(4096)
-        .map(|t| TriangleFrame::new(t.map(|i| geometry.positions[i as usize].as_dvec3())))
-        .collect();
-    let mut samples = vec![GSample::BACKGROUND; (w * h) as usize];
-    samples
+    let mut gbuffer = GBuffer {
+        width: view.width,
+        height: view.height,
+        samples: vec![GSample::BACKGROUND; view.width as usize * view.height as usize],
+    };
+    let mut frames = Vec::new();
+    resolve_into(scene, geometry, view, ids, &mut frames, &mut gbuffer);
+    gbuffer
+}
+
+/// [`resolve`] into an existing G-buffer of the view's size (every pixel
+/// is written) with a reusable per-triangle scratch vector.
+fn resolve_into(
+    scene: &Scene,
+    geometry: &SceneGeometry,
+    view: &View,
+    ids: &TiledTarget<u32>,
+    frames: &mut Vec<TriangleFrame>,
+    gbuffer: &mut GBuffer,
+) {
+    let w = view.width;
+    frames.clear();
+    frames.par_extend(
+        geometry
+            .triangles
+            .par_iter()
+            .with_min_len(4096)
+            .map(|t| TriangleFrame::new(t.map(|i| geometry.positions[i as usize].as_dvec3()))),
+    );
+    let frames = &*frames;
+    gbuffer
+        .samples
         .par_chunks_mut(w as usize)
         .enumerate()
         .for_each(|(y, row)| {
@@ -227,6 +262,7 @@ pub fn resolve(
             while x < w {
                 let tri = ids.get(x, y);
                 if tri == NO_TRIANGLE {
+                    row[x as usize] = GSample::BACKGROUND;
                     x += 1;
                     continue;
                 }
@@ -249,10 +285,84 @@ pub fn resolve(
                 x = end;
             }
         });
-    GBuffer {
-        width: w,
-        height: h,
-        samples,
+}
+
+/// The G-buffer pass with its buffers, reusable frame after frame the way
+/// a GPU keeps its render targets: after the first run nothing is
+/// allocated.
+pub struct GBufferPass {
+    /// Scene depth (and, for later passes, stencil).
+    pub framebuffer: Framebuffer,
+    /// Triangle id per pixel.
+    pub ids: TiledTarget<u32>,
+    /// The resolved shading points.
+    pub gbuffer: GBuffer,
+    frames: Vec<TriangleFrame>,
+    vertices: Vec<ClipVertex<0>>,
+}
+
+impl GBufferPass {
+    /// Buffers for the view's image size.
+    pub fn new(view: &View) -> Result<Self> {
+        let grid = TileGrid::new(view.width, view.height)?;
+        Ok(GBufferPass {
+            framebuffer: Framebuffer::new(grid),
+            ids: TiledTarget::new(grid, NO_TRIANGLE),
+            gbuffer: GBuffer {
+                width: view.width,
+                height: view.height,
+                samples: vec![GSample::BACKGROUND; view.width as usize * view.height as usize],
+            },
+            frames: Vec::new(),
+            vertices: Vec::new(),
+        })
+    }
+
+    /// Runs the pass for `view` (which must have the size the buffers
+    /// were made for).
+    pub fn run(
+        &mut self,
+        scene: &Scene,
+        geometry: &SceneGeometry,
+        view: &View,
+    ) -> Result<DrawStats> {
+        if (view.width, view.height) != (self.gbuffer.width, self.gbuffer.height) {
+            return Err(crate::error::Error::param(
+                "view",
+                "the G-buffer pass was made for another image size",
+            ));
+        }
+        self.framebuffer.clear_depth(crate::raster::FAR_DEPTH);
+        self.ids.fill(NO_TRIANGLE);
+        self.vertices.clear();
+        self.vertices
+            .par_extend(
+                geometry
+                    .positions
+                    .par_iter()
+                    .with_min_len(4096)
+                    .map(|p| ClipVertex {
+                        position: view.clip_point(*p),
+                        varyings: [],
+                    }),
+            );
+        let stats = visibility_pass_into(
+            scene,
+            geometry,
+            view,
+            &self.vertices,
+            &mut self.framebuffer,
+            &mut self.ids,
+        )?;
+        resolve_into(
+            scene,
+            geometry,
+            view,
+            &self.ids,
+            &mut self.frames,
+            &mut self.gbuffer,
+        );
+        Ok(stats)
     }
 }
 
@@ -291,9 +401,9 @@ pub fn gbuffer_pass(
     geometry: &SceneGeometry,
     view: &View,
 ) -> Result<(GBuffer, Framebuffer, DrawStats)> {
-    let vertices = transform_vertices(geometry, view);
-    let (fb, ids, stats) = visibility_pass(scene, geometry, view, &vertices)?;
-    Ok((resolve(scene, geometry, view, &ids), fb, stats))
+    let mut pass = GBufferPass::new(view)?;
+    let stats = pass.run(scene, geometry, view)?;
+    Ok((pass.gbuffer, pass.framebuffer, stats))
 }
 
 /// Möller–Trumbore in f64 without range checks on the barycentrics:
