@@ -623,3 +623,91 @@ fn perspective_correct_varyings() {
     }
     assert!(checked > 500);
 }
+
+/// Shadow-volume passes take a dedicated counting path; it must give the
+/// same stencil counts as the general path (forced here by a fragment
+/// stage that shades) for z-fail and z-pass, on random overlapping
+/// triangles of both facings and random depths over a random scene depth.
+#[test]
+fn counting_path_equals_general_stencil_path() {
+    struct Shades;
+    impl FragmentStage<0> for Shades {
+        type Target = ();
+        fn shade(&self, _: &FragmentBatch<0>, _: &mut ()) {}
+    }
+    let (w, h) = (150u32, 110u32);
+    let mut rng = Rng(99);
+    let vertex = |rng: &mut Rng| ClipVertex {
+        position: Vec4::new(
+            (rng.f64() * 3.0 - 1.5) as f32,
+            (rng.f64() * 3.0 - 1.5) as f32,
+            rng.f64() as f32,
+            1.0,
+        ),
+        varyings: [],
+    };
+    let scene: Vec<ClipVertex<0>> = (0..60).map(|_| vertex(&mut rng)).collect();
+    let scene_tris: Vec<[u32; 3]> = (0..20).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    let volume: Vec<ClipVertex<0>> = (0..300).map(|_| vertex(&mut rng)).collect();
+    let volume_tris: Vec<[u32; 3]> = (0..100).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    for zpass in [false, true] {
+        let (front, back) = if zpass {
+            (
+                StencilFace {
+                    pass: StencilOp::Increment,
+                    ..StencilFace::KEEP
+                },
+                StencilFace {
+                    pass: StencilOp::Decrement,
+                    ..StencilFace::KEEP
+                },
+            )
+        } else {
+            (
+                StencilFace {
+                    depth_fail: StencilOp::Decrement,
+                    ..StencilFace::KEEP
+                },
+                StencilFace {
+                    depth_fail: StencilOp::Increment,
+                    ..StencilFace::KEEP
+                },
+            )
+        };
+        let state = RasterState {
+            depth_func: CompareFunc::Greater,
+            depth_write: false,
+            stencil: Some(StencilState {
+                front,
+                back,
+                reference: 0,
+            }),
+            cull: CullMode::None,
+        };
+        let run = |general: bool| {
+            let grid = TileGrid::new(w, h).unwrap();
+            let mut fb = Framebuffer::new(grid);
+            let mut none = vec![(); grid.tile_count()];
+            let nf = penumbra::raster::NoFragmentStage;
+            draw(
+                &mut fb,
+                &mut none,
+                &RasterState::default(),
+                &scene,
+                &scene_tris,
+                &nf,
+            )
+            .unwrap();
+            fb.clear_stencil(0);
+            if general {
+                draw(&mut fb, &mut none, &state, &volume, &volume_tris, &Shades).unwrap();
+            } else {
+                draw(&mut fb, &mut none, &state, &volume, &volume_tris, &nf).unwrap();
+            }
+            fb.stencil_image()
+        };
+        let (fast, general) = (run(false), run(true));
+        assert!(fast.iter().any(|&s| s != 0));
+        assert_eq!(fast, general, "zpass = {zpass}");
+    }
+}

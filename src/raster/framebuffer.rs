@@ -210,6 +210,26 @@ impl Framebuffer {
         self.tiles[t].stencil.as_ref().map_or(0, |s| s[i])
     }
 
+    /// Row-major stencil counts of the whole image (row 0 at the top), 0
+    /// where no stencil was ever allocated. Copied tile row by tile row.
+    pub fn stencil_image(&self) -> Vec<i32> {
+        let (w, h) = (self.grid.width as usize, self.grid.height as usize);
+        let mut out = vec![0; w * h];
+        for (t, tile) in self.tiles.iter().enumerate() {
+            let Some(stencil) = &tile.stencil else {
+                continue;
+            };
+            let (x0, y0) = self.grid.tile_origin(t);
+            let (x0, y0) = (x0 as usize, y0 as usize);
+            let cols = TILE_SIZE.min(w - x0);
+            for r in 0..TILE_SIZE.min(h - y0) {
+                let dst = (y0 + r) * w + x0;
+                out[dst..dst + cols].copy_from_slice(&stencil[r * TILE_SIZE..r * TILE_SIZE + cols]);
+            }
+        }
+        out
+    }
+
     /// The tiles, mutably.
     pub(crate) fn tiles_mut(&mut self) -> &mut [DepthStencilTile] {
         &mut self.tiles

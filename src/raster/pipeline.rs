@@ -6,7 +6,7 @@ use super::fragment::FragmentStage;
 use super::framebuffer::Framebuffer;
 use super::setup::{setup_polygon, SetupTriangle, Viewport};
 use super::state::{CullMode, RasterState};
-use super::tile::{TileJob, TileStats};
+use super::tile::{CountingPass, TileJob, TileStats};
 use super::vertex::ClipVertex;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -113,6 +113,7 @@ pub fn draw<const N: usize, S: FragmentStage<N>>(
         });
 
     let bins = TileBins::build(&grid, &setup);
+    let counting = CountingPass::of::<N, S>(state);
 
     let stats = framebuffer
         .tiles_mut()
@@ -127,6 +128,7 @@ pub fn draw<const N: usize, S: FragmentStage<N>>(
                 bin: bins.tile(tile),
                 state,
                 stage,
+                counting,
             };
             job.run(ds, target)
         })

@@ -11,7 +11,7 @@ use super::setup::SetupTriangle;
 use super::simd::{
     compare_f32, compare_i32, load_f32, load_i32, select_f32, select_i32, stencil_op, LANES,
 };
-use super::state::{CompareFunc, RasterState, StencilOp};
+use super::state::{CompareFunc, RasterState, StencilFace, StencilOp};
 use wide::{f32x8, f64x4, i32x8};
 
 const BLOCK: i32 = 8;
@@ -78,6 +78,62 @@ pub(crate) struct TileJob<'a, const N: usize, S: FragmentStage<N>> {
     pub bin: &'a [u32],
     pub state: &'a RasterState,
     pub stage: &'a S,
+    /// Set for pure counting passes (see [`CountingPass`]).
+    pub counting: Option<CountingPass>,
+}
+
+/// A stencil pass that only counts: no fragment stage, no depth writes, an
+/// always-passing stencil test, and per facing a single operation that
+/// adds ±1 either where the depth test fails (z-fail) or where it passes
+/// (z-pass). Shadow volumes are exactly this; rows then reduce to one
+/// compare and one masked add.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CountingPass {
+    /// Added per front-facing fragment.
+    front: i32,
+    /// Added per back-facing fragment.
+    back: i32,
+    /// Count where the depth test fails (z-fail) rather than passes.
+    on_depth_fail: bool,
+}
+
+impl CountingPass {
+    /// The counting form of `state`, if it has one.
+    pub(crate) fn of<const N: usize, S: FragmentStage<N>>(state: &RasterState) -> Option<Self> {
+        if S::SHADES || S::DISCARDS || state.depth_write {
+            return None;
+        }
+        let st = state.stencil?;
+        let delta = |op: StencilOp| match op {
+            StencilOp::Keep => Some(0),
+            StencilOp::Increment => Some(1),
+            StencilOp::Decrement => Some(-1),
+            _ => None,
+        };
+        let face = |f: StencilFace| -> Option<(i32, i32)> {
+            if f.func != CompareFunc::Always || f.stencil_fail != StencilOp::Keep {
+                return None;
+            }
+            Some((delta(f.depth_fail)?, delta(f.pass)?))
+        };
+        let (front_fail, front_pass) = face(st.front)?;
+        let (back_fail, back_pass) = face(st.back)?;
+        if front_pass == 0 && back_pass == 0 {
+            Some(CountingPass {
+                front: front_fail,
+                back: back_fail,
+                on_depth_fail: true,
+            })
+        } else if front_fail == 0 && back_fail == 0 {
+            Some(CountingPass {
+                front: front_pass,
+                back: back_pass,
+                on_depth_fail: false,
+            })
+        } else {
+            None
+        }
+    }
 }
 
 impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
@@ -259,6 +315,18 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             .fast_max(f32x8::splat(0.0))
             .fast_min(f32x8::splat(1.0));
         let stored_depth = load_f32(&ds.depth[local..]);
+        if let (Some(c), Some(stencil)) = (self.counting, ds.stencil.as_mut()) {
+            let pass = compare_f32(self.state.depth_func, depth, stored_depth);
+            let lanes = mask & if c.on_depth_fail { !pass } else { pass };
+            let delta = if t.front_facing { c.front } else { c.back };
+            stats.fragments += POPCOUNT[mask as usize] as u64;
+            if lanes != 0 && delta != 0 {
+                let stored = load_i32(&stencil[local..]);
+                let add = select_i32(lanes, i32x8::splat(delta), i32x8::splat(0));
+                stencil[local..local + LANES].copy_from_slice(&(stored + add).to_array());
+            }
+            return;
+        }
         // The batch is built only for stages that look at it: a depth or
         // stencil pass never pays for it.
         let batch = |mask: u8| {

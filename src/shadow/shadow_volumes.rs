@@ -183,13 +183,7 @@ pub fn stencil_counts(
     if std::env::var_os("PENUMBRA_DEBUG_STATS").is_some() {
         eprintln!("{_stats:?}");
     }
-    let mut out = Vec::with_capacity(grid.width as usize * grid.height as usize);
-    for y in 0..grid.height {
-        for x in 0..grid.width {
-            out.push(framebuffer.stencil(x, y));
-        }
-    }
-    Ok(out)
+    Ok(framebuffer.stencil_image())
 }
 
 impl ShadowTechnique for ShadowVolumes {
