@@ -87,7 +87,9 @@ impl GBuffer {
 }
 
 /// Writes triangle ids; discards texels a camera ray passes through.
-struct VisibilityStage<'a> {
+/// `ALPHA`: some material can be see-through, so fragments go through the
+/// alpha test; scenes without such materials skip it at compile time.
+struct VisibilityStage<'a, const ALPHA: bool> {
     scene: &'a Scene,
     geometry: &'a SceneGeometry,
     view: &'a View,
@@ -95,7 +97,7 @@ struct VisibilityStage<'a> {
     see_through: Vec<bool>,
 }
 
-impl VisibilityStage<'_> {
+impl<const ALPHA: bool> VisibilityStage<'_, ALPHA> {
     /// Opacity the camera ray through `(x, y)` meets on `triangle`.
     fn opacity_at(&self, triangle: u32, x: u32, y: u32) -> f32 {
         let m = &self.scene.materials[self.geometry.triangle_material[triangle as usize] as usize];
@@ -116,9 +118,9 @@ impl VisibilityStage<'_> {
     }
 }
 
-impl FragmentStage<0> for VisibilityStage<'_> {
+impl<const ALPHA: bool> FragmentStage<0> for VisibilityStage<'_, ALPHA> {
     type Target = Box<[u32]>;
-    const DISCARDS: bool = true;
+    const DISCARDS: bool = ALPHA;
 
     fn discard(&self, batch: &FragmentBatch<0>) -> u8 {
         let material = self.geometry.triangle_material[batch.primitive as usize] as usize;
@@ -194,24 +196,29 @@ fn visibility_pass_into(
     fb: &mut Framebuffer,
     ids: &mut TiledTarget<u32>,
 ) -> Result<DrawStats> {
-    let stage = VisibilityStage {
-        scene,
-        geometry,
-        view,
-        see_through: scene
-            .materials
-            .iter()
-            .map(|m| m.opacity < SEE_THROUGH_OPACITY || m.opacity_texture.is_some())
-            .collect(),
-    };
-    draw(
-        fb,
-        ids.tiles_mut(),
-        &RasterState::default(),
-        vertices,
-        &geometry.triangles,
-        &stage,
-    )
+    let see_through: Vec<bool> = scene
+        .materials
+        .iter()
+        .map(|m| m.opacity < SEE_THROUGH_OPACITY || m.opacity_texture.is_some())
+        .collect();
+    let (state, tris, tiles) = (RasterState::default(), &geometry.triangles, ids.tiles_mut());
+    if see_through.iter().any(|&s| s) {
+        let stage = VisibilityStage::<true> {
+            scene,
+            geometry,
+            view,
+            see_through,
+        };
+        draw(fb, tiles, &state, vertices, tris, &stage)
+    } else {
+        let stage = VisibilityStage::<false> {
+            scene,
+            geometry,
+            view,
+            see_through,
+        };
+        draw(fb, tiles, &state, vertices, tris, &stage)
+    }
 }
 
 /// Resolves triangle ids into shading points (parallel over rows).
