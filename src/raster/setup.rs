@@ -140,6 +140,10 @@ pub struct SetupTriangle<const N: usize> {
     /// The snapped triangle spans less than 8 pixels in x and in y: its
     /// edge values over its box fit `i32` (see the tile traversal).
     pub small: bool,
+    /// Every edge has `|a| + |b| < 2^19` sub-pixels: over an 8×8 block an
+    /// edge crosses, its values differ by at most `7 · 256 · 2^19 < 2^31`,
+    /// so they fit `i32` lanes exactly.
+    pub block_i32: bool,
 }
 
 /// Screen dimensions and guard band for setup.
@@ -292,6 +296,7 @@ fn setup_triangle<const N: usize>(
         front_facing,
         primitive,
         small: max_x - min_x < 8 * SUBPIXEL && max_y - min_y < 8 * SUBPIXEL,
+        block_i32: edges.iter().all(|e| e.a.abs() + e.b.abs() < 1 << 19),
     });
     Some(())
 }

@@ -248,6 +248,35 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let box_bits = ((0xffu32 << lo) & (0xffu32 >> (BLOCK - 1 - hi))) as u8;
         let first_row = by.max(clip[1]);
         let last_row = (by + BLOCK - 1).min(clip[3]);
+        let any_partial = partial.iter().any(|&p| p);
+        if any_partial && t.block_i32 {
+            // Partial edges of a triangle whose edges are short enough:
+            // inside a block they cross, values stay below 2^31, so 8
+            // exact i32 lanes do one row at once.
+            let mut value = [i32x8::splat(0); 3];
+            let mut step_y = [0i32; 3];
+            let mut n = 0;
+            for (e, _) in t.edges.iter().zip(partial).filter(|(_, p)| *p) {
+                let base = e.at_pixel(bx as i64, first_row as i64) as i32;
+                value[n] = i32x8::splat(base) + OFFSETS_I32 * i32x8::splat(e.step_x() as i32);
+                step_y[n] = e.step_y() as i32;
+                n += 1;
+            }
+            for y in first_row..=last_row {
+                let mut or = value[0];
+                for v in &value[1..n] {
+                    or |= *v;
+                }
+                let mask = box_bits & !(or.move_mask() as u8);
+                if mask != 0 {
+                    self.row(t, bx, y, mask, ds, target, stats);
+                }
+                for k in 0..n {
+                    value[k] += i32x8::splat(step_y[k]);
+                }
+            }
+            return;
+        }
         // Partial edges, stepped row by row in f64: every value is an
         // integer below 2^53, so the additions are exact.
         let zero = f64x4::splat(0.0);
