@@ -623,7 +623,9 @@ impl<'a> RunTriangle<'a> {
         let mut b1 = d.dot(&V4::splat(self.frame.dual1));
         let mut b2 = d.dot(&V4::splat(self.frame.dual2));
         // Grazing lanes (t not finite or not positive): centroid depth.
-        let ok = t.is_finite() & t.cmp_gt(f64x4::splat(0.0));
+        // Finite and positive, by compares alone: `is_finite` on f64 lanes
+        // is a 64-bit integer compare, which SSE2 lacks (a scalar loop).
+        let ok = t.cmp_gt(f64x4::splat(0.0)) & t.cmp_lt(f64x4::splat(f64::INFINITY));
         let third = f64x4::splat(1.0 / 3.0);
         let centroid_t = f64x4::splat((self.frame.centroid - view.eye).dot(view.forward));
         t = ok.blend(t, centroid_t);
@@ -643,7 +645,7 @@ impl<'a> RunTriangle<'a> {
             Some([i, j, k]) => {
                 let m = V4::splat(*i) * cb0 + V4::splat(*j) * cb1 + V4::splat(*k) * cb2;
                 let len = m.dot(&m).sqrt();
-                let usable = len.cmp_gt(zero) & len.is_finite();
+                let usable = len.cmp_gt(zero) & len.cmp_lt(f64x4::splat(f64::INFINITY));
                 let m = m * (one / len);
                 let normal = V4::select(usable, &m, &geo);
                 // Trust vertex normals over an inverted winding.
