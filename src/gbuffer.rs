@@ -5,7 +5,7 @@
 //! triangle the rasterizer found.
 
 use crate::error::Result;
-use crate::geom::SceneGeometry;
+use crate::geom::{SceneGeometry, TriangleFrame};
 use crate::raster::{
     draw, run_vertex_stage, ClipVertex, DrawStats, FragmentBatch, FragmentStage, Framebuffer,
     NoFragmentStage, RasterState, TileGrid, TiledTarget,
@@ -233,8 +233,7 @@ pub fn resolve(
         height: view.height,
         samples: vec![GSample::BACKGROUND; view.width as usize * view.height as usize],
     };
-    let mut frames = Vec::new();
-    resolve_into(scene, geometry, view, ids, &mut frames, &mut gbuffer);
+    resolve_into(scene, geometry, view, ids, &mut gbuffer);
     gbuffer
 }
 
@@ -245,19 +244,10 @@ fn resolve_into(
     geometry: &SceneGeometry,
     view: &View,
     ids: &TiledTarget<u32>,
-    frames: &mut Vec<TriangleFrame>,
     gbuffer: &mut GBuffer,
 ) {
     let w = view.width;
-    frames.clear();
-    frames.par_extend(
-        geometry
-            .triangles
-            .par_iter()
-            .with_min_len(4096)
-            .map(|t| TriangleFrame::new(t.map(|i| geometry.positions[i as usize].as_dvec3()))),
-    );
-    let frames = &*frames;
+    let frames = &geometry.frames;
     gbuffer
         .samples
         .par_chunks_mut(w as usize)
@@ -304,7 +294,6 @@ pub struct GBufferPass {
     pub ids: TiledTarget<u32>,
     /// The resolved shading points.
     pub gbuffer: GBuffer,
-    frames: Vec<TriangleFrame>,
     vertices: Vec<ClipVertex<0>>,
 }
 
@@ -320,7 +309,6 @@ impl GBufferPass {
                 height: view.height,
                 samples: vec![GSample::BACKGROUND; view.width as usize * view.height as usize],
             },
-            frames: Vec::new(),
             vertices: Vec::new(),
         })
     }
@@ -361,14 +349,7 @@ impl GBufferPass {
             &mut self.framebuffer,
             &mut self.ids,
         )?;
-        resolve_into(
-            scene,
-            geometry,
-            view,
-            &self.ids,
-            &mut self.frames,
-            &mut self.gbuffer,
-        );
+        resolve_into(scene, geometry, view, &self.ids, &mut self.gbuffer);
         Ok(stats)
     }
 }
@@ -448,42 +429,6 @@ fn interpolate_uv(
     let [i, j, k] = mesh.triangles[local].map(|i| uvs[i as usize].as_dvec2());
     let b0 = 1.0 - b1 - b2;
     (i * b0 + j * b1 + k * b2).as_vec2()
-}
-
-/// What the resolve needs of a triangle, precomputed once per frame in
-/// f64: its plane and the dual vectors that turn a point of the plane into
-/// barycentrics with two dot products.
-#[derive(Debug, Clone, Copy)]
-struct TriangleFrame {
-    /// First corner.
-    a: DVec3,
-    /// Unnormalised normal `(b - a) × (c - a)` (winding order).
-    normal: DVec3,
-    /// `b1 = (p - a) · dual1`.
-    dual1: DVec3,
-    /// `b2 = (p - a) · dual2`.
-    dual2: DVec3,
-    /// Centroid, for rays grazing the plane.
-    centroid: DVec3,
-}
-
-impl TriangleFrame {
-    fn new([a, b, c]: [DVec3; 3]) -> Self {
-        let (e1, e2) = (b - a, c - a);
-        let normal = e1.cross(e2);
-        let n2 = normal.length_squared();
-        // Degenerate triangles were dropped at load; a zero here can only
-        // come from f32 → f64 of a sliver and gives zero duals (centroid
-        // fallback below).
-        let inv = if n2 > 0.0 { 1.0 / n2 } else { 0.0 };
-        TriangleFrame {
-            a,
-            normal,
-            dual1: e2.cross(normal) * inv,
-            dual2: normal.cross(e1) * inv,
-            centroid: (a + b + c) / 3.0,
-        }
-    }
 }
 
 /// A triangle's attributes, gathered once per run of pixels that see it

@@ -10,4 +10,4 @@ pub mod silhouette;
 pub use adjacency::{Edge, EdgeAdjacency, EdgeUse};
 
 pub use mesh::Mesh;
-pub use scene_geometry::SceneGeometry;
+pub use scene_geometry::{SceneGeometry, TriangleFrame};

@@ -2,7 +2,8 @@
 //! silhouette pass iterates over.
 
 use crate::scene::Scene;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// Every object's mesh concatenated, with a map back to objects.
 #[derive(Debug, Clone, Default)]
@@ -17,6 +18,45 @@ pub struct SceneGeometry {
     pub triangle_material: Vec<u32>,
     /// For each object, the index of its first triangle here.
     pub object_first_triangle: Vec<u32>,
+    /// Per triangle, its plane and barycentric frame in f64: view
+    /// independent, so computed once per scene rather than per frame.
+    pub frames: Vec<TriangleFrame>,
+}
+
+/// A triangle's plane and the dual vectors that turn a point of the plane
+/// into barycentrics with two dot products (f64).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriangleFrame {
+    /// First corner.
+    pub a: DVec3,
+    /// Unnormalised normal `(b - a) × (c - a)` (winding order).
+    pub normal: DVec3,
+    /// `b1 = (p - a) · dual1`.
+    pub dual1: DVec3,
+    /// `b2 = (p - a) · dual2`.
+    pub dual2: DVec3,
+    /// Centroid, for rays grazing the plane.
+    pub centroid: DVec3,
+}
+
+impl TriangleFrame {
+    /// The frame of triangle `(a, b, c)`.
+    pub fn new([a, b, c]: [DVec3; 3]) -> Self {
+        let (e1, e2) = (b - a, c - a);
+        let normal = e1.cross(e2);
+        let n2 = normal.length_squared();
+        // Degenerate triangles were dropped at load; a zero here can only
+        // come from a sliver and gives zero duals (users fall back to the
+        // centroid).
+        let inv = if n2 > 0.0 { 1.0 / n2 } else { 0.0 };
+        TriangleFrame {
+            a,
+            normal,
+            dual1: e2.cross(normal) * inv,
+            dual2: normal.cross(e1) * inv,
+            centroid: (a + b + c) / 3.0,
+        }
+    }
 }
 
 impl SceneGeometry {
@@ -34,6 +74,12 @@ impl SceneGeometry {
             g.triangle_object
                 .extend(std::iter::repeat_n(oi as u32, obj.mesh.triangles.len()));
         }
+        g.frames = g
+            .triangles
+            .par_iter()
+            .with_min_len(4096)
+            .map(|t| TriangleFrame::new(t.map(|i| g.positions[i as usize].as_dvec3())))
+            .collect();
         g
     }
 
