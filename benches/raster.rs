@@ -33,7 +33,7 @@ fn raster(c: &mut Criterion) {
     group.bench_function("depth_prepass", |b| {
         b.iter(|| {
             let vertices = transform_vertices(&geometry, &view);
-            depth_pass(&geometry, &view, &vertices).expect("draw")
+            depth_pass(&scene, &geometry, &view, &vertices).expect("draw")
         })
     });
     // A frame loop, as glsv times llvmpipe: the pass's buffers are made

@@ -7,7 +7,7 @@
 use crate::error::Result;
 use crate::geom::{SceneGeometry, TriangleFrame};
 use crate::raster::{
-    draw, run_vertex_stage, ClipVertex, DrawStats, FragmentBatch, FragmentStage, Framebuffer,
+    draw_numbered, run_vertex_stage, CullMode, ClipVertex, DrawStats, FragmentBatch, FragmentStage, Framebuffer,
     NoFragmentStage, RasterState, TileGrid, TiledTarget,
 };
 use crate::scene::Scene;
@@ -144,6 +144,86 @@ impl<const ALPHA: bool> FragmentStage<0> for VisibilityStage<'_, ALPHA> {
     }
 }
 
+/// Whether each object may have its back faces culled in this view: its
+/// surface is closed, every material on it stops camera rays, and all its
+/// vertices lie beyond twice the near distance. Then the eye is outside it
+/// (an eye inside a closed surface has some of the surface behind it) and
+/// no near-plane cut opens it, so every back face is hidden by a front
+/// face of the same object and culling them changes nothing but the work.
+fn cullable_objects(scene: &Scene, geometry: &SceneGeometry, view: &View, vertices: &[ClipVertex<0>]) -> Vec<bool> {
+    let near = (2.0 * view.near) as f32;
+    let camera_opaque = |m: u32| {
+        let m = &scene.materials[m as usize];
+        m.opacity >= SEE_THROUGH_OPACITY && m.opacity_texture.is_none()
+    };
+    (0..scene.objects.len())
+        .map(|o| {
+            let tris = geometry.object_first_triangle[o] as usize
+                ..geometry
+                    .object_first_triangle
+                    .get(o + 1)
+                    .map_or(geometry.triangles.len(), |&t| t as usize);
+            let verts = geometry.object_first_vertex[o] as usize
+                ..geometry
+                    .object_first_vertex
+                    .get(o + 1)
+                    .map_or(vertices.len(), |&v| v as usize);
+            geometry.object_closed[o]
+                && geometry.triangle_material[tris].iter().all(|&m| camera_opaque(m))
+                && vertices[verts].iter().all(|v| v.position.w > near)
+        })
+        .collect()
+}
+
+/// Draws the scene's triangles with a closer-wins depth test, culling the
+/// back faces of [`cullable_objects`]: one draw per run of objects with the
+/// same choice, in object order, so the result equals one draw of all
+/// triangles.
+fn draw_scene<S: FragmentStage<0>>(
+    scene: &Scene,
+    geometry: &SceneGeometry,
+    view: &View,
+    vertices: &[ClipVertex<0>],
+    fb: &mut Framebuffer,
+    targets: &mut [S::Target],
+    stage: &S,
+) -> Result<DrawStats> {
+    let cull = cullable_objects(scene, geometry, view, vertices);
+    let mut total = DrawStats::default();
+    let mut o = 0;
+    while o < cull.len() {
+        let mut end = o + 1;
+        while end < cull.len() && cull[end] == cull[o] {
+            end += 1;
+        }
+        let first = geometry.object_first_triangle[o] as usize;
+        let last = geometry
+            .object_first_triangle
+            .get(end)
+            .map_or(geometry.triangles.len(), |&t| t as usize);
+        let state = RasterState {
+            cull: if cull[o] { CullMode::Back } else { CullMode::None },
+            ..RasterState::default()
+        };
+        let s = draw_numbered(
+            fb,
+            targets,
+            &state,
+            vertices,
+            &geometry.triangles[first..last],
+            first as u32,
+            stage,
+        )?;
+        total.triangles += s.triangles;
+        total.setup_triangles += s.setup_triangles;
+        total.binned += s.binned;
+        total.fragments += s.fragments;
+        total.passed += s.passed;
+        o = end;
+    }
+    Ok(total)
+}
+
 /// Clip-space vertices of the whole scene.
 pub fn transform_vertices(geometry: &SceneGeometry, view: &View) -> Vec<ClipVertex<0>> {
     run_vertex_stage(&geometry.positions, |p| ClipVertex {
@@ -155,6 +235,7 @@ pub fn transform_vertices(geometry: &SceneGeometry, view: &View) -> Vec<ClipVert
 /// Depth-only pass of the whole scene (no see-through handling): the
 /// depth pre-pass a hard-shadow renderer runs first.
 pub fn depth_pass(
+    scene: &Scene,
     geometry: &SceneGeometry,
     view: &View,
     vertices: &[ClipVertex<0>],
@@ -162,14 +243,7 @@ pub fn depth_pass(
     let grid = TileGrid::new(view.width, view.height)?;
     let mut fb = Framebuffer::new(grid);
     let mut none = vec![(); grid.tile_count()];
-    let stats = draw(
-        &mut fb,
-        &mut none,
-        &RasterState::default(),
-        vertices,
-        &geometry.triangles,
-        &NoFragmentStage,
-    )?;
+    let stats = draw_scene(scene, geometry, view, vertices, &mut fb, &mut none, &NoFragmentStage)?;
     Ok((fb, stats))
 }
 
@@ -201,7 +275,7 @@ fn visibility_pass_into(
         .iter()
         .map(|m| m.opacity < SEE_THROUGH_OPACITY || m.opacity_texture.is_some())
         .collect();
-    let (state, tris, tiles) = (RasterState::default(), &geometry.triangles, ids.tiles_mut());
+    let tiles = ids.tiles_mut();
     if see_through.iter().any(|&s| s) {
         let stage = VisibilityStage::<true> {
             scene,
@@ -209,7 +283,7 @@ fn visibility_pass_into(
             view,
             see_through,
         };
-        draw(fb, tiles, &state, vertices, tris, &stage)
+        draw_scene(scene, geometry, view, vertices, fb, tiles, &stage)
     } else {
         let stage = VisibilityStage::<false> {
             scene,
@@ -217,7 +291,7 @@ fn visibility_pass_into(
             view,
             see_through,
         };
-        draw(fb, tiles, &state, vertices, tris, &stage)
+        draw_scene(scene, geometry, view, vertices, fb, tiles, &stage)
     }
 }
 

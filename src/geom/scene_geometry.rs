@@ -18,6 +18,12 @@ pub struct SceneGeometry {
     pub triangle_material: Vec<u32>,
     /// For each object, the index of its first triangle here.
     pub object_first_triangle: Vec<u32>,
+    /// For each object, the index of its first vertex here.
+    pub object_first_vertex: Vec<u32>,
+    /// For each object: is its surface closed (every welded edge used as
+    /// often in one direction as in the other)? A closed surface hides
+    /// its back faces from any eye outside it.
+    pub object_closed: Vec<bool>,
     /// Per triangle, its plane and barycentric frame in f64: view
     /// independent, so computed once per scene rather than per frame.
     pub frames: Vec<TriangleFrame>,
@@ -65,6 +71,7 @@ impl SceneGeometry {
         let mut g = SceneGeometry::default();
         for (oi, obj) in scene.objects.iter().enumerate() {
             let base = g.positions.len() as u32;
+            g.object_first_vertex.push(base);
             g.object_first_triangle.push(g.triangles.len() as u32);
             g.positions.extend_from_slice(&obj.mesh.positions);
             g.triangles
@@ -74,6 +81,15 @@ impl SceneGeometry {
             g.triangle_object
                 .extend(std::iter::repeat_n(oi as u32, obj.mesh.triangles.len()));
         }
+        let adjacency = super::EdgeAdjacency::build(&g, |_| true);
+        let mut closed = vec![true; scene.objects.len()];
+        let mut has_faces = vec![false; scene.objects.len()];
+        for (slot, &f) in adjacency.faces.iter().enumerate() {
+            let o = g.triangle_object[f as usize] as usize;
+            has_faces[o] = true;
+            closed[o] &= adjacency.face_closed[slot];
+        }
+        g.object_closed = closed.iter().zip(&has_faces).map(|(c, h)| *c && *h).collect();
         g.frames = g
             .triangles
             .par_iter()

@@ -21,7 +21,7 @@ pub use fragment::{FragmentBatch, FragmentStage, NoFragmentStage};
 pub use framebuffer::{
     DepthStencilTile, Framebuffer, TileGrid, TiledTarget, FAR_DEPTH, TILE_PIXELS, TILE_SIZE,
 };
-pub use pipeline::{draw, DrawStats};
+pub use pipeline::{draw, draw_numbered, DrawStats};
 pub use setup::{
     EdgeFunction, Plane, SetupTriangle, Viewport, GUARD_BAND, MAX_SIDE, SUBPIXEL_BITS,
 };

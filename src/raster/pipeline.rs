@@ -43,6 +43,20 @@ pub fn draw<const N: usize, S: FragmentStage<N>>(
     triangles: &[[u32; 3]],
     stage: &S,
 ) -> Result<DrawStats> {
+    draw_numbered(framebuffer, targets, state, vertices, triangles, 0, stage)
+}
+
+/// [`draw`] for a slice of a larger triangle list: fragments report
+/// primitive ids `first_primitive + index in triangles`.
+pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
+    framebuffer: &mut Framebuffer,
+    targets: &mut [S::Target],
+    state: &RasterState,
+    vertices: &[ClipVertex<N>],
+    triangles: &[[u32; 3]],
+    first_primitive: u32,
+    stage: &S,
+) -> Result<DrawStats> {
     let grid = framebuffer.grid();
     if targets.len() != grid.tile_count() {
         return Err(Error::param(
@@ -84,7 +98,7 @@ pub fn draw<const N: usize, S: FragmentStage<N>>(
         .map(|(chunk, tris)| {
             let mut out = Vec::with_capacity(tris.len());
             for (k, tri) in tris.iter().enumerate() {
-                let prim = (chunk * SETUP_CHUNK + k) as u32;
+                let prim = first_primitive + (chunk * SETUP_CHUNK + k) as u32;
                 let v = tri.map(|i| vertices[i as usize]);
                 match classify(&v, gx, gy) {
                     ClipClass::Inside => {
