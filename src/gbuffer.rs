@@ -7,8 +7,8 @@
 use crate::error::Result;
 use crate::geom::{SceneGeometry, TriangleFrame};
 use crate::raster::{
-    draw_numbered, run_vertex_stage, CullMode, ClipVertex, DrawStats, FragmentBatch, FragmentStage, Framebuffer,
-    NoFragmentStage, RasterState, TileGrid, TiledTarget,
+    draw_numbered, run_vertex_stage_into, ClipVertex, CullMode, DrawStats, FragmentBatch,
+    FragmentStage, Framebuffer, NoFragmentStage, RasterState, TileGrid, TiledTarget,
 };
 use crate::scene::Scene;
 use crate::view::View;
@@ -101,20 +101,15 @@ impl<const ALPHA: bool> VisibilityStage<'_, ALPHA> {
     /// Opacity the camera ray through `(x, y)` meets on `triangle`.
     fn opacity_at(&self, triangle: u32, x: u32, y: u32) -> f32 {
         let m = &self.scene.materials[self.geometry.triangle_material[triangle as usize] as usize];
-        let dir = self.view.primary_ray(x, y);
-        let hit = intersect(self.view.eye, dir, self.corners(triangle));
-        let (b1, b2) = hit.map_or((0.0, 0.0), |h| (h.1, h.2));
+        let dir = self.view.primary_ray_unnormalized(x, y);
+        let hit = self.geometry.frames[triangle as usize].hit(self.view.eye, dir);
+        let (b1, b2) = hit.map_or((1.0 / 3.0, 1.0 / 3.0), |h| (h.1, h.2));
         let uv = interpolate_uv(self.scene, self.geometry, triangle, b1, b2);
         let tex = m
             .opacity_texture
             .and_then(|t| self.scene.textures.get(t))
             .map_or(1.0, |t| t.lookup_scalar(uv));
         m.opacity * tex
-    }
-
-    fn corners(&self, triangle: u32) -> [DVec3; 3] {
-        self.geometry.triangles[triangle as usize]
-            .map(|i| self.geometry.positions[i as usize].as_dvec3())
     }
 }
 
@@ -150,7 +145,12 @@ impl<const ALPHA: bool> FragmentStage<0> for VisibilityStage<'_, ALPHA> {
 /// (an eye inside a closed surface has some of the surface behind it) and
 /// no near-plane cut opens it, so every back face is hidden by a front
 /// face of the same object and culling them changes nothing but the work.
-fn cullable_objects(scene: &Scene, geometry: &SceneGeometry, view: &View, vertices: &[ClipVertex<0>]) -> Vec<bool> {
+fn cullable_objects(
+    scene: &Scene,
+    geometry: &SceneGeometry,
+    view: &View,
+    vertices: &[ClipVertex<0>],
+) -> Vec<bool> {
     let near = (2.0 * view.near) as f32;
     let camera_opaque = |m: u32| {
         let m = &scene.materials[m as usize];
@@ -169,7 +169,9 @@ fn cullable_objects(scene: &Scene, geometry: &SceneGeometry, view: &View, vertic
                     .get(o + 1)
                     .map_or(vertices.len(), |&v| v as usize);
             geometry.object_closed[o]
-                && geometry.triangle_material[tris].iter().all(|&m| camera_opaque(m))
+                && geometry.triangle_material[tris]
+                    .iter()
+                    .all(|&m| camera_opaque(m))
                 && vertices[verts].iter().all(|v| v.position.w > near)
         })
         .collect()
@@ -202,7 +204,11 @@ fn draw_scene<S: FragmentStage<0>>(
             .get(end)
             .map_or(geometry.triangles.len(), |&t| t as usize);
         let state = RasterState {
-            cull: if cull[o] { CullMode::Back } else { CullMode::None },
+            cull: if cull[o] {
+                CullMode::Back
+            } else {
+                CullMode::None
+            },
             ..RasterState::default()
         };
         let s = draw_numbered(
@@ -214,11 +220,7 @@ fn draw_scene<S: FragmentStage<0>>(
             first as u32,
             stage,
         )?;
-        total.triangles += s.triangles;
-        total.setup_triangles += s.setup_triangles;
-        total.binned += s.binned;
-        total.fragments += s.fragments;
-        total.passed += s.passed;
+        total += s;
         o = end;
     }
     Ok(total)
@@ -226,10 +228,21 @@ fn draw_scene<S: FragmentStage<0>>(
 
 /// Clip-space vertices of the whole scene.
 pub fn transform_vertices(geometry: &SceneGeometry, view: &View) -> Vec<ClipVertex<0>> {
-    run_vertex_stage(&geometry.positions, |p| ClipVertex {
-        position: view.clip_point(*p),
-        varyings: [],
-    })
+    let mut out = Vec::new();
+    transform_vertices_into(geometry, view, &mut out);
+    out
+}
+
+/// [`transform_vertices`] into a reused vector.
+fn transform_vertices_into(geometry: &SceneGeometry, view: &View, out: &mut Vec<ClipVertex<0>>) {
+    run_vertex_stage_into(
+        &geometry.positions,
+        |p| ClipVertex {
+            position: view.clip_point(*p),
+            varyings: [],
+        },
+        out,
+    )
 }
 
 /// Depth-only pass of the whole scene (no see-through handling): the
@@ -243,7 +256,15 @@ pub fn depth_pass(
     let grid = TileGrid::new(view.width, view.height)?;
     let mut fb = Framebuffer::new(grid);
     let mut none = vec![(); grid.tile_count()];
-    let stats = draw_scene(scene, geometry, view, vertices, &mut fb, &mut none, &NoFragmentStage)?;
+    let stats = draw_scene(
+        scene,
+        geometry,
+        view,
+        vertices,
+        &mut fb,
+        &mut none,
+        &NoFragmentStage,
+    )?;
     Ok((fb, stats))
 }
 
@@ -403,18 +424,7 @@ impl GBufferPass {
         }
         self.framebuffer.clear_depth(crate::raster::FAR_DEPTH);
         self.ids.fill(NO_TRIANGLE);
-        self.vertices.clear();
-        self.vertices
-            .par_extend(
-                geometry
-                    .positions
-                    .par_iter()
-                    .with_min_len(4096)
-                    .map(|p| ClipVertex {
-                        position: view.clip_point(*p),
-                        varyings: [],
-                    }),
-            );
+        transform_vertices_into(geometry, view, &mut self.vertices);
         let stats = visibility_pass_into(
             scene,
             geometry,
@@ -466,26 +476,6 @@ pub fn gbuffer_pass(
     let mut pass = GBufferPass::new(view)?;
     let stats = pass.run(scene, geometry, view)?;
     Ok((pass.gbuffer, pass.framebuffer, stats))
-}
-
-/// Möller–Trumbore in f64 without range checks on the barycentrics:
-/// returns `(t, b1, b2)` of the ray's hit on the triangle's plane.
-#[inline]
-pub fn intersect(origin: DVec3, dir: DVec3, [a, b, c]: [DVec3; 3]) -> Option<(f64, f64, f64)> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let pv = dir.cross(e2);
-    let det = e1.dot(pv);
-    if det == 0.0 || !det.is_finite() {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let tv = origin - a;
-    let b1 = tv.dot(pv) * inv;
-    let qv = tv.cross(e1);
-    let b2 = dir.dot(qv) * inv;
-    let t = e2.dot(qv) * inv;
-    (t.is_finite() && t > 0.0).then_some((t, b1, b2))
 }
 
 fn interpolate_uv(
@@ -559,18 +549,13 @@ impl<'a> RunTriangle<'a> {
     /// this triangle.
     #[inline]
     fn sample(&self, view: &View, dir: DVec3) -> GSample {
-        let denom = self.frame.normal.dot(dir);
-        let mut t = self.numerator / denom;
-        let (mut b1, mut b2) = (1.0 / 3.0, 1.0 / 3.0);
-        if t.is_finite() && t > 0.0 {
-            let d = view.eye + dir * t - self.frame.a;
-            b1 = d.dot(self.frame.dual1);
-            b2 = d.dot(self.frame.dual2);
-        } else {
-            // Grazing: the ray is (numerically) in the triangle's plane.
-            // Fall back to the centroid's depth along this ray.
-            t = (self.frame.centroid - view.eye).dot(view.forward);
-        }
+        // Grazing (the ray numerically in the triangle's plane): fall back
+        // to the centroid's depth along this ray.
+        let (t, b1, b2) = self.frame.hit(view.eye, dir).unwrap_or((
+            (self.frame.centroid - view.eye).dot(view.forward),
+            1.0 / 3.0,
+            1.0 / 3.0,
+        ));
         // `dir` has unit length along `forward` (forward + x right + y up),
         // so `t` is the view depth itself.
         let position = view.eye + dir * t;

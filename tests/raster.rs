@@ -651,39 +651,8 @@ fn counting_path_equals_general_stencil_path() {
     let volume: Vec<ClipVertex<0>> = (0..300).map(|_| vertex(&mut rng)).collect();
     let volume_tris: Vec<[u32; 3]> = (0..100).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
     for zpass in [false, true] {
-        let (front, back) = if zpass {
-            (
-                StencilFace {
-                    pass: StencilOp::Increment,
-                    ..StencilFace::KEEP
-                },
-                StencilFace {
-                    pass: StencilOp::Decrement,
-                    ..StencilFace::KEEP
-                },
-            )
-        } else {
-            (
-                StencilFace {
-                    depth_fail: StencilOp::Decrement,
-                    ..StencilFace::KEEP
-                },
-                StencilFace {
-                    depth_fail: StencilOp::Increment,
-                    ..StencilFace::KEEP
-                },
-            )
-        };
-        let state = RasterState {
-            depth_func: CompareFunc::Greater,
-            depth_write: false,
-            stencil: Some(StencilState {
-                front,
-                back,
-                reference: 0,
-            }),
-            cull: CullMode::None,
-        };
+        // The states the shadow-volume technique itself uses.
+        let state = penumbra::shadow::shadow_volumes::stencil_state(zpass);
         let run = |general: bool| {
             let grid = TileGrid::new(w, h).unwrap();
             let mut fb = Framebuffer::new(grid);

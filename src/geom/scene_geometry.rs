@@ -24,6 +24,8 @@ pub struct SceneGeometry {
     /// often in one direction as in the other)? A closed surface hides
     /// its back faces from any eye outside it.
     pub object_closed: Vec<bool>,
+    /// Welded edge adjacency of all triangles, built once per scene.
+    pub adjacency: super::EdgeAdjacency,
     /// Per triangle, its plane and barycentric frame in f64: view
     /// independent, so computed once per scene rather than per frame.
     pub frames: Vec<TriangleFrame>,
@@ -63,6 +65,19 @@ impl TriangleFrame {
             centroid: (a + b + c) / 3.0,
         }
     }
+
+    /// Where the ray `origin + t dir` meets the triangle's plane: `(t, b1,
+    /// b2)` with unclamped barycentrics, or `None` for a ray (numerically)
+    /// in the plane or a hit behind the origin.
+    #[inline]
+    pub fn hit(&self, origin: DVec3, dir: DVec3) -> Option<(f64, f64, f64)> {
+        let t = self.normal.dot(self.a - origin) / self.normal.dot(dir);
+        if !(t.is_finite() && t > 0.0) {
+            return None;
+        }
+        let d = origin + dir * t - self.a;
+        Some((t, d.dot(self.dual1), d.dot(self.dual2)))
+    }
 }
 
 impl SceneGeometry {
@@ -89,7 +104,12 @@ impl SceneGeometry {
             has_faces[o] = true;
             closed[o] &= adjacency.face_closed[slot];
         }
-        g.object_closed = closed.iter().zip(&has_faces).map(|(c, h)| *c && *h).collect();
+        g.object_closed = closed
+            .iter()
+            .zip(&has_faces)
+            .map(|(c, h)| *c && *h)
+            .collect();
+        g.adjacency = adjacency;
         g.frames = g
             .triangles
             .par_iter()

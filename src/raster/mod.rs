@@ -27,4 +27,4 @@ pub use setup::{
 };
 pub use simd::LANES;
 pub use state::{CompareFunc, CullMode, RasterState, StencilFace, StencilOp, StencilState};
-pub use vertex::{run_vertex_stage, ClipVertex};
+pub use vertex::{run_vertex_stage, run_vertex_stage_into, ClipVertex};

@@ -26,6 +26,16 @@ pub struct DrawStats {
     pub passed: u64,
 }
 
+impl std::ops::AddAssign for DrawStats {
+    fn add_assign(&mut self, o: DrawStats) {
+        self.triangles += o.triangles;
+        self.setup_triangles += o.setup_triangles;
+        self.binned += o.binned;
+        self.fragments += o.fragments;
+        self.passed += o.passed;
+    }
+}
+
 /// Triangles per setup work item: large enough to amortise scheduling,
 /// small enough to balance two to many cores.
 const SETUP_CHUNK: usize = 2048;

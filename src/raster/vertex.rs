@@ -25,5 +25,21 @@ where
     I: Sync,
     F: Fn(&I) -> ClipVertex<N> + Sync,
 {
-    inputs.par_iter().with_min_len(4096).map(&stage).collect()
+    let mut out = Vec::new();
+    run_vertex_stage_into(inputs, stage, &mut out);
+    out
+}
+
+/// [`run_vertex_stage`] into a reused vector (cleared first), so a frame
+/// loop allocates nothing.
+pub fn run_vertex_stage_into<I, F, const N: usize>(
+    inputs: &[I],
+    stage: F,
+    out: &mut Vec<ClipVertex<N>>,
+) where
+    I: Sync,
+    F: Fn(&I) -> ClipVertex<N> + Sync,
+{
+    out.clear();
+    out.par_extend(inputs.par_iter().with_min_len(4096).map(&stage));
 }

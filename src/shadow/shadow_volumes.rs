@@ -23,6 +23,7 @@ use crate::raster::{
 use crate::scene::{LightShape, Scene};
 use crate::view::View;
 use glam::Vec3;
+use std::borrow::Cow;
 use std::time::Instant;
 
 /// The hard-shadow technique.
@@ -51,12 +52,22 @@ pub fn light_point(shape: &LightShape) -> Vec3 {
 }
 
 /// Opaque shadow casters: the faces hard shadow volumes are built from.
-pub fn caster_adjacency(scene: &Scene, geometry: &crate::geom::SceneGeometry) -> EdgeAdjacency {
-    EdgeAdjacency::build(geometry, |f| {
+/// When every triangle is one (the usual scene), this is the scene's own
+/// adjacency, borrowed; otherwise it is rebuilt over the casters only.
+pub fn caster_adjacency<'a>(
+    scene: &Scene,
+    geometry: &'a crate::geom::SceneGeometry,
+) -> Cow<'a, EdgeAdjacency> {
+    let casts = |f: u32| {
         let object = &scene.objects[geometry.triangle_object[f as usize] as usize];
         let material = &scene.materials[geometry.triangle_material[f as usize] as usize];
         object.cast_shadows && material.is_opaque()
-    })
+    };
+    if (0..geometry.triangles.len() as u32).all(casts) {
+        Cow::Borrowed(&geometry.adjacency)
+    } else {
+        Cow::Owned(EdgeAdjacency::build(geometry, casts))
+    }
 }
 
 /// Builds the volume of every caster in `adj` for a point light at `light`.
