@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{scratch_dir, Rng};
+use common::{shipped, Rng};
 use glam::{Vec2, Vec3};
 use penumbra::gbuffer::{gbuffer_pass, GBuffer, GSample};
 use penumbra::geom::bvh::{intersect_triangle, Bvh};
@@ -13,32 +13,18 @@ use penumbra::geom::SceneGeometry;
 use penumbra::raster::Framebuffer;
 use penumbra::render::{view_for, with_threads, RenderOptions};
 use penumbra::sampling::{light_samples, pixel_key, LightSampler, Strata};
-use penumbra::scene::{load_scene, Light, LightShape, Scene};
+use penumbra::scene::{Light, LightShape, Scene};
 use penumbra::shade::{LightSample, PreparedLight, SurfacePoint};
 use penumbra::shadow::reference::{Reference, ShadowTracer};
 use penumbra::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
 use penumbra::view::View;
 use rayon::prelude::*;
-use std::path::Path;
 
 // ---------------------------------------------------------------- set-up
 
 /// Loads a scene written to a scratch directory (extra files: name, bytes).
-fn scene_from_toml(name: &str, toml: &str, files: &[(&str, Vec<u8>)]) -> Scene {
-    let dir = scratch_dir(&format!("reference-{name}"));
-    for (file, bytes) in files {
-        std::fs::write(dir.join(file), bytes).expect("write scratch file");
-    }
-    let path = dir.join("scene.toml");
-    std::fs::write(&path, toml).expect("write scene");
-    load_scene(&path).expect("test scene loads")
-}
-
-fn shipped(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name);
-    load_scene(&path).expect("shipped scene loads")
+fn scene_from_toml(name: &str, toml: &str, files: &[(&str, &[u8])]) -> Scene {
+    common::scene_in_scratch(&format!("reference-{name}"), toml, files)
 }
 
 /// Everything a technique reads, for `scene` at `w × h`.
@@ -933,7 +919,7 @@ translate = [0.0, 1.0, 0.0]
 material = {{ opacity_texture = "alpha.png" }}
 "#
         ),
-        &[("alpha.png", png)],
+        &[("alpha.png", &png[..])],
     );
     let geometry = SceneGeometry::new(&scene);
     let tracer = ShadowTracer::new(&scene, &geometry);

@@ -15,13 +15,12 @@ use penumbra::gbuffer::{gbuffer_pass, GBuffer};
 use penumbra::geom::SceneGeometry;
 use penumbra::raster::Framebuffer;
 use penumbra::render::{view_for, RenderOptions};
-use penumbra::scene::{load_scene, Scene};
+use penumbra::scene::Scene;
 use penumbra::shadow::reference::ShadowTracer;
 use penumbra::shadow::shadow_volumes::{
     build_volume, caster_adjacency, light_point, stencil_counts,
 };
 use penumbra::view::View;
-use std::path::Path;
 
 struct Frame {
     scene: Scene,
@@ -49,23 +48,11 @@ fn frame(scene: Scene, w: u32, h: u32) -> Frame {
     }
 }
 
-fn shipped(name: &str) -> Scene {
-    load_scene(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes")
-            .join(name),
-    )
-    .expect("scene")
-}
+use common::shipped;
 
 fn scene_from(name: &str, toml: &str, files: &[(&str, &str)]) -> Scene {
-    let dir = common::scratch_dir(name);
-    for (f, text) in files {
-        std::fs::write(dir.join(f), text).expect("write");
-    }
-    let path = dir.join("scene.toml");
-    std::fs::write(&path, toml).expect("write");
-    load_scene(&path).expect("scene")
+    let files: Vec<(&str, &[u8])> = files.iter().map(|(f, t)| (*f, t.as_bytes())).collect();
+    common::scene_in_scratch(name, toml, &files)
 }
 
 fn counts(f: &Frame, zpass: bool) -> Vec<i32> {

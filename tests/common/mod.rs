@@ -31,3 +31,23 @@ pub fn scratch_dir(name: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(&dir).expect("create scratch dir");
     dir
 }
+
+/// Loads a scene file written, with extra files (name, bytes), into a
+/// scratch directory.
+pub fn scene_in_scratch(name: &str, toml: &str, files: &[(&str, &[u8])]) -> penumbra::scene::Scene {
+    let dir = scratch_dir(name);
+    for (file, bytes) in files {
+        std::fs::write(dir.join(file), bytes).expect("write scratch file");
+    }
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, toml).expect("write scene");
+    penumbra::scene::load_scene(&path).expect("test scene loads")
+}
+
+/// Loads a scene shipped in `scenes/`.
+pub fn shipped(name: &str) -> penumbra::scene::Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name);
+    penumbra::scene::load_scene(&path).expect("shipped scene loads")
+}
