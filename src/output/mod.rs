@@ -10,6 +10,7 @@ mod exr;
 mod png;
 
 pub use self::exr::write_exr;
+pub(crate) use self::png::write_rgb8;
 pub use self::png::{srgb_decode, srgb_encode_u8, write_png};
 
 use crate::error::{Error, Result};
@@ -155,7 +156,13 @@ fn rename_error(e: Error, tmp: &Path, path: &Path) -> Error {
 
 /// Checks that `len` values make a `width × height` image with at least
 /// one pixel; the error names the output `path`.
-fn check_size(path: &Path, width: u32, height: u32, len: usize, what: &str) -> Result<()> {
+pub(crate) fn check_size(
+    path: &Path,
+    width: u32,
+    height: u32,
+    len: usize,
+    what: &str,
+) -> Result<()> {
     if width == 0 || height == 0 {
         return Err(Error::file(
             path,

@@ -48,11 +48,26 @@ pub fn write_png(path: &Path, width: u32, height: u32, radiance: &[Vec3]) -> Res
         .flat_map(|c| [c.x, c.y, c.z])
         .map(srgb_encode_u8)
         .collect();
+    write_rgb8(path, width, height, &bytes)
+}
+
+/// Writes 8-bit RGB `bytes` (`width × height × 3`, row 0 at the top) as a
+/// PNG at `path`, atomically. Shared by the image output and the report's
+/// charts and heat maps, so every PNG is encoded the same way.
+pub(crate) fn write_rgb8(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<()> {
+    if !bytes.len().is_multiple_of(3) {
+        return Err(Error::file(
+            path,
+            None,
+            format!("RGB data has {} bytes, not a multiple of 3", bytes.len()),
+        ));
+    }
+    check_size(path, width, height, bytes.len() / 3, "RGB data")?;
     write_atomically(path, |tmp| {
         let file = File::create(tmp).map_err(|e| Error::io(tmp, e))?;
         let mut out = BufWriter::new(file);
         PngEncoder::new(&mut out)
-            .write_image(&bytes, width, height, ExtendedColorType::Rgb8)
+            .write_image(bytes, width, height, ExtendedColorType::Rgb8)
             .map_err(|e| image_error(tmp, e))?;
         out.flush().map_err(|e| Error::io(tmp, e))
     })
