@@ -1,5 +1,15 @@
-//! Reporting: progress, timings (and, later, error metrics and plots).
+//! Reporting: progress, error metrics, error heat maps and error-vs-time
+//! charts.
 
+pub mod chart;
+pub mod heatmap;
+pub mod metrics;
 mod progress;
 
+pub use chart::{
+    pareto_front, write_error_vs_time, write_error_vs_time_sized, ChartPoint, CHART_SIZE,
+    MIN_CHART_SIZE,
+};
+pub use heatmap::{heatmap_colour, write_error_heatmap, HEATMAP_BACKGROUND, HEATMAP_NON_FINITE};
+pub use metrics::{error_metrics, ErrorAccumulator, ErrorMetrics, VISIBLE_ERROR};
 pub use progress::Progress;
