@@ -1,7 +1,8 @@
-//! Reporting: progress, error metrics, error heat maps and error-vs-time
-//! charts.
+//! Reporting: progress, error metrics, `diff` between images, error heat
+//! maps and error-vs-time charts.
 
 pub mod chart;
+pub mod diff;
 pub mod heatmap;
 pub mod metrics;
 mod progress;
@@ -10,6 +11,7 @@ pub use chart::{
     pareto_front, write_error_vs_time, write_error_vs_time_sized, ChartPoint, CHART_SIZE,
     MIN_CHART_SIZE,
 };
+pub use diff::{diff_images, ChannelDiff, DiffOptions, DiffReport};
 pub use heatmap::{heatmap_colour, write_error_heatmap, HEATMAP_BACKGROUND, HEATMAP_NON_FINITE};
 pub use metrics::{error_metrics, ErrorAccumulator, ErrorMetrics, VISIBLE_ERROR};
 pub use progress::Progress;
