@@ -1,12 +1,18 @@
 //! The command line: argument parsing and the commands' top level.
 
+use crate::compare::cache::default_cache_dir;
+use crate::compare::{
+    compare_scene, progress_steps, write_csv, write_json, write_markdown, CompareOptions,
+    SceneComparison,
+};
 use crate::error::{Error, Result};
 use crate::output::{write_exr, write_png};
 use crate::render::{render, with_threads, Aov, RenderOptions, Technique};
 use crate::report::Progress;
+use crate::report::{diff_images, DiffOptions};
 use crate::scene::{load_scene, LightShape, Scene};
 use clap::{Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// penumbra: physically based soft shadows on the CPU.
 #[derive(Debug, Parser)]
@@ -57,6 +63,87 @@ enum Command {
         #[arg(long)]
         timings: bool,
     },
+    /// Time every technique at several quality settings and measure its
+    /// error against a cached ray-traced reference at the same receiver
+    /// points; writes results.csv/json/md, charts, images and heat maps.
+    Compare {
+        /// Scene files (TOML); each gets its own subdirectory of --out when
+        /// there are several.
+        #[arg(required = true)]
+        scenes: Vec<PathBuf>,
+        /// Comma-separated techniques.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "shadow-volumes,reference"
+        )]
+        techniques: Vec<String>,
+        /// Comma-separated light-sample counts for sampling techniques.
+        #[arg(long, value_delimiter = ',', default_value = "4,16,64,256")]
+        samples: Vec<u32>,
+        /// Samples per light of the reference (even: it is two halves).
+        #[arg(long, default_value_t = 4096)]
+        reference_samples: u32,
+        /// Timed runs per setting; the median is reported.
+        #[arg(long, default_value_t = 3)]
+        repeat: u32,
+        /// Image width (overrides the scene's camera).
+        #[arg(long)]
+        width: Option<u32>,
+        /// Image height (overrides the scene's camera).
+        #[arg(long)]
+        height: Option<u32>,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Seed of the techniques' light samples.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Output directory.
+        #[arg(long, default_value = "compare")]
+        out: PathBuf,
+        /// Reference cache (default: $PENUMBRA_CACHE, $XDG_CACHE_HOME/penumbra
+        /// or ~/.cache/penumbra).
+        #[arg(long)]
+        cache_dir: Option<PathBuf>,
+        /// Also write the markdown report here, with links relative to it
+        /// (e.g. docs/results.md).
+        #[arg(long)]
+        report: Option<PathBuf>,
+        /// Skip per-run images and heat maps (charts and tables only).
+        #[arg(long)]
+        no_images: bool,
+    },
+    /// Error metrics between two images (PNG or EXR); exits with 1 when a
+    /// tolerance is exceeded, 2 on an error.
+    Diff {
+        /// First image (the one under test).
+        a: PathBuf,
+        /// Second image (the reference).
+        b: PathBuf,
+        /// Channels of A, comma-separated (default: those both images have).
+        #[arg(long, value_delimiter = ',')]
+        channels_a: Vec<String>,
+        /// Channels of B paired with --channels-a by position (default: the
+        /// same names).
+        #[arg(long, value_delimiter = ',')]
+        channels_b: Vec<String>,
+        /// Only pixels where this image's mask channel is > 0.5.
+        #[arg(long)]
+        mask: Option<PathBuf>,
+        /// The mask image's channel (default: mask.Y, Y, R or its first).
+        #[arg(long)]
+        mask_channel: Option<String>,
+        /// Fail when any absolute error exceeds this.
+        #[arg(long)]
+        max_abs: Option<f64>,
+        /// Fail when the RMSE over all compared values exceeds this.
+        #[arg(long)]
+        rmse: Option<f64>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Print a scene's statistics.
     Info {
         /// Scene file (TOML).
@@ -64,8 +151,17 @@ enum Command {
     },
 }
 
+/// How a command ended without an error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// Done.
+    Success,
+    /// `diff`: a tolerance was exceeded.
+    ToleranceExceeded,
+}
+
 /// Runs the parsed command line.
-pub fn run(cli: Cli) -> Result<()> {
+pub fn run(cli: Cli) -> Result<Outcome> {
     match cli.command {
         Command::Render {
             scene,
@@ -124,12 +220,134 @@ pub fn run(cli: Cli) -> Result<()> {
             if let Some(exr) = exr {
                 write_exr(&exr, out.width, out.height, &out.radiance, &out.layers)?;
             }
-            Ok(())
+            Ok(Outcome::Success)
+        }
+        Command::Compare {
+            scenes,
+            techniques,
+            samples,
+            reference_samples,
+            repeat,
+            width,
+            height,
+            threads,
+            seed,
+            out,
+            cache_dir,
+            report,
+            no_images,
+        } => {
+            let options = CompareOptions {
+                techniques: techniques
+                    .iter()
+                    .map(|s| s.trim().parse())
+                    .collect::<Result<Vec<Technique>>>()?,
+                samples,
+                reference_samples,
+                repeat,
+                width,
+                height,
+                seed,
+                cache_dir: cache_dir.unwrap_or_else(|| default_cache_dir(&out.join("cache"))),
+                images: !no_images,
+            };
+            options.validate()?;
+            let loaded = scenes
+                .iter()
+                .map(|p| load_scene(p))
+                .collect::<Result<Vec<Scene>>>()?;
+            let progress = Progress::new(progress_steps(&options) * loaded.len() as u64, true);
+            let mut results = Vec::new();
+            for scene in &loaded {
+                let dir = if loaded.len() > 1 {
+                    out.join(slug_of(&scene.name))
+                } else {
+                    out.clone()
+                };
+                let result =
+                    with_threads(threads, || compare_scene(scene, &options, &dir, &progress))??;
+                results.push((result, dir));
+            }
+            progress.finish();
+            let command = command_line();
+            let comparisons: Vec<_> = results.iter().map(|(r, _)| r.clone()).collect();
+            std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+            write_csv(&out.join("results.csv"), &comparisons)?;
+            write_json(&out.join("results.json"), &comparisons)?;
+            let linked = |base: &Path| -> Vec<(SceneComparison, String)> {
+                results
+                    .iter()
+                    .map(|(r, dir)| (r.clone(), relative_path(base, dir)))
+                    .collect()
+            };
+            write_markdown(&out.join("results.md"), &linked(&out), &command)?;
+            if let Some(report) = report {
+                let base = match report.parent() {
+                    Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+                    _ => PathBuf::from("."),
+                };
+                write_markdown(&report, &linked(&base), &command)?;
+            }
+            for (r, dir) in &results {
+                eprintln!(
+                    "{}: {} runs; results in {}",
+                    r.scene,
+                    r.runs.len(),
+                    dir.display()
+                );
+            }
+            Ok(Outcome::Success)
+        }
+        Command::Diff {
+            a,
+            b,
+            channels_a,
+            channels_b,
+            mask,
+            mask_channel,
+            max_abs,
+            rmse,
+            json,
+        } => {
+            for (name, v) in [("--max-abs", max_abs), ("--rmse", rmse)] {
+                if let Some(v) = v {
+                    if !(v >= 0.0) || !v.is_finite() {
+                        return Err(Error::param(
+                            name,
+                            format!("{v} is not a finite tolerance >= 0"),
+                        ));
+                    }
+                }
+            }
+            let report = diff_images(
+                &a,
+                &b,
+                &DiffOptions {
+                    channels_a,
+                    channels_b,
+                    mask,
+                    mask_channel,
+                    max_abs,
+                    rmse,
+                },
+            )?;
+            if json {
+                let text = serde_json::to_string_pretty(&report)
+                    .map_err(|e| Error::param("--json", e.to_string()))?;
+                println!("{text}");
+            } else {
+                print!("{}", report.to_text());
+            }
+            Ok(if report.passed() {
+                Outcome::Success
+            } else {
+                Outcome::ToleranceExceeded
+            })
         }
         Command::Info { scene } => {
             let scene = load_scene(&scene)?;
             print!("{}", describe(&scene));
-            Ok(())
+            Ok(Outcome::Success)
         }
     }
 }
@@ -228,10 +446,69 @@ pub fn describe(scene: &Scene) -> String {
 pub fn main_with_args() -> std::process::ExitCode {
     let cli = Cli::parse();
     match run(cli) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+        Ok(Outcome::Success) => std::process::ExitCode::SUCCESS,
+        Ok(Outcome::ToleranceExceeded) => std::process::ExitCode::from(1),
         Err(e) => {
             eprintln!("penumbra: error: {e}");
-            std::process::ExitCode::FAILURE
+            std::process::ExitCode::from(2)
         }
+    }
+}
+
+/// The command line as typed, for reports ("regenerate with ...").
+fn command_line() -> String {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let quoted: Vec<String> = args
+        .iter()
+        .map(|a| {
+            if a.is_empty() || a.contains(|c: char| c.is_whitespace() || "'\"$`".contains(c)) {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            } else {
+                a.clone()
+            }
+        })
+        .collect();
+    format!("penumbra {}", quoted.join(" "))
+}
+
+/// A directory name for a scene name.
+fn slug_of(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() {
+        "scene".into()
+    } else {
+        s
+    }
+}
+
+/// `target` relative to `base` (both relative to the working directory or
+/// both absolute), for links in reports.
+fn relative_path(base: &Path, target: &Path) -> String {
+    let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let (base, target) = (abs(base), abs(target));
+    let b: Vec<_> = base.components().collect();
+    let t: Vec<_> = target.components().collect();
+    let common = b.iter().zip(&t).take_while(|(x, y)| x == y).count();
+    let mut rel = PathBuf::new();
+    for _ in common..b.len() {
+        rel.push("..");
+    }
+    for c in &t[common..] {
+        rel.push(c);
+    }
+    let s = rel.display().to_string();
+    if s.is_empty() {
+        ".".into()
+    } else {
+        s
     }
 }

@@ -9,6 +9,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cli;
+pub mod compare;
 pub mod error;
 pub mod gbuffer;
 pub mod geom;

@@ -13,6 +13,7 @@ use crate::report::Progress;
 use crate::scene::Scene;
 use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
+use crate::shadow::wedges::PenumbraWedges;
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowTechnique, Unshadowed};
 use crate::view::{near_for_bounds, View};
 use glam::Vec3;
@@ -83,11 +84,23 @@ pub enum Technique {
     /// Hard shadow volumes from each light's centre (z-fail, or z-pass
     /// with `options.zpass`).
     ShadowVolumes,
+    /// Penumbra wedges from each light's centre silhouettes.
+    Wedges,
 }
 
 impl Technique {
     /// All technique names.
-    pub const NAMES: [&'static str; 3] = ["none", "reference", "shadow-volumes"];
+    pub const NAMES: [&'static str; 4] = ["none", "reference", "shadow-volumes", "wedges"];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Technique::None => "none",
+            Technique::Reference => "reference",
+            Technique::ShadowVolumes => "shadow-volumes",
+            Technique::Wedges => "wedges",
+        }
+    }
 
     fn build(self, options: &RenderOptions) -> Box<dyn ShadowTechnique> {
         match self {
@@ -99,6 +112,7 @@ impl Technique {
             Technique::ShadowVolumes => Box::new(ShadowVolumes {
                 zpass: options.zpass,
             }),
+            Technique::Wedges => Box::new(PenumbraWedges),
         }
     }
 }
@@ -106,11 +120,12 @@ impl Technique {
 impl FromStr for Technique {
     type Err = Error;
     fn from_str(s: &str) -> Result<Technique> {
-        match s {
-            "none" => Ok(Technique::None),
-            "reference" => Ok(Technique::Reference),
-            "shadow-volumes" => Ok(Technique::ShadowVolumes),
-            _ => Err(Error::param(
+        match Technique::NAMES.iter().position(|n| *n == s) {
+            Some(0) => Ok(Technique::None),
+            Some(1) => Ok(Technique::Reference),
+            Some(2) => Ok(Technique::ShadowVolumes),
+            Some(_) => Ok(Technique::Wedges),
+            None => Err(Error::param(
                 "--technique",
                 format!(
                     "unknown technique `{s}` (known: {})",

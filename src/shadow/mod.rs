@@ -8,6 +8,7 @@
 
 pub mod reference;
 pub mod shadow_volumes;
+pub mod wedges;
 
 use crate::error::Result;
 use crate::gbuffer::GBuffer;

@@ -102,6 +102,26 @@ pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolu
             }
         }
     }
+    for [a, b, m] in silhouette_quads(adj, &lit) {
+        let quad = [a, b, inf(b), inf(a)];
+        for _ in 0..m {
+            triangles.push([quad[0], quad[1], quad[2]]);
+            triangles.push([quad[0], quad[2], quad[3]]);
+        }
+    }
+    ShadowVolume {
+        vertices,
+        triangles,
+    }
+}
+
+/// The side quads of a volume: per edge with a non-zero multiplicity
+/// `m = Σ s·d`, its welded vertices `[a, b]` ordered so that the quad
+/// `[a, b, b at infinity, a at infinity]` faces out of the volume, and
+/// `|m|`, the copies to draw. `lit[f]`: face `f` faces the light point.
+/// Penumbra wedges reuse exactly these quads.
+pub fn silhouette_quads(adj: &EdgeAdjacency, lit: &[bool]) -> Vec<[u32; 3]> {
+    let mut quads = Vec::new();
     for e in &adj.edges {
         let m: i32 = e
             .uses
@@ -118,20 +138,13 @@ pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolu
             })
             .sum();
         let [lo, hi] = e.v;
-        let quad = if m > 0 {
-            [hi, lo, inf(lo), inf(hi)]
-        } else {
-            [lo, hi, inf(hi), inf(lo)]
-        };
-        for _ in 0..m.unsigned_abs() {
-            triangles.push([quad[0], quad[1], quad[2]]);
-            triangles.push([quad[0], quad[2], quad[3]]);
+        if m > 0 {
+            quads.push([hi, lo, m as u32]);
+        } else if m < 0 {
+            quads.push([lo, hi, m.unsigned_abs()]);
         }
     }
-    ShadowVolume {
-        vertices,
-        triangles,
-    }
+    quads
 }
 
 /// Raster state counting a volume in the stencil.

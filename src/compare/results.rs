@@ -1,0 +1,274 @@
+//! `compare`'s result files: CSV (one row per run, quantity and region),
+//! JSON (everything) and a markdown report.
+
+use super::{NoiseFloor, RegionMetrics, RunResult, SceneComparison};
+use crate::error::{Error, Result};
+use crate::output::write_atomically;
+use crate::report::{ErrorMetrics, VISIBLE_ERROR};
+use std::fmt::Write as _;
+use std::path::Path;
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_atomically(path, |tmp| {
+        std::fs::write(tmp, text.as_bytes()).map_err(|e| Error::io(tmp, e))
+    })
+}
+
+/// Passes that are not the shadow technique's own.
+fn is_common_pass(name: &str) -> bool {
+    matches!(name, "geometry" | "gbuffer" | "shading")
+}
+
+/// Writes `results.csv`: one row per (scene, run, quantity, region), and
+/// rows for each reference's noise floor (technique `reference-floor`).
+pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
+    let mut s = String::from(
+        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,pareto\n",
+    );
+    for sc in scenes {
+        for r in &sc.runs {
+            let mut row = |quantity: &str, region: &str, m: &ErrorMetrics| {
+                let _ = writeln!(
+                    s,
+                    "{},{},{},{},{:.4},{:.4},{:.4},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{:e},{:e},{:e},{:e},{},{}",
+                    csv_field(&sc.scene),
+                    csv_field(&r.technique),
+                    csv_field(&r.setting),
+                    r.samples.map_or(String::new(), |n| n.to_string()),
+                    r.median_ms,
+                    r.min_ms,
+                    r.max_ms,
+                    r.runs,
+                    r.pass_ms(|n| n == "geometry"),
+                    r.pass_ms(|n| n == "gbuffer"),
+                    r.pass_ms(|n| !is_common_pass(n)),
+                    r.pass_ms(|n| n == "shading"),
+                    quantity,
+                    region,
+                    m.count,
+                    m.rmse,
+                    m.mean_abs,
+                    m.max_abs,
+                    m.frac_over,
+                    m.non_finite,
+                    r.pareto
+                );
+            };
+            let mut both = |quantity: &str, m: &RegionMetrics| {
+                row(quantity, "all", &m.all);
+                row(quantity, "penumbra", &m.penumbra);
+            };
+            for (k, m) in r.vcoef.iter().enumerate() {
+                if let Some(m) = m {
+                    both(&format!("vcoef.{k}"), m);
+                }
+            }
+            if let Some(m) = &r.vcoef_all_lights {
+                both("vcoef", m);
+            }
+            both("radiance", &r.radiance);
+        }
+        let floor = &sc.reference;
+        let mut floor_row = |quantity: &str, f: &NoiseFloor| {
+            for (region, rmse, mae) in [
+                ("all", f.rmse_all, f.mae_all),
+                ("penumbra", f.rmse_penumbra, f.mae_penumbra),
+            ] {
+                let _ = writeln!(
+                    s,
+                    "{},reference-floor,{} spp,{},,,,,,,,,{},{},,{:e},{:e},,,,",
+                    csv_field(&sc.scene),
+                    floor.samples,
+                    floor.samples,
+                    quantity,
+                    region,
+                    rmse,
+                    mae
+                );
+            }
+        };
+        for (k, f) in floor.floor_vcoef.iter().enumerate() {
+            floor_row(&format!("vcoef.{k}"), f);
+        }
+        floor_row("vcoef", &floor.floor_vcoef_all_lights);
+        floor_row("radiance", &floor.floor_radiance);
+    }
+    write_text(path, &s)
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// Writes `results.json`: every measurement of every scene.
+pub fn write_json(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
+    let text = serde_json::to_string_pretty(scenes)
+        .map_err(|e| Error::param("results.json", e.to_string()))?;
+    write_text(path, &(text + "\n"))
+}
+
+/// An error figure, marked with `*` when at or below the reference's noise
+/// floor (the reference cannot resolve it).
+fn err(x: f64, floor: Option<f64>) -> String {
+    let mark = match floor {
+        Some(f) if x <= f => "*",
+        _ => "",
+    };
+    let v = if x == 0.0 {
+        "0".to_string()
+    } else if !x.is_finite() {
+        format!("{x}")
+    } else if x < 1e-3 {
+        format!("{x:.2e}")
+    } else {
+        format!("{x:.4}")
+    };
+    v + mark
+}
+
+fn percent(x: f64) -> String {
+    format!("{:.2} %", x * 100.0)
+}
+
+/// Writes the markdown report. `scenes` pairs each comparison with the path
+/// of its output directory relative to the report's directory (for image
+/// links); `command` is the command line that regenerates the report.
+pub fn write_markdown(
+    path: &Path,
+    scenes: &[(SceneComparison, String)],
+    command: &str,
+) -> Result<()> {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Error against run time\n");
+    let _ = writeln!(
+        s,
+        "Generated by penumbra {}. Regenerate with:\n\n```sh\n{command}\n```\n",
+        env!("CARGO_PKG_VERSION")
+    );
+    let _ = writeln!(
+        s,
+        "Each technique renders the scene at the same receiver points (the same \
+         G-buffer) as the ray-traced reference. Times are wall-clock medians of \
+         whole renders (scene loading excluded) on this machine, with the share of \
+         the geometry + G-buffer passes, the shadow technique's passes and shading. \
+         Errors: RMSE / mean absolute / max absolute error of the visibility \
+         coefficient (Vcoef, all lights together) and of linear radiance (R, G, B \
+         together), over all shading points and over the penumbra only (pixels \
+         whose reference Vcoef is strictly between 0 and 1, as Atty et al. \
+         measure); \"> 1/255\" is the share of penumbra values off by more than \
+         {VISIBLE_ERROR:.5}. A `*` marks an error at or below the reference's own \
+         noise floor (estimated from two independent half-sample references): the \
+         reference cannot tell it from zero. Pareto: no other run is both faster \
+         and more accurate in the penumbra.\n"
+    );
+    for (sc, dir) in scenes {
+        let link = |rel: &str| {
+            if dir.is_empty() || dir == "." {
+                rel.to_string()
+            } else {
+                format!("{}/{rel}", dir.trim_end_matches('/'))
+            }
+        };
+        let _ = writeln!(
+            s,
+            "## {} (`{}`), {}×{}\n",
+            sc.scene, sc.path, sc.width, sc.height
+        );
+        let pen: Vec<String> = sc
+            .penumbra_points
+            .iter()
+            .enumerate()
+            .map(|(k, &n)| {
+                format!(
+                    "light {k}: {n} ({})",
+                    percent(n as f64 / sc.shading_points.max(1) as f64)
+                )
+            })
+            .collect();
+        let r = &sc.reference;
+        let f = &r.floor_vcoef_all_lights;
+        let _ = writeln!(
+            s,
+            "{} shading points; in penumbra: {}.\n\nReference: {} samples per light \
+             (two halves of {}), {:.1} s{}. Its noise floor: Vcoef RMSE {} over all \
+             points, {} in the penumbra; radiance RMSE {} / {}.\n",
+            sc.shading_points,
+            if pen.is_empty() {
+                "no lights".to_string()
+            } else {
+                pen.join(", ")
+            },
+            r.samples,
+            r.samples / 2,
+            r.seconds,
+            if r.from_cache {
+                " when computed (read from the cache this time)"
+            } else {
+                ""
+            },
+            err(f.rmse_all, None),
+            err(f.rmse_penumbra, None),
+            err(r.floor_radiance.rmse_all, None),
+            err(r.floor_radiance.rmse_penumbra, None),
+        );
+        if let Some(c) = &sc.chart {
+            let _ = writeln!(
+                s,
+                "![Vcoef error in the penumbra against time]({})\n",
+                link(c)
+            );
+        }
+        let _ = writeln!(
+            s,
+            "| technique | setting | time (ms) | G-buffer | shadows | shading | Vcoef RMSE | Vcoef RMSE (penumbra) | MAE (penumbra) | max abs | > 1/255 (penumbra) | radiance RMSE | radiance RMSE (penumbra) | Pareto |"
+        );
+        let _ = writeln!(
+            s,
+            "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|"
+        );
+        for run in &sc.runs {
+            row(&mut s, run, sc);
+        }
+        let _ = writeln!(s);
+        if let Some(c) = &sc.chart_all {
+            let _ = writeln!(
+                s,
+                "Over all shading points: ![Vcoef error over all shading points against time]({})\n",
+                link(c)
+            );
+        }
+    }
+    write_text(path, &s)
+}
+
+fn row(s: &mut String, run: &RunResult, sc: &SceneComparison) {
+    let f = &sc.reference.floor_vcoef_all_lights;
+    let fr = &sc.reference.floor_radiance;
+    let (rmse, rmse_p, mae_p, max, over) = match &run.vcoef_all_lights {
+        Some(m) => (
+            err(m.all.rmse, Some(f.rmse_all)),
+            err(m.penumbra.rmse, Some(f.rmse_penumbra)),
+            err(m.penumbra.mean_abs, Some(f.mae_penumbra)),
+            err(m.all.max_abs, None),
+            percent(m.penumbra.frac_over),
+        ),
+        None => Default::default(),
+    };
+    let _ = writeln!(
+        s,
+        "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {rmse} | {rmse_p} | {mae_p} | {max} | {over} | {} | {} | {} |",
+        run.technique,
+        run.setting,
+        run.median_ms,
+        run.pass_ms(|n| n == "gbuffer" || n == "geometry"),
+        run.pass_ms(|n| !is_common_pass(n)),
+        run.pass_ms(|n| n == "shading"),
+        err(run.radiance.all.rmse, Some(fr.rmse_all)),
+        err(run.radiance.penumbra.rmse, Some(fr.rmse_penumbra)),
+        if run.pareto { "●" } else { "" }
+    );
+}

@@ -1,0 +1,397 @@
+//! Penumbra wedges as closed convex polyhedra with vertices at infinity,
+//! split in an outer and an inner half by the edge's shadow-volume quad.
+//!
+//! The thesis (appendix 3.B) builds a wedge from the edge moved to equal
+//! distance from the light centre and four points around the centre, which
+//! suits a vertex program. We build each bounding plane directly and
+//! exactly for the light's real shape, in f64:
+//!
+//! - **front / back**: the two planes through the edge's line that touch
+//!   the light (for a rect light the extreme corners around the line, for a
+//!   sphere the tangent planes), so every shadow ray of the edge lies
+//!   between them;
+//! - **sides**: at each end `q`, the plane through `q` containing the
+//!   central plane's normal that touches the light, with the light on its
+//!   outer side: every shadow ray through `q` and through the rest of the
+//!   edge lies inside;
+//! - **central plane** (through the edge and the light centre): the
+//!   shadow-volume quad of the edge lies in it and splits the wedge.
+//!
+//! The split face contains the quad *as the very same two triangles the
+//! shadow-volume pass drew* (same clip-space vertices, same order), plus
+//! the two cones beside it. Membership of a receiver in the inner or the
+//! outer half is decided by the rasterizer on that shared face, exactly as
+//! the stencil count was: the sign the wedge adds with and the count it
+//! corrects can never disagree, even for a receiver exactly on the quad.
+//! All other faces bound regions where the edge's contribution vanishes, so
+//! their ties do not matter. Faces share vertices exactly (no T-junctions),
+//! including at infinity, so z-fail counting of each half is exact.
+
+use super::integrate::RectFrame;
+use crate::raster::ClipVertex;
+use crate::view::View;
+use glam::{DVec3, Vec3};
+
+/// The light a wedge is built around.
+#[derive(Debug, Clone, Copy)]
+pub enum LightBound {
+    /// A parallelogram light.
+    Rect(RectFrame),
+    /// A sphere light.
+    Sphere {
+        /// Centre.
+        center: DVec3,
+        /// Radius.
+        radius: f64,
+    },
+}
+
+impl LightBound {
+    /// The centre (hard shadows are cast from it).
+    pub fn center(&self) -> DVec3 {
+        match self {
+            LightBound::Rect(f) => f.center,
+            LightBound::Sphere { center, .. } => *center,
+        }
+    }
+
+    /// The range of angles the light spans around the line through `o`
+    /// with unit direction `ex`, measured from `k` (unit, ⟂ `ex`, towards
+    /// the centre) towards `n = ex × k`... `None` when the light meets the
+    /// line or spans half a turn or more around it.
+    fn angle_range(&self, o: DVec3, ex: DVec3, k: DVec3, n: DVec3) -> Option<(f64, f64)> {
+        let angle = |x: DVec3| {
+            let y = x - o;
+            let y = y - ex * y.dot(ex);
+            (y.length() > 0.0).then(|| y.dot(n).atan2(y.dot(k)))
+        };
+        let (lo, hi) = match self {
+            LightBound::Rect(f) => {
+                let mut lo = f64::INFINITY;
+                let mut hi = f64::NEG_INFINITY;
+                for c in f.corners() {
+                    let a = angle(c)?;
+                    lo = lo.min(a);
+                    hi = hi.max(a);
+                }
+                (lo, hi)
+            }
+            LightBound::Sphere { center, radius } => {
+                let y = *center - o;
+                let d = (y - ex * y.dot(ex)).length();
+                if d <= *radius {
+                    return None;
+                }
+                let half = (radius / d).asin();
+                (-half, half)
+            }
+        };
+        // The centre is at angle 0; a light reaching ±π/2 from it is so
+        // close to the line that the wedge would not be convex.
+        (lo > -std::f64::consts::FRAC_PI_2
+            && hi < std::f64::consts::FRAC_PI_2
+            && lo <= 0.0
+            && hi >= 0.0)
+            .then_some((lo, hi))
+    }
+
+    /// Whether the whole light is on the non-positive side of the plane
+    /// through `q` with normal `m` (`m` ⟂ the central plane's normal).
+    fn behind(&self, q: DVec3, m: DVec3) -> bool {
+        match self {
+            LightBound::Rect(f) => {
+                let scale = f.u.length() + f.v.length() + (f.center - q).length();
+                f.corners().iter().all(|c| m.dot(*c - q) <= 1e-12 * scale)
+            }
+            LightBound::Sphere { center, radius } => m.dot(*center - q) <= -radius * (1.0 - 1e-12),
+        }
+    }
+
+    /// In the central plane (basis `ex`, `k` at `q`), the extreme angles
+    /// of the light's projection as seen from `q`, or `None` when `q` is
+    /// inside it.
+    fn in_plane_angles(&self, q: DVec3, ex: DVec3, k: DVec3) -> Option<(f64, f64, f64)> {
+        let to2 = |x: DVec3| {
+            let y = x - q;
+            (y.dot(ex), y.dot(k))
+        };
+        let (cx, ck) = to2(self.center());
+        let base = ck.atan2(cx);
+        let rel = |a: f64| {
+            let mut d = a - base;
+            while d > std::f64::consts::PI {
+                d -= std::f64::consts::TAU;
+            }
+            while d < -std::f64::consts::PI {
+                d += std::f64::consts::TAU;
+            }
+            d
+        };
+        let (lo, hi) = match self {
+            LightBound::Rect(f) => {
+                let mut lo = f64::INFINITY;
+                let mut hi = f64::NEG_INFINITY;
+                for c in f.corners() {
+                    let (x, y) = to2(c);
+                    if x == 0.0 && y == 0.0 {
+                        return None;
+                    }
+                    let d = rel(y.atan2(x));
+                    lo = lo.min(d);
+                    hi = hi.max(d);
+                }
+                (lo, hi)
+            }
+            LightBound::Sphere { radius, .. } => {
+                let d = (cx * cx + ck * ck).sqrt();
+                if d <= *radius {
+                    return None;
+                }
+                let half = (radius / d).asin();
+                (-half, half)
+            }
+        };
+        (hi - lo < std::f64::consts::PI * 0.999).then_some((base, lo, hi))
+    }
+}
+
+/// One half of a penumbra wedge.
+#[derive(Debug, Clone, Copy)]
+pub struct HalfWedge {
+    /// The silhouette edge in shadow-volume quad order.
+    pub q0: DVec3,
+    /// Second endpoint.
+    pub q1: DVec3,
+    /// The edge's multiplicity (copies of its quad in the volume).
+    pub weight: u32,
+    /// Outside the shadow-volume quad (adds occlusion) or inside (removes).
+    pub outer: bool,
+}
+
+/// Per rasterized triangle: its half-wedge and the sign its facing counts
+/// with.
+#[derive(Debug, Clone, Copy)]
+pub struct WedgePrimitive {
+    /// Index into [`WedgeSet::halves`].
+    pub half: u32,
+    /// −1 when the triangle is wound inward for its half (the shared
+    /// shadow-volume quad of the outer half).
+    pub flip: i8,
+}
+
+/// Every half-wedge of one light, ready to draw.
+#[derive(Debug, Clone, Default)]
+pub struct WedgeSet {
+    /// Clip-space vertices.
+    pub vertices: Vec<ClipVertex<0>>,
+    /// Triangles, grouped by half-wedge (a half's triangles are
+    /// contiguous, in half order).
+    pub triangles: Vec<[u32; 3]>,
+    /// One entry per triangle.
+    pub primitives: Vec<WedgePrimitive>,
+    /// The halves.
+    pub halves: Vec<HalfWedge>,
+    /// Silhouette edges without a wedge: zero length, or so close to the
+    /// light that no convex wedge bounds their penumbra.
+    pub skipped: usize,
+}
+
+/// A silhouette edge as the shadow-volume pass drew it: quad
+/// `[q0, q1, q1 at infinity, q0 at infinity]`, `weight` copies.
+#[derive(Debug, Clone, Copy)]
+pub struct SilhouetteQuad {
+    /// First finite corner.
+    pub q0: Vec3,
+    /// Second finite corner.
+    pub q1: Vec3,
+    /// Copies drawn (|multiplicity|).
+    pub weight: u32,
+}
+
+/// Outward normal of the plane through homogeneous points, as `(n, d)` with
+/// `n·x + d·w = 0` on the plane: `n = Σ w_i (x_j × x_k)` cyclically.
+fn homogeneous_normal(p: [(DVec3, f64); 3]) -> DVec3 {
+    let [(a, wa), (b, wb), (c, wc)] = p;
+    b.cross(c) * wa + c.cross(a) * wb + a.cross(b) * wc
+}
+
+impl WedgeSet {
+    fn vertex(&mut self, clip: glam::Vec4) -> u32 {
+        self.vertices.push(ClipVertex {
+            position: clip,
+            varyings: [],
+        });
+        (self.vertices.len() - 1) as u32
+    }
+
+    /// Adds the two halves of the wedge of `quad`; returns false (and adds
+    /// nothing) when the edge has no bounded wedge.
+    pub fn add(
+        &mut self,
+        view: &View,
+        light: &LightBound,
+        light_point: Vec3,
+        quad: SilhouetteQuad,
+    ) -> bool {
+        let (q0, q1) = (quad.q0.as_dvec3(), quad.q1.as_dvec3());
+        let l = light.center();
+        let along = q1 - q0;
+        if along.length_squared() == 0.0 || quad.weight == 0 {
+            return false;
+        }
+        let ex = along.normalize();
+        let foot = q0 + ex * (l - q0).dot(ex);
+        let to_light = l - foot;
+        if to_light.length_squared() == 0.0 {
+            return false;
+        }
+        let k = to_light.normalize();
+        let n = ex.cross(k);
+        let Some((phi_lo, phi_hi)) = light.angle_range(q0, ex, k, n) else {
+            return false;
+        };
+        // Side planes: at each end, the tangent through `q` (containing n)
+        // whose shadow ray is the most outward along the edge.
+        let side = |q: DVec3, outward: f64| -> Option<DVec3> {
+            let (base, lo, hi) = light.in_plane_angles(q, ex, k)?;
+            // Shadow rays through q run at angles (light angle + π); pick
+            // the light angle whose continuation leans furthest outward.
+            let cand = [base + lo, base + hi];
+            let lean = |a: f64| -(a.cos()) * outward;
+            let a = if lean(cand[0]) >= lean(cand[1]) {
+                cand[0]
+            } else {
+                cand[1]
+            };
+            let d2 = -(ex * a.cos() + k * a.sin()); // shadow-ray direction
+            let m = n.cross(d2).normalize();
+            // Inside is towards the other end of the edge.
+            let m = if m.dot(ex) * outward < 0.0 { m } else { -m };
+            // The light must be wholly outside: otherwise some shadow ray
+            // through q leans further out than the chosen one.
+            (m.dot(ex).abs() > 1e-9 && light.behind(q, m)).then_some(m)
+        };
+        let (Some(m0), Some(m1)) = (side(q0, -1.0), side(q1, 1.0)) else {
+            return false;
+        };
+        // The shadow-volume quad's vertices exactly as that pass made them.
+        let sv = [
+            view.clip_point(quad.q0),
+            view.clip_point(quad.q1),
+            view.clip_direction(quad.q1 - light_point),
+            view.clip_direction(quad.q0 - light_point),
+        ];
+        let d0 = (quad.q0 - light_point).as_dvec3();
+        let d1 = (quad.q1 - light_point).as_dvec3();
+        // Outward normal of the quad for the volume (inner half's outside).
+        let n_out = homogeneous_normal([(q0, 1.0), (q1, 1.0), (d1, 0.0)]);
+        if n_out.length_squared() == 0.0 {
+            return false;
+        }
+        for outer in [false, true] {
+            // The bounding plane of this half: angle ψ = π + φ.
+            let phi = if (n_out.dot(n) > 0.0) == outer {
+                phi_lo
+            } else {
+                phi_hi
+            };
+            let dir_b = -(k * phi.cos() + n * phi.sin());
+            let nb = {
+                let nb = ex.cross(dir_b).normalize();
+                // Inside contains the quad's half-plane (direction −k).
+                if nb.dot(-k) >= 0.0 {
+                    nb
+                } else {
+                    -nb
+                }
+            };
+            let ray = |a: DVec3, b: DVec3, into: DVec3| {
+                let d = a.cross(b);
+                if d.dot(into) >= 0.0 {
+                    d
+                } else {
+                    -d
+                }
+            };
+            let c0 = ray(n, m0, -k);
+            let c1 = ray(n, m1, -k);
+            let b0 = ray(nb, m0, dir_b);
+            let b1 = ray(nb, m1, dir_b);
+            if [c0, c1, b0, b1]
+                .iter()
+                .any(|d| !(d.length_squared() > 0.0) || !d.is_finite())
+            {
+                return false;
+            }
+            // An interior point, for orienting the faces outward.
+            let mid = (q0 + q1) * 0.5;
+            let spread = c0.normalize() + c1.normalize() + b0.normalize() + b1.normalize();
+            let interior = mid + spread * (0.05 * along.length());
+
+            let half = self.halves.len() as u32;
+            self.halves.push(HalfWedge {
+                q0,
+                q1,
+                weight: quad.weight,
+                outer,
+            });
+            let iq0 = self.vertex(sv[0]);
+            let iq1 = self.vertex(sv[1]);
+            let id1 = self.vertex(sv[2]);
+            let id0 = self.vertex(sv[3]);
+            let dir = |set: &mut WedgeSet, d: DVec3| set.vertex(view.clip_direction(d.as_vec3()));
+            let ic0 = dir(self, c0);
+            let ic1 = dir(self, c1);
+            let ib0 = dir(self, b0);
+            let ib1 = dir(self, b1);
+            // The shared quad, as drawn by the volume pass.
+            let flip = if outer { -1 } else { 1 };
+            for t in [[iq0, iq1, id1], [iq0, id1, id0]] {
+                self.triangles.push(t);
+                self.primitives.push(WedgePrimitive { half, flip });
+            }
+            // World-space (homogeneous) position of each vertex index, for
+            // orientation.
+            let world = |i: u32| -> (DVec3, f64) {
+                match i {
+                    _ if i == iq0 => (q0, 1.0),
+                    _ if i == iq1 => (q1, 1.0),
+                    _ if i == id0 => (d0, 0.0),
+                    _ if i == id1 => (d1, 0.0),
+                    _ if i == ic0 => (c0, 0.0),
+                    _ if i == ic1 => (c1, 0.0),
+                    _ if i == ib0 => (b0, 0.0),
+                    _ => (b1, 0.0),
+                }
+            };
+            let face = |set: &mut WedgeSet, [a, b, c]: [u32; 3]| {
+                let p = [world(a), world(b), world(c)];
+                let outward = match p.iter().find(|(_, w)| *w == 1.0) {
+                    Some((f, _)) => homogeneous_normal(p).dot(interior - *f) < 0.0,
+                    // At infinity: outward when the directions turn
+                    // positively (the volume pass's back caps agree).
+                    None => p[0].0.dot(p[1].0.cross(p[2].0)) > 0.0,
+                };
+                set.triangles
+                    .push(if outward { [a, b, c] } else { [a, c, b] });
+                set.primitives.push(WedgePrimitive { half, flip: 1 });
+            };
+            // The rest of the central face: the cones beside the quad.
+            face(self, [iq0, id0, ic0]);
+            face(self, [iq1, ic1, id1]);
+            // The bounding (front or back) face.
+            face(self, [iq0, iq1, ib1]);
+            face(self, [iq0, ib1, ib0]);
+            // The sides.
+            face(self, [iq0, ib0, ic0]);
+            face(self, [iq1, ic1, ib1]);
+            // The cap at infinity, fanned from b0 through every direction
+            // its edges share with the other faces.
+            face(self, [ib0, ic0, id0]);
+            face(self, [ib0, id0, id1]);
+            face(self, [ib0, id1, ic1]);
+            face(self, [ib0, ic1, ib1]);
+        }
+        true
+    }
+}

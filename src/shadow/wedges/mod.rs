@@ -1,0 +1,323 @@
+//! Penumbra wedges (Assarsson & Akenine-Möller 2003; thesis §3.1).
+//!
+//! Per light: the hard shadow volumes from the centre give the V-buffer's
+//! integer start (the stencil count `w(c)`); then every silhouette edge's
+//! wedge, split by its shadow-volume quad into an outer and an inner half,
+//! is rasterized through the pipeline. Each half is a closed convex
+//! polyhedron, so a receiver `p` is inside it exactly when the z-fail count
+//! of its faces behind `p` is one; the fragment stage keeps that count per
+//! pixel in a tile-local buffer, one half at a time (a half's triangles
+//! are contiguous and tiles see them in order), and when the next half
+//! starts it integrates the previous one for every pixel inside it:
+//! `V += ±m · |R_e(p)| / |A|` ([`integrate::region_fraction`]).
+//! `Vcoef = 1 − clamp(V, 0, 1)`.
+
+pub mod geometry;
+pub mod integrate;
+
+use super::shadow_volumes::{
+    build_volume, caster_adjacency, light_point, silhouette_quads, stencil_counts,
+};
+use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
+use crate::error::{Error, Result};
+use crate::gbuffer::GBuffer;
+use crate::geom::silhouette::faces_point;
+use crate::output::Layer;
+use crate::raster::{
+    draw, CompareFunc, CullMode, FragmentBatch, FragmentStage, RasterState, TileGrid, TILE_PIXELS,
+    TILE_SIZE,
+};
+use crate::scene::LightShape;
+use geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, WedgeSet};
+use integrate::{region_fraction, RectFrame};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// The penumbra-wedge technique.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PenumbraWedges;
+
+/// Marks "no half-wedge yet" in a tile.
+const NONE: u32 = u32::MAX;
+
+/// One tile's state of the wedge pass.
+///
+/// Precisions: the membership count is an exact `i32`; the V-buffer is
+/// `f32` (values are a small integer plus fractions; f32 keeps 2⁻²⁴
+/// relative precision, far below a display's 2⁻⁸) accumulated in a fixed
+/// order, so results do not depend on threads.
+pub struct WedgeTile {
+    origin: (i32, i32),
+    counts: Vec<i32>,
+    current: u32,
+    /// Touched rectangle of `counts` (local, inclusive min, exclusive max).
+    touched: [usize; 4],
+    vbuffer: Vec<f32>,
+    halves_in: Vec<u32>,
+}
+
+impl WedgeTile {
+    fn new(origin: (i32, i32), start: impl Iterator<Item = f32>) -> Self {
+        let mut vbuffer = vec![0.0; TILE_PIXELS];
+        for (v, s) in vbuffer.iter_mut().zip(start) {
+            *v = s;
+        }
+        WedgeTile {
+            origin,
+            counts: vec![0; TILE_PIXELS],
+            current: NONE,
+            touched: [TILE_SIZE, TILE_SIZE, 0, 0],
+            vbuffer,
+            halves_in: vec![0; TILE_PIXELS],
+        }
+    }
+}
+
+/// The fragment stage: z-fail membership counting per half-wedge, then
+/// the edge integral for the pixels inside.
+struct WedgeStage<'a> {
+    gbuffer: &'a GBuffer,
+    primitives: &'a [WedgePrimitive],
+    halves: &'a [HalfWedge],
+    frame: RectFrame,
+}
+
+impl WedgeStage<'_> {
+    /// Integrates the tile's current half-wedge and clears its counts.
+    fn flush(&self, tile: &mut WedgeTile) {
+        if tile.current == NONE {
+            return;
+        }
+        let half = self.halves[tile.current as usize];
+        let [x0, y0, x1, y1] = tile.touched;
+        let width = self.gbuffer.width as usize;
+        // Orientation of the light plane as seen from p decides which side
+        // of the projected edge the centre is on for each half (see
+        // `integrate`): outer halves see it on the unoccluded side.
+        let sign = if half.outer { 1.0 } else { -1.0 };
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let i = y * TILE_SIZE + x;
+                let inside = tile.counts[i] == 1;
+                tile.counts[i] = 0;
+                if !inside {
+                    continue;
+                }
+                let gx = tile.origin.0 as usize + x;
+                let gy = tile.origin.1 as usize + y;
+                let g = &self.gbuffer.samples[gy * width + gx];
+                if !g.is_surface() {
+                    continue;
+                }
+                let p = g.position.as_dvec3();
+                let facing = (self.frame.center - p).dot(self.frame.normal);
+                let c_side = sign * facing.signum();
+                let r = region_fraction(&self.frame, p, half.q0, half.q1, c_side);
+                tile.vbuffer[i] += (sign * half.weight as f64 * r) as f32;
+                tile.halves_in[i] += 1;
+            }
+        }
+        tile.current = NONE;
+        tile.touched = [TILE_SIZE, TILE_SIZE, 0, 0];
+    }
+}
+
+impl FragmentStage<0> for WedgeStage<'_> {
+    type Target = WedgeTile;
+
+    fn shade(&self, batch: &FragmentBatch<0>, tile: &mut WedgeTile) {
+        let prim = self.primitives[batch.primitive as usize];
+        if prim.half != tile.current {
+            self.flush(tile);
+            tile.current = prim.half;
+        }
+        // z-fail: faces behind the receiver count +1 leaving, −1 entering.
+        let delta = if batch.front_facing { -1 } else { 1 } * prim.flip as i32;
+        let lx = batch.local % TILE_SIZE;
+        let ly = batch.local / TILE_SIZE;
+        let mut lo = usize::MAX;
+        let mut hi = 0;
+        for k in batch.lanes() {
+            tile.counts[batch.local + k] += delta;
+            lo = lo.min(lx + k);
+            hi = hi.max(lx + k + 1);
+        }
+        let t = &mut tile.touched;
+        t[0] = t[0].min(lo);
+        t[1] = t[1].min(ly);
+        t[2] = t[2].max(hi);
+        t[3] = t[3].max(ly + 1);
+    }
+}
+
+/// Raster state of the wedge pass: every face behind the receiver (or at
+/// its depth — the same tie rule as the z-fail stencil pass, so the
+/// shared quad decides exactly as it did there), no writes.
+fn wedge_state() -> RasterState {
+    RasterState {
+        depth_func: CompareFunc::LessEqual,
+        depth_write: false,
+        stencil: None,
+        cull: CullMode::None,
+    }
+}
+
+/// The light's bound for wedge construction and its integration frame.
+fn light_frame(shape: &LightShape) -> Result<(LightBound, RectFrame)> {
+    match *shape {
+        LightShape::Rect { center, u, v, .. } => {
+            let f = RectFrame::new(center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
+            Ok((LightBound::Rect(f), f))
+        }
+        LightShape::Sphere { .. } => Err(Error::param(
+            "--technique",
+            "wedges: sphere lights are not supported yet (rect lights only)",
+        )),
+    }
+}
+
+/// Everything one light's wedge pass produced.
+pub struct WedgeLight {
+    /// The V-buffer per pixel (occluded fraction, unclamped).
+    pub vbuffer: Vec<f32>,
+    /// Half-wedges containing each pixel's receiver.
+    pub halves_in: Vec<u32>,
+    /// The wedges drawn.
+    pub wedges: WedgeSet,
+}
+
+/// Runs the shadow volumes and the wedges of light `k`.
+pub fn wedge_light(
+    ctx: &ShadowContext,
+    k: usize,
+    passes: &mut Vec<PassTiming>,
+) -> Result<WedgeLight> {
+    let light = &ctx.scene.lights[k];
+    let (bound, frame) = light_frame(&light.shape)?;
+    let point = light_point(&light.shape);
+    let adj = caster_adjacency(ctx.scene, ctx.geometry);
+
+    let t = Instant::now();
+    let volume = build_volume(&adj, ctx.view, point);
+    let mut framebuffer = ctx.depth.clone();
+    let counts = stencil_counts(&mut framebuffer, &volume, false)?;
+    passes.push(PassTiming {
+        name: format!("shadow volumes light {k}"),
+        time: t.elapsed(),
+    });
+
+    let t = Instant::now();
+    let lit = faces_point(&adj, point);
+    let mut wedges = WedgeSet::default();
+    for [a, b, m] in silhouette_quads(&adj, &lit) {
+        let quad = SilhouetteQuad {
+            q0: adj.positions[a as usize],
+            q1: adj.positions[b as usize],
+            weight: m,
+        };
+        if !wedges.add(ctx.view, &bound, point, quad) {
+            wedges.skipped += 1;
+        }
+    }
+    passes.push(PassTiming {
+        name: format!("wedge build light {k}"),
+        time: t.elapsed(),
+    });
+
+    let t = Instant::now();
+    let grid: TileGrid = framebuffer.grid();
+    let width = grid.width as usize;
+    let mut tiles: Vec<WedgeTile> = (0..grid.tile_count())
+        .map(|tile| {
+            let (ox, oy) = grid.tile_origin(tile);
+            let start = (0..TILE_PIXELS).map(|i| {
+                let (x, y) = (ox as usize + i % TILE_SIZE, oy as usize + i / TILE_SIZE);
+                if x < width && y < grid.height as usize {
+                    counts[y * width + x] as f32
+                } else {
+                    0.0
+                }
+            });
+            WedgeTile::new((ox, oy), start)
+        })
+        .collect();
+    let stage = WedgeStage {
+        gbuffer: ctx.gbuffer,
+        primitives: &wedges.primitives,
+        halves: &wedges.halves,
+        frame,
+    };
+    draw(
+        &mut framebuffer,
+        &mut tiles,
+        &wedge_state(),
+        &wedges.vertices,
+        &wedges.triangles,
+        &stage,
+    )?;
+    tiles.par_iter_mut().for_each(|t| stage.flush(t));
+    passes.push(PassTiming {
+        name: format!("wedges light {k}"),
+        time: t.elapsed(),
+    });
+
+    let mut vbuffer = vec![0.0f32; width * grid.height as usize];
+    let mut halves_in = vec![0u32; vbuffer.len()];
+    for (tile, t) in tiles.iter().enumerate() {
+        let (ox, oy) = grid.tile_origin(tile);
+        for i in 0..TILE_PIXELS {
+            let (x, y) = (ox as usize + i % TILE_SIZE, oy as usize + i / TILE_SIZE);
+            if x < width && y < grid.height as usize {
+                vbuffer[y * width + x] = t.vbuffer[i];
+                halves_in[y * width + x] = t.halves_in[i];
+            }
+        }
+    }
+    Ok(WedgeLight {
+        vbuffer,
+        halves_in,
+        wedges,
+    })
+}
+
+impl ShadowTechnique for PenumbraWedges {
+    fn name(&self) -> &'static str {
+        "wedges"
+    }
+
+    fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
+        let mut out = ShadowOutput::default();
+        let mut vlayer = Layer {
+            name: "vbuffer".into(),
+            channels: Vec::new(),
+        };
+        let mut wlayer = Layer {
+            name: "wedges".into(),
+            channels: Vec::new(),
+        };
+        for k in 0..ctx.scene.lights.len() {
+            let w = wedge_light(ctx, k, &mut out.passes)?;
+            let vcoef = w
+                .vbuffer
+                .iter()
+                .zip(&ctx.gbuffer.samples)
+                .map(|(&v, g)| {
+                    if g.is_surface() {
+                        1.0 - v.clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            out.lights.push(LightTerm::vcoef(vcoef));
+            vlayer.channels.push((k.to_string(), w.vbuffer));
+            wlayer.channels.push((
+                k.to_string(),
+                w.halves_in.iter().map(|&n| n as f32).collect(),
+            ));
+        }
+        out.layers.push(vlayer);
+        out.layers.push(wlayer);
+        Ok(out)
+    }
+}
