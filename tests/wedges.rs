@@ -1,0 +1,57 @@
+//! Penumbra wedges against the ray-traced reference where the method is
+//! exact: one convex occluder, no overlapping penumbrae.
+
+mod common;
+
+use penumbra::compare::{compare_scene, CompareOptions};
+use penumbra::render::Technique;
+use penumbra::report::Progress;
+
+#[test]
+fn single_convex_occluder_matches_the_reference_within_its_noise() {
+    // The quad scene: one square occluder, one square light. With a single
+    // silhouette loop the wedge integral is exact, so the only error left
+    // is the reference's own noise (and f32 rounding).
+    let toml = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/quad.toml"),
+    )
+    .unwrap()
+    .replace("width = 512", "width = 96")
+    .replace("height = 512", "height = 96");
+    let scene = common::scene_in_scratch("wedges-quad", &toml, &[]);
+    let dir = common::scratch_dir("wedges-quad-out");
+    let options = CompareOptions {
+        techniques: vec![Technique::Wedges, Technique::ShadowVolumes],
+        samples: vec![1],
+        reference_samples: 2048,
+        repeat: 1,
+        width: None,
+        height: None,
+        seed: 3,
+        cache_dir: dir.join("cache"),
+        images: false,
+    };
+    let c = compare_scene(&scene, &options, &dir, &Progress::hidden()).expect("compare");
+    let wedges = c.runs.iter().find(|r| r.technique == "wedges").unwrap();
+    let hard = c
+        .runs
+        .iter()
+        .find(|r| r.technique == "shadow-volumes")
+        .unwrap();
+    let w = wedges.vcoef_all_lights.unwrap();
+    let h = hard.vcoef_all_lights.unwrap();
+    let floor = c.reference.floor_vcoef_all_lights;
+    assert!(c.penumbra_points[0] > 100);
+    assert_eq!(w.all.non_finite, 0);
+    // Tolerance: twice the reference's estimated RMSE in the penumbra (the
+    // estimate itself is noisy), and a max error of a few noise sigmas.
+    assert!(
+        w.penumbra.rmse <= 2.0 * floor.rmse_penumbra + 1e-4,
+        "wedges {} vs floor {}",
+        w.penumbra.rmse,
+        floor.rmse_penumbra
+    );
+    assert!(w.all.max_abs < 0.05, "max {}", w.all.max_abs);
+    // And it is the soft shadow, not the hard one.
+    assert!(h.penumbra.rmse > 20.0 * w.penumbra.rmse);
+}
