@@ -466,6 +466,15 @@ fn errors_name_the_file_or_parameter() {
         "{e}"
     );
 
+    // A mask channel without a mask.
+    let options = DiffOptions {
+        mask_channel: Some("Y".into()),
+        ..DiffOptions::default()
+    };
+    let (name, message) = param_error(diff_images(&a, &b, &options));
+    assert_eq!(name, "--mask-channel");
+    assert!(message.contains("--mask"), "{message}");
+
     // Tolerances must be numbers at least 0.
     for (max_abs, rmse, option) in [
         (Some(-1.0), None, "--max-abs"),

@@ -160,7 +160,8 @@ fn short(v: f64) -> String {
 /// [`DiffOptions`] for the channels, mask and tolerances.
 ///
 /// Errors name the file or the option at fault: unreadable images, sizes
-/// that differ, channels an image lacks, a bad tolerance.
+/// that differ, channels an image lacks, a bad tolerance, a mask channel
+/// without a mask.
 pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffReport> {
     for (name, tolerance) in [("--max-abs", options.max_abs), ("--rmse", options.rmse)] {
         if let Some(t) = tolerance {
@@ -171,6 +172,12 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
                 ));
             }
         }
+    }
+    if options.mask.is_none() && options.mask_channel.is_some() {
+        return Err(Error::param(
+            "--mask-channel",
+            "picks a channel of the mask image, so it needs --mask",
+        ));
     }
     let image_a = read_image(a)?;
     let image_b = read_image(b)?;
