@@ -73,7 +73,7 @@ impl CompareOptions {
             ));
         }
         let m = self.reference_samples;
-        if m < 2 || m % 2 != 0 || m > 1 << 21 {
+        if m < 2 || !m.is_multiple_of(2) || m > 1 << 21 {
             return Err(Error::param(
                 "--reference-samples",
                 format!("{m} must be even and in 2..=2097152 (the reference is two halves)"),
