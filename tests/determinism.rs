@@ -79,10 +79,10 @@ fn simd_resolve_matches_scalar_twin() {
         let geometry = SceneGeometry::new(&scene);
         let vertices = transform_vertices(&geometry, &view);
         let (_, ids, _) = visibility_pass(&scene, &geometry, &view, &vertices).expect("draw");
-        let simd = resolve(&scene, &geometry, &view, &ids);
-        let scalar = resolve_scalar(&scene, &geometry, &view, &ids);
+        let simd = resolve(&scene, &geometry, &view, &ids).expect("resolve");
+        let scalar = resolve_scalar(&scene, &geometry, &view, &ids).expect("resolve");
         let mut surfaces = 0;
-        for (a, b) in simd.samples.iter().zip(&scalar.samples) {
+        for (a, b) in simd.samples().zip(scalar.samples()) {
             assert_eq!(a.triangle, b.triangle);
             if !a.is_surface() {
                 continue;
