@@ -78,41 +78,47 @@ const GEO_FLIPPED: u32 = 1 << 31;
 const MAX_TRIANGLES: usize = (GEO_FLIPPED - 1) as usize;
 
 /// One pixel as the G-buffer stores it (32 bytes): what only this pixel
-/// knows. Everything a triangle or material determines is looked up on
-/// expansion.
+/// knows, as two 16-byte lanes the resolve writes whole. Everything a
+/// triangle or material determines is looked up on expansion.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(16))]
 struct GPoint {
-    /// World position (f64 solve, rounded).
-    position: Vec3,
-    /// View depth (the ray parameter, rounded).
-    depth: f32,
-    /// Shading normal, unit, facing the viewer.
-    normal: Vec3,
-    /// Triangle index, [`GEO_FLIPPED`] or-ed in; [`NO_TRIANGLE`] for
+    /// World position (f64 solve, rounded) and view depth (the ray
+    /// parameter, rounded).
+    position_depth: [f32; 4],
+    /// Shading normal (unit, facing the viewer) and the bits of the
+    /// triangle index, [`GEO_FLIPPED`] or-ed in; [`NO_TRIANGLE`] for
     /// background.
-    triangle: u32,
+    normal_triangle: [f32; 4],
 }
 
 impl GPoint {
     const BACKGROUND: GPoint = GPoint {
-        position: Vec3::ZERO,
-        depth: 0.0,
-        normal: Vec3::ZERO,
-        triangle: NO_TRIANGLE,
+        position_depth: [0.0; 4],
+        normal_triangle: [0.0, 0.0, 0.0, f32::from_bits(NO_TRIANGLE)],
     };
+
+    /// A surface pixel.
+    fn new(position: Vec3, depth: f32, normal: Vec3, triangle: u32) -> Self {
+        GPoint {
+            position_depth: [position.x, position.y, position.z, depth],
+            normal_triangle: [normal.x, normal.y, normal.z, f32::from_bits(triangle)],
+        }
+    }
 
     /// From lanes `[x, y, z, depth]` and `[nx, ny, nz, triangle bits]`.
     #[inline(always)]
     fn from_lanes(position_depth: wide::f32x4, normal_triangle: wide::f32x4) -> Self {
-        let [x, y, z, depth] = position_depth.to_array();
-        let [nx, ny, nz, triangle] = normal_triangle.to_array();
         GPoint {
-            position: Vec3::new(x, y, z),
-            depth,
-            normal: Vec3::new(nx, ny, nz),
-            triangle: triangle.to_bits(),
+            position_depth: position_depth.to_array(),
+            normal_triangle: normal_triangle.to_array(),
         }
+    }
+
+    /// The triangle bits (index and flag).
+    #[inline(always)]
+    fn triangle(&self) -> u32 {
+        self.normal_triangle[3].to_bits()
     }
 }
 
@@ -199,33 +205,32 @@ impl GBuffer {
     /// Whether pixel `i` (row-major) sees a surface.
     #[inline]
     pub fn is_surface(&self, i: usize) -> bool {
-        self.points[i].triangle != NO_TRIANGLE
+        self.points[i].triangle() != NO_TRIANGLE
     }
 
     /// The shading point of pixel `i` (row-major).
     #[inline]
     pub fn sample(&self, i: usize) -> GSample {
         let p = self.points[i];
-        if p.triangle == NO_TRIANGLE {
+        let bits = p.triangle();
+        if bits == NO_TRIANGLE {
             return GSample::BACKGROUND;
         }
-        let triangle = p.triangle & !GEO_FLIPPED;
+        let triangle = bits & !GEO_FLIPPED;
+        let [x, y, z, depth] = p.position_depth;
+        let [nx, ny, nz, _] = p.normal_triangle;
         let t = triangle as usize;
         let unit = self.unit_normals[t];
         let material = self.triangle_material[t];
         GSample {
-            position: p.position,
-            normal: p.normal,
-            geo_normal: if p.triangle & GEO_FLIPPED != 0 {
-                -unit
-            } else {
-                unit
-            },
+            position: Vec3::new(x, y, z),
+            normal: Vec3::new(nx, ny, nz),
+            geo_normal: if bits & GEO_FLIPPED != 0 { -unit } else { unit },
             albedo: match self.albedo.get(i) {
                 Some(&a) => a,
                 None => self.material_albedo[material as usize],
             },
-            depth: p.depth,
+            depth,
             material,
             object: self.triangle_object[t],
             triangle,
@@ -321,8 +326,14 @@ impl<const ALPHA: bool> FragmentStage<0> for VisibilityStage<'_, ALPHA> {
     }
 
     fn shade(&self, batch: &FragmentBatch<0>, ids: &mut Box<[u32]>) {
-        for k in batch.lanes() {
-            ids[batch.local + k] = batch.primitive;
+        if batch.mask == 0xff {
+            ids[batch.local..batch.local + 8].fill(batch.primitive);
+            return;
+        }
+        let mut mask = batch.mask;
+        while mask != 0 {
+            ids[batch.local + mask.trailing_zeros() as usize] = batch.primitive;
+            mask &= mask - 1;
         }
     }
 }
@@ -546,8 +557,15 @@ impl GBufferPass {
                 "the G-buffer pass was made for another image size",
             ));
         }
-        self.framebuffer.clear_depth(crate::raster::FAR_DEPTH);
-        self.ids.fill(NO_TRIANGLE);
+        let (framebuffer, ids) = (&mut self.framebuffer, &mut self.ids);
+        rayon::join(
+            || framebuffer.clear_depth(crate::raster::FAR_DEPTH),
+            || {
+                ids.tiles_mut()
+                    .par_iter_mut()
+                    .for_each(|t| t.fill(NO_TRIANGLE))
+            },
+        );
         transform_vertices_into(geometry, view, &mut self.vertices);
         let stats = visibility_pass_into(
             scene,

@@ -18,13 +18,16 @@ use crate::view::View;
 use bytemuck::cast;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
-use wide::{f32x4, f64x4, u32x4, CmpGt, CmpLt};
+use wide::{f32x4, f64x4, i32x4, u32x4, CmpEq, CmpGt, CmpLt};
 
 /// Pixels per lane group.
 const LANES: usize = 4;
 
-/// Image rows per parallel task.
-const ROWS_PER_TASK: usize = 4;
+/// Image rows per parallel task (a divisor of the tile size).
+const BAND: usize = 32;
+
+/// Prepared triangles a band keeps.
+const CACHE: usize = 128;
 
 /// Resolves triangle ids into shading points (parallel over rows).
 pub fn resolve(
@@ -106,16 +109,9 @@ pub(super) fn resolve_into(
         columns,
     };
     let w = view.width as usize;
-    let task = w * ROWS_PER_TASK;
-    let rows = |(c, (points, albedo)): (usize, (&mut [GPoint], &mut [Vec3]))| {
-        for (r, row) in points.chunks_mut(w).enumerate() {
-            let albedo = if albedo.is_empty() {
-                &mut [][..]
-            } else {
-                &mut albedo[r * w..(r + 1) * w]
-            };
-            ctx.row(ids, c * ROWS_PER_TASK + r, row, albedo);
-        }
+    let task = w * BAND;
+    let band = |(c, (points, albedo)): (usize, (&mut [GPoint], &mut [Vec3]))| {
+        ctx.band(ids, c * BAND, points, albedo);
     };
     if gbuffer.albedo.is_empty() {
         gbuffer
@@ -123,18 +119,18 @@ pub(super) fn resolve_into(
             .par_chunks_mut(task)
             .map(|p| (p, &mut [][..]))
             .enumerate()
-            .for_each(rows);
+            .for_each(band);
     } else {
         gbuffer
             .points
             .par_chunks_mut(task)
             .zip(gbuffer.albedo.par_chunks_mut(task))
             .enumerate()
-            .for_each(rows);
+            .for_each(band);
     }
 }
 
-/// What every row of one resolve shares.
+/// What every band of one resolve shares.
 struct Ctx<'a> {
     scene: &'a Scene,
     geometry: &'a SceneGeometry,
@@ -142,62 +138,173 @@ struct Ctx<'a> {
     columns: &'a Columns,
 }
 
-impl Ctx<'_> {
-    /// Resolves image row `y` into `out` (and `albedo`, when the G-buffer
-    /// keeps it; else empty).
-    fn row(&self, ids: &TiledTarget<u32>, y: usize, out: &mut [GPoint], albedo: &mut [Vec3]) {
+impl<'a> Ctx<'a> {
+    /// Resolves the band of rows from `y0` into `points` (whole rows) and
+    /// `albedo` (the same rows when the G-buffer keeps albedo, else
+    /// empty). Tile by tile, row by row inside a tile, so a triangle seen
+    /// in several rows is prepared once.
+    fn band(&self, ids: &TiledTarget<u32>, y0: usize, points: &mut [GPoint], albedo: &mut [Vec3]) {
         let view = self.view;
+        let w = view.width as usize;
+        let rows = points.len() / w;
         let h = view.height as f64;
-        let ys = (1.0 - 2.0 * (y as f64 + 0.5) / h) * view.tan_half_fov;
-        let row = V4::splat(view.forward + ys * view.up);
+        let dirs: [DVec3; BAND] = std::array::from_fn(|r| {
+            let ys = (1.0 - 2.0 * ((y0 + r) as f64 + 0.5) / h) * view.tan_half_fov;
+            view.forward + ys * view.up
+        });
         let eye = V4::splat(view.eye);
-        let grid = ids.grid();
-        let (ty, ly) = (y / TILE_SIZE, y % TILE_SIZE);
-        let w = out.len();
         let textured = !albedo.is_empty();
-        // Replaced only when the triangle changes: runs of one triangle
-        // split at tile borders share it.
-        let mut run: Option<RunTriangle> = None;
+        let grid = ids.grid();
+        let (ty, ly0) = (y0 / TILE_SIZE, y0 % TILE_SIZE);
+        let mut cache = RunCache::new();
         for tx in 0..grid.tiles_x {
+            let tile = ids.tile(ty * grid.tiles_x + tx);
             let x0 = tx * TILE_SIZE;
             let n = TILE_SIZE.min(w - x0);
-            let tile = &ids.tile(ty * grid.tiles_x + tx)[ly * TILE_SIZE..][..n];
-            let mut i = 0;
-            while i < n {
-                let tri = tile[i];
-                let mut j = i + 1;
-                while j < n && tile[j] == tri {
-                    j += 1;
-                }
-                let (a, b) = (x0 + i, x0 + j);
-                i = j;
-                if tri == NO_TRIANGLE {
-                    out[a..b].fill(GPoint::BACKGROUND);
-                    continue;
-                }
-                let r = match &mut run {
-                    Some(r) if r.id == tri => r,
-                    slot => slot.insert(RunTriangle::new(self, tri, textured)),
+            for (r, &row) in dirs.iter().enumerate().take(rows) {
+                let row4 = V4::splat(row);
+                let seg = &tile[(ly0 + r) * TILE_SIZE..][..TILE_SIZE];
+                // The rest of the image row: a group may write all its
+                // lanes past its run's end; the pixels there belong to
+                // runs (or tiles) resolved later, which overwrite them.
+                let out = &mut points[r * w + x0..(r + 1) * w];
+                let albedo = if textured {
+                    &mut albedo[r * w + x0..][..n]
+                } else {
+                    &mut [][..]
                 };
-                let mut x = a;
-                while x < b {
-                    let end = (x + LANES).min(b);
-                    let lanes = Lanes {
-                        dir: row + self.columns.lanes(x),
-                        eye,
-                    };
-                    let out = &mut out[x..end];
-                    if textured {
-                        lanes.textured(r, out, &mut albedo[x..end]);
-                    } else if let Some(s) = &r.smooth {
-                        lanes.smooth(r, s, out);
+                let mut starts = run_starts(seg, n);
+                while starts != 0 {
+                    let i = starts.trailing_zeros() as usize;
+                    starts &= starts - 1;
+                    let j = if starts == 0 {
+                        n
                     } else {
-                        lanes.flat(r, out);
+                        starts.trailing_zeros() as usize
+                    };
+                    let tri = seg[i];
+                    if tri == NO_TRIANGLE {
+                        out[i..j].fill(GPoint::BACKGROUND);
+                        continue;
                     }
-                    x = end;
+                    let t = cache.get(self, tri, textured);
+                    if j == i + 1 && !textured {
+                        // A run of one pixel (a third of all runs): the
+                        // same arithmetic without lanes.
+                        self.single(t, row, x0 + i, &mut out[i]);
+                        continue;
+                    }
+                    let mut x = i;
+                    while x < j {
+                        let end = (x + LANES).min(j);
+                        let lanes = Lanes {
+                            dir: row4 + self.columns.lanes(x0 + x),
+                            eye,
+                        };
+                        let lanes_end = if x + LANES <= out.len() && !textured {
+                            x + LANES
+                        } else {
+                            end
+                        };
+                        let out = &mut out[x..lanes_end];
+                        if textured {
+                            lanes.textured(t, out, &mut albedo[x..end]);
+                        } else if t.smooth {
+                            lanes.smooth(t, out);
+                        } else {
+                            lanes.flat(t, out);
+                        }
+                        x = end;
+                    }
                 }
             }
         }
+    }
+}
+
+impl<'a> Ctx<'a> {
+    /// One pixel at column `x` of the row whose rays are `row + right
+    /// xs`: [`Lanes`]' arithmetic in scalars, operation for operation, so
+    /// the bits are those a lane would give.
+    #[inline]
+    fn single(&self, r: &RunTriangle, row: DVec3, x: usize, out: &mut GPoint) {
+        let view = self.view;
+        let f = &self.geometry.frames[r.id as usize];
+        let c = self.columns;
+        let dir = DVec3::new(row.x + c.x[x], row.y + c.y[x], row.z + c.z[x]);
+        let numerator = r.numerator.to_array()[0];
+        let t = numerator / f.normal.dot(dir);
+        let hit = view.eye + dir * t;
+        let ok = t > 0.0 && t < f64::INFINITY;
+        let (t, position) = if ok {
+            (t, hit)
+        } else {
+            let t = r.centroid_t.to_array()[0];
+            (t, view.eye + dir * t)
+        };
+        let position_depth = f32x4::from([
+            position.x as f32,
+            position.y as f32,
+            position.z as f32,
+            t as f32,
+        ]);
+        let normal_triangle = if r.smooth {
+            let (b1, b2) = if ok {
+                let d = hit - f.a;
+                (d.dot(f.dual1), d.dot(f.dual2))
+            } else {
+                (1.0 / 3.0, 1.0 / 3.0)
+            };
+            let (normal, turned) = normal_scalar(r.corners, r.unit, b1 as f32, b2 as f32);
+            r.lane(normal, turned)
+        } else {
+            r.flat
+        };
+        *out = GPoint::from_lanes(position_depth, normal_triangle);
+    }
+}
+
+/// Bit `k` set where a run of equal ids starts in `seg[..n]` (`k = 0` or
+/// `seg[k] != seg[k - 1]`); `seg` is a whole tile row.
+#[inline]
+fn run_starts(seg: &[u32], n: usize) -> u64 {
+    let load = |k: usize| -> i32x4 {
+        let a: [u32; 4] = seg[k..k + 4].try_into().expect("tile row of 64");
+        cast(a)
+    };
+    let mut same = 0u64;
+    // Lane k of chunk c compares seg[4c + k] with seg[4c + k - 1].
+    let first = load(0);
+    let shifted: [u32; 4] = [!seg[0], seg[0], seg[1], seg[2]];
+    same |= first.cmp_eq(cast(shifted)).move_mask() as u64 & 0xf;
+    for c in 1..TILE_SIZE / 4 {
+        let eq = load(4 * c).cmp_eq(load(4 * c - 1)).move_mask() as u64 & 0xf;
+        same |= eq << (4 * c);
+    }
+    let live = if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
+    !same & live
+}
+
+/// Triangles prepared for this band, by id modulo the size.
+struct RunCache<'a> {
+    slots: [RunTriangle<'a>; CACHE],
+}
+
+impl<'a> RunCache<'a> {
+    fn new() -> Self {
+        RunCache {
+            slots: [RunTriangle::EMPTY; CACHE],
+        }
+    }
+
+    /// Triangle `id`, prepared now unless it is cached.
+    #[inline]
+    fn get(&mut self, ctx: &Ctx<'a>, id: u32, textured: bool) -> &RunTriangle<'a> {
+        let slot = &mut self.slots[id as usize % CACHE];
+        if slot.id != id {
+            slot.load(ctx, id, textured);
+        }
+        slot
     }
 }
 
@@ -254,9 +361,7 @@ impl Lanes {
     #[inline(always)]
     fn flat(&self, r: &RunTriangle, out: &mut [GPoint]) {
         let h = self.hits(r);
-        for (o, pd) in out.iter_mut().zip(h.position_depth) {
-            *o = GPoint::from_lanes(pd, r.flat);
-        }
+        store(out, h.position_depth, [r.flat; LANES]);
     }
 
     /// Barycentrics of the hits (f64), grazing lanes at the centroid.
@@ -274,10 +379,10 @@ impl Lanes {
 
     /// A triangle with vertex normals.
     #[inline(always)]
-    fn smooth(&self, r: &RunTriangle, s: &Smooth, out: &mut [GPoint]) {
+    fn smooth(&self, r: &RunTriangle, out: &mut [GPoint]) {
         let h = self.hits(r);
         let (b1, b2) = self.barycentrics(r, &h);
-        store_smooth(r, s, &h, b1, b2, out);
+        store(out, h.position_depth, normal_lanes(r, b1, b2));
     }
 
     /// A scene with albedo textures: as [`Lanes::smooth`] or
@@ -285,14 +390,12 @@ impl Lanes {
     fn textured(&self, r: &RunTriangle, out: &mut [GPoint], albedo: &mut [Vec3]) {
         let h = self.hits(r);
         let (b1, b2) = self.barycentrics(r, &h);
-        match &r.smooth {
-            Some(s) => store_smooth(r, s, &h, b1, b2, out),
-            None => {
-                for (o, pd) in out.iter_mut().zip(h.position_depth) {
-                    *o = GPoint::from_lanes(pd, r.flat);
-                }
-            }
-        }
+        let nt = if r.smooth {
+            normal_lanes(r, b1, b2)
+        } else {
+            [r.flat; LANES]
+        };
+        store(out, h.position_depth, nt);
         let (b1, b2) = (b1.to_array(), b2.to_array());
         for (k, a) in albedo.iter_mut().enumerate() {
             let (cb1, cb2) = clamp_barycentrics(b1[k], b2[k], 0.0, 1.0);
@@ -301,19 +404,48 @@ impl Lanes {
     }
 }
 
-/// Stores the lanes of a smooth triangle: shading normals facing the
-/// viewer, ids with their geometric-normal flags.
+/// Writes the first `out.len()` (at most [`LANES`]) lanes.
 #[inline(always)]
-fn store_smooth(r: &RunTriangle, s: &Smooth, h: &Hits, b1: f64x4, b2: f64x4, out: &mut [GPoint]) {
-    let (normal, turned) = s.normals(narrow(b1), narrow(b2));
-    let away = turned.blend(r.front, r.back);
-    let sign = away & f32x4::splat(-0.0);
-    let flag: f32x4 = cast(u32x4::splat(GEO_FLIPPED));
-    let id: u32x4 = u32x4::splat(r.id) | cast::<f32x4, u32x4>((turned ^ away) & flag);
-    let nt = f32x4::transpose([normal.x ^ sign, normal.y ^ sign, normal.z ^ sign, cast(id)]);
-    for ((o, pd), nt) in out.iter_mut().zip(h.position_depth).zip(nt) {
-        *o = GPoint::from_lanes(pd, nt);
+fn store(out: &mut [GPoint], position_depth: [f32x4; LANES], normal_triangle: [f32x4; LANES]) {
+    if let Ok(out) = <&mut [GPoint; LANES]>::try_from(&mut *out) {
+        for k in 0..LANES {
+            out[k] = GPoint::from_lanes(position_depth[k], normal_triangle[k]);
+        }
+    } else {
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = GPoint::from_lanes(position_depth[k], normal_triangle[k]);
+        }
     }
+}
+
+/// The `[normal, triangle bits]` lanes of a smooth triangle: shading
+/// normals facing the viewer, ids with their geometric-normal flags.
+#[inline(always)]
+fn normal_lanes(r: &RunTriangle, b1: f64x4, b2: f64x4) -> [f32x4; LANES] {
+    let (normal, turned) = r.normals(narrow(b1), narrow(b2));
+    let (sign, id) = match turned {
+        // Vertex normals that agree with the winding never turn it: the
+        // run's facing.
+        None => (r.sign, r.flat.to_array()[3]),
+        Some(turned) => {
+            let away = turned.blend(r.front, r.back);
+            let flag: f32x4 = cast(u32x4::splat(GEO_FLIPPED));
+            let id = u32x4::splat(r.id) | cast::<f32x4, u32x4>((turned ^ away) & flag);
+            let id: f32x4 = cast(id);
+            return f32x4::transpose([
+                normal.x ^ (away & f32x4::splat(-0.0)),
+                normal.y ^ (away & f32x4::splat(-0.0)),
+                normal.z ^ (away & f32x4::splat(-0.0)),
+                id,
+            ]);
+        }
+    };
+    f32x4::transpose([
+        normal.x ^ sign,
+        normal.y ^ sign,
+        normal.z ^ sign,
+        f32x4::splat(id),
+    ])
 }
 
 /// f64 lanes rounded to f32.
@@ -351,54 +483,17 @@ fn clamp_barycentrics<
     }
 }
 
-/// Vertex normals of a smooth triangle, as f32 lanes.
-struct Smooth {
-    /// Corner normals.
-    normals: [V4f; 3],
-    /// Unit winding normal (the fallback normal).
-    geo: V4f,
-}
+/// Vertex normals whose dot products with the unit winding normal are all
+/// at least this agree with the winding: an interpolated normal, a convex
+/// combination of them, then has a dot product of at least about this
+/// much, far above f32 rounding, and never turns the geometric normal.
+const AGREE: f64 = 1e-3;
 
-impl Smooth {
-    fn new(normals: [Vec3; 3], unit: Vec3) -> Self {
-        Smooth {
-            normals: normals.map(V4f::splat),
-            geo: V4f::splat(unit),
-        }
-    }
-
-    /// The unit shading normals at barycentrics `(b1, b2)` (clamped into
-    /// the triangle here), interpolated in f32 where they are stored and
-    /// used, and the lanes where they turn the geometric normal: a mesh
-    /// whose vertex normals disagree with its winding (an inverted export)
-    /// is trusted for its normals, the geometric normal turns to agree
-    /// with them. [`normal_scalar`] is the same, one pixel at a time.
-    #[inline(always)]
-    fn normals(&self, b1: f32x4, b2: f32x4) -> (V4f, f32x4) {
-        let (zero, one) = (f32x4::splat(0.0), f32x4::splat(1.0));
-        let mut b1 = b1.fast_max(zero).fast_min(one);
-        let mut b2 = b2.fast_max(zero).fast_min(one);
-        let sum = b1 + b2;
-        let over = sum.cmp_gt(one);
-        if over.any() {
-            b1 = over.blend(b1 / sum, b1);
-            b2 = over.blend(b2 / sum, b2);
-        }
-        let b0 = one - b1 - b2;
-        let m = self.normals[0] * b0 + self.normals[1] * b1 + self.normals[2] * b2;
-        let len = m.dot(&m).sqrt();
-        let usable = len.cmp_gt(zero) & len.cmp_lt(f32x4::splat(f32::INFINITY));
-        let normal = V4f::select(usable, &(m * (one / len)), &self.geo);
-        let turned = self.geo.dot(&normal).cmp_lt(zero);
-        (normal, turned)
-    }
-}
-
-/// [`Smooth::normals`] for one pixel, in scalar f32.
+/// [`RunTriangle::normals`] for one pixel, in scalar f32.
 fn normal_scalar(corners: [Vec3; 3], unit: Vec3, b1: f32, b2: f32) -> (Vec3, bool) {
     let (b1, b2) = clamp_barycentrics(b1, b2, 0.0, 1.0);
-    let b0 = 1.0 - b1 - b2;
-    let m = corners[0] * b0 + corners[1] * b1 + corners[2] * b2;
+    let [n0, n1, n2] = corners;
+    let m = n0 + (n1 - n0) * b1 + (n2 - n0) * b2;
     let len = m.dot(m).sqrt();
     let normal = if len > 0.0 && len < f32::INFINITY {
         m * (1.0 / len)
@@ -430,8 +525,7 @@ impl Albedo<'_> {
     }
 }
 
-/// A triangle's data, gathered once per run of pixels that see it, as
-/// lanes.
+/// A triangle's data for the lanes, prepared once per band that sees it.
 struct RunTriangle<'a> {
     id: u32,
     /// Winding normal (unnormalised), first corner and dual vectors.
@@ -448,66 +542,143 @@ struct RunTriangle<'a> {
     /// lies in the plane.
     back: f32x4,
     front: f32x4,
-    /// The stored normal and id lane of a flat triangle.
+    /// Sign bits of an unturned normal facing the viewer (`back`'s).
+    sign: f32x4,
+    /// The stored `[normal, triangle bits]` of a flat triangle, facing the
+    /// viewer (the triangle bits also those of an unturned smooth one).
     flat: f32x4,
-    smooth: Option<Smooth>,
+    /// Whether the mesh has vertex normals: `n0`, `n1 - n0`, `n2 - n0`.
+    smooth: bool,
+    n0: V4f,
+    e1: V4f,
+    e2: V4f,
+    /// Unit winding normal (the fallback shading normal).
+    geo: V4f,
+    /// The same, and the corner normals, as scalars.
+    unit: Vec3,
+    corners: [Vec3; 3],
+    /// The vertex normals agree with the winding ([`AGREE`]).
+    agree: bool,
     /// Only for G-buffers that keep albedo.
     albedo: Option<Albedo<'a>>,
 }
 
 impl<'a> RunTriangle<'a> {
-    fn new(ctx: &Ctx<'a>, id: u32, textured: bool) -> Self {
+    /// An empty cache slot.
+    const EMPTY: RunTriangle<'a> = RunTriangle {
+        id: NO_TRIANGLE,
+        normal: V4::ZERO,
+        a: V4::ZERO,
+        dual1: V4::ZERO,
+        dual2: V4::ZERO,
+        numerator: f64x4::ZERO,
+        centroid_t: f64x4::ZERO,
+        back: f32x4::ZERO,
+        front: f32x4::ZERO,
+        sign: f32x4::ZERO,
+        flat: f32x4::ZERO,
+        smooth: false,
+        n0: V4f::ZERO,
+        e1: V4f::ZERO,
+        e2: V4f::ZERO,
+        geo: V4f::ZERO,
+        unit: Vec3::ZERO,
+        corners: [Vec3::ZERO; 3],
+        agree: false,
+        albedo: None,
+    };
+
+    /// Prepares triangle `id` in place.
+    fn load(&mut self, ctx: &Ctx<'a>, id: u32, textured: bool) {
         let (scene, geometry, view) = (ctx.scene, ctx.geometry, ctx.view);
         let t = id as usize;
         let f = &geometry.frames[t];
         let numerator = f.normal.dot(f.a - view.eye);
+        let (back, front) = (numerator > 0.0, numerator < 0.0);
+        let unit = geometry.unit_normals[t];
+        let mask = |b: bool| f32x4::splat(if b { f32::from_bits(u32::MAX) } else { 0.0 });
+        self.id = id;
+        self.normal = V4::splat(f.normal);
+        self.a = V4::splat(f.a);
+        self.dual1 = V4::splat(f.dual1);
+        self.dual2 = V4::splat(f.dual2);
+        self.numerator = f64x4::splat(numerator);
+        self.centroid_t = f64x4::splat((f.centroid - view.eye).dot(view.forward));
+        self.back = mask(back);
+        self.front = mask(front);
+        self.sign = mask(back) & f32x4::splat(-0.0);
+        self.flat = self.lane(unit, false);
         let (o, local) = geometry.locate(id);
         let mesh = &scene.objects[o].mesh;
         let corners = mesh.triangles[local];
-        let unit = geometry.unit_normals[t];
-        let mask = |b: bool| f32x4::splat(if b { f32::from_bits(u32::MAX) } else { 0.0 });
-        let mut r = RunTriangle {
-            id,
-            normal: V4::splat(f.normal),
-            a: V4::splat(f.a),
-            dual1: V4::splat(f.dual1),
-            dual2: V4::splat(f.dual2),
-            numerator: f64x4::splat(numerator),
-            centroid_t: f64x4::splat((f.centroid - view.eye).dot(view.forward)),
-            back: mask(numerator > 0.0),
-            front: mask(numerator < 0.0),
-            flat: f32x4::ZERO,
-            smooth: mesh
-                .normals
-                .as_ref()
-                .map(|ns| Smooth::new(corners.map(|i| ns[i as usize]), unit)),
-            albedo: textured.then(|| {
-                let m = &scene.materials[geometry.triangle_material[t] as usize];
-                Albedo {
-                    albedo: m.albedo,
-                    texture: m.albedo_texture.and_then(|i| scene.textures.get(i)),
-                    uvs: mesh
-                        .uvs
-                        .as_ref()
-                        .map(|uv| corners.map(|i| uv[i as usize].as_dvec2())),
-                }
-            }),
-        };
-        r.flat = r.facing(unit, false);
-        r
+        self.smooth = false;
+        if let Some(ns) = &mesh.normals {
+            let [n0, n1, n2] = corners.map(|i| ns[i as usize]);
+            let geo = f.normal.normalize_or_zero();
+            self.smooth = true;
+            self.n0 = V4f::splat(n0);
+            self.e1 = V4f::splat(n1 - n0);
+            self.e2 = V4f::splat(n2 - n0);
+            self.geo = V4f::splat(unit);
+            self.unit = unit;
+            self.corners = [n0, n1, n2];
+            self.agree = [n0, n1, n2].iter().all(|n| geo.dot(n.as_dvec3()) >= AGREE);
+        }
+        self.albedo = textured.then(|| {
+            let m = &scene.materials[geometry.triangle_material[t] as usize];
+            Albedo {
+                albedo: m.albedo,
+                texture: m.albedo_texture.and_then(|i| scene.textures.get(i)),
+                uvs: mesh
+                    .uvs
+                    .as_ref()
+                    .map(|uv| corners.map(|i| uv[i as usize].as_dvec2())),
+            }
+        });
     }
 
-    /// The stored normal-and-id lane of a pixel whose unit shading normal
-    /// is `normal`, `turned` when the vertex normals turned the geometric
+    /// The stored `[normal, triangle bits]` lane of a pixel whose unit
+    /// shading normal is `normal`, `turned` when it turns the geometric
     /// normal against the winding. Two-sided surfaces: both normals face
     /// the viewer, which is a property of the plane (the side of it the
     /// eye is on), not of the pixel.
-    fn facing(&self, normal: Vec3, turned: bool) -> f32x4 {
+    fn lane(&self, normal: Vec3, turned: bool) -> f32x4 {
         let (back, front) = (self.back.move_mask() != 0, self.front.move_mask() != 0);
         let away = if turned { front } else { back };
         let normal = if away { -normal } else { normal };
         let flag = if turned != away { GEO_FLIPPED } else { 0 };
         f32x4::from([normal.x, normal.y, normal.z, f32::from_bits(self.id | flag)])
+    }
+
+    /// The unit shading normals at barycentrics `(b1, b2)` (clamped into
+    /// the triangle here), interpolated in f32 where they are stored and
+    /// used, and the lanes where they turn the geometric normal (`None`:
+    /// none can, see [`AGREE`]): a mesh whose vertex normals disagree with
+    /// its winding (an inverted export) is trusted for its normals, the
+    /// geometric normal turns to agree with them. [`normal_scalar`] is the
+    /// same, one pixel at a time.
+    #[inline(always)]
+    fn normals(&self, b1: f32x4, b2: f32x4) -> (V4f, Option<f32x4>) {
+        let (zero, one) = (f32x4::splat(0.0), f32x4::splat(1.0));
+        let mut b1 = b1.fast_max(zero).fast_min(one);
+        let mut b2 = b2.fast_max(zero).fast_min(one);
+        let sum = b1 + b2;
+        let over = sum.cmp_gt(one);
+        if over.any() {
+            b1 = over.blend(b1 / sum, b1);
+            b2 = over.blend(b2 / sum, b2);
+        }
+        let m = self.n0 + self.e1 * b1 + self.e2 * b2;
+        let len = m.dot(&m).sqrt();
+        let usable = len.cmp_gt(zero) & len.cmp_lt(f32x4::splat(f32::INFINITY));
+        let mut normal = m * (one / len);
+        if usable.move_mask() != 0b1111 {
+            normal = V4f::select(usable, &normal, &self.geo);
+        }
+        if self.agree {
+            return (normal, None);
+        }
+        (normal, Some(self.geo.dot(&normal).cmp_lt(zero)))
     }
 }
 
@@ -561,12 +732,12 @@ pub fn resolve_scalar(
             } else {
                 numerator > 0.0
             };
-            g.points[i] = GPoint {
-                position: position.as_vec3(),
-                depth: t as f32,
-                normal: if away { -normal } else { normal },
-                triangle: id | if turned != away { GEO_FLIPPED } else { 0 },
-            };
+            g.points[i] = GPoint::new(
+                position.as_vec3(),
+                t as f32,
+                if away { -normal } else { normal },
+                id | if turned != away { GEO_FLIPPED } else { 0 },
+            );
             if textured {
                 let m = &scene.materials[geometry.triangle_material[id as usize] as usize];
                 let (cb1, cb2) = clamp_barycentrics(b1, b2, 0.0, 1.0);
@@ -590,6 +761,12 @@ struct V4 {
 }
 
 impl V4 {
+    const ZERO: V4 = V4 {
+        x: f64x4::ZERO,
+        y: f64x4::ZERO,
+        z: f64x4::ZERO,
+    };
+
     #[inline(always)]
     fn splat(v: DVec3) -> Self {
         V4 {
@@ -650,6 +827,12 @@ struct V4f {
 }
 
 impl V4f {
+    const ZERO: V4f = V4f {
+        x: f32x4::ZERO,
+        y: f32x4::ZERO,
+        z: f32x4::ZERO,
+    };
+
     #[inline(always)]
     fn splat(v: Vec3) -> Self {
         V4f {
