@@ -250,12 +250,12 @@ impl<'a> Ctx<'a> {
         ]);
         let normal_triangle = if r.smooth {
             let (b1, b2) = if ok {
-                let d = hit - f.a;
-                (d.dot(f.dual1), d.dot(f.dual2))
+                let d = (hit - f.a).as_vec3();
+                (d.dot(r.duals[0]), d.dot(r.duals[1]))
             } else {
                 (1.0 / 3.0, 1.0 / 3.0)
             };
-            let (normal, turned) = normal_scalar(r.corners, r.unit, b1 as f32, b2 as f32);
+            let (normal, turned) = normal_scalar(r.corners, r.unit, b1, b2);
             r.lane(normal, turned)
         } else {
             r.flat
@@ -364,7 +364,40 @@ impl Lanes {
         store(out, h.position_depth, [r.flat; LANES]);
     }
 
-    /// Barycentrics of the hits (f64), grazing lanes at the centroid.
+    /// Barycentrics of the hits for the shading normals: the offsets from
+    /// the first corner in f64 (where they cancel), rounded to f32 (their
+    /// size is the triangle's), dotted with the duals in f32; grazing
+    /// lanes at the centroid.
+    #[inline(always)]
+    fn barycentrics_f32(&self, r: &RunTriangle, h: &Hits) -> (f32x4, f32x4) {
+        let d = h.hit - r.a;
+        let d = V4f {
+            x: narrow(d.x),
+            y: narrow(d.y),
+            z: narrow(d.z),
+        };
+        let (b1, b2) = (d.dot(&r.dual1f), d.dot(&r.dual2f));
+        if h.all_ok {
+            (b1, b2)
+        } else {
+            let ok = h.ok.move_mask();
+            let third = 1.0 / 3.0;
+            let pick = |b: f32x4| {
+                let b = b.to_array();
+                f32x4::from(std::array::from_fn::<f32, LANES, _>(|k| {
+                    if ok >> k & 1 != 0 {
+                        b[k]
+                    } else {
+                        third
+                    }
+                }))
+            };
+            (pick(b1), pick(b2))
+        }
+    }
+
+    /// Barycentrics of the hits in f64 (for texture coordinates), grazing
+    /// lanes at the centroid.
     #[inline(always)]
     fn barycentrics(&self, r: &RunTriangle, h: &Hits) -> (f64x4, f64x4) {
         let d = h.hit - r.a;
@@ -381,7 +414,7 @@ impl Lanes {
     #[inline(always)]
     fn smooth(&self, r: &RunTriangle, out: &mut [GPoint]) {
         let h = self.hits(r);
-        let (b1, b2) = self.barycentrics(r, &h);
+        let (b1, b2) = self.barycentrics_f32(r, &h);
         store(out, h.position_depth, normal_lanes(r, b1, b2));
     }
 
@@ -389,13 +422,14 @@ impl Lanes {
     /// [`Lanes::flat`], and the albedo per lane from f64 uvs.
     fn textured(&self, r: &RunTriangle, out: &mut [GPoint], albedo: &mut [Vec3]) {
         let h = self.hits(r);
-        let (b1, b2) = self.barycentrics(r, &h);
         let nt = if r.smooth {
+            let (b1, b2) = self.barycentrics_f32(r, &h);
             normal_lanes(r, b1, b2)
         } else {
             [r.flat; LANES]
         };
         store(out, h.position_depth, nt);
+        let (b1, b2) = self.barycentrics(r, &h);
         let (b1, b2) = (b1.to_array(), b2.to_array());
         for (k, a) in albedo.iter_mut().enumerate() {
             let (cb1, cb2) = clamp_barycentrics(b1[k], b2[k], 0.0, 1.0);
@@ -421,8 +455,8 @@ fn store(out: &mut [GPoint], position_depth: [f32x4; LANES], normal_triangle: [f
 /// The `[normal, triangle bits]` lanes of a smooth triangle: shading
 /// normals facing the viewer, ids with their geometric-normal flags.
 #[inline(always)]
-fn normal_lanes(r: &RunTriangle, b1: f64x4, b2: f64x4) -> [f32x4; LANES] {
-    let (normal, turned) = r.normals(narrow(b1), narrow(b2));
+fn normal_lanes(r: &RunTriangle, b1: f32x4, b2: f32x4) -> [f32x4; LANES] {
+    let (normal, turned) = r.normals(b1, b2);
     let (sign, id) = match turned {
         // Vertex normals that agree with the winding never turn it: the
         // run's facing.
@@ -483,11 +517,13 @@ fn clamp_barycentrics<
     }
 }
 
-/// Vertex normals whose dot products with the unit winding normal are all
-/// at least this agree with the winding: an interpolated normal, a convex
-/// combination of them, then has a dot product of at least about this
-/// much, far above f32 rounding, and never turns the geometric normal.
-const AGREE: f64 = 1e-3;
+/// Vertex normals whose dot products with the stored unit winding normal
+/// (f32) are all at least this agree with the winding: an interpolated
+/// normal, a convex combination of them (clamped barycentrics, unit
+/// length at most), then has a dot product of at least about this much,
+/// some 10^4 times the f32 rounding of the interpolation, normalisation
+/// and dot product, and never turns the geometric normal.
+const AGREE: f32 = 1e-3;
 
 /// [`RunTriangle::normals`] for one pixel, in scalar f32.
 fn normal_scalar(corners: [Vec3; 3], unit: Vec3, b1: f32, b2: f32) -> (Vec3, bool) {
@@ -533,6 +569,10 @@ struct RunTriangle<'a> {
     a: V4,
     dual1: V4,
     dual2: V4,
+    /// The duals in f32, as lanes and as scalars.
+    dual1f: V4f,
+    dual2f: V4f,
+    duals: [Vec3; 2],
     /// `N · (a - eye)`, the numerator of the ray parameter.
     numerator: f64x4,
     /// Depth of the centroid, for grazing rays.
@@ -571,6 +611,9 @@ impl<'a> RunTriangle<'a> {
         a: V4::ZERO,
         dual1: V4::ZERO,
         dual2: V4::ZERO,
+        dual1f: V4f::ZERO,
+        dual2f: V4f::ZERO,
+        duals: [Vec3::ZERO; 2],
         numerator: f64x4::ZERO,
         centroid_t: f64x4::ZERO,
         back: f32x4::ZERO,
@@ -602,6 +645,9 @@ impl<'a> RunTriangle<'a> {
         self.a = V4::splat(f.a);
         self.dual1 = V4::splat(f.dual1);
         self.dual2 = V4::splat(f.dual2);
+        self.duals = [f.dual1.as_vec3(), f.dual2.as_vec3()];
+        self.dual1f = V4f::splat(self.duals[0]);
+        self.dual2f = V4f::splat(self.duals[1]);
         self.numerator = f64x4::splat(numerator);
         self.centroid_t = f64x4::splat((f.centroid - view.eye).dot(view.forward));
         self.back = mask(back);
@@ -614,7 +660,6 @@ impl<'a> RunTriangle<'a> {
         self.smooth = false;
         if let Some(ns) = &mesh.normals {
             let [n0, n1, n2] = corners.map(|i| ns[i as usize]);
-            let geo = f.normal.normalize_or_zero();
             self.smooth = true;
             self.n0 = V4f::splat(n0);
             self.e1 = V4f::splat(n1 - n0);
@@ -622,7 +667,7 @@ impl<'a> RunTriangle<'a> {
             self.geo = V4f::splat(unit);
             self.unit = unit;
             self.corners = [n0, n1, n2];
-            self.agree = [n0, n1, n2].iter().all(|n| geo.dot(n.as_dvec3()) >= AGREE);
+            self.agree = [n0, n1, n2].iter().all(|n| unit.dot(*n) >= AGREE);
         }
         self.albedo = textured.then(|| {
             let m = &scene.materials[geometry.triangle_material[t] as usize];
@@ -706,25 +751,26 @@ pub fn resolve_scalar(
                 geometry.triangles[id as usize].map(|v| geometry.positions[v as usize].as_dvec3());
             let frame = TriangleFrame::new(corners);
             let dir = view.primary_ray_unnormalized(x, y);
-            let (t, b1, b2) = frame.hit(view.eye, dir).unwrap_or((
-                (frame.centroid - view.eye).dot(view.forward),
-                1.0 / 3.0,
-                1.0 / 3.0,
-            ));
+            let hit = frame.hit(view.eye, dir);
+            let t = hit.map_or((frame.centroid - view.eye).dot(view.forward), |h| h.0);
             // `dir` has unit length along `forward`, so `t` is the view
             // depth itself.
             let position = view.eye + dir * t;
+            // Barycentrics for the normals: the offset in f64, rounded,
+            // dotted in f32 (as the lanes do); f64 ones for uvs.
+            let (b1, b2) = hit.map_or((1.0 / 3.0, 1.0 / 3.0), |_| {
+                let d = (position - frame.a).as_vec3();
+                (d.dot(frame.dual1.as_vec3()), d.dot(frame.dual2.as_vec3()))
+            });
+            let (b1_64, b2_64) = hit.map_or((1.0 / 3.0, 1.0 / 3.0), |h| (h.1, h.2));
             let numerator = frame.normal.dot(frame.a - view.eye);
             let unit = frame.normal.normalize_or_zero().as_vec3();
             let (o, local) = geometry.locate(id);
             let mesh = &scene.objects[o].mesh;
             let (normal, turned) = match &mesh.normals {
-                Some(ns) => normal_scalar(
-                    mesh.triangles[local].map(|v| ns[v as usize]),
-                    unit,
-                    b1 as f32,
-                    b2 as f32,
-                ),
+                Some(ns) => {
+                    normal_scalar(mesh.triangles[local].map(|v| ns[v as usize]), unit, b1, b2)
+                }
                 None => (unit, false),
             };
             let away = if turned {
@@ -740,7 +786,7 @@ pub fn resolve_scalar(
             );
             if textured {
                 let m = &scene.materials[geometry.triangle_material[id as usize] as usize];
-                let (cb1, cb2) = clamp_barycentrics(b1, b2, 0.0, 1.0);
+                let (cb1, cb2) = clamp_barycentrics(b1_64, b2_64, 0.0, 1.0);
                 let uv = interpolate_uv(scene, geometry, id, cb1, cb2);
                 g.albedo[i] = match m.albedo_texture.and_then(|t| scene.textures.get(t)) {
                     Some(tex) => m.albedo * tex.lookup_rgb(uv),
