@@ -188,15 +188,17 @@ impl<'a> Ctx<'a> {
                         continue;
                     }
                     let t = cache.get(self, tri, textured);
-                    if j == i + 1 && !textured {
-                        // A run of one pixel (a third of all runs): the
-                        // same arithmetic without lanes.
-                        self.single(t, row, x0 + i, &mut out[i]);
-                        continue;
-                    }
                     let mut x = i;
                     while x < j {
                         let end = (x + LANES).min(j);
+                        if end == x + 1 && !textured {
+                            // One pixel (a third of all runs are one
+                            // pixel long): the same arithmetic without
+                            // lanes.
+                            self.single(t, row, x0 + x, &mut out[x]);
+                            x = end;
+                            continue;
+                        }
                         let lanes = Lanes {
                             dir: row4 + self.columns.lanes(x0 + x),
                             eye,
@@ -208,7 +210,8 @@ impl<'a> Ctx<'a> {
                         };
                         let out = &mut out[x..lanes_end];
                         if textured {
-                            lanes.textured(t, out, &mut albedo[x..end]);
+                            let f = &self.geometry.frames[tri as usize];
+                            lanes.textured(t, f, out, &mut albedo[x..end]);
                         } else if t.smooth {
                             lanes.smooth(t, out);
                         } else {
@@ -399,9 +402,9 @@ impl Lanes {
     /// Barycentrics of the hits in f64 (for texture coordinates), grazing
     /// lanes at the centroid.
     #[inline(always)]
-    fn barycentrics(&self, r: &RunTriangle, h: &Hits) -> (f64x4, f64x4) {
+    fn barycentrics(&self, r: &RunTriangle, f: &TriangleFrame, h: &Hits) -> (f64x4, f64x4) {
         let d = h.hit - r.a;
-        let (b1, b2) = (d.dot(&r.dual1), d.dot(&r.dual2));
+        let (b1, b2) = (d.dot(&V4::splat(f.dual1)), d.dot(&V4::splat(f.dual2)));
         if h.all_ok {
             (b1, b2)
         } else {
@@ -420,7 +423,13 @@ impl Lanes {
 
     /// A scene with albedo textures: as [`Lanes::smooth`] or
     /// [`Lanes::flat`], and the albedo per lane from f64 uvs.
-    fn textured(&self, r: &RunTriangle, out: &mut [GPoint], albedo: &mut [Vec3]) {
+    fn textured(
+        &self,
+        r: &RunTriangle,
+        f: &TriangleFrame,
+        out: &mut [GPoint],
+        albedo: &mut [Vec3],
+    ) {
         let h = self.hits(r);
         let nt = if r.smooth {
             let (b1, b2) = self.barycentrics_f32(r, &h);
@@ -429,7 +438,7 @@ impl Lanes {
             [r.flat; LANES]
         };
         store(out, h.position_depth, nt);
-        let (b1, b2) = self.barycentrics(r, &h);
+        let (b1, b2) = self.barycentrics(r, f, &h);
         let (b1, b2) = (b1.to_array(), b2.to_array());
         for (k, a) in albedo.iter_mut().enumerate() {
             let (cb1, cb2) = clamp_barycentrics(b1[k], b2[k], 0.0, 1.0);
@@ -564,11 +573,9 @@ impl Albedo<'_> {
 /// A triangle's data for the lanes, prepared once per band that sees it.
 struct RunTriangle<'a> {
     id: u32,
-    /// Winding normal (unnormalised), first corner and dual vectors.
+    /// Winding normal (unnormalised) and first corner.
     normal: V4,
     a: V4,
-    dual1: V4,
-    dual2: V4,
     /// The duals in f32, as lanes and as scalars.
     dual1f: V4f,
     dual2f: V4f,
@@ -609,8 +616,6 @@ impl<'a> RunTriangle<'a> {
         id: NO_TRIANGLE,
         normal: V4::ZERO,
         a: V4::ZERO,
-        dual1: V4::ZERO,
-        dual2: V4::ZERO,
         dual1f: V4f::ZERO,
         dual2f: V4f::ZERO,
         duals: [Vec3::ZERO; 2],
@@ -643,8 +648,6 @@ impl<'a> RunTriangle<'a> {
         self.id = id;
         self.normal = V4::splat(f.normal);
         self.a = V4::splat(f.a);
-        self.dual1 = V4::splat(f.dual1);
-        self.dual2 = V4::splat(f.dual2);
         self.duals = [f.dual1.as_vec3(), f.dual2.as_vec3()];
         self.dual1f = V4f::splat(self.duals[0]);
         self.dual2f = V4f::splat(self.duals[1]);
