@@ -663,6 +663,17 @@ impl<'a> RunTriangle<'a> {
         self.smooth = false;
         if let Some(ns) = &mesh.normals {
             let [n0, n1, n2] = corners.map(|i| ns[i as usize]);
+            if n0 == n1 && n1 == n2 {
+                // Equal vertex normals (the faces of boxes and quads): the
+                // differences are zeros, so every pixel interpolates `n0`
+                // exactly (barycentrics are clamped to +0 or more) and gets
+                // the normal of barycentrics (0, 0). The run's, then.
+                let (normal, turned) = normal_scalar([n0, n1, n2], unit, 0.0, 0.0);
+                self.flat = self.lane(normal, turned);
+                self.corners = [n0, n1, n2];
+                self.unit = unit;
+                return self.load_albedo(ctx, t, corners, textured);
+            }
             self.smooth = true;
             self.n0 = V4f::splat(n0);
             self.e1 = V4f::splat(n1 - n0);
@@ -672,6 +683,13 @@ impl<'a> RunTriangle<'a> {
             self.corners = [n0, n1, n2];
             self.agree = [n0, n1, n2].iter().all(|n| unit.dot(*n) >= AGREE);
         }
+        self.load_albedo(ctx, t, corners, textured);
+    }
+
+    /// The albedo part of [`RunTriangle::load`].
+    fn load_albedo(&mut self, ctx: &Ctx<'a>, t: usize, corners: [u32; 3], textured: bool) {
+        let (scene, geometry) = (ctx.scene, ctx.geometry);
+        let mesh = &scene.objects[geometry.triangle_object[t] as usize].mesh;
         self.albedo = textured.then(|| {
             let m = &scene.materials[geometry.triangle_material[t] as usize];
             Albedo {
