@@ -2,9 +2,11 @@
 //! (The SIMD-level half of the promise is checked by `.ci/run`, which
 //! builds for several `target-cpu` levels and compares the images.)
 
+mod common;
+
 use penumbra::render::{render, with_threads, Aov, RenderOptions};
 use penumbra::report::Progress;
-use penumbra::scene::load_scene;
+use penumbra::scene::{load_scene, Scene};
 use std::path::Path;
 
 fn bits(out: &penumbra::render::RenderOutput) -> Vec<u32> {
@@ -59,30 +61,79 @@ fn bit_identical_for_1_2_and_8_threads() {
     }
 }
 
+/// A scene with an albedo texture (the G-buffer then keeps per-pixel
+/// albedo): a textured ground quad (flat), a textured sphere (smooth) and
+/// an untextured box, seen from above at an angle.
+fn textured_scene() -> Scene {
+    let mut png = Vec::new();
+    // 2×1: red | blue (sRGB 255 decodes to linear 1).
+    image::RgbImage::from_raw(2, 1, vec![255, 0, 0, 0, 0, 255])
+        .expect("2×1 image")
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("encode png");
+    common::scene_in_scratch(
+        "determinism-textured",
+        r#"
+[camera]
+eye = [0.5, 4.0, 3.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 50.0
+
+[[light]]
+type = "rect"
+center = [0.0, 3.0, 0.0]
+u = [0.5, 0.0, 0.0]
+v = [0.0, 0.0, 0.5]
+radiance = [4.0, 4.0, 4.0]
+
+[[object]]
+shape = "quad"
+size = [4.0, 4.0]
+material = { albedo = [0.5, 0.5, 0.5], albedo_texture = "rb.png" }
+
+[[object]]
+shape = "sphere"
+radius = 0.6
+translate = [-0.8, 0.6, 0.2]
+material = { albedo = [0.9, 0.9, 0.9], albedo_texture = "rb.png" }
+
+[[object]]
+shape = "box"
+size = [0.6, 0.6, 0.6]
+translate = [0.9, 0.3, -0.4]
+material = { albedo = [0.2, 0.7, 0.3] }
+"#,
+        &[("rb.png", &png[..])],
+    )
+}
+
 /// The SIMD resolve agrees with its scalar twin: same triangles, hit
-/// points and normals within a few f64 roundings (stored as f32).
+/// points and normals within a few f64 roundings (stored as f32), the
+/// same albedo (textured or not).
 #[test]
 fn simd_resolve_matches_scalar_twin() {
     use penumbra::gbuffer::{resolve, resolve_scalar, transform_vertices, visibility_pass};
     use penumbra::geom::SceneGeometry;
-    for name in ["spheres.toml", "bunny.toml"] {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes")
-            .join(name);
-        let scene = load_scene(&path).expect("scene");
+    let scenes = [
+        ("spheres", common::shipped("spheres.toml")),
+        ("bunny", common::shipped("bunny.toml")),
+        ("textured", textured_scene()),
+    ];
+    for (name, scene) in &scenes {
         let options = RenderOptions {
             width: Some(160),
             height: Some(120),
             ..RenderOptions::default()
         };
-        let view = penumbra::render::view_for(&scene, &options).expect("view");
-        let geometry = SceneGeometry::new(&scene);
+        let view = penumbra::render::view_for(scene, &options).expect("view");
+        let geometry = SceneGeometry::new(scene);
         let vertices = transform_vertices(&geometry, &view);
-        let (_, ids, _) = visibility_pass(&scene, &geometry, &view, &vertices).expect("draw");
-        let simd = resolve(&scene, &geometry, &view, &ids);
-        let scalar = resolve_scalar(&scene, &geometry, &view, &ids);
+        let (_, ids, _) = visibility_pass(scene, &geometry, &view, &vertices).expect("draw");
+        let simd = resolve(scene, &geometry, &view, &ids).expect("resolve");
+        let scalar = resolve_scalar(scene, &geometry, &view, &ids).expect("resolve");
         let mut surfaces = 0;
-        for (a, b) in simd.samples.iter().zip(&scalar.samples) {
+        for (a, b) in simd.samples().zip(scalar.samples()) {
             assert_eq!(a.triangle, b.triangle);
             if !a.is_surface() {
                 continue;
@@ -100,4 +151,50 @@ fn simd_resolve_matches_scalar_twin() {
         }
         assert!(surfaces > 1000, "{name}: only {surfaces} surface pixels");
     }
+}
+
+/// Albedo textures reach the G-buffer: the textured objects show both
+/// texels (times their material albedo), the untextured box its albedo,
+/// and a render is the same for 1 and 2 threads.
+#[test]
+fn textured_albedo_in_gbuffer() {
+    use penumbra::gbuffer::gbuffer_pass;
+    use penumbra::geom::SceneGeometry;
+    let scene = textured_scene();
+    let options = RenderOptions {
+        width: Some(97),
+        height: Some(83),
+        aovs: Aov::ALL.to_vec(),
+        ..RenderOptions::default()
+    };
+    let view = penumbra::render::view_for(&scene, &options).expect("view");
+    let geometry = SceneGeometry::new(&scene);
+    let (gbuffer, _, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
+    let seen = |object: u32, albedo: [f32; 3]| {
+        gbuffer
+            .samples()
+            .any(|g| g.is_surface() && g.object == object && g.albedo.to_array() == albedo)
+    };
+    for (object, grey) in [(0, 0.5), (1, 0.9)] {
+        assert!(
+            seen(object, [grey, 0.0, 0.0]),
+            "object {object}: no red texel"
+        );
+        assert!(
+            seen(object, [0.0, 0.0, grey]),
+            "object {object}: no blue texel"
+        );
+    }
+    assert!(gbuffer
+        .samples()
+        .filter(|g| g.is_surface() && g.object == 2)
+        .all(|g| g.albedo.to_array() == [0.2, 0.7, 0.3]));
+    assert!(seen(2, [0.2, 0.7, 0.3]), "box not seen");
+    let run = |threads| {
+        with_threads(Some(threads), || {
+            render(&scene, &options, &Progress::hidden()).expect("render")
+        })
+        .expect("pool")
+    };
+    assert!(bits(&run(1)) == bits(&run(2)));
 }

@@ -66,7 +66,7 @@ impl Frame {
     /// Index of the surface pixel whose position is closest to `p`.
     fn pixel_near(&self, p: Vec3) -> usize {
         let mut best = (f32::INFINITY, usize::MAX);
-        for (i, g) in self.gbuffer.samples.iter().enumerate() {
+        for (i, g) in self.gbuffer.samples().enumerate() {
             let d = g.position.distance(p);
             if g.is_surface() && d < best.0 {
                 best = (d, i);
@@ -303,12 +303,12 @@ material = {{ albedo = [0.7, 0.6, 0.5] }}
     let strata = Strata::new(n);
     let sub = 8u32;
     let (mut z2, mut zmax, mut count) = (0.0f64, 0.0f64, 0usize);
-    for (i, g) in frame.gbuffer.samples.iter().enumerate() {
+    for (i, g) in frame.gbuffer.samples().enumerate() {
         if !g.is_surface() {
             continue;
         }
         assert_eq!(vcoef(&out, 0)[i], 1.0, "nothing occludes");
-        let sp = surface_point(&scene, &frame.view, g);
+        let sp = surface_point(&scene, &frame.view, &g);
         let exact = prepared.unshadowed_direct(&sp).as_dvec3();
         let est = radiance(&out, 0)[i].as_dvec3();
         // σ² per channel from the within-cell variance of f.
@@ -380,13 +380,13 @@ size = [4.0, 4.0]
     let out = run(&scene, &frame, 1024, 4);
     let prepared = PreparedLight::new(&scene.lights[0], &scene.textures);
     let (mut worst, mut signed, mut count) = (0.0f64, 0.0f64, 0usize);
-    for (i, g) in frame.gbuffer.samples.iter().enumerate() {
+    for (i, g) in frame.gbuffer.samples().enumerate() {
         if !g.is_surface() {
             continue;
         }
         let exact = f64::from(
             prepared
-                .unshadowed_direct(&surface_point(&scene, &frame.view, g))
+                .unshadowed_direct(&surface_point(&scene, &frame.view, &g))
                 .x,
         );
         let est = f64::from(radiance(&out, 0)[i].x);
@@ -417,7 +417,7 @@ fn vcoef_converges_at_least_as_one_over_sqrt_n() {
         let out = run(&scene, &frame, n, 7);
         let v = vcoef(&out, 0);
         let (mut se, mut count) = (0.0f64, 0usize);
-        for (i, g) in frame.gbuffer.samples.iter().enumerate() {
+        for (i, g) in frame.gbuffer.samples().enumerate() {
             if g.is_surface() {
                 se += (f64::from(v[i]) - f64::from(truth[i])).powi(2);
                 count += 1;
@@ -487,7 +487,7 @@ translate = [0.0, 1.0, 0.0]
     // The camera sees the occluder's top at the centre: look just beside
     // it, under its edge region, and far away.
     let lit = frame.pixel_near(Vec3::new(2.5, 0.0, 2.5));
-    assert_eq!(frame.gbuffer.samples[lit].object, 0);
+    assert_eq!(frame.gbuffer.sample(lit).object, 0);
     assert_eq!(vcoef(&out, 0)[lit], 1.0);
     assert_eq!(hard[lit], 1.0);
 
@@ -956,7 +956,7 @@ size = [4.0, 4.0]
     let frame = Frame::new(&scene, 48, 48);
     let out = run(&scene, &frame, 64, 3);
     let mut surface = 0;
-    for (i, g) in frame.gbuffer.samples.iter().enumerate() {
+    for (i, g) in frame.gbuffer.samples().enumerate() {
         if g.is_surface() {
             surface += 1;
             assert_eq!(vcoef(&out, 0)[i], 1.0, "pixel {i}");

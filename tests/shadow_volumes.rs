@@ -111,7 +111,7 @@ fn compare(f: &Frame, stencil: &[i32]) -> Comparison {
         mismatches: 0,
         ties: 0,
     };
-    for (i, g) in f.gbuffer.samples.iter().enumerate() {
+    for (i, g) in f.gbuffer.samples().enumerate() {
         if !g.is_surface() {
             continue;
         }

@@ -4,6 +4,7 @@
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Every object's mesh concatenated, with a map back to objects.
 #[derive(Debug, Clone, Default)]
@@ -12,10 +13,12 @@ pub struct SceneGeometry {
     pub positions: Vec<Vec3>,
     /// Triangles indexing `positions`.
     pub triangles: Vec<[u32; 3]>,
-    /// For each triangle, its object's index in [`Scene::objects`].
-    pub triangle_object: Vec<u32>,
-    /// For each triangle, its index in [`Scene::materials`].
-    pub triangle_material: Vec<u32>,
+    /// For each triangle, its object's index in [`Scene::objects`]
+    /// (shared: every G-buffer of the scene refers to it).
+    pub triangle_object: Arc<[u32]>,
+    /// For each triangle, its index in [`Scene::materials`] (shared, as
+    /// `triangle_object`).
+    pub triangle_material: Arc<[u32]>,
     /// For each object, the index of its first triangle here.
     pub object_first_triangle: Vec<u32>,
     /// For each object, the index of its first vertex here.
@@ -29,6 +32,11 @@ pub struct SceneGeometry {
     /// Per triangle, its plane and barycentric frame in f64: view
     /// independent, so computed once per scene rather than per frame.
     pub frames: Vec<TriangleFrame>,
+    /// Per triangle, its unit geometric normal from the winding (the f64
+    /// frame normal normalised, then rounded to f32); zero for a sliver.
+    /// Shared like `triangle_object`: G-buffers store only whether it is
+    /// flipped.
+    pub unit_normals: Arc<[Vec3]>,
 }
 
 /// A triangle's plane and the dual vectors that turn a point of the plane
@@ -84,6 +92,8 @@ impl SceneGeometry {
     /// Concatenates the scene's meshes in object order.
     pub fn new(scene: &Scene) -> Self {
         let mut g = SceneGeometry::default();
+        let mut triangle_material = Vec::new();
+        let mut triangle_object = Vec::new();
         for (oi, obj) in scene.objects.iter().enumerate() {
             let base = g.positions.len() as u32;
             g.object_first_vertex.push(base);
@@ -91,11 +101,11 @@ impl SceneGeometry {
             g.positions.extend_from_slice(&obj.mesh.positions);
             g.triangles
                 .extend(obj.mesh.triangles.iter().map(|t| t.map(|i| i + base)));
-            g.triangle_material
-                .extend_from_slice(&obj.mesh.material_ids);
-            g.triangle_object
-                .extend(std::iter::repeat_n(oi as u32, obj.mesh.triangles.len()));
+            triangle_material.extend_from_slice(&obj.mesh.material_ids);
+            triangle_object.extend(std::iter::repeat_n(oi as u32, obj.mesh.triangles.len()));
         }
+        g.triangle_material = triangle_material.into();
+        g.triangle_object = triangle_object.into();
         let adjacency = super::EdgeAdjacency::build(&g, |_| true);
         let mut closed = vec![true; scene.objects.len()];
         let mut has_faces = vec![false; scene.objects.len()];
@@ -115,6 +125,11 @@ impl SceneGeometry {
             .par_iter()
             .with_min_len(4096)
             .map(|t| TriangleFrame::new(t.map(|i| g.positions[i as usize].as_dvec3())))
+            .collect();
+        g.unit_normals = g
+            .frames
+            .iter()
+            .map(|f| f.normal.normalize_or_zero().as_vec3())
             .collect();
         g
     }

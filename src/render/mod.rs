@@ -202,7 +202,7 @@ pub fn view_for(scene: &Scene, options: &RenderOptions) -> Result<View> {
 /// visibility and depth tiles, radiance, one Vcoef per light and the AOV
 /// layers (f32 channels), rounded up.
 fn bytes_per_pixel(scene: &Scene, options: &RenderOptions) -> u64 {
-    let gbuffer = std::mem::size_of::<crate::gbuffer::GSample>() as u64;
+    let gbuffer = GBuffer::bytes_per_pixel(scene) as u64;
     let lights = scene.lights.len() as u64;
     gbuffer + 8 + 12 + 12 + lights * 8 + 16 * 4 + options.aovs.len() as u64 * 12
 }
@@ -293,12 +293,12 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
 /// Builds the requested standard AOV layers. Background pixels hold 0 in
 /// every layer (`mask.Y` tells them apart).
 pub fn aov_layers(gbuffer: &GBuffer, terms: &[LightTerm], aovs: &[Aov]) -> Vec<Layer> {
-    let s = &gbuffer.samples;
     let channel = |name: &str, f: &dyn Fn(&crate::gbuffer::GSample) -> f32| {
         (
             name.to_string(),
-            s.iter()
-                .map(|g| if g.is_surface() { f(g) } else { 0.0 })
+            gbuffer
+                .samples()
+                .map(|g| if g.is_surface() { f(&g) } else { 0.0 })
                 .collect::<Vec<f32>>(),
         )
     };
@@ -330,8 +330,8 @@ pub fn aov_layers(gbuffer: &GBuffer, terms: &[LightTerm], aovs: &[Aov]) -> Vec<L
                     Some((
                         k.to_string(),
                         v.iter()
-                            .zip(s)
-                            .map(|(v, g)| if g.is_surface() { *v } else { 0.0 })
+                            .enumerate()
+                            .map(|(i, v)| if gbuffer.is_surface(i) { *v } else { 0.0 })
                             .collect(),
                     ))
                 })

@@ -18,13 +18,13 @@ pub fn shade(scene: &Scene, view: &View, gbuffer: &GBuffer, terms: &[LightTerm])
         .map(|l| PreparedLight::new(l, &scene.textures))
         .collect();
     let eye = view.eye.as_vec3();
-    let mut out = vec![scene.background; gbuffer.samples.len()];
+    let mut out = vec![scene.background; gbuffer.len()];
     out.par_chunks_mut(gbuffer.width as usize)
         .enumerate()
         .for_each(|(y, row)| {
             for (x, radiance) in row.iter_mut().enumerate() {
                 let i = y * gbuffer.width as usize + x;
-                let g = &gbuffer.samples[i];
+                let g = gbuffer.sample(i);
                 if !g.is_surface() {
                     continue;
                 }

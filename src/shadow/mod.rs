@@ -94,7 +94,7 @@ impl ShadowTechnique for Unshadowed {
     }
 
     fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
-        let n = ctx.gbuffer.samples.len();
+        let n = ctx.gbuffer.len();
         Ok(ShadowOutput {
             lights: ctx
                 .scene

@@ -372,12 +372,11 @@ impl<'a> ShadowTracer<'a> {
             LightShape::Rect { center, .. } | LightShape::Sphere { center, .. } => center,
         };
         gbuffer
-            .samples
-            .par_iter()
+            .par_samples()
             .map(|g| {
                 if !g.is_surface() {
                     0.0
-                } else if !self.receives(g) {
+                } else if !self.receives(&g) {
                     1.0
                 } else {
                     let o = self.shadow_origin(g.position, g.geo_normal);
@@ -408,7 +407,7 @@ impl<'a> ShadowTracer<'a> {
         seed: u64,
     ) -> (LightTerm, u64) {
         let gbuffer = ctx.gbuffer;
-        let len = gbuffer.samples.len();
+        let len = gbuffer.len();
         let mut vcoef = vec![0.0f32; len];
         let mut radiance = vec![Vec3::ZERO; len];
         let Some(light) = self.scene.lights.get(light_index) else {
@@ -434,7 +433,7 @@ impl<'a> ShadowTracer<'a> {
                 let mut scratch = Scratch::default();
                 let mut rays = 0u64;
                 for (x, (v, r)) in vrow.iter_mut().zip(rrow.iter_mut()).enumerate() {
-                    let Some(g) = gbuffer.samples.get(y * width + x) else {
+                    let Some(g) = gbuffer.get(y * width + x) else {
                         continue;
                     };
                     if !g.is_surface() {
@@ -451,14 +450,14 @@ impl<'a> ShadowTracer<'a> {
                     vis.clear();
                     let mut sum = 0.0f64;
                     for s in &samples {
-                        let (vt, traced) = self.gsample_vt(g, s.x, &mut scratch);
+                        let (vt, traced) = self.gsample_vt(&g, s.x, &mut scratch);
                         rays += traced;
                         sum += vt;
                         vis.push(vt as f32);
                     }
                     *v = (sum / samples.len() as f64) as f32;
                     *r = prepared.direct_from_samples(
-                        &surface_point(self.scene, g, eye),
+                        &surface_point(self.scene, &g, eye),
                         &samples,
                         &vis,
                     );
@@ -511,11 +510,10 @@ pub fn sample_visibility(
 ) {
     let g = if pixel.0 < ctx.gbuffer.width && pixel.1 < ctx.gbuffer.height {
         ctx.gbuffer
-            .samples
             .get(pixel.1 as usize * ctx.gbuffer.width as usize + pixel.0 as usize)
     } else {
         None
     };
-    let g = g.copied().unwrap_or(GSample::BACKGROUND);
+    let g = g.unwrap_or(GSample::BACKGROUND);
     ShadowTracer::new(ctx.scene, ctx.geometry).sample_visibility(&g, samples, out);
 }

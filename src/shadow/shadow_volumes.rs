@@ -243,8 +243,14 @@ impl ShadowTechnique for ShadowVolumes {
             });
             let vcoef = counts
                 .iter()
-                .zip(&ctx.gbuffer.samples)
-                .map(|(&c, g)| if g.is_surface() && c == 0 { 1.0 } else { 0.0 })
+                .enumerate()
+                .map(|(i, &c)| {
+                    if ctx.gbuffer.is_surface(i) && c == 0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                })
                 .collect();
             stencil_layer
                 .channels
