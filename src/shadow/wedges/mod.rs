@@ -105,10 +105,11 @@ impl WedgeStage<'_> {
                 }
                 let gx = tile.origin.0 as usize + x;
                 let gy = tile.origin.1 as usize + y;
-                let g = &self.gbuffer.samples[gy * width + gx];
-                if !g.is_surface() {
+                let i_global = gy * width + gx;
+                if !self.gbuffer.is_surface(i_global) {
                     continue;
                 }
+                let g = self.gbuffer.sample(i_global);
                 let p = g.position.as_dvec3();
                 let facing = (self.frame.center - p).dot(self.frame.normal);
                 let c_side = sign * facing.signum();
@@ -300,7 +301,7 @@ impl ShadowTechnique for PenumbraWedges {
             let vcoef = w
                 .vbuffer
                 .iter()
-                .zip(&ctx.gbuffer.samples)
+                .zip(ctx.gbuffer.samples())
                 .map(|(&v, g)| {
                     if g.is_surface() {
                         1.0 - v.clamp(0.0, 1.0)
