@@ -7,19 +7,44 @@ use penumbra::compare::{compare_scene, CompareOptions};
 use penumbra::render::Technique;
 use penumbra::report::Progress;
 
-#[test]
-fn single_convex_occluder_matches_the_reference_within_its_noise() {
-    // The quad scene: one square occluder, one square light. With a single
-    // silhouette loop the wedge integral is exact, so the only error left
-    // is the reference's own noise (and f32 rounding).
+/// The quad scene at 96², optionally with its light made a sphere.
+fn quad(sphere: bool) -> String {
     let toml = std::fs::read_to_string(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/quad.toml"),
     )
     .unwrap()
     .replace("width = 512", "width = 96")
     .replace("height = 512", "height = 96");
-    let scene = common::scene_in_scratch("wedges-quad", &toml, &[]);
-    let dir = common::scratch_dir("wedges-quad-out");
+    if sphere {
+        let s = toml
+            .replace("type = \"rect\"", "type = \"sphere\"")
+            .replace("u = [0.5, 0.0, 0.0]", "radius = 0.5")
+            .replace("v = [0.0, 0.0, 0.5]\n", "");
+        assert!(s.contains("type = \"sphere\"") && !s.contains("v = ["));
+        s
+    } else {
+        toml
+    }
+}
+
+#[test]
+fn single_convex_occluder_matches_the_reference_within_its_noise() {
+    // One square occluder, one square light: with a single silhouette loop
+    // the wedge integral is exact, so the only error left is the
+    // reference's own noise (and f32 rounding).
+    check_exact_case("wedges-quad", &quad(false));
+}
+
+#[test]
+fn single_convex_occluder_under_a_sphere_light_matches_too() {
+    // Same with a sphere light: the integral is in solid angle, the
+    // contract's measure, so again exact.
+    check_exact_case("wedges-quad-sphere", &quad(true));
+}
+
+fn check_exact_case(name: &str, toml: &str) {
+    let scene = common::scene_in_scratch(name, toml, &[]);
+    let dir = common::scratch_dir(&format!("{name}-out"));
     let options = CompareOptions {
         techniques: vec![Technique::Wedges, Technique::ShadowVolumes],
         samples: vec![1],

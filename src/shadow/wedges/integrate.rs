@@ -193,6 +193,107 @@ fn polygon_area(poly: &[[f64; 2]]) -> f64 {
     (twice * 0.5).abs()
 }
 
+/// [`region_fraction`] for a sphere light: the fraction of the cone of
+/// directions the sphere subtends from `p` (the contract's Vcoef measure:
+/// solid angle) that lies beyond the edge as seen from the centre.
+///
+/// In gnomonic coordinates around the axis `p → c` (straight lines stay
+/// straight), the cone is a disc of radius `tan θ` centred on the axis and
+/// `R_e` is, per polar angle `φ` inside the edge's angular span, the radial
+/// interval from the edge to the rim. With `dω = ρ dρ dφ / (1 + ρ²)^{3/2}`
+/// its solid angle is `Δφ (1 − cos θ) − Ω(0, a, b)`, `Ω(0, a, b)` the solid
+/// angle of the triangle from the axis to the edge (clipped to the disc),
+/// by Van Oosterom & Strackee's formula. No side argument is needed: at a
+/// tie both sides give half the cone.
+///
+/// The edge is first clipped to the slab between `p`'s plane normal to the
+/// axis and the plane of the sphere's visible rim (parts beyond it are
+/// inside the light).
+pub fn region_fraction_sphere(center: DVec3, radius: f64, p: DVec3, q0: DVec3, q1: DVec3) -> f64 {
+    let axis = center - p;
+    let d = axis.length();
+    if !(d > radius) || !d.is_finite() {
+        return 0.0;
+    }
+    let a = axis / d;
+    let e1 = a.any_orthonormal_vector();
+    let e2 = a.cross(e1);
+    let sin_t = radius / d;
+    let cos_t = (1.0 - sin_t * sin_t).sqrt();
+    let tan_t = sin_t / cos_t;
+    let rim = d * cos_t * cos_t;
+    let project = |q: DVec3| {
+        let v = q - p;
+        Homogeneous {
+            s: v.dot(e1),
+            t: v.dot(e2),
+            w: v.dot(a),
+        }
+    };
+    let (mut h0, mut h1) = (project(q0), project(q1));
+    // Keep W in [ε d, rim]: in front of p (a sliver at W → 0 projects
+    // outside the disc anyway), not beyond the light.
+    let eps = 1e-9 * d;
+    for (f0, f1, keep_above, bound) in [(h0.w, h1.w, true, eps), (h0.w, h1.w, false, rim)] {
+        let (g0, g1) = if keep_above {
+            (f0 - bound, f1 - bound)
+        } else {
+            (bound - f0, bound - f1)
+        };
+        if g0 < 0.0 && g1 < 0.0 {
+            return 0.0;
+        }
+        if g0 < 0.0 {
+            h0 = h0.lerp(h1, g0 / (g0 - g1));
+        } else if g1 < 0.0 {
+            h1 = h1.lerp(h0, g1 / (g1 - g0));
+        }
+    }
+    let a2 = [h0.s / h0.w, h0.t / h0.w];
+    let b2 = [h1.s / h1.w, h1.t / h1.w];
+    // Clip the segment to the disc |x| ≤ tan θ.
+    let dx = [b2[0] - a2[0], b2[1] - a2[1]];
+    let qa = dx[0] * dx[0] + dx[1] * dx[1];
+    let qb = 2.0 * (a2[0] * dx[0] + a2[1] * dx[1]);
+    let qc = a2[0] * a2[0] + a2[1] * a2[1] - tan_t * tan_t;
+    let (k0, k1) = if qa == 0.0 {
+        if qc > 0.0 {
+            return 0.0;
+        }
+        (0.0, 1.0)
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc <= 0.0 {
+            return 0.0;
+        }
+        let r = disc.sqrt();
+        // Stable roots.
+        let qq = -0.5 * (qb + qb.signum() * r);
+        let (mut r0, mut r1) = (qq / qa, if qq != 0.0 { qc / qq } else { 0.0 });
+        if r0 > r1 {
+            std::mem::swap(&mut r0, &mut r1);
+        }
+        (r0.max(0.0), r1.min(1.0))
+    };
+    if k0 >= k1 {
+        return 0.0;
+    }
+    let at = |k: f64| [a2[0] + dx[0] * k, a2[1] + dx[1] * k];
+    let (pa, pb) = (at(k0), at(k1));
+    let cross = pa[0] * pb[1] - pa[1] * pb[0];
+    let dot = pa[0] * pb[0] + pa[1] * pb[1];
+    let dphi = cross.abs().atan2(dot);
+    // Van Oosterom & Strackee with r1 = axis, r2 = (pa, 1), r3 = (pb, 1).
+    let (l2, l3) = (
+        (1.0 + pa[0] * pa[0] + pa[1] * pa[1]).sqrt(),
+        (1.0 + pb[0] * pb[0] + pb[1] * pb[1]).sqrt(),
+    );
+    let denom = l2 * l3 + l3 + l2 + (dot + 1.0);
+    let tri = 2.0 * cross.abs().atan2(denom);
+    let cone = std::f64::consts::TAU * (1.0 - cos_t);
+    ((dphi * (1.0 - cos_t) - tri) / cone).clamp(0.0, 1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -310,5 +411,62 @@ mod tests {
             region_fraction(&f, DVec3::new(3.0, 4.0, 0.0), q, q + DVec3::X, 1.0),
             0.0
         );
+    }
+
+    #[test]
+    fn sphere_edge_through_the_axis_takes_half_the_cone_and_far_edges_nothing() {
+        let (c, r) = (DVec3::new(0.0, 4.0, 0.0), 0.5);
+        let p = DVec3::ZERO;
+        let half = region_fraction_sphere(
+            c,
+            r,
+            p,
+            DVec3::new(0.0, 2.0, -5.0),
+            DVec3::new(0.0, 2.0, 5.0),
+        );
+        assert!((half - 0.5).abs() < 1e-12, "{half}");
+        let none = region_fraction_sphere(
+            c,
+            r,
+            p,
+            DVec3::new(3.0, 2.0, -5.0),
+            DVec3::new(3.0, 2.0, 5.0),
+        );
+        assert_eq!(none, 0.0);
+    }
+
+    #[test]
+    fn sphere_region_matches_a_solid_angle_quadrature() {
+        // An edge off the axis, compared with a fine quadrature of the
+        // solid-angle measure over the gnomonic disc.
+        let (c, r) = (DVec3::new(0.0, 4.0, 0.0), 1.0);
+        let p = DVec3::ZERO;
+        let (q0, q1) = (DVec3::new(0.2, 2.0, -5.0), DVec3::new(0.05, 2.0, 5.0));
+        let got = region_fraction_sphere(c, r, p, q0, q1);
+        // Gnomonic plane at unit distance along +y: x = X/Y, z = Z/Y.
+        let tan_t = (1.0f64 / 4.0) / (1.0f64 - 1.0 / 16.0).sqrt();
+        let n = 2000;
+        let (mut inside, mut total) = (0.0, 0.0);
+        for i in 0..n {
+            for j in 0..n {
+                let x = -tan_t + (i as f64 + 0.5) * 2.0 * tan_t / n as f64;
+                let z = -tan_t + (j as f64 + 0.5) * 2.0 * tan_t / n as f64;
+                if x * x + z * z > tan_t * tan_t {
+                    continue;
+                }
+                let w = 1.0 / (1.0 + x * x + z * z).powf(1.5);
+                total += w;
+                // Beyond the edge line from the centre (the centre is on
+                // the side x < line): the edge at y = 2 projects to x = 2·X/4... at unit
+                // distance: x = X / 2.
+                let t = (z * 2.0 + 5.0) / 10.0; // edge parameter at this z
+                let xe = (q0.x + (q1.x - q0.x) * t) / 2.0;
+                if x > xe {
+                    inside += w;
+                }
+            }
+        }
+        let want = inside / total;
+        assert!((got - want).abs() < 2e-3, "{got} vs {want}");
     }
 }

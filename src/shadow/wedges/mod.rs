@@ -19,7 +19,7 @@ use super::shadow_volumes::{
     build_volume, caster_adjacency, light_point, silhouette_quads, stencil_counts,
 };
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::gbuffer::GBuffer;
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
@@ -29,7 +29,7 @@ use crate::raster::{
 };
 use crate::scene::LightShape;
 use geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, WedgeSet};
-use integrate::{region_fraction, RectFrame};
+use integrate::{region_fraction, region_fraction_sphere, RectFrame};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -79,7 +79,7 @@ struct WedgeStage<'a> {
     gbuffer: &'a GBuffer,
     primitives: &'a [WedgePrimitive],
     halves: &'a [HalfWedge],
-    frame: RectFrame,
+    light: LightBound,
 }
 
 impl WedgeStage<'_> {
@@ -111,9 +111,16 @@ impl WedgeStage<'_> {
                 }
                 let g = self.gbuffer.sample(i_global);
                 let p = g.position.as_dvec3();
-                let facing = (self.frame.center - p).dot(self.frame.normal);
-                let c_side = sign * facing.signum();
-                let r = region_fraction(&self.frame, p, half.q0, half.q1, c_side);
+                let r = match &self.light {
+                    LightBound::Rect(frame) => {
+                        let facing = (frame.center - p).dot(frame.normal);
+                        let c_side = sign * facing.signum();
+                        region_fraction(frame, p, half.q0, half.q1, c_side)
+                    }
+                    LightBound::Sphere { center, radius } => {
+                        region_fraction_sphere(*center, *radius, p, half.q0, half.q1)
+                    }
+                };
                 tile.vbuffer[i] += (sign * half.weight as f64 * r) as f32;
                 tile.halves_in[i] += 1;
             }
@@ -163,17 +170,18 @@ fn wedge_state() -> RasterState {
     }
 }
 
-/// The light's bound for wedge construction and its integration frame.
-fn light_frame(shape: &LightShape) -> Result<(LightBound, RectFrame)> {
+/// The light's shape for wedge construction and integration.
+fn light_bound(shape: &LightShape) -> LightBound {
     match *shape {
-        LightShape::Rect { center, u, v, .. } => {
-            let f = RectFrame::new(center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
-            Ok((LightBound::Rect(f), f))
-        }
-        LightShape::Sphere { .. } => Err(Error::param(
-            "--technique",
-            "wedges: sphere lights are not supported yet (rect lights only)",
+        LightShape::Rect { center, u, v, .. } => LightBound::Rect(RectFrame::new(
+            center.as_dvec3(),
+            u.as_dvec3(),
+            v.as_dvec3(),
         )),
+        LightShape::Sphere { center, radius } => LightBound::Sphere {
+            center: center.as_dvec3(),
+            radius: radius as f64,
+        },
     }
 }
 
@@ -194,7 +202,7 @@ pub fn wedge_light(
     passes: &mut Vec<PassTiming>,
 ) -> Result<WedgeLight> {
     let light = &ctx.scene.lights[k];
-    let (bound, frame) = light_frame(&light.shape)?;
+    let bound = light_bound(&light.shape);
     let point = light_point(&light.shape);
     let adj = caster_adjacency(ctx.scene, ctx.geometry);
 
@@ -246,7 +254,7 @@ pub fn wedge_light(
         gbuffer: ctx.gbuffer,
         primitives: &wedges.primitives,
         halves: &wedges.halves,
-        frame,
+        light: bound,
     };
     draw(
         &mut framebuffer,
