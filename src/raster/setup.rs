@@ -45,7 +45,7 @@ pub struct EdgeFunction {
 
 impl EdgeFunction {
     /// Edge from `p` to `q` of a triangle with positive orientation.
-    fn new(p: (i64, i64), q: (i64, i64)) -> Self {
+    pub(crate) fn new(p: (i64, i64), q: (i64, i64)) -> Self {
         let a = p.1 - q.1;
         let b = q.0 - p.0;
         // Top edge (horizontal, interior below) or left edge (going up):
@@ -112,10 +112,31 @@ impl Plane {
     /// depend on where a batch of lanes starts.
     #[inline]
     pub fn lanes(&self, x: i32, y: i32) -> f32x8 {
+        self.lanes_on_row(self.row_base(y), x)
+    }
+
+    /// Lane 0 of [`Plane::lanes`] at `(x, y)`, computed by the same
+    /// operations: the value the SIMD path gives pixel `(x, y)`.
+    #[inline]
+    pub fn at(&self, x: i32, y: i32) -> f32 {
+        let cx = (x as f32 + 0.0) + 0.5 - self.x0;
+        self.row_base(y) + self.dx * cx
+    }
+
+    /// The part of [`Plane::lanes`] that is constant along row `y`.
+    #[inline]
+    pub fn row_base(&self, y: i32) -> f32 {
         let cy = y as f32 + 0.5 - self.y0;
+        self.v0 + self.dy * cy
+    }
+
+    /// [`Plane::lanes`] from the row's [`Plane::row_base`]: the same
+    /// operations in the same order, so the same bits.
+    #[inline]
+    pub fn lanes_on_row(&self, base: f32, x: i32) -> f32x8 {
         let cx =
             (f32x8::splat(x as f32) + LANE_OFFSETS) + f32x8::splat(0.5) - f32x8::splat(self.x0);
-        f32x8::splat(self.v0 + self.dy * cy) + f32x8::splat(self.dx) * cx
+        f32x8::splat(base) + f32x8::splat(self.dx) * cx
     }
 }
 
