@@ -42,6 +42,10 @@ pub struct ShadowVolume {
     pub vertices: Vec<ClipVertex<0>>,
     /// Triangles, oriented so that their outward normals leave the volume.
     pub triangles: Vec<[u32; 3]>,
+    /// Proven: no volume reaches the eye or the visible part of the near
+    /// plane. Then z-pass gives exactly the z-fail counts (see
+    /// [`near_region_outside`]), and [`stencil_counts`] counts with it.
+    pub eye_outside: bool,
 }
 
 /// The point a light's hard shadows are cast from: its centre.
@@ -70,9 +74,67 @@ pub fn caster_adjacency<'a>(
     }
 }
 
+/// Whether a ball around the eye that holds the visible near rectangle
+/// (with a wide margin) lies outside the shadow volume of every caster
+/// face: a conservative proof, `false` when in doubt.
+///
+/// Why it matters: per pixel, z-fail counts `Σ s` over the volume faces
+/// that fail the depth test and z-pass counts `-Σ s` over those that pass
+/// (`s = +1` back-facing, `-1` front-facing), so the two differ by
+/// `Σ s` over *all* faces covering the pixel. The volumes are closed
+/// (caps included, open casters by Bergeron's rule) and rasterized
+/// watertight, so that sum is the same at every pixel the clipped
+/// volume's cut edges do not reach, and it is minus the number of volumes
+/// containing the eye. With the eye and the visible near plane outside
+/// every volume, no cut edge reaches the screen and the sum is 0: z-pass
+/// gives the z-fail counts bit for bit, whatever the depth buffer holds.
+///
+/// A face's volume (the points behind it seen from the light) lies behind
+/// its plane and inside the three planes through the light and its edges;
+/// the ball is outside it when it is wholly on the light's side of the
+/// face's plane, or wholly outside one of the edge planes. Closed casters
+/// need only their light-facing faces (their volume is the union of
+/// those faces' volumes); open ones need every face.
+pub fn near_region_outside(adj: &EdgeAdjacency, lit: &[bool], view: &View, light: Vec3) -> bool {
+    let l = light.as_dvec3();
+    let e = view.eye;
+    let aspect = view.width as f64 / view.height as f64;
+    let t = view.tan_half_fov;
+    // Eye to a near-plane corner, twice over, plus a margin far above the
+    // f32 rounding of the rasterized volume (relative 1e-7).
+    let corner = view.near * (1.0 + t * t * (1.0 + aspect * aspect)).sqrt();
+    let rho = 2.0 * corner + 1e-5 * (e - l).length();
+    if !rho.is_finite() {
+        return false;
+    }
+    adj.face_vertices
+        .iter()
+        .zip(adj.face_closed.iter().zip(lit))
+        .all(|(f, (&closed, &lit))| {
+            if closed && !lit {
+                return true;
+            }
+            let [a, b, c] = f.map(|i| adj.positions[i as usize].as_dvec3());
+            let n = (b - a).cross(c - a);
+            let (dl, de) = (n.dot(l - a), n.dot(e - a));
+            let reach = rho * n.length();
+            if (dl > 0.0 && de > reach) || (dl < 0.0 && de < -reach) {
+                return true;
+            }
+            [(a, b, c), (b, c, a), (c, a, b)].iter().any(|&(p, q, o)| {
+                let m = (p - l).cross(q - l);
+                let side = m.dot(o - l);
+                let d = m.dot(e - l);
+                let reach = rho * m.length();
+                (side > 0.0 && d < -reach) || (side < 0.0 && d > reach)
+            })
+        })
+}
+
 /// Builds the volume of every caster in `adj` for a point light at `light`.
 pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolume {
     let lit = faces_point(adj, light);
+    let eye_outside = near_region_outside(adj, &lit, view, light);
     let n = adj.positions.len() as u32;
     let mut vertices: Vec<ClipVertex<0>> = adj
         .positions
@@ -131,6 +193,7 @@ pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolu
     ShadowVolume {
         vertices,
         triangles,
+        eye_outside,
     }
 }
 
@@ -175,6 +238,11 @@ pub fn stencil_state(zpass: bool) -> RasterState {
 }
 
 /// Per-pixel stencil counts of one light's volume over the scene depth.
+///
+/// Z-fail unless `zpass`; when the volume proves the eye outside every
+/// volume ([`ShadowVolume::eye_outside`]), the z-fail counts are computed
+/// by z-pass, which gives the same bits and lets the rasterizer skip the
+/// volume parts hidden behind the scene (most of them).
 pub fn stencil_counts(
     framebuffer: &mut Framebuffer,
     volume: &ShadowVolume,
@@ -186,7 +254,7 @@ pub fn stencil_counts(
     let _stats = draw(
         framebuffer,
         &mut none,
-        &stencil_state(zpass),
+        &stencil_state(zpass || volume.eye_outside),
         &volume.vertices,
         &volume.triangles,
         &NoFragmentStage,
