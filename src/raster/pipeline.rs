@@ -1,7 +1,7 @@
 //! The draw call: vertex outputs → clip → setup → bin → tiles in parallel.
 
-use super::bin::TileBins;
-use super::clip::{classify, clip_triangle, ClipClass};
+use super::bin::{tile_pairs, TileBins};
+use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
 use super::fragment::FragmentStage;
 use super::framebuffer::Framebuffer;
 use super::setup::{setup_polygon, SetupTriangle, Viewport};
@@ -35,6 +35,10 @@ impl std::ops::AddAssign for DrawStats {
         self.passed += o.passed;
     }
 }
+
+/// One setup work item's output: its set-up triangles and their
+/// `(tile, chunk-local triangle)` pairs.
+type SetupChunk<const N: usize> = (Vec<SetupTriangle<N>>, Vec<(u32, u32)>);
 
 /// Triangles per setup work item: large enough to amortise scheduling,
 /// small enough to balance two to many cores.
@@ -101,42 +105,54 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
     let (gx, gy) = viewport.guard_ndc();
     let cull_front = state.cull == CullMode::Front;
     let cull_back = state.cull == CullMode::Back;
+    // Outcodes once per vertex, not once per use.
+    let codes: Vec<u16> = vertices
+        .par_iter()
+        .with_min_len(4096)
+        .map(|v| vertex_code(v.position, gx, gy))
+        .collect();
 
-    let setup: Vec<SetupTriangle<N>> = triangles
+    // Setup, then the chunk's (tile, triangle) pairs with chunk-local
+    // triangle numbers: binning's edge tests run in parallel too.
+    let chunks: Vec<SetupChunk<N>> = triangles
         .par_chunks(SETUP_CHUNK)
         .enumerate()
         .map(|(chunk, tris)| {
             let mut out = Vec::with_capacity(tris.len());
             for (k, tri) in tris.iter().enumerate() {
                 let prim = first_primitive + (chunk * SETUP_CHUNK + k) as u32;
+                let c = tri.map(|i| codes[i as usize]);
+                if c[0] & c[1] & c[2] != 0 {
+                    continue; // outside one clip plane, or beyond one screen side
+                }
                 let v = tri.map(|i| vertices[i as usize]);
-                match classify(&v, gx, gy) {
-                    ClipClass::Inside => {
-                        setup_polygon(&v, viewport, cull_front, cull_back, prim, &mut out)
-                    }
-                    ClipClass::Outside => {}
-                    ClipClass::Crossing => {
-                        let c = clip_triangle(v, gx, gy);
-                        let poly = &c.vertices[..c.len];
-                        setup_polygon(poly, viewport, cull_front, cull_back, prim, &mut out)
-                    }
+                if (c[0] | c[1] | c[2]) & CLIP_PLANES == 0 {
+                    setup_polygon(&v, viewport, cull_front, cull_back, prim, &mut out)
+                } else {
+                    let c = clip_triangle(v, gx, gy);
+                    let poly = &c.vertices[..c.len];
+                    setup_polygon(poly, viewport, cull_front, cull_back, prim, &mut out)
                 }
             }
-            out
+            let mut pairs = Vec::with_capacity(out.len() * 2);
+            tile_pairs(&grid, &out, &mut pairs);
+            (out, pairs)
         })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .fold(Vec::new(), |mut all, chunk| {
-            // Whole chunks are moved with one copy each, in chunk order.
-            if all.is_empty() {
-                chunk
-            } else {
-                all.extend(chunk);
-                all
-            }
-        });
-
-    let bins = TileBins::build(&grid, &setup);
+        .collect();
+    // Chunks in order: triangle numbers become global, setup output is
+    // moved into one list with one copy per chunk.
+    let mut setup: Vec<SetupTriangle<N>> =
+        Vec::with_capacity(chunks.iter().map(|(s, _)| s.len()).sum());
+    let mut runs = Vec::with_capacity(chunks.len());
+    for (tris, mut pairs) in chunks {
+        let first = setup.len() as u32;
+        for p in &mut pairs {
+            p.1 += first;
+        }
+        setup.extend(tris);
+        runs.push(pairs);
+    }
+    let bins = TileBins::from_pairs(&grid, &runs);
     let counting = CountingPass::of::<N, S>(state);
 
     let stats = framebuffer
