@@ -57,19 +57,18 @@ fn classify<const N: usize>(t: &SetupTriangle<N>, x: i32, y: i32, size: i32) -> 
 /// approximate): a cheap, conservative x-extent of the triangle over a
 /// band of rows, for the depth-bounds verdicts.
 struct EdgeLines {
-    /// `[x0, slope]` of up to two left and two right edges.
-    left: [(f64, f64); 2],
-    right: [(f64, f64); 2],
+    /// `x0` of up to two left and two right edges (lanes 0, 1 and 2, 3;
+    /// unused ones far out).
+    x0: f64x4,
+    slope: f64x4,
 }
 
 impl EdgeLines {
     fn of<const N: usize>(t: &SetupTriangle<N>) -> Self {
         const FAR: f64 = 1e30;
-        let mut lines = EdgeLines {
-            left: [(-FAR, 0.0); 2],
-            right: [(FAR, 0.0); 2],
-        };
-        let (mut nl, mut nr) = (0, 0);
+        let mut x0 = [-FAR, -FAR, FAR, FAR];
+        let mut slope = [0.0; 4];
+        let (mut nl, mut nr) = (0, 2);
         for e in &t.edges {
             if e.a == 0 {
                 continue;
@@ -80,40 +79,50 @@ impl EdgeLines {
                 e.step_y() as f64,
                 e.at_pixel(0, 0) as f64,
             );
-            let line = (-c / a, -b / a);
-            if e.a > 0 {
-                lines.left[nl] = line;
+            let k = if e.a > 0 {
                 nl += 1;
+                nl - 1
             } else {
-                lines.right[nr] = line;
                 nr += 1;
-            }
+                nr - 1
+            };
+            x0[k] = -c / a;
+            slope[k] = -b / a;
         }
-        lines
+        EdgeLines {
+            x0: f64x4::new(x0),
+            slope: f64x4::new(slope),
+        }
     }
 
     /// Columns `lo..=hi` holding every covered pixel of rows `y0..=y1`
-    /// (with a pixel of margin for the rounding here): a left edge keeps
-    /// the covered pixels of every row right of its line, so right of the
-    /// line's leftmost point over the band, at one of its ends.
+    /// (with a pixel of margin for the rounding here), clamped to
+    /// `[x_min, x_max]`: a left edge keeps the covered pixels of every row
+    /// right of its line, so right of the line's leftmost point over the
+    /// band, at one of its ends; right edges likewise.
     #[inline]
-    fn extent(&self, y0: i32, y1: i32) -> (f64, f64) {
-        let (y0, y1) = (y0 as f64, y1 as f64);
-        let at = |(x0, slope): (f64, f64), y: f64| x0 + slope * y;
-        let min = |a: f64, b: f64| if a < b { a } else { b };
-        let max = |a: f64, b: f64| if a > b { a } else { b };
-        let lo = self
-            .left
-            .iter()
-            .map(|&l| min(at(l, y0), at(l, y1)))
-            .fold(-1e30, max);
-        let hi = self
-            .right
-            .iter()
-            .map(|&l| max(at(l, y0), at(l, y1)))
-            .fold(1e30, min);
-        (lo - 1.0, hi + 1.0)
+    fn extent(&self, y0: i32, y1: i32, x_min: i32, x_max: i32) -> (i32, i32) {
+        let a = self.x0 + self.slope * f64x4::splat(y0 as f64);
+        let b = self.x0 + self.slope * f64x4::splat(y1 as f64);
+        let (mn, mx) = (a.fast_min(b).to_array(), a.fast_max(b).to_array());
+        let lo = if mn[0] > mn[1] { mn[0] } else { mn[1] } - 1.0;
+        let hi = if mx[2] < mx[3] { mx[2] } else { mx[3] } + 1.0;
+        // Compared before converting: the bounds may be far out.
+        let lo = if lo > x_min as f64 { lo as i32 } else { x_min };
+        let hi = if hi < x_max as f64 { hi as i32 } else { x_max };
+        (lo, hi)
     }
+}
+
+/// What depth bounds say about a rectangle of a counting pass.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Verdict {
+    /// No covered pixel in it counts.
+    Skip,
+    /// Every covered pixel in it counts: no depth test needed.
+    CountAll,
+    /// Test pixel by pixel.
+    Test,
 }
 
 /// Smallest and largest stored depth of each 8×8 block of a tile.
@@ -145,51 +154,84 @@ impl DepthBounds {
         b
     }
 
-    /// Bounds over blocks `bx0..=bx1` of block row `by`.
+    /// The verdict for tile-local pixels `[x0, y0, x1, y1]` (inclusive)
+    /// of a triangle with depth `plane` (screen origin of the tile
+    /// `origin`), the test being `Greater` and the counted pixels the
+    /// failing ones when `on_fail`.
     #[inline]
-    fn over_row(&self, by: usize, bx0: usize, bx1: usize) -> (f32, f32) {
-        let row = by * (TILE_SIZE / LANES);
+    fn verdict(
+        &self,
+        plane: &super::setup::Plane,
+        origin: (i32, i32),
+        rect: [i32; 4],
+        on_fail: bool,
+    ) -> Verdict {
+        let per_row = TILE_SIZE / LANES;
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for k in row + bx0..=row + bx1 {
-            if self.min[k] < lo {
-                lo = self.min[k];
-            }
-            if self.max[k] > hi {
-                hi = self.max[k];
+        for by in (rect[1] / BLOCK) as usize..=(rect[3] / BLOCK) as usize {
+            let row = by * per_row;
+            for k in row + (rect[0] / BLOCK) as usize..=row + (rect[2] / BLOCK) as usize {
+                if self.min[k] < lo {
+                    lo = self.min[k];
+                }
+                if self.max[k] > hi {
+                    hi = self.max[k];
+                }
             }
         }
-        (lo, hi)
+        let screen = [
+            rect[0] + origin.0,
+            rect[1] + origin.1,
+            rect[2] + origin.0,
+            rect[3] + origin.1,
+        ];
+        // Every pixel fails when even the nearest fragment is not in
+        // front of the farthest stored depth; every one passes when the
+        // farthest fragment is in front of the nearest stored depth.
+        let all_fail = || plane_bound(plane, screen, true) <= lo;
+        let all_pass = || plane_bound(plane, screen, false) > hi;
+        let (skip, count) = if on_fail {
+            (all_pass(), all_fail())
+        } else {
+            (all_fail(), all_pass())
+        };
+        if skip {
+            Verdict::Skip
+        } else if count {
+            Verdict::CountAll
+        } else {
+            Verdict::Test
+        }
     }
 }
 
-/// Smallest and largest depth the rasterizer gives any pixel of
+/// Largest (`max`) or smallest depth the rasterizer gives any pixel of
 /// `[x0, y0, x1, y1]` (screen, inclusive). The SIMD path computes a
 /// pixel's depth as `clamp(row_base(y) + dx · cx(x))` with `row_base` and
 /// `cx` rounded functions that are monotonic in `y` and `x`, and every
 /// rounding is monotonic: the computed depth is monotonic in `x` and in
 /// `y` separately, so its extremes over a rectangle are at the corners
 /// the slopes' signs pick, evaluated here by the very same operations.
-fn plane_bounds(plane: &super::setup::Plane, rect: [i32; 4]) -> (f32, f32) {
+#[inline]
+fn plane_bound(plane: &super::setup::Plane, rect: [i32; 4], max: bool) -> f32 {
+    let x = if (plane.dx >= 0.0) == max {
+        rect[2]
+    } else {
+        rect[0]
+    };
+    let y = if (plane.dy >= 0.0) == max {
+        rect[3]
+    } else {
+        rect[1]
+    };
     // As the SIMD path's fast_max / fast_min do for finite values.
-    let clamp = |v: f32| {
-        let v = if v > 0.0 { v } else { 0.0 };
-        if v < 1.0 {
-            v
-        } else {
-            1.0
-        }
-    };
-    let (xl, xh) = if plane.dx >= 0.0 {
-        (rect[0], rect[2])
+    let v = plane.at(x, y);
+    let v = if v > 0.0 { v } else { 0.0 };
+    if v < 1.0 {
+        v
     } else {
-        (rect[2], rect[0])
-    };
-    let (yl, yh) = if plane.dy >= 0.0 {
-        (rect[1], rect[3])
-    } else {
-        (rect[3], rect[1])
-    };
-    (clamp(plane.at(xl, yl)), clamp(plane.at(xh, yh)))
+        1.0
+    }
 }
 
 /// `(floor(v / m), v - m floor(v / m))` for `m > 0`. The quotient is
@@ -538,7 +580,21 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             let plane = t.depth;
             let delta = i32x8::splat(if t.front_facing { c.front } else { c.back });
             let (x0, dx) = (f32x8::splat(plane.x0), f32x8::splat(plane.dx));
+            // The whole rectangle's verdict first, then band by band.
             let lines = use_bounds.then(|| EdgeLines::of(t));
+            let mut pair = Verdict::Test;
+            if let Some(lines) = &lines {
+                let (xl, xh) = lines.extent(rows.0, rows.1, clip[0], clip[2]);
+                if xl > xh {
+                    continue;
+                }
+                let b = bounds.get_or_insert_with(|| DepthBounds::of(depth));
+                let rect = [xl - tx, rows.0 - ty, xh - tx, rows.1 - ty];
+                pair = b.verdict(&plane, self.origin, rect, c.on_depth_fail);
+                if pair == Verdict::Skip {
+                    continue;
+                }
+            }
             // The walk, when it stands at row `walk_row`.
             let mut walk: Option<SpanWalk> = None;
             let mut walk_row = rows.0;
@@ -548,40 +604,22 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             while y <= rows.1 {
                 let band = (y, (y | (BLOCK - 1)).min(rows.1));
                 y = band.1 + 1;
-                // The band's verdict from depth bounds: every covered
-                // pixel passes, or every one fails, or test them.
-                let mut tested = true;
-                if let Some(lines) = &lines {
-                    let (lo, hi) = lines.extent(band.0, band.1);
-                    let xl = if lo > clip[0] as f64 {
-                        lo as i32
-                    } else {
-                        clip[0]
-                    };
-                    let xh = if hi < clip[2] as f64 {
-                        hi as i32
-                    } else {
-                        clip[2]
-                    };
+                let mut verdict = pair;
+                let one_band = band.0 == rows.0 && band.1 == rows.1;
+                if let (Verdict::Test, false, Some(lines), Some(b)) =
+                    (pair, one_band, &lines, &bounds)
+                {
+                    let (xl, xh) = lines.extent(band.0, band.1, clip[0], clip[2]);
                     if xl > xh {
                         continue;
                     }
-                    let b = bounds.get_or_insert_with(|| DepthBounds::of(depth));
-                    let (stored_min, stored_max) = b.over_row(
-                        ((band.0 - ty) / BLOCK) as usize,
-                        ((xl - tx) / BLOCK) as usize,
-                        ((xh - tx) / BLOCK) as usize,
-                    );
-                    let (frag_min, frag_max) = plane_bounds(&plane, [xl, band.0, xh, band.1]);
-                    let all_pass = frag_min > stored_max;
-                    let all_fail = frag_max <= stored_min;
-                    if all_pass || all_fail {
-                        if all_pass == c.on_depth_fail {
-                            continue; // nothing in the band counts
-                        }
-                        tested = false; // everything counts
+                    let rect = [xl - tx, band.0 - ty, xh - tx, band.1 - ty];
+                    verdict = b.verdict(&plane, self.origin, rect, c.on_depth_fail);
+                    if verdict == Verdict::Skip {
+                        continue;
                     }
                 }
+                let tested = verdict == Verdict::Test;
                 let w = match &mut walk {
                     Some(w) if walk_row == band.0 => w,
                     _ => walk.insert(SpanWalk::at(t, clip, band.0)),
@@ -1001,7 +1039,7 @@ mod tests {
                         continue;
                     }
                 };
-                let (elo, ehi) = lines.extent(y, y);
+                let (elo, ehi) = lines.extent(y, y, i32::MIN / 2, i32::MAX / 2);
                 let unchecked = matches!(walk, Some((start, _)) if y < start);
                 for x in clip[0]..=clip[2] {
                     let i = x - clip[0];
@@ -1015,10 +1053,7 @@ mod tests {
                     }
                     if want {
                         covered += 1;
-                        assert!(
-                            x as f64 >= elo && x as f64 <= ehi,
-                            "extent {elo}..{ehi} misses {x}"
-                        );
+                        assert!(x >= elo && x <= ehi, "extent {elo}..{ehi} misses {x}");
                     }
                 }
                 if lo > hi + 1 && !unchecked {
@@ -1037,7 +1072,7 @@ mod tests {
     }
 
     /// The depth the SIMD path gives a pixel is monotonic along x and y,
-    /// so [`plane_bounds`] over a rectangle bounds every pixel in it.
+    /// so [`plane_bound`] over a rectangle bounds every pixel in it.
     #[test]
     fn plane_bounds_hold_every_pixel() {
         let mut rng = Lcg(5);
@@ -1053,7 +1088,10 @@ mod tests {
             let x0 = rng.below(1000) as i32;
             let y0 = rng.below(1000) as i32;
             let rect = [x0, y0, x0 + rng.below(64) as i32, y0 + rng.below(8) as i32];
-            let (lo, hi) = plane_bounds(&plane, rect);
+            let (lo, hi) = (
+                plane_bound(&plane, rect, false),
+                plane_bound(&plane, rect, true),
+            );
             for y in rect[1]..=rect[3] {
                 for x in (rect[0]..=rect[2]).step_by(LANES) {
                     let v = plane
