@@ -23,6 +23,7 @@ use crate::raster::{
 use crate::scene::{LightShape, Scene};
 use crate::view::View;
 use glam::Vec3;
+use rayon::prelude::*;
 use std::borrow::Cow;
 use std::time::Instant;
 
@@ -108,8 +109,9 @@ pub fn near_region_outside(adj: &EdgeAdjacency, lit: &[bool], view: &View, light
         return false;
     }
     adj.face_vertices
-        .iter()
-        .zip(adj.face_closed.iter().zip(lit))
+        .par_iter()
+        .with_min_len(BUILD_CHUNK)
+        .zip(adj.face_closed.par_iter().zip(lit))
         .all(|(f, (&closed, &lit))| {
             if closed && !lit {
                 return true;
@@ -131,64 +133,101 @@ pub fn near_region_outside(adj: &EdgeAdjacency, lit: &[bool], view: &View, light
         })
 }
 
+/// Faces or edges per parallel work item of [`build_volume`].
+const BUILD_CHUNK: usize = 4096;
+
 /// Builds the volume of every caster in `adj` for a point light at `light`.
+/// Vertices, caps and sides are made in parallel pieces, concatenated in
+/// order: the same volume for any thread count.
 pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolume {
     let lit = faces_point(adj, light);
-    let eye_outside = near_region_outside(adj, &lit, view, light);
+    let (eye_outside, (mut vertices, infinite)) = rayon::join(
+        || near_region_outside(adj, &lit, view, light),
+        || {
+            rayon::join(
+                || {
+                    adj.positions
+                        .par_iter()
+                        .with_min_len(BUILD_CHUNK)
+                        .map(|p| ClipVertex {
+                            position: view.clip_point(*p),
+                            varyings: [],
+                        })
+                        .collect::<Vec<_>>()
+                },
+                || {
+                    adj.positions
+                        .par_iter()
+                        .with_min_len(BUILD_CHUNK)
+                        .map(|p| ClipVertex {
+                            position: view.clip_direction(*p - light),
+                            varyings: [],
+                        })
+                        .collect::<Vec<_>>()
+                },
+            )
+        },
+    );
+    vertices.extend(infinite);
     let n = adj.positions.len() as u32;
-    let mut vertices: Vec<ClipVertex<0>> = adj
-        .positions
-        .iter()
-        .map(|p| ClipVertex {
-            position: view.clip_point(*p),
-            varyings: [],
-        })
-        .collect();
-    vertices.extend(adj.positions.iter().map(|p| ClipVertex {
-        position: view.clip_direction(*p - light),
-        varyings: [],
-    }));
     let inf = |v: u32| v + n;
-    let mut triangles = Vec::new();
-    for (slot, &[a, b, c]) in adj.face_vertices.iter().enumerate() {
-        match (adj.face_closed[slot], lit[slot]) {
-            (true, true) => triangles.push([a, b, c]),
-            (true, false) => triangles.push([inf(a), inf(b), inf(c)]),
-            (false, true) => {
-                triangles.push([a, b, c]);
-                triangles.push([inf(a), inf(c), inf(b)]);
+    let caps = adj
+        .face_vertices
+        .par_chunks(BUILD_CHUNK)
+        .enumerate()
+        .map(|(chunk, faces)| {
+            let mut out = Vec::with_capacity(faces.len() * 2);
+            for (k, &[a, b, c]) in faces.iter().enumerate() {
+                let slot = chunk * BUILD_CHUNK + k;
+                match (adj.face_closed[slot], lit[slot]) {
+                    (true, true) => out.push([a, b, c]),
+                    (true, false) => out.push([inf(a), inf(b), inf(c)]),
+                    (false, true) => {
+                        out.push([a, b, c]);
+                        out.push([inf(a), inf(c), inf(b)]);
+                    }
+                    (false, false) => {
+                        out.push([a, c, b]);
+                        out.push([inf(a), inf(b), inf(c)]);
+                    }
+                }
             }
-            (false, false) => {
-                triangles.push([a, c, b]);
-                triangles.push([inf(a), inf(b), inf(c)]);
+            out
+        });
+    let sides = adj.edges.par_chunks(BUILD_CHUNK).map(|edges| {
+        let mut out = Vec::new();
+        for e in edges {
+            let m: i32 = e
+                .uses
+                .iter()
+                .map(|u| {
+                    let s = u.slot as usize;
+                    let weight = match (adj.face_closed[s], lit[s]) {
+                        (true, true) => 1,
+                        (true, false) => 0,
+                        (false, true) => 1,
+                        (false, false) => -1,
+                    };
+                    weight * u.direction as i32
+                })
+                .sum();
+            let [lo, hi] = e.v;
+            let quad = if m > 0 {
+                [hi, lo, inf(lo), inf(hi)]
+            } else {
+                [lo, hi, inf(hi), inf(lo)]
+            };
+            for _ in 0..m.unsigned_abs() {
+                out.push([quad[0], quad[1], quad[2]]);
+                out.push([quad[0], quad[2], quad[3]]);
             }
         }
-    }
-    for e in &adj.edges {
-        let m: i32 = e
-            .uses
-            .iter()
-            .map(|u| {
-                let s = u.slot as usize;
-                let weight = match (adj.face_closed[s], lit[s]) {
-                    (true, true) => 1,
-                    (true, false) => 0,
-                    (false, true) => 1,
-                    (false, false) => -1,
-                };
-                weight * u.direction as i32
-            })
-            .sum();
-        let [lo, hi] = e.v;
-        let quad = if m > 0 {
-            [hi, lo, inf(lo), inf(hi)]
-        } else {
-            [lo, hi, inf(hi), inf(lo)]
-        };
-        for _ in 0..m.unsigned_abs() {
-            triangles.push([quad[0], quad[1], quad[2]]);
-            triangles.push([quad[0], quad[2], quad[3]]);
-        }
+        out
+    });
+    let pieces: Vec<Vec<[u32; 3]>> = caps.chain(sides).collect();
+    let mut triangles = Vec::with_capacity(pieces.iter().map(Vec::len).sum());
+    for piece in pieces {
+        triangles.extend(piece);
     }
     ShadowVolume {
         vertices,
