@@ -3,7 +3,7 @@
 //! depend on scheduling).
 
 use super::framebuffer::{TileGrid, TILE_SIZE};
-use super::setup::SetupTriangle;
+use super::setup::{QuadExtra, SetupTriangle};
 
 /// Triangle indices per tile, stored compactly (CSR).
 #[derive(Debug, Clone, Default)]
@@ -20,6 +20,7 @@ pub struct TileBins {
 pub(crate) fn tile_pairs<const N: usize>(
     grid: &TileGrid,
     triangles: &[SetupTriangle<N>],
+    quads: &[QuadExtra],
     out: &mut Vec<(u32, u32)>,
 ) {
     let shift = TILE_SIZE.trailing_zeros();
@@ -36,10 +37,14 @@ pub(crate) fn tile_pairs<const N: usize>(
         // Per edge, its largest value over a tile's pixel centres (at the
         // corner its slopes pick), at tile (x0, y0) and its steps from
         // tile to tile: exact integers, the same test tile by tile.
-        let mut row = [0i64; 3];
-        let mut dx = [0i64; 3];
-        let mut dy = [0i64; 3];
-        for (k, e) in t.edges.iter().enumerate() {
+        // A quad's fourth edge is tested too; a triangle's fourth "edge"
+        // is always inside.
+        let fourth = quads.get(t.quad as usize).map(|q| q.edge);
+        let edges = t.edges.iter().chain(fourth.iter());
+        let mut row = [0i64; 4];
+        let mut dx = [0i64; 4];
+        let mut dy = [0i64; 4];
+        for (k, e) in edges.enumerate() {
             let (sx, sy) = (e.step_x(), e.step_y());
             row[k] = e.at_pixel(x0 as i64 * size, y0 as i64 * size)
                 + (sx * last).max(0)
@@ -50,14 +55,14 @@ pub(crate) fn tile_pairs<const N: usize>(
         for ty in y0..=y1 {
             let mut v = row;
             for tx in x0..=x1 {
-                if v[0] >= 0 && v[1] >= 0 && v[2] >= 0 {
+                if v[0] >= 0 && v[1] >= 0 && v[2] >= 0 && v[3] >= 0 {
                     out.push(((ty * grid.tiles_x + tx) as u32, index));
                 }
-                for k in 0..3 {
+                for k in 0..4 {
                     v[k] += dx[k];
                 }
             }
-            for k in 0..3 {
+            for k in 0..4 {
                 row[k] += dy[k];
             }
         }
@@ -71,7 +76,7 @@ impl TileBins {
     /// their boxes).
     pub fn build<const N: usize>(grid: &TileGrid, triangles: &[SetupTriangle<N>]) -> Self {
         let mut pairs = Vec::with_capacity(triangles.len() * 2);
-        tile_pairs(grid, triangles, &mut pairs);
+        tile_pairs(grid, triangles, &[], &mut pairs);
         Self::from_pairs(grid, &[pairs])
     }
 

@@ -4,7 +4,7 @@ use super::bin::{tile_pairs, TileBins};
 use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
 use super::fragment::FragmentStage;
 use super::framebuffer::Framebuffer;
-use super::setup::{setup_polygon, SetupTriangle, Viewport};
+use super::setup::{setup_polygon, setup_quad, QuadExtra, SetupTriangle, Viewport, NO_QUAD};
 use super::state::{CullMode, RasterState};
 use super::tile::{CountingPass, TileJob, TileStats};
 use super::vertex::ClipVertex;
@@ -36,9 +36,9 @@ impl std::ops::AddAssign for DrawStats {
     }
 }
 
-/// One setup work item's output: its set-up triangles and their
-/// `(tile, chunk-local triangle)` pairs.
-type SetupChunk<const N: usize> = (Vec<SetupTriangle<N>>, Vec<(u32, u32)>);
+/// One setup work item's output: its set-up triangles, their merged
+/// quads' extras and their `(tile, chunk-local triangle)` pairs.
+type SetupChunk<const N: usize> = (Vec<SetupTriangle<N>>, Vec<QuadExtra>, Vec<(u32, u32)>);
 
 /// Triangles per setup work item: large enough to amortise scheduling,
 /// small enough to balance two to many cores.
@@ -112,6 +112,12 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
         .map(|v| vertex_code(v.position, gx, gy))
         .collect();
 
+    // A pass that only counts draws pairs of triangles sharing a diagonal
+    // ([a, b, c], [a, c, d], as shadow-volume sides come) as one quad when
+    // that gives the same coverage and depths (see QuadExtra).
+    let counting = CountingPass::of::<N, S>(state);
+    let merge = counting.is_some();
+
     // Setup, then the chunk's (tile, triangle) pairs with chunk-local
     // triangle numbers: binning's edge tests run in parallel too.
     let chunks: Vec<SetupChunk<N>> = triangles
@@ -119,9 +125,31 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
         .enumerate()
         .map(|(chunk, tris)| {
             let mut out = Vec::with_capacity(tris.len());
-            for (k, tri) in tris.iter().enumerate() {
+            let mut quads = Vec::new();
+            let mut k = 0;
+            while k < tris.len() {
                 let prim = first_primitive + (chunk * SETUP_CHUNK + k) as u32;
+                let tri = tris[k];
                 let c = tri.map(|i| codes[i as usize]);
+                k += 1;
+                if merge && k < tris.len() {
+                    let next = tris[k];
+                    let d = codes[next[2] as usize];
+                    if next[0] == tri[0]
+                        && next[1] == tri[2]
+                        && (c[0] | c[1] | c[2] | d) & CLIP_PLANES == 0
+                        && c[0] & c[1] & c[2] == 0
+                        && c[0] & c[2] & d == 0
+                    {
+                        let v = [tri[0], tri[1], tri[2], next[2]].map(|i| vertices[i as usize]);
+                        let prims = [prim, prim + 1];
+                        setup_quad(
+                            &v, viewport, cull_front, cull_back, prims, &mut out, &mut quads,
+                        );
+                        k += 1;
+                        continue;
+                    }
+                }
                 if c[0] & c[1] & c[2] != 0 {
                     continue; // outside one clip plane, or beyond one screen side
                 }
@@ -135,25 +163,36 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
                 }
             }
             let mut pairs = Vec::with_capacity(out.len() * 2);
-            tile_pairs(&grid, &out, &mut pairs);
-            (out, pairs)
+            tile_pairs(&grid, &out, &quads, &mut pairs);
+            (out, quads, pairs)
         })
         .collect();
-    // Chunks in order: triangle numbers become global, setup output is
-    // moved into one list with one copy per chunk.
+    // Chunks in order: triangle and quad numbers become global, setup
+    // output is moved into one list with one copy per chunk.
     let mut setup: Vec<SetupTriangle<N>> =
-        Vec::with_capacity(chunks.iter().map(|(s, _)| s.len()).sum());
+        Vec::with_capacity(chunks.iter().map(|(s, _, _)| s.len()).sum());
+    let mut quads = Vec::new();
     let mut runs = Vec::with_capacity(chunks.len());
-    for (tris, mut pairs) in chunks {
+    for (tris, chunk_quads, mut pairs) in chunks {
         let first = setup.len() as u32;
         for p in &mut pairs {
             p.1 += first;
         }
-        setup.extend(tris);
+        let first_quad = quads.len() as u32;
+        if first_quad == 0 || chunk_quads.is_empty() {
+            setup.extend(tris);
+        } else {
+            setup.extend(tris.into_iter().map(|mut t| {
+                if t.quad != NO_QUAD {
+                    t.quad += first_quad;
+                }
+                t
+            }));
+        }
+        quads.extend(chunk_quads);
         runs.push(pairs);
     }
     let bins = TileBins::from_pairs(&grid, &runs);
-    let counting = CountingPass::of::<N, S>(state);
 
     let stats = framebuffer
         .tiles_mut()
@@ -165,6 +204,7 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
                 tile,
                 origin: grid.tile_origin(tile),
                 triangles: &setup,
+                quads: &quads,
                 bin: bins.tile(tile),
                 state,
                 stage,

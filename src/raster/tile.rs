@@ -7,7 +7,7 @@
 
 use super::fragment::{FragmentBatch, FragmentStage};
 use super::framebuffer::{DepthStencilTile, TILE_SIZE};
-use super::setup::SetupTriangle;
+use super::setup::{EdgeFunction, QuadExtra, SetupTriangle};
 use super::simd::{
     compare_f32, compare_f32_lanes, compare_i32, load_f32, load_i32, select_f32, select_i32,
     stencil_op, LANES, LANE_OFFSETS,
@@ -64,12 +64,12 @@ struct EdgeLines {
 }
 
 impl EdgeLines {
-    fn of<const N: usize>(t: &SetupTriangle<N>) -> Self {
+    fn of(edges: &[EdgeFunction]) -> Self {
         const FAR: f64 = 1e30;
         let mut x0 = [-FAR, -FAR, FAR, FAR];
         let mut slope = [0.0; 4];
         let (mut nl, mut nr) = (0, 2);
-        for e in &t.edges {
+        for e in edges {
             if e.a == 0 {
                 continue;
             }
@@ -125,21 +125,28 @@ enum Verdict {
     Test,
 }
 
-/// Smallest and largest stored depth of each 8×8 block of a tile.
+/// Blocks per tile side.
+const BLOCKS: usize = TILE_SIZE / BLOCK as usize;
+
+/// Smallest and largest stored depth over rectangles of 8×8 blocks of a
+/// tile, as a two-dimensional sparse table: level `(kx, ky)` holds, for
+/// every block `(bx, by)`, the bounds over the `2^kx × 2^ky` blocks from
+/// it. Any rectangle of blocks is the union of four such (overlapping)
+/// squares, so its bounds take four lookups.
 struct DepthBounds {
-    min: [f32; 64],
-    max: [f32; 64],
+    /// `[ky * 4 + kx][by * 8 + bx]`.
+    min: [[f32; BLOCKS * BLOCKS]; 16],
+    max: [[f32; BLOCKS * BLOCKS]; 16],
 }
 
 impl DepthBounds {
     fn of(depth: &[f32]) -> Self {
         let mut b = DepthBounds {
-            min: [0.0; 64],
-            max: [0.0; 64],
+            min: [[0.0; BLOCKS * BLOCKS]; 16],
+            max: [[0.0; BLOCKS * BLOCKS]; 16],
         };
-        let per_row = TILE_SIZE / LANES;
-        for (k, (lo, hi)) in b.min.iter_mut().zip(b.max.iter_mut()).enumerate() {
-            let (bx, by) = (k % per_row, k / per_row);
+        for k in 0..BLOCKS * BLOCKS {
+            let (bx, by) = (k % BLOCKS, k / BLOCKS);
             let mut mn = f32x8::splat(f32::INFINITY);
             let mut mx = f32x8::splat(f32::NEG_INFINITY);
             for r in 0..LANES {
@@ -148,8 +155,31 @@ impl DepthBounds {
                 mn = mn.fast_min(v);
                 mx = mx.fast_max(v);
             }
-            *lo = mn.to_array().into_iter().fold(f32::INFINITY, f32::min);
-            *hi = mx.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max);
+            b.min[0][k] = mn.to_array().into_iter().fold(f32::INFINITY, f32::min);
+            b.max[0][k] = mx.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max);
+        }
+        let min = |a: f32, b: f32| if a < b { a } else { b };
+        let max = |a: f32, b: f32| if a > b { a } else { b };
+        for ky in 0..4 {
+            for kx in 0..4 {
+                if kx == 0 && ky == 0 {
+                    continue;
+                }
+                // From the level one step smaller along x (or y).
+                let (from, step) = if kx > 0 {
+                    (ky * 4 + kx - 1, 1 << (kx - 1))
+                } else {
+                    ((ky - 1) * 4, BLOCKS << (ky - 1))
+                };
+                let (w, h) = (BLOCKS + 1 - (1 << kx), BLOCKS + 1 - (1 << ky));
+                for by in 0..h {
+                    for bx in 0..w {
+                        let k = by * BLOCKS + bx;
+                        b.min[ky * 4 + kx][k] = min(b.min[from][k], b.min[from][k + step]);
+                        b.max[ky * 4 + kx][k] = max(b.max[from][k], b.max[from][k + step]);
+                    }
+                }
+            }
         }
         b
     }
@@ -162,21 +192,30 @@ impl DepthBounds {
     fn verdict(
         &self,
         plane: &super::setup::Plane,
+        plane2: Option<&super::setup::Plane>,
         origin: (i32, i32),
         rect: [i32; 4],
         on_fail: bool,
     ) -> Verdict {
-        let per_row = TILE_SIZE / LANES;
+        let [bx0, by0, bx1, by1] = rect.map(|v| (v / BLOCK) as usize);
+        // Largest powers of two within the extents: four squares.
+        let kx = (usize::BITS - 1 - (bx1 - bx0 + 1).leading_zeros()) as usize;
+        let ky = (usize::BITS - 1 - (by1 - by0 + 1).leading_zeros()) as usize;
+        let level = ky * 4 + kx;
+        let (bx2, by2) = (bx1 + 1 - (1 << kx), by1 + 1 - (1 << ky));
+        let corners = [
+            by0 * BLOCKS + bx0,
+            by0 * BLOCKS + bx2,
+            by2 * BLOCKS + bx0,
+            by2 * BLOCKS + bx2,
+        ];
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for by in (rect[1] / BLOCK) as usize..=(rect[3] / BLOCK) as usize {
-            let row = by * per_row;
-            for k in row + (rect[0] / BLOCK) as usize..=row + (rect[2] / BLOCK) as usize {
-                if self.min[k] < lo {
-                    lo = self.min[k];
-                }
-                if self.max[k] > hi {
-                    hi = self.max[k];
-                }
+        for k in corners {
+            if self.min[level][k] < lo {
+                lo = self.min[level][k];
+            }
+            if self.max[level][k] > hi {
+                hi = self.max[level][k];
             }
         }
         let screen = [
@@ -188,8 +227,15 @@ impl DepthBounds {
         // Every pixel fails when even the nearest fragment is not in
         // front of the farthest stored depth; every one passes when the
         // farthest fragment is in front of the nearest stored depth.
-        let all_fail = || plane_bound(plane, screen, true) <= lo;
-        let all_pass = || plane_bound(plane, screen, false) > hi;
+        // A quad's pixels take one of its two planes: both must agree.
+        let all_fail = || {
+            plane_bound(plane, screen, true) <= lo
+                && plane2.is_none_or(|p| plane_bound(p, screen, true) <= lo)
+        };
+        let all_pass = || {
+            plane_bound(plane, screen, false) > hi
+                && plane2.is_none_or(|p| plane_bound(p, screen, false) > hi)
+        };
         let (skip, count) = if on_fail {
             (all_pass(), all_fail())
         } else {
@@ -234,6 +280,24 @@ fn plane_bound(plane: &super::setup::Plane, rect: [i32; 4], max: bool) -> f32 {
     }
 }
 
+/// All-ones lanes `k` where `e >= 0` at pixel `(x + k, y)`: `v + k a >= 0`
+/// for `v` its value at `(x, y)` and `a` its step, solved exactly for the
+/// first (a > 0) or last (a < 0) such lane.
+#[inline]
+fn edge_lanes(e: &EdgeFunction, x: i32, y: i32) -> i32x8 {
+    let v = e.at_pixel(x as i64, y as i64);
+    let a = e.step_x();
+    if a > 0 {
+        let first = (-floor_div(v, a).0).clamp(0, LANES as i64) as i32;
+        OFFSETS_I32.cmp_gt(i32x8::splat(first - 1))
+    } else if a < 0 {
+        let last = floor_div(v, -a).0.clamp(-1, LANES as i64 - 1) as i32;
+        i32x8::splat(last + 1).cmp_gt(OFFSETS_I32)
+    } else {
+        i32x8::splat(if v >= 0 { -1 } else { 0 })
+    }
+}
+
 /// `(floor(v / m), v - m floor(v / m))` for `m > 0`. The quotient is
 /// estimated in f64 (one division, where an i64 division is a slow
 /// instruction) and corrected exactly in integers, so the result never
@@ -262,7 +326,8 @@ fn floor_div(v: i64, m: i64) -> (i64, i64) {
 /// only restrict the rows. Down the rows `V` grows by `B`, so each bound
 /// `floor(V / |A|)` is carried as an exact quotient and remainder,
 /// stepped by `B = qb |A| + rb` with one carry. The four slots (two left
-/// edges, two right ones, unused slots never binding) are stepped
+/// edges, two right ones, unused slots never binding; a triangle has at
+/// most two of either, and quads are merged only when so) are stepped
 /// together in `f64` lanes: every value is an integer below 2^53, so all
 /// of it is exact, and the span is the pixels `E >= 0` selects, no more,
 /// no fewer.
@@ -291,10 +356,10 @@ impl SpanWalk {
     /// rows a sliver's bounding box holds above and below it. `None` when
     /// no row is left.
     #[inline]
-    fn rows<const N: usize>(t: &SetupTriangle<N>, clip: [i32; 4]) -> Option<(i32, i32)> {
+    fn rows(edges: &[EdgeFunction], clip: [i32; 4]) -> Option<(i32, i32)> {
         let (mut y0, mut y1) = (clip[1] as i64, clip[3] as i64);
         let first = y0;
-        for e in &t.edges {
+        for e in edges {
             let x = if e.a > 0 { clip[2] } else { clip[0] };
             let v = e.at_pixel(x as i64, first);
             let b = e.step_y();
@@ -311,7 +376,7 @@ impl SpanWalk {
 
     /// The walk over `clip`'s columns starting at row `y`.
     #[inline]
-    fn at<const N: usize>(t: &SetupTriangle<N>, clip: [i32; 4], y: i32) -> Self {
+    fn at(edges: &[EdgeFunction], clip: [i32; 4], y: i32) -> Self {
         // Unused slots: q = 2^40, far outside any tile, never moving.
         const FAR: f64 = (1u64 << 40) as f64;
         let mut g = [-FAR, -FAR, FAR, FAR];
@@ -320,7 +385,7 @@ impl SpanWalk {
         let mut r_step = [0.0; 4];
         let mut m = [1.0; 4];
         let (mut nl, mut nr) = (0, 2);
-        for e in &t.edges {
+        for e in edges {
             if e.a == 0 {
                 continue;
             }
@@ -398,6 +463,8 @@ pub(crate) struct TileJob<'a, const N: usize, S: FragmentStage<N>> {
     pub tile: usize,
     pub origin: (i32, i32),
     pub triangles: &'a [SetupTriangle<N>],
+    /// Extras of the merged quads among `triangles` (counting passes).
+    pub quads: &'a [QuadExtra],
     pub bin: &'a [u32],
     pub state: &'a RasterState,
     pub stage: &'a S,
@@ -570,7 +637,17 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 self.small(t, clip, ds, target, &mut stats);
                 continue;
             }
-            let Some(rows) = SpanWalk::rows(t, clip) else {
+            // A merged quad has a fourth edge, a second depth plane and a
+            // diagonal that says which plane a pixel takes.
+            let quad = self.quads.get(t.quad as usize);
+            let edges = [
+                t.edges[0],
+                t.edges[1],
+                t.edges[2],
+                quad.map_or(t.edges[2], |q| q.edge),
+            ];
+            let edges = &edges[..3 + usize::from(quad.is_some())];
+            let Some(rows) = SpanWalk::rows(edges, clip) else {
                 continue;
             };
             let Some(stencil) = ds.stencil.as_deref_mut() else {
@@ -578,10 +655,11 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             };
             let depth = &ds.depth[..];
             let plane = t.depth;
+            let plane2 = quad.map(|q| q.depth2);
             let delta = i32x8::splat(if t.front_facing { c.front } else { c.back });
             let (x0, dx) = (f32x8::splat(plane.x0), f32x8::splat(plane.dx));
             // The whole rectangle's verdict first, then band by band.
-            let lines = use_bounds.then(|| EdgeLines::of(t));
+            let lines = use_bounds.then(|| EdgeLines::of(edges));
             let mut pair = Verdict::Test;
             if let Some(lines) = &lines {
                 let (xl, xh) = lines.extent(rows.0, rows.1, clip[0], clip[2]);
@@ -590,7 +668,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 }
                 let b = bounds.get_or_insert_with(|| DepthBounds::of(depth));
                 let rect = [xl - tx, rows.0 - ty, xh - tx, rows.1 - ty];
-                pair = b.verdict(&plane, self.origin, rect, c.on_depth_fail);
+                pair = b.verdict(&plane, plane2.as_ref(), self.origin, rect, c.on_depth_fail);
                 if pair == Verdict::Skip {
                     continue;
                 }
@@ -614,7 +692,8 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                         continue;
                     }
                     let rect = [xl - tx, band.0 - ty, xh - tx, band.1 - ty];
-                    verdict = b.verdict(&plane, self.origin, rect, c.on_depth_fail);
+                    verdict =
+                        b.verdict(&plane, plane2.as_ref(), self.origin, rect, c.on_depth_fail);
                     if verdict == Verdict::Skip {
                         continue;
                     }
@@ -622,7 +701,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 let tested = verdict == Verdict::Test;
                 let w = match &mut walk {
                     Some(w) if walk_row == band.0 => w,
-                    _ => walk.insert(SpanWalk::at(t, clip, band.0)),
+                    _ => walk.insert(SpanWalk::at(edges, clip, band.0)),
                 };
                 walk_row = band.1 + 1;
                 let mut done = false;
@@ -657,9 +736,15 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                             // same bits.
                             let cx =
                                 (f32x8::splat(x as f32) + LANE_OFFSETS) + f32x8::splat(0.5) - x0;
-                            let frag = (base + dx * cx)
-                                .fast_max(f32x8::splat(0.0))
-                                .fast_min(f32x8::splat(1.0));
+                            let mut frag = base + dx * cx;
+                            if let (Some(q), Some(p2)) = (quad, &plane2) {
+                                // The second triangle's pixels take its
+                                // plane, computed as for it alone.
+                                let second = p2.lanes(x, yy);
+                                let first = edge_lanes(&q.diagonal, x, yy);
+                                frag = bytemuck::cast::<i32x8, f32x8>(first).blend(frag, second);
+                            }
+                            let frag = frag.fast_max(f32x8::splat(0.0)).fast_min(f32x8::splat(1.0));
                             let stored: &[f32; LANES] =
                                 depth[local..local + LANES].try_into().expect("8 lanes");
                             (test(frag, f32x8::new(*stored)) ^ flip) & live
@@ -1008,18 +1093,19 @@ mod tests {
                 primitive: 0,
                 small: false,
                 block_i32: false,
+                quad: crate::raster::setup::NO_QUAD,
             };
             let x0 = rng.below(40) as i32;
             let y0 = rng.below(40) as i32;
             let clip = [x0, y0, x0 + rng.below(64) as i32, y0 + rng.below(64) as i32];
             let inside = |x: i32, y: i32| edges.iter().all(|e| e.at_pixel(x as i64, y as i64) >= 0);
-            let rows = SpanWalk::rows(&t, clip);
-            let lines = EdgeLines::of(&t);
+            let rows = SpanWalk::rows(&t.edges, clip);
+            let lines = EdgeLines::of(&t.edges);
             // Start the walk at a random row of the range, as after a
             // skipped band.
             let mut walk = rows.map(|r| {
                 let start = r.0 + rng.below((r.1 - r.0 + 1) as i64) as i32;
-                (start, SpanWalk::at(&t, clip, start))
+                (start, SpanWalk::at(&t.edges, clip, start))
             });
             for y in clip[1]..=clip[3] {
                 let (lo, hi) = match (&rows, &mut walk) {
@@ -1069,6 +1155,55 @@ mod tests {
             }
         }
         assert!(covered > 100_000);
+    }
+
+    /// The sparse table's bounds over any rectangle of blocks are the
+    /// bounds of the pixels in those blocks, and verdicts follow them.
+    #[test]
+    fn depth_bounds_over_any_block_rectangle() {
+        let mut rng = Lcg(9);
+        let depth: Vec<f32> = (0..TILE_SIZE * TILE_SIZE + LANES)
+            .map(|_| rng.below(1_000_000) as f32 * 1e-6)
+            .collect();
+        let b = DepthBounds::of(&depth);
+        for by0 in 0..BLOCKS {
+            for by1 in by0..BLOCKS {
+                for bx0 in 0..BLOCKS {
+                    for bx1 in bx0..BLOCKS {
+                        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                        for y in by0 * 8..by1 * 8 + 8 {
+                            for x in bx0 * 8..bx1 * 8 + 8 {
+                                lo = lo.min(depth[y * TILE_SIZE + x]);
+                                hi = hi.max(depth[y * TILE_SIZE + x]);
+                            }
+                        }
+                        // Pixel rectangles inside those blocks.
+                        let rect = [
+                            (bx0 * 8 + rng.below(8) as usize) as i32,
+                            (by0 * 8 + rng.below(8) as usize) as i32,
+                            (bx1 * 8 + rng.below(8) as usize) as i32,
+                            (by1 * 8 + rng.below(8) as usize) as i32,
+                        ];
+                        // A flat plane at depth d: all pass iff d > hi,
+                        // all fail iff d <= lo.
+                        for d in [lo, hi, (lo + hi) / 2.0, lo - 1e-3, hi + 1e-3] {
+                            let plane = Plane {
+                                v0: d,
+                                ..Plane::default()
+                            };
+                            let want = if d > hi {
+                                Verdict::Skip
+                            } else if d <= lo {
+                                Verdict::CountAll
+                            } else {
+                                Verdict::Test
+                            };
+                            assert!(want == b.verdict(&plane, None, (0, 0), rect, true));
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// The depth the SIMD path gives a pixel is monotonic along x and y,
