@@ -680,3 +680,106 @@ fn counting_path_equals_general_stencil_path() {
         assert_eq!(fast, general, "zpass = {zpass}");
     }
 }
+
+/// Counting passes merge triangle pairs `[a, b, c], [a, c, d]` into quads
+/// (shadow-volume sides come that way). The counts must equal the general
+/// path's, which draws the two triangles: random convex and non-convex
+/// quads, slivers, both windings, vertices on half pixels (pixel centres
+/// exactly on shared edges), non-planar pairs (each triangle keeps its
+/// own depth), over a scene depth that lets whole bands pass or fail.
+#[test]
+fn counting_path_merges_quads_exactly() {
+    struct Shades;
+    impl FragmentStage<0> for Shades {
+        type Target = ();
+        fn shade(&self, _: &FragmentBatch<0>, _: &mut ()) {}
+    }
+    let (w, h) = (190u32, 150u32);
+    let mut rng = Rng(2024);
+    let at = |x: f64, y: f64, z: f64| ClipVertex {
+        position: Vec4::new(
+            (2.0 * x / w as f64 - 1.0) as f32,
+            (1.0 - 2.0 * y / h as f64) as f32,
+            z as f32,
+            1.0,
+        ),
+        varyings: [],
+    };
+    // Scene: a few large triangles at random depths.
+    let mut scene = Vec::new();
+    for _ in 0..12 {
+        for _ in 0..3 {
+            let (x, y) = (rng.range(-40, 230) as f64, rng.range(-40, 190) as f64);
+            scene.push(at(x, y, 0.2 + 0.6 * rng.f64()));
+        }
+    }
+    let scene_tris: Vec<[u32; 3]> = (0..12).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    let mut volume = Vec::new();
+    let mut volume_tris = Vec::new();
+    for q in 0..400 {
+        let n = volume.len() as u32;
+        let half = q % 3 == 0;
+        let corner = |rng: &mut Rng| {
+            let (mut x, mut y) = (rng.range(-20, 210) as f64, rng.range(-20, 170) as f64);
+            if !half {
+                x += rng.f64();
+                y += rng.f64();
+            } else {
+                x += 0.5 * (rng.range(0, 1) as f64);
+                y += 0.5 * (rng.range(0, 1) as f64);
+            }
+            (x, y)
+        };
+        let mut pts: Vec<(f64, f64)> = (0..4).map(|_| corner(&mut rng)).collect();
+        if q % 4 == 1 {
+            // A sliver: two far ends a few pixels wide.
+            let (x, y) = pts[0];
+            let (dx, dy) = (rng.range(-3, 3) as f64, rng.range(-3, 3) as f64);
+            pts[1] = (x + dx + 0.5, y + 1.0 + dy.abs());
+            pts[3] = (x - 1.5, y - 0.5);
+        }
+        for &(x, y) in &pts {
+            volume.push(at(x, y, rng.f64()));
+        }
+        let (a, b, c, d) = (n, n + 1, n + 2, n + 3);
+        if rng.next_u64() & 1 == 0 {
+            volume_tris.push([a, b, c]);
+            volume_tris.push([a, c, d]);
+        } else {
+            volume_tris.push([a, d, c]);
+            volume_tris.push([a, c, b]);
+        }
+    }
+    for zpass in [false, true] {
+        let state = penumbra::shadow::shadow_volumes::stencil_state(zpass);
+        let run = |general: bool| {
+            let grid = TileGrid::new(w, h).unwrap();
+            let mut fb = Framebuffer::new(grid);
+            let mut none = vec![(); grid.tile_count()];
+            let nf = penumbra::raster::NoFragmentStage;
+            draw(
+                &mut fb,
+                &mut none,
+                &RasterState::default(),
+                &scene,
+                &scene_tris,
+                &nf,
+            )
+            .unwrap();
+            fb.clear_stencil(0);
+            let stats = if general {
+                draw(&mut fb, &mut none, &state, &volume, &volume_tris, &Shades).unwrap()
+            } else {
+                draw(&mut fb, &mut none, &state, &volume, &volume_tris, &nf).unwrap()
+            };
+            (fb.stencil_image(), stats.setup_triangles)
+        };
+        let ((fast, merged), (general, separate)) = (run(false), run(true));
+        assert!(
+            merged < separate,
+            "no quad was merged ({merged} of {separate})"
+        );
+        assert!(fast.iter().any(|&s| s != 0));
+        assert_eq!(fast, general, "zpass = {zpass}");
+    }
+}

@@ -13,12 +13,12 @@ mod common;
 use glam::DVec3;
 use penumbra::gbuffer::{gbuffer_pass, GBuffer};
 use penumbra::geom::SceneGeometry;
-use penumbra::raster::Framebuffer;
+use penumbra::raster::{draw, Framebuffer, NoFragmentStage};
 use penumbra::render::{view_for, RenderOptions};
 use penumbra::scene::Scene;
 use penumbra::shadow::reference::ShadowTracer;
 use penumbra::shadow::shadow_volumes::{
-    build_volume, caster_adjacency, light_point, stencil_counts,
+    build_volume, caster_adjacency, light_point, stencil_counts, stencil_state,
 };
 use penumbra::view::View;
 
@@ -280,4 +280,80 @@ fn light_centre_in_an_occluders_plane() {
     );
     let f = frame(scene, 200, 160);
     assert_agrees("edge-on quad", &compare(&f, &counts(&f, false)));
+}
+
+/// Z-fail counts drawn directly with the z-fail state, never switched to
+/// z-pass, and whether the volume proved the eye outside.
+fn forced_zfail(f: &Frame) -> (Vec<i32>, bool) {
+    let adj = caster_adjacency(&f.scene, &f.geometry);
+    let volume = build_volume(&adj, &f.view, light_point(&f.scene.lights[0].shape));
+    let mut fb = f.depth.clone();
+    fb.clear_stencil(0);
+    let mut none = vec![(); fb.grid().tile_count()];
+    draw(
+        &mut fb,
+        &mut none,
+        &stencil_state(false),
+        &volume.vertices,
+        &volume.triangles,
+        &NoFragmentStage,
+    )
+    .expect("draw");
+    (fb.stencil_image(), volume.eye_outside)
+}
+
+/// Z-fail counts are computed by z-pass when the volume proves the eye
+/// and the near plane outside every volume: the counts must be the z-fail
+/// ones bit for bit, on scenes where the proof holds and where it fails
+/// (camera inside the volume).
+#[test]
+fn zpass_stands_in_for_zfail_only_with_the_same_counts() {
+    let inside = QUAD_SCENE
+        .replace("EYE", "[0.1, 1.0, 0.2]")
+        .replace("TARGET", "[2.0, 0.0, 1.0]");
+    let resting = QUAD_SCENE
+        .replace("EYE", "[3.0, 5.0, 5.0]")
+        .replace("TARGET", "[0.0, 0.0, 0.0]")
+        .replace("translate = [0.0, 2.0, 0.0]", "translate = [0.7, 0.1, 0.4]");
+    // Eye just outside the volume under the box (its side is at x = 1.125
+    // at this height).
+    let beside = QUAD_SCENE
+        .replace("EYE", "[1.3, 1.0, 0.2]")
+        .replace("TARGET", "[0.0, 0.0, 0.0]");
+    let frames = [
+        (
+            "spheres",
+            frame(shipped("spheres.toml"), 256, 256),
+            Some(true),
+        ),
+        ("quad", frame(shipped("quad.toml"), 160, 160), None),
+        ("bunny", frame(shipped("bunny.toml"), 160, 160), None),
+        (
+            "inside",
+            frame(scene_from("inside", &inside, &[]), 200, 160),
+            Some(false),
+        ),
+        (
+            "resting",
+            frame(scene_from("resting", &resting, &[]), 200, 160),
+            None,
+        ),
+        (
+            "beside",
+            frame(scene_from("beside", &beside, &[]), 200, 160),
+            Some(true),
+        ),
+    ];
+    for (name, f, outside) in &frames {
+        let (zfail, eye_outside) = forced_zfail(f);
+        if let Some(want) = outside {
+            assert_eq!(eye_outside, *want, "{name}: eye outside the volumes");
+        }
+        assert!(zfail.iter().any(|&s| s != 0), "{name}: no shadow");
+        assert_eq!(
+            counts(f, false),
+            zfail,
+            "{name} (eye outside: {eye_outside})"
+        );
+    }
 }

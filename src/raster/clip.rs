@@ -86,33 +86,27 @@ fn intersect<const N: usize>(
     }
 }
 
-/// Where a triangle lies with respect to the clip volume.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ClipClass {
-    /// Entirely inside: no clipping needed.
-    Inside,
-    /// Entirely outside one plane: nothing to draw.
-    Outside,
-    /// Crosses at least one plane.
-    Crossing,
-}
+/// The clip planes' bits of [`vertex_code`] (the outcodes
+/// [`clip_triangle`] clips by).
+pub(crate) const CLIP_PLANES: u16 = 0x3f;
 
-/// Classifies a triangle by its vertices' outcodes.
+/// A vertex's outcode against the clip planes (bits 0-5), plus bits 6-9
+/// for lying in front of the eye (`w > 0`) and beyond one side of the
+/// screen (`x < -w`, `x > w`, `y < -w`, `y > w`). Those compares are
+/// exact, and a triangle whose three vertices lie beyond the same side
+/// projects wholly beyond it: it covers no pixel centre (the nearest
+/// lies half a pixel inside the border) and needs no setup.
 #[inline]
-pub fn classify<const N: usize>(
-    triangle: &[ClipVertex<N>; 3],
-    guard_x: f32,
-    guard_y: f32,
-) -> ClipClass {
+pub(crate) fn vertex_code(p: Vec4, guard_x: f32, guard_y: f32) -> u16 {
     let planes = planes(guard_x, guard_y);
-    let codes = triangle.map(|v| outcode(&planes, v.position));
-    if codes[0] & codes[1] & codes[2] != 0 {
-        ClipClass::Outside
-    } else if codes[0] | codes[1] | codes[2] == 0 {
-        ClipClass::Inside
-    } else {
-        ClipClass::Crossing
+    let mut code = outcode(&planes, p) as u16;
+    if p.w > 0.0 {
+        code |= u16::from(p.x < -p.w) << 6
+            | u16::from(p.x > p.w) << 7
+            | u16::from(p.y < -p.w) << 8
+            | u16::from(p.y > p.w) << 9;
     }
+    code
 }
 
 /// Clips a triangle. Returns `len == 0` when nothing is left, `len == 3`

@@ -7,6 +7,7 @@
 
 use super::setup::MAX_SIDE;
 use crate::error::{Error, Result};
+use rayon::prelude::*;
 
 /// Tile side in pixels.
 pub const TILE_SIZE: usize = 64;
@@ -179,16 +180,17 @@ impl Framebuffer {
         self.grid
     }
 
-    /// Clears the stencil of every tile to `value` (allocating it).
+    /// Clears the stencil of every tile to `value` (allocating it), tiles
+    /// in parallel.
     pub fn clear_stencil(&mut self, value: i32) {
-        for t in &mut self.tiles {
-            match &mut t.stencil {
+        self.tiles
+            .par_iter_mut()
+            .for_each(|t| match &mut t.stencil {
                 Some(s) => s.fill(value),
                 None => {
                     t.stencil = Some(vec![value; TILE_PIXELS + TILE_PADDING].into_boxed_slice())
                 }
-            }
-        }
+            });
     }
 
     /// Clears depth to `value`.
@@ -211,22 +213,29 @@ impl Framebuffer {
     }
 
     /// Row-major stencil counts of the whole image (row 0 at the top), 0
-    /// where no stencil was ever allocated. Copied tile row by tile row.
+    /// where no stencil was ever allocated. Copied tile row by tile row,
+    /// rows of tiles in parallel.
     pub fn stencil_image(&self) -> Vec<i32> {
         let (w, h) = (self.grid.width as usize, self.grid.height as usize);
         let mut out = vec![0; w * h];
-        for (t, tile) in self.tiles.iter().enumerate() {
-            let Some(stencil) = &tile.stencil else {
-                continue;
-            };
-            let (x0, y0) = self.grid.tile_origin(t);
-            let (x0, y0) = (x0 as usize, y0 as usize);
-            let cols = TILE_SIZE.min(w - x0);
-            for r in 0..TILE_SIZE.min(h - y0) {
-                let dst = (y0 + r) * w + x0;
-                out[dst..dst + cols].copy_from_slice(&stencil[r * TILE_SIZE..r * TILE_SIZE + cols]);
-            }
-        }
+        out.par_chunks_mut(w * TILE_SIZE)
+            .enumerate()
+            .for_each(|(ty, band)| {
+                let rows = band.len() / w;
+                for tx in 0..self.grid.tiles_x {
+                    let t = ty * self.grid.tiles_x + tx;
+                    let Some(stencil) = &self.tiles[t].stencil else {
+                        continue;
+                    };
+                    let x0 = tx * TILE_SIZE;
+                    let cols = TILE_SIZE.min(w - x0);
+                    for r in 0..rows {
+                        let dst = r * w + x0;
+                        band[dst..dst + cols]
+                            .copy_from_slice(&stencil[r * TILE_SIZE..r * TILE_SIZE + cols]);
+                    }
+                }
+            });
         out
     }
 

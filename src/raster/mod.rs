@@ -23,7 +23,8 @@ pub use framebuffer::{
 };
 pub use pipeline::{draw, draw_numbered, DrawStats};
 pub use setup::{
-    EdgeFunction, Plane, SetupTriangle, Viewport, GUARD_BAND, MAX_SIDE, SUBPIXEL_BITS,
+    EdgeFunction, Plane, QuadExtra, SetupTriangle, Viewport, GUARD_BAND, MAX_SIDE, NO_QUAD,
+    SUBPIXEL_BITS,
 };
 pub use simd::LANES;
 pub use state::{CompareFunc, CullMode, RasterState, StencilFace, StencilOp, StencilState};

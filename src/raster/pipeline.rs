@@ -1,10 +1,10 @@
 //! The draw call: vertex outputs → clip → setup → bin → tiles in parallel.
 
-use super::bin::TileBins;
-use super::clip::{classify, clip_triangle, ClipClass};
+use super::bin::{tile_pairs, TileBins};
+use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
 use super::fragment::FragmentStage;
 use super::framebuffer::Framebuffer;
-use super::setup::{setup_polygon, SetupTriangle, Viewport};
+use super::setup::{setup_polygon, setup_quad, QuadExtra, SetupTriangle, Viewport, NO_QUAD};
 use super::state::{CullMode, RasterState};
 use super::tile::{CountingPass, TileJob, TileStats};
 use super::vertex::ClipVertex;
@@ -35,6 +35,10 @@ impl std::ops::AddAssign for DrawStats {
         self.passed += o.passed;
     }
 }
+
+/// One setup work item's output: its set-up triangles, their merged
+/// quads' extras and their `(tile, chunk-local triangle)` pairs.
+type SetupChunk<const N: usize> = (Vec<SetupTriangle<N>>, Vec<QuadExtra>, Vec<(u32, u32)>);
 
 /// Triangles per setup work item: large enough to amortise scheduling,
 /// small enough to balance two to many cores.
@@ -101,43 +105,94 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
     let (gx, gy) = viewport.guard_ndc();
     let cull_front = state.cull == CullMode::Front;
     let cull_back = state.cull == CullMode::Back;
+    // Outcodes once per vertex, not once per use.
+    let codes: Vec<u16> = vertices
+        .par_iter()
+        .with_min_len(4096)
+        .map(|v| vertex_code(v.position, gx, gy))
+        .collect();
 
-    let setup: Vec<SetupTriangle<N>> = triangles
+    // A pass that only counts draws pairs of triangles sharing a diagonal
+    // ([a, b, c], [a, c, d], as shadow-volume sides come) as one quad when
+    // that gives the same coverage and depths (see QuadExtra).
+    let counting = CountingPass::of::<N, S>(state);
+    let merge = counting.is_some();
+
+    // Setup, then the chunk's (tile, triangle) pairs with chunk-local
+    // triangle numbers: binning's edge tests run in parallel too.
+    let chunks: Vec<SetupChunk<N>> = triangles
         .par_chunks(SETUP_CHUNK)
         .enumerate()
         .map(|(chunk, tris)| {
             let mut out = Vec::with_capacity(tris.len());
-            for (k, tri) in tris.iter().enumerate() {
+            let mut quads = Vec::new();
+            let mut k = 0;
+            while k < tris.len() {
                 let prim = first_primitive + (chunk * SETUP_CHUNK + k) as u32;
-                let v = tri.map(|i| vertices[i as usize]);
-                match classify(&v, gx, gy) {
-                    ClipClass::Inside => {
-                        setup_polygon(&v, viewport, cull_front, cull_back, prim, &mut out)
-                    }
-                    ClipClass::Outside => {}
-                    ClipClass::Crossing => {
-                        let c = clip_triangle(v, gx, gy);
-                        let poly = &c.vertices[..c.len];
-                        setup_polygon(poly, viewport, cull_front, cull_back, prim, &mut out)
+                let tri = tris[k];
+                let c = tri.map(|i| codes[i as usize]);
+                k += 1;
+                if merge && k < tris.len() {
+                    let next = tris[k];
+                    let d = codes[next[2] as usize];
+                    if next[0] == tri[0]
+                        && next[1] == tri[2]
+                        && (c[0] | c[1] | c[2] | d) & CLIP_PLANES == 0
+                        && c[0] & c[1] & c[2] == 0
+                        && c[0] & c[2] & d == 0
+                    {
+                        let v = [tri[0], tri[1], tri[2], next[2]].map(|i| vertices[i as usize]);
+                        let prims = [prim, prim + 1];
+                        setup_quad(
+                            &v, viewport, cull_front, cull_back, prims, &mut out, &mut quads,
+                        );
+                        k += 1;
+                        continue;
                     }
                 }
+                if c[0] & c[1] & c[2] != 0 {
+                    continue; // outside one clip plane, or beyond one screen side
+                }
+                let v = tri.map(|i| vertices[i as usize]);
+                if (c[0] | c[1] | c[2]) & CLIP_PLANES == 0 {
+                    setup_polygon(&v, viewport, cull_front, cull_back, prim, &mut out)
+                } else {
+                    let c = clip_triangle(v, gx, gy);
+                    let poly = &c.vertices[..c.len];
+                    setup_polygon(poly, viewport, cull_front, cull_back, prim, &mut out)
+                }
             }
-            out
+            let mut pairs = Vec::with_capacity(out.len() * 2);
+            tile_pairs(&grid, &out, &quads, &mut pairs);
+            (out, quads, pairs)
         })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .fold(Vec::new(), |mut all, chunk| {
-            // Whole chunks are moved with one copy each, in chunk order.
-            if all.is_empty() {
-                chunk
-            } else {
-                all.extend(chunk);
-                all
-            }
-        });
-
-    let bins = TileBins::build(&grid, &setup);
-    let counting = CountingPass::of::<N, S>(state);
+        .collect();
+    // Chunks in order: triangle and quad numbers become global, setup
+    // output is moved into one list with one copy per chunk.
+    let mut setup: Vec<SetupTriangle<N>> =
+        Vec::with_capacity(chunks.iter().map(|(s, _, _)| s.len()).sum());
+    let mut quads = Vec::new();
+    let mut runs = Vec::with_capacity(chunks.len());
+    for (tris, chunk_quads, mut pairs) in chunks {
+        let first = setup.len() as u32;
+        for p in &mut pairs {
+            p.1 += first;
+        }
+        let first_quad = quads.len() as u32;
+        if first_quad == 0 || chunk_quads.is_empty() {
+            setup.extend(tris);
+        } else {
+            setup.extend(tris.into_iter().map(|mut t| {
+                if t.quad != NO_QUAD {
+                    t.quad += first_quad;
+                }
+                t
+            }));
+        }
+        quads.extend(chunk_quads);
+        runs.push(pairs);
+    }
+    let bins = TileBins::from_pairs(&grid, &runs);
 
     let stats = framebuffer
         .tiles_mut()
@@ -149,6 +204,7 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
                 tile,
                 origin: grid.tile_origin(tile),
                 triangles: &setup,
+                quads: &quads,
                 bin: bins.tile(tile),
                 state,
                 stage,

@@ -45,7 +45,7 @@ pub struct EdgeFunction {
 
 impl EdgeFunction {
     /// Edge from `p` to `q` of a triangle with positive orientation.
-    fn new(p: (i64, i64), q: (i64, i64)) -> Self {
+    pub(crate) fn new(p: (i64, i64), q: (i64, i64)) -> Self {
         let a = p.1 - q.1;
         let b = q.0 - p.0;
         // Top edge (horizontal, interior below) or left edge (going up):
@@ -112,10 +112,31 @@ impl Plane {
     /// depend on where a batch of lanes starts.
     #[inline]
     pub fn lanes(&self, x: i32, y: i32) -> f32x8 {
+        self.lanes_on_row(self.row_base(y), x)
+    }
+
+    /// Lane 0 of [`Plane::lanes`] at `(x, y)`, computed by the same
+    /// operations: the value the SIMD path gives pixel `(x, y)`.
+    #[inline]
+    pub fn at(&self, x: i32, y: i32) -> f32 {
+        let cx = (x as f32 + 0.0) + 0.5 - self.x0;
+        self.row_base(y) + self.dx * cx
+    }
+
+    /// The part of [`Plane::lanes`] that is constant along row `y`.
+    #[inline]
+    pub fn row_base(&self, y: i32) -> f32 {
         let cy = y as f32 + 0.5 - self.y0;
+        self.v0 + self.dy * cy
+    }
+
+    /// [`Plane::lanes`] from the row's [`Plane::row_base`]: the same
+    /// operations in the same order, so the same bits.
+    #[inline]
+    pub fn lanes_on_row(&self, base: f32, x: i32) -> f32x8 {
         let cx =
             (f32x8::splat(x as f32) + LANE_OFFSETS) + f32x8::splat(0.5) - f32x8::splat(self.x0);
-        f32x8::splat(self.v0 + self.dy * cy) + f32x8::splat(self.dx) * cx
+        f32x8::splat(base) + f32x8::splat(self.dx) * cx
     }
 }
 
@@ -144,6 +165,33 @@ pub struct SetupTriangle<const N: usize> {
     /// edge crosses, its values differ by at most `7 · 256 · 2^19 < 2^31`,
     /// so they fit `i32` lanes exactly.
     pub block_i32: bool,
+    /// [`NO_QUAD`], or the index of the [`QuadExtra`] that makes this a
+    /// merged pair of triangles (counting passes only).
+    pub quad: u32,
+}
+
+/// [`SetupTriangle::quad`] of a plain triangle.
+pub const NO_QUAD: u32 = u32::MAX;
+
+/// The rest of a merged quad: two triangles `(v0, v1, v2)`, `(v0, v2, v3)`
+/// of the same facing whose union is a strictly convex quadrilateral. Its
+/// coverage is the pixels inside all four outer edges: the top-left rule
+/// decides a pixel centre on an edge as if it were moved by an
+/// infinitesimal `(ε, ε²)`, so a pixel is in a triangle iff that moved
+/// point is in its interior, and the open quad minus the diagonal is the
+/// union of the open triangles. Each covered pixel takes the depth of the
+/// triangle that would have covered it (the first one's diagonal edge
+/// decides, exactly), so drawing the quad gives the bits drawing the two
+/// triangles gives.
+#[derive(Debug, Clone, Copy)]
+pub struct QuadExtra {
+    /// The outer edge the [`SetupTriangle`]'s three edges leave out.
+    pub edge: EdgeFunction,
+    /// The first triangle's edge along the diagonal: pixels where it is
+    /// `>= 0` belong to the first triangle.
+    pub diagonal: EdgeFunction,
+    /// The second triangle's depth plane.
+    pub depth2: Plane,
 }
 
 /// Screen dimensions and guard band for setup.
@@ -192,18 +240,8 @@ pub fn setup_polygon<const N: usize>(
     let mut screen = [(0i64, 0i64); MAX_CLIPPED_VERTICES];
     let mut exact = [(0f64, 0f64); MAX_CLIPPED_VERTICES];
     let mut inv_w = [0f64; MAX_CLIPPED_VERTICES];
-    let (w, h) = (viewport.width as f64, viewport.height as f64);
-    for k in 0..n {
-        let p = polygon[k].position;
-        if !(p.w > 0.0) {
-            return; // degenerate (only a zero vector can get here)
-        }
-        let iw = 1.0 / p.w as f64;
-        let sx = (p.x as f64 * iw * 0.5 + 0.5) * w;
-        let sy = (0.5 - p.y as f64 * iw * 0.5) * h;
-        screen[k] = (snap(sx), snap(sy));
-        exact[k] = (sx, sy);
-        inv_w[k] = iw;
+    if !project(polygon, viewport, &mut screen, &mut exact, &mut inv_w) {
+        return;
     }
     for k in 1..n - 1 {
         let idx = [0, k, k + 1];
@@ -269,9 +307,8 @@ fn setup_triangle<const N: usize>(
     // snapped position): the plane solve is then bit-identical whatever the
     // winding or starting vertex, so a shadow-volume cap gets exactly the
     // depth of the scene triangle it copies.
-    let mut canon = *idx;
-    let first_k = (0..3).min_by_key(|&k| (screen[canon[k]], k)).unwrap_or(0);
-    canon.rotate_left(first_k);
+    let first_k = (0..3).min_by_key(|&k| (screen[idx[k]], k)).unwrap_or(0);
+    let canon = [idx[first_k], idx[(first_k + 1) % 3], idx[(first_k + 2) % 3]];
     // Planes use the unsnapped positions: snapping moves a vertex by up to
     // 1/512 pixel, which near the horizon is a visible error in 1/w.
     let pts = canon.map(|i| exact[i]);
@@ -297,6 +334,113 @@ fn setup_triangle<const N: usize>(
         primitive,
         small: max_x - min_x < 8 * SUBPIXEL && max_y - min_y < 8 * SUBPIXEL,
         block_i32: edges.iter().all(|e| e.a.abs() + e.b.abs() < 1 << 19),
+        quad: NO_QUAD,
     });
     Some(())
+}
+
+/// Sets up the triangles `(v0, v1, v2)` and `(v0, v2, v3)` (primitives
+/// `primitives`), exactly as two calls of [`setup_polygon`] would, and
+/// merges them into one quad ([`QuadExtra`], appended to `quads`) when
+/// both survive, face the same way, form a strictly convex quadrilateral
+/// with at most two left and two right edges, and are not both small.
+#[allow(clippy::too_many_arguments)]
+pub fn setup_quad<const N: usize>(
+    v: &[ClipVertex<N>; 4],
+    viewport: Viewport,
+    cull_front: bool,
+    cull_back: bool,
+    primitives: [u32; 2],
+    out: &mut Vec<SetupTriangle<N>>,
+    quads: &mut Vec<QuadExtra>,
+) {
+    let mut screen = [(0i64, 0i64); 4];
+    let mut exact = [(0f64, 0f64); 4];
+    let mut inv_w = [0f64; 4];
+    if !project(v, viewport, &mut screen, &mut exact, &mut inv_w) {
+        return;
+    }
+    let base = out.len();
+    for (idx, prim) in [[0, 1, 2], [0, 2, 3]].iter().zip(primitives) {
+        setup_triangle(
+            v, idx, &screen, &exact, &inv_w, viewport, cull_front, cull_back, prim, out,
+        );
+    }
+    if out.len() != base + 2 {
+        return;
+    }
+    let (t1, t2) = (out[base], out[base + 1]);
+    let orient = |a: usize, b: usize, c: usize| {
+        let (p, q, r) = (screen[a], screen[b], screen[c]);
+        ((q.0 - p.0) * (r.1 - p.1) - (r.0 - p.0) * (q.1 - p.1)).signum()
+    };
+    let turn = orient(0, 1, 2);
+    let convex = [orient(0, 2, 3), orient(1, 2, 3), orient(3, 0, 1)]
+        .iter()
+        .all(|&o| o == turn);
+    if !convex || t1.front_facing != t2.front_facing || (t1.small && t2.small) {
+        return;
+    }
+    // Outer edges in positive order (see setup_triangle's ordering): the
+    // first triangle's two, the second's two; the first's third edge is
+    // the diagonal.
+    let (outer, diagonal) = if turn > 0 {
+        (
+            [t1.edges[0], t1.edges[1], t2.edges[1], t2.edges[2]],
+            t1.edges[2],
+        )
+    } else {
+        (
+            [t1.edges[1], t1.edges[2], t2.edges[0], t2.edges[1]],
+            t1.edges[0],
+        )
+    };
+    let left = outer.iter().filter(|e| e.a > 0).count();
+    let right = outer.iter().filter(|e| e.a < 0).count();
+    if left > 2 || right > 2 {
+        return;
+    }
+    out.truncate(base);
+    out.push(SetupTriangle {
+        edges: [outer[0], outer[1], outer[2]],
+        bbox: [
+            t1.bbox[0].min(t2.bbox[0]),
+            t1.bbox[1].min(t2.bbox[1]),
+            t1.bbox[2].max(t2.bbox[2]),
+            t1.bbox[3].max(t2.bbox[3]),
+        ],
+        small: false,
+        block_i32: false,
+        quad: quads.len() as u32,
+        ..t1
+    });
+    quads.push(QuadExtra {
+        edge: outer[3],
+        diagonal,
+        depth2: t2.depth,
+    });
+}
+
+/// Projects and snaps `polygon`'s vertices; `false` for a degenerate one.
+fn project<const N: usize>(
+    polygon: &[ClipVertex<N>],
+    viewport: Viewport,
+    screen: &mut [(i64, i64)],
+    exact: &mut [(f64, f64)],
+    inv_w: &mut [f64],
+) -> bool {
+    let (w, h) = (viewport.width as f64, viewport.height as f64);
+    for (k, v) in polygon.iter().enumerate() {
+        let p = v.position;
+        if !(p.w > 0.0) {
+            return false; // degenerate (only a zero vector can get here)
+        }
+        let iw = 1.0 / p.w as f64;
+        let sx = (p.x as f64 * iw * 0.5 + 0.5) * w;
+        let sy = (0.5 - p.y as f64 * iw * 0.5) * h;
+        screen[k] = (snap(sx), snap(sy));
+        exact[k] = (sx, sy);
+        inv_w[k] = iw;
+    }
+    true
 }

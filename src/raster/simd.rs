@@ -31,9 +31,19 @@ pub fn bits_from_lanes(lanes: i32x8) -> u8 {
 /// Bit mask of lanes where `incoming func stored` holds.
 #[inline]
 pub fn compare_f32(func: CompareFunc, incoming: f32x8, stored: f32x8) -> u8 {
+    match func {
+        CompareFunc::Never => 0,
+        CompareFunc::Always => 0xff,
+        _ => bits_from_lanes(compare_f32_lanes(func, incoming, stored)),
+    }
+}
+
+/// All-ones lanes where `incoming func stored` holds, zero lanes elsewhere.
+#[inline]
+pub fn compare_f32_lanes(func: CompareFunc, incoming: f32x8, stored: f32x8) -> i32x8 {
     let m = match func {
-        CompareFunc::Never => return 0,
-        CompareFunc::Always => return 0xff,
+        CompareFunc::Never => return i32x8::splat(0),
+        CompareFunc::Always => return i32x8::splat(-1),
         CompareFunc::Less => incoming.cmp_lt(stored),
         CompareFunc::LessEqual => incoming.cmp_le(stored),
         CompareFunc::Equal => incoming.cmp_eq(stored),
@@ -41,7 +51,7 @@ pub fn compare_f32(func: CompareFunc, incoming: f32x8, stored: f32x8) -> u8 {
         CompareFunc::Greater => incoming.cmp_gt(stored),
         CompareFunc::NotEqual => incoming.cmp_ne(stored),
     };
-    m.move_mask() as u8
+    bytemuck::cast(m)
 }
 
 /// Bit mask of lanes where `reference func stored` holds.
