@@ -783,3 +783,96 @@ fn counting_path_merges_quads_exactly() {
         assert_eq!(fast, general, "zpass = {zpass}");
     }
 }
+
+/// Shading passes without depth writes or stencil skip rectangles on depth
+/// bounds. What they skip must be exactly what fails: the fragments
+/// passing `Greater` and those passing `LessEqual` (its complement) are,
+/// pixel by pixel, the covered fragments (`Always`), and each equals a
+/// stage that runs every covered fragment and compares depths itself.
+#[test]
+fn depth_bounds_skip_only_failing_fragments() {
+    struct Compare(CompareFunc);
+    impl FragmentStage<0> for Compare {
+        type Target = Box<[u32]>;
+        fn shade(&self, batch: &FragmentBatch<0>, target: &mut Box<[u32]>) {
+            let (d, s) = (batch.depth.to_array(), batch.stored_depth.to_array());
+            for k in batch.lanes() {
+                if self.0 == CompareFunc::Always || self.0.test(d[k], s[k]) {
+                    target[batch.local + k] += 1;
+                }
+            }
+        }
+    }
+    let (w, h) = (200u32, 170u32);
+    let mut rng = Rng(77);
+    let at = |x: f64, y: f64, z: f64| ClipVertex {
+        position: Vec4::new(
+            (2.0 * x / w as f64 - 1.0) as f32,
+            (1.0 - 2.0 * y / h as f64) as f32,
+            z as f32,
+            1.0,
+        ),
+        varyings: [],
+    };
+    let mut scene = Vec::new();
+    for _ in 0..30 {
+        let (x, y) = (rng.range(-60, 260) as f64, rng.range(-60, 230) as f64);
+        for _ in 0..3 {
+            let (dx, dy) = (rng.range(-80, 80) as f64, rng.range(-80, 80) as f64);
+            scene.push(at(x + dx, y + dy, 0.1 + 0.8 * rng.f64()));
+        }
+    }
+    let scene_tris: Vec<[u32; 3]> = (0..30).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    let mut tris_v = Vec::new();
+    for _ in 0..300 {
+        let big = rng.range(0, 2) == 0;
+        let r = if big { 150 } else { 12 };
+        let (x, y) = (rng.range(-30, 230) as f64, rng.range(-30, 200) as f64);
+        for _ in 0..3 {
+            let (dx, dy) = (rng.range(-r, r) as f64, rng.range(-r, r) as f64);
+            tris_v.push(at(x + dx + 0.5 * rng.f64(), y + dy, rng.f64()));
+        }
+    }
+    let tris: Vec<[u32; 3]> = (0..300).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    let run = |func: CompareFunc, self_test: bool| {
+        let grid = TileGrid::new(w, h).unwrap();
+        let mut fb = Framebuffer::new(grid);
+        let mut none = vec![(); grid.tile_count()];
+        let nf = penumbra::raster::NoFragmentStage;
+        draw(
+            &mut fb,
+            &mut none,
+            &RasterState::default(),
+            &scene,
+            &scene_tris,
+            &nf,
+        )
+        .unwrap();
+        let mut counts = TiledTarget::new(grid, 0u32);
+        let state = RasterState {
+            depth_func: if self_test { CompareFunc::Always } else { func },
+            depth_write: false,
+            stencil: None,
+            cull: CullMode::None,
+        };
+        draw(
+            &mut fb,
+            counts.tiles_mut(),
+            &state,
+            &tris_v,
+            &tris,
+            &Compare(func),
+        )
+        .unwrap();
+        counts.to_image()
+    };
+    let all = run(CompareFunc::Always, false);
+    let front = run(CompareFunc::Greater, false);
+    let behind = run(CompareFunc::LessEqual, false);
+    assert!(front.iter().any(|&c| c > 0) && behind.iter().any(|&c| c > 0));
+    for i in 0..all.len() {
+        assert_eq!(front[i] + behind[i], all[i], "pixel {i}");
+    }
+    assert_eq!(front, run(CompareFunc::Greater, true));
+    assert_eq!(behind, run(CompareFunc::LessEqual, true));
+}

@@ -42,6 +42,18 @@ fn single_convex_occluder_under_a_sphere_light_matches_too() {
     check_exact_case("wedges-quad-sphere", &quad(true));
 }
 
+#[test]
+fn eye_inside_a_wedge_is_counted_z_fail_and_stays_exact() {
+    // The eye sits in the penumbra of the occluder's x = 0.5 edge, looking
+    // along the ground: halves holding it are counted z-fail, the others
+    // z-pass, in one image.
+    let toml = quad(false)
+        .replace("eye = [0.0, 5.0, 6.0]", "eye = [0.55, 0.5, 0.0]")
+        .replace("target = [0.0, 0.0, 0.0]", "target = [1.2, 0.0, 0.1]");
+    assert!(toml.contains("eye = [0.55, 0.5, 0.0]"));
+    check_exact_case("wedges-eye-inside", &toml);
+}
+
 fn check_exact_case(name: &str, toml: &str) {
     let scene = common::scene_in_scratch(name, toml, &[]);
     let dir = common::scratch_dir(&format!("{name}-out"));
@@ -66,7 +78,11 @@ fn check_exact_case(name: &str, toml: &str) {
     let w = wedges.vcoef_all_lights.unwrap();
     let h = hard.vcoef_all_lights.unwrap();
     let floor = c.reference.floor_vcoef_all_lights;
-    assert!(c.penumbra_points[0] > 100);
+    assert!(
+        c.penumbra_points[0] > 100,
+        "{} penumbra points",
+        c.penumbra_points[0]
+    );
     assert_eq!(w.all.non_finite, 0);
     // Tolerance: twice the reference's estimated RMSE in the penumbra (the
     // estimate itself is noisy), and a max error of a few noise sigmas.

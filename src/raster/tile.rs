@@ -535,6 +535,25 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let mut stats = TileStats::default();
         let (tx, ty) = self.origin;
         let last = TILE_SIZE as i32 - 1;
+        // Depth bounds skip rectangles where no fragment can pass, for
+        // passes whose only effect is on passing fragments (no depth
+        // write, no stencil): a wedge pass counting faces in front of
+        // (Greater) or behind (LessEqual, the exact complement) receivers.
+        let use_bounds = !self.state.depth_write
+            && self.state.stencil.is_none()
+            && matches!(
+                self.state.depth_func,
+                CompareFunc::Greater | CompareFunc::LessEqual
+            );
+        let on_fail = self.state.depth_func == CompareFunc::LessEqual;
+        let mut bounds: Option<DepthBounds> = None;
+        let mut skip = |t: &SetupTriangle<N>, rect: [i32; 4], depth: &[f32]| -> bool {
+            use_bounds && {
+                let local = [rect[0] - tx, rect[1] - ty, rect[2] - tx, rect[3] - ty];
+                let b = bounds.get_or_insert_with(|| DepthBounds::of(depth));
+                b.verdict(&t.depth, None, self.origin, local, on_fail) == Verdict::Skip
+            }
+        };
         for &ti in self.bin {
             let t = &self.triangles[ti as usize];
             let clip = [
@@ -544,6 +563,9 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 t.bbox[3].min(ty + last),
             ];
             if clip[0] > clip[2] || clip[1] > clip[3] {
+                continue;
+            }
+            if skip(t, clip, &ds.depth) {
                 continue;
             }
             if t.small {
@@ -558,7 +580,14 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             while sy <= clip[3] {
                 let mut sx = clip[0] & !(SUPER - 1);
                 while sx <= clip[2] {
-                    if let Some(partial) = classify(t, sx, sy, SUPER) {
+                    let sub = [
+                        sx.max(clip[0]),
+                        sy.max(clip[1]),
+                        (sx + SUPER - 1).min(clip[2]),
+                        (sy + SUPER - 1).min(clip[3]),
+                    ];
+                    let covered = classify(t, sx, sy, SUPER);
+                    if let Some(partial) = covered.filter(|_| !skip(t, sub, &ds.depth)) {
                         let inside = !partial.iter().any(|&p| p);
                         let mut by = sy.max(clip[1] & !(BLOCK - 1));
                         while by < sy + SUPER && by <= clip[3] {

@@ -191,9 +191,6 @@ pub struct WedgeSet {
     pub primitives: Vec<WedgePrimitive>,
     /// The halves.
     pub halves: Vec<HalfWedge>,
-    /// Silhouette edges without a wedge: zero length, or so close to the
-    /// light that no convex wedge bounds their penumbra.
-    pub skipped: usize,
 }
 
 /// A silhouette edge as the shadow-volume pass drew it: quad
@@ -223,7 +220,22 @@ impl WedgeSet {
         });
         (self.vertices.len() - 1) as u32
     }
+}
 
+/// Every half-wedge of one light: halves that may hold the eye (or touch
+/// the near plane) are counted z-fail, the others z-pass.
+#[derive(Debug, Clone, Default)]
+pub struct Wedges {
+    /// Counted with the faces behind each receiver.
+    pub zfail: WedgeSet,
+    /// Counted with the faces in front of each receiver.
+    pub zpass: WedgeSet,
+    /// Silhouette edges without a wedge: zero length, or so close to the
+    /// light that no convex wedge bounds their penumbra.
+    pub skipped: usize,
+}
+
+impl Wedges {
     /// Adds the two halves of the wedge of `quad`; returns false (and adds
     /// nothing) when the edge has no bounded wedge.
     pub fn add(
@@ -234,6 +246,10 @@ impl WedgeSet {
         quad: SilhouetteQuad,
     ) -> bool {
         let (q0, q1) = (quad.q0.as_dvec3(), quad.q1.as_dvec3());
+        // A ball around the eye holding the near rectangle, with slack.
+        let aspect = view.width as f64 / view.height as f64;
+        let t = view.tan_half_fov;
+        let near_margin = 2.0 * view.near * (1.0 + t * t * (1.0 + aspect * aspect)).sqrt();
         let l = light.center();
         let along = q1 - q0;
         if along.length_squared() == 0.0 || quad.weight == 0 {
@@ -328,27 +344,46 @@ impl WedgeSet {
             let spread = c0.normalize() + c1.normalize() + b0.normalize() + b1.normalize();
             let interior = mid + spread * (0.05 * along.length());
 
-            let half = self.halves.len() as u32;
-            self.halves.push(HalfWedge {
+            // Inside-test of the eye with a margin covering the near
+            // rectangle: when some plane has the eye clearly outside, no
+            // face is cut by the near plane and z-pass counting is exact
+            // (and never needs the faces behind the receivers).
+            let nc = if outer { n_out } else { -n_out }.normalize();
+            let eye = view.eye;
+            let eye_outside = [
+                nc.dot(eye - q0),
+                nb.dot(eye - q0),
+                m0.dot(eye - q0),
+                m1.dot(eye - q1),
+            ]
+            .iter()
+            .any(|&d| d < -near_margin);
+            let set = if eye_outside {
+                &mut self.zpass
+            } else {
+                &mut self.zfail
+            };
+            let half = set.halves.len() as u32;
+            set.halves.push(HalfWedge {
                 q0,
                 q1,
                 weight: quad.weight,
                 outer,
             });
-            let iq0 = self.vertex(sv[0]);
-            let iq1 = self.vertex(sv[1]);
-            let id1 = self.vertex(sv[2]);
-            let id0 = self.vertex(sv[3]);
+            let iq0 = set.vertex(sv[0]);
+            let iq1 = set.vertex(sv[1]);
+            let id1 = set.vertex(sv[2]);
+            let id0 = set.vertex(sv[3]);
             let dir = |set: &mut WedgeSet, d: DVec3| set.vertex(view.clip_direction(d.as_vec3()));
-            let ic0 = dir(self, c0);
-            let ic1 = dir(self, c1);
-            let ib0 = dir(self, b0);
-            let ib1 = dir(self, b1);
+            let ic0 = dir(set, c0);
+            let ic1 = dir(set, c1);
+            let ib0 = dir(set, b0);
+            let ib1 = dir(set, b1);
             // The shared quad, as drawn by the volume pass.
             let flip = if outer { -1 } else { 1 };
             for t in [[iq0, iq1, id1], [iq0, id1, id0]] {
-                self.triangles.push(t);
-                self.primitives.push(WedgePrimitive { half, flip });
+                set.triangles.push(t);
+                set.primitives.push(WedgePrimitive { half, flip });
             }
             // World-space (homogeneous) position of each vertex index, for
             // orientation.
@@ -377,20 +412,23 @@ impl WedgeSet {
                 set.primitives.push(WedgePrimitive { half, flip: 1 });
             };
             // The rest of the central face: the cones beside the quad.
-            face(self, [iq0, id0, ic0]);
-            face(self, [iq1, ic1, id1]);
+            face(set, [iq0, id0, ic0]);
+            face(set, [iq1, ic1, id1]);
             // The bounding (front or back) face.
-            face(self, [iq0, iq1, ib1]);
-            face(self, [iq0, ib1, ib0]);
+            face(set, [iq0, iq1, ib1]);
+            face(set, [iq0, ib1, ib0]);
             // The sides.
-            face(self, [iq0, ib0, ic0]);
-            face(self, [iq1, ic1, ib1]);
+            face(set, [iq0, ib0, ic0]);
+            face(set, [iq1, ic1, ib1]);
             // The cap at infinity, fanned from b0 through every direction
-            // its edges share with the other faces.
-            face(self, [ib0, ic0, id0]);
-            face(self, [ib0, id0, id1]);
-            face(self, [ib0, id1, ic1]);
-            face(self, [ib0, ic1, ib1]);
+            // its edges share with the other faces. Never in front of a
+            // receiver, so z-pass halves leave it out.
+            if !eye_outside {
+                face(set, [ib0, ic0, id0]);
+                face(set, [ib0, id0, id1]);
+                face(set, [ib0, id1, ic1]);
+                face(set, [ib0, ic1, ib1]);
+            }
         }
         true
     }

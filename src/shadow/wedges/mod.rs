@@ -4,8 +4,12 @@
 //! integer start (the stencil count `w(c)`); then every silhouette edge's
 //! wedge, split by its shadow-volume quad into an outer and an inner half,
 //! is rasterized through the pipeline. Each half is a closed convex
-//! polyhedron, so a receiver `p` is inside it exactly when the z-fail count
-//! of its faces behind `p` is one; the fragment stage keeps that count per
+//! polyhedron, so a receiver `p` is inside it exactly when the count of
+//! its faces behind `p` (z-fail; leaving +1, entering −1) is one — or, for
+//! halves the eye is provably outside of (with a margin for the near
+//! plane), the count of its faces in front of `p` (z-pass): those never
+//! need the faces behind the receivers, which depth bounds then skip
+//! wholesale. The fragment stage keeps that count per
 //! pixel in a tile-local buffer, one half at a time (a half's triangles
 //! are contiguous and tiles see them in order), and when the next half
 //! starts it integrates the previous one for every pixel inside it:
@@ -28,7 +32,7 @@ use crate::raster::{
     TILE_SIZE,
 };
 use crate::scene::LightShape;
-use geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, WedgeSet};
+use geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use integrate::{region_fraction, region_fraction_sphere, RectFrame};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -80,6 +84,8 @@ struct WedgeStage<'a> {
     primitives: &'a [WedgePrimitive],
     halves: &'a [HalfWedge],
     light: LightBound,
+    /// Faces in front of the receiver count (z-pass) instead of behind.
+    zpass: bool,
 }
 
 impl WedgeStage<'_> {
@@ -139,8 +145,14 @@ impl FragmentStage<0> for WedgeStage<'_> {
             self.flush(tile);
             tile.current = prim.half;
         }
-        // z-fail: faces behind the receiver count +1 leaving, −1 entering.
-        let delta = if batch.front_facing { -1 } else { 1 } * prim.flip as i32;
+        // z-fail: faces behind the receiver count +1 leaving, −1 entering;
+        // z-pass: faces in front count +1 entering, −1 leaving.
+        let entering = if self.zpass { 1 } else { -1 };
+        let delta = if batch.front_facing {
+            entering
+        } else {
+            -entering
+        } * prim.flip as i32;
         let lx = batch.local % TILE_SIZE;
         let ly = batch.local / TILE_SIZE;
         let mut lo = usize::MAX;
@@ -158,12 +170,18 @@ impl FragmentStage<0> for WedgeStage<'_> {
     }
 }
 
-/// Raster state of the wedge pass: every face behind the receiver (or at
-/// its depth — the same tie rule as the z-fail stencil pass, so the
-/// shared quad decides exactly as it did there), no writes.
-fn wedge_state() -> RasterState {
+/// Raster state of the wedge pass, no writes. z-fail: every face behind
+/// the receiver or at its depth — the tie rule of the z-fail stencil pass,
+/// so the shared quad decides exactly as it did there; z-pass: strictly in
+/// front, the exact complement of that test on the same fragment, so the
+/// decision is again the stencil pass's.
+fn wedge_state(zpass: bool) -> RasterState {
     RasterState {
-        depth_func: CompareFunc::LessEqual,
+        depth_func: if zpass {
+            CompareFunc::Greater
+        } else {
+            CompareFunc::LessEqual
+        },
         depth_write: false,
         stencil: None,
         cull: CullMode::None,
@@ -192,7 +210,7 @@ pub struct WedgeLight {
     /// Half-wedges containing each pixel's receiver.
     pub halves_in: Vec<u32>,
     /// The wedges drawn.
-    pub wedges: WedgeSet,
+    pub wedges: Wedges,
 }
 
 /// Runs the shadow volumes and the wedges of light `k`.
@@ -217,7 +235,7 @@ pub fn wedge_light(
 
     let t = Instant::now();
     let lit = faces_point(&adj, point);
-    let mut wedges = WedgeSet::default();
+    let mut wedges = Wedges::default();
     for [a, b, m] in silhouette_quads(&adj, &lit) {
         let quad = SilhouetteQuad {
             q0: adj.positions[a as usize],
@@ -250,21 +268,28 @@ pub fn wedge_light(
             WedgeTile::new((ox, oy), start)
         })
         .collect();
-    let stage = WedgeStage {
-        gbuffer: ctx.gbuffer,
-        primitives: &wedges.primitives,
-        halves: &wedges.halves,
-        light: bound,
-    };
-    draw(
-        &mut framebuffer,
-        &mut tiles,
-        &wedge_state(),
-        &wedges.vertices,
-        &wedges.triangles,
-        &stage,
-    )?;
-    tiles.par_iter_mut().for_each(|t| stage.flush(t));
+    for set in [&wedges.zfail, &wedges.zpass] {
+        let zpass = std::ptr::eq(set, &wedges.zpass);
+        if set.triangles.is_empty() {
+            continue;
+        }
+        let stage = WedgeStage {
+            gbuffer: ctx.gbuffer,
+            primitives: &set.primitives,
+            halves: &set.halves,
+            light: bound,
+            zpass,
+        };
+        draw(
+            &mut framebuffer,
+            &mut tiles,
+            &wedge_state(zpass),
+            &set.vertices,
+            &set.triangles,
+            &stage,
+        )?;
+        tiles.par_iter_mut().for_each(|t| stage.flush(t));
+    }
     passes.push(PassTiming {
         name: format!("wedges light {k}"),
         time: t.elapsed(),
