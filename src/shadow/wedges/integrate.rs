@@ -159,38 +159,61 @@ pub fn region_fraction(frame: &RectFrame, p: DVec3, q0: DVec3, q1: DVec3, c_side
     let ab = orient(a, b);
     let ca = orient([0.0, 0.0], a);
     let cb = orient([0.0, 0.0], b);
-    let mut poly = vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-    poly = clip_polygon(&poly, |x| -sigma * ab(x));
-    poly = clip_polygon(&poly, |x| sigma * ca(x));
-    poly = clip_polygon(&poly, |x| -sigma * cb(x));
-    polygon_area(&poly) / 4.0
+    let square = Polygon::square();
+    let poly = square
+        .clip(|x| -sigma * ab(x))
+        .clip(|x| sigma * ca(x))
+        .clip(|x| -sigma * cb(x));
+    poly.area() / 4.0
 }
 
-/// Keeps the part of a convex polygon where `f ≥ 0` (`f` affine).
-fn clip_polygon(poly: &[[f64; 2]], f: impl Fn([f64; 2]) -> f64) -> Vec<[f64; 2]> {
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for (i, &a) in poly.iter().enumerate() {
-        let b = poly[(i + 1) % poly.len()];
-        let (fa, fb) = (f(a), f(b));
-        if fa >= 0.0 {
-            out.push(a);
-        }
-        if (fa >= 0.0) != (fb >= 0.0) {
-            let k = fa / (fa - fb);
-            out.push([a[0] + (b[0] - a[0]) * k, a[1] + (b[1] - a[1]) * k]);
-        }
-    }
-    out
+/// A convex polygon of at most 8 vertices, on the stack: the square
+/// clipped by three half-planes has at most 7.
+#[derive(Clone, Copy)]
+struct Polygon {
+    v: [[f64; 2]; 8],
+    n: usize,
 }
 
-/// Absolute area of a simple polygon.
-fn polygon_area(poly: &[[f64; 2]]) -> f64 {
-    let mut twice = 0.0;
-    for (i, a) in poly.iter().enumerate() {
-        let b = poly[(i + 1) % poly.len()];
-        twice += a[0] * b[1] - a[1] * b[0];
+impl Polygon {
+    fn square() -> Self {
+        let mut v = [[0.0; 2]; 8];
+        v[..4].copy_from_slice(&[[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]);
+        Polygon { v, n: 4 }
     }
-    (twice * 0.5).abs()
+
+    /// Keeps the part where `f ≥ 0` (`f` affine).
+    fn clip(&self, f: impl Fn([f64; 2]) -> f64) -> Polygon {
+        let mut out = Polygon {
+            v: [[0.0; 2]; 8],
+            n: 0,
+        };
+        for i in 0..self.n {
+            let a = self.v[i];
+            let b = self.v[(i + 1) % self.n];
+            let (fa, fb) = (f(a), f(b));
+            if fa >= 0.0 && out.n < 8 {
+                out.v[out.n] = a;
+                out.n += 1;
+            }
+            if (fa >= 0.0) != (fb >= 0.0) && out.n < 8 {
+                let k = fa / (fa - fb);
+                out.v[out.n] = [a[0] + (b[0] - a[0]) * k, a[1] + (b[1] - a[1]) * k];
+                out.n += 1;
+            }
+        }
+        out
+    }
+
+    /// Absolute area.
+    fn area(&self) -> f64 {
+        let mut twice = 0.0;
+        for i in 0..self.n {
+            let (a, b) = (self.v[i], self.v[(i + 1) % self.n]);
+            twice += a[0] * b[1] - a[1] * b[0];
+        }
+        (twice * 0.5).abs()
+    }
 }
 
 /// [`region_fraction`] for a sphere light: the fraction of the cone of
