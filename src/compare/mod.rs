@@ -140,6 +140,7 @@ pub fn quality_settings(
         Technique::None => vec![with("unshadowed".into(), None)],
         Technique::ShadowVolumes => vec![with("hard (z-fail)".into(), None)],
         Technique::Wedges => vec![with("centre silhouettes".into(), None)],
+        Technique::WedgeBlend => vec![with("EOAH, 4 quarters".into(), None)],
         Technique::Reference => samples
             .iter()
             .map(|&n| with(format!("{n} spp"), Some(n)))

@@ -13,6 +13,7 @@ use crate::report::Progress;
 use crate::scene::Scene;
 use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
+use crate::shadow::wedges::blend::WedgeBlending;
 use crate::shadow::wedges::PenumbraWedges;
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowTechnique, Unshadowed};
 use crate::view::{near_for_bounds, View};
@@ -86,11 +87,19 @@ pub enum Technique {
     ShadowVolumes,
     /// Penumbra wedges from each light's centre silhouettes.
     Wedges,
+    /// Penumbra-wedge blending (EOAH over four light quarters).
+    WedgeBlend,
 }
 
 impl Technique {
     /// All technique names.
-    pub const NAMES: [&'static str; 4] = ["none", "reference", "shadow-volumes", "wedges"];
+    pub const NAMES: [&'static str; 5] = [
+        "none",
+        "reference",
+        "shadow-volumes",
+        "wedges",
+        "wedge-blend",
+    ];
 
     /// The command-line name.
     pub fn name(self) -> &'static str {
@@ -99,6 +108,7 @@ impl Technique {
             Technique::Reference => "reference",
             Technique::ShadowVolumes => "shadow-volumes",
             Technique::Wedges => "wedges",
+            Technique::WedgeBlend => "wedge-blend",
         }
     }
 
@@ -113,6 +123,7 @@ impl Technique {
                 zpass: options.zpass,
             }),
             Technique::Wedges => Box::new(PenumbraWedges),
+            Technique::WedgeBlend => Box::new(WedgeBlending),
         }
     }
 }
@@ -124,7 +135,8 @@ impl FromStr for Technique {
             Some(0) => Ok(Technique::None),
             Some(1) => Ok(Technique::Reference),
             Some(2) => Ok(Technique::ShadowVolumes),
-            Some(_) => Ok(Technique::Wedges),
+            Some(3) => Ok(Technique::Wedges),
+            Some(_) => Ok(Technique::WedgeBlend),
             None => Err(Error::param(
                 "--technique",
                 format!(

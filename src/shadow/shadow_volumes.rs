@@ -177,20 +177,9 @@ pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolu
         .enumerate()
         .map(|(chunk, faces)| {
             let mut out = Vec::with_capacity(faces.len() * 2);
-            for (k, &[a, b, c]) in faces.iter().enumerate() {
+            for k in 0..faces.len() {
                 let slot = chunk * BUILD_CHUNK + k;
-                match (adj.face_closed[slot], lit[slot]) {
-                    (true, true) => out.push([a, b, c]),
-                    (true, false) => out.push([inf(a), inf(b), inf(c)]),
-                    (false, true) => {
-                        out.push([a, b, c]);
-                        out.push([inf(a), inf(c), inf(b)]);
-                    }
-                    (false, false) => {
-                        out.push([a, c, b]);
-                        out.push([inf(a), inf(b), inf(c)]);
-                    }
-                }
+                cap_triangles(adj, &lit, slot, n, &mut out);
             }
             out
         });
@@ -217,11 +206,39 @@ pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolu
     }
 }
 
+/// The cap triangles of face `slot` of `adj` (welded vertex ids; the
+/// same vertex at infinity is `id + n`): closed casters put light-facing
+/// faces in the near cap and the others, at infinity, in the far cap;
+/// open casters (Bergeron) put every face in both, oriented out of its own
+/// layer.
+pub fn cap_triangles(
+    adj: &EdgeAdjacency,
+    lit: &[bool],
+    slot: usize,
+    n: u32,
+    out: &mut Vec<[u32; 3]>,
+) {
+    let [a, b, c] = adj.face_vertices[slot];
+    let inf = |v: u32| v + n;
+    match (adj.face_closed[slot], lit[slot]) {
+        (true, true) => out.push([a, b, c]),
+        (true, false) => out.push([inf(a), inf(b), inf(c)]),
+        (false, true) => {
+            out.push([a, b, c]);
+            out.push([inf(a), inf(c), inf(b)]);
+        }
+        (false, false) => {
+            out.push([a, c, b]);
+            out.push([inf(a), inf(b), inf(c)]);
+        }
+    }
+}
+
 /// The side quad of one edge, if its multiplicity `m = Σ s·d` is not zero:
 /// its welded vertices `[a, b]` ordered so that the quad
 /// `[a, b, b at infinity, a at infinity]` faces out of the volume, and
 /// `|m|`, the copies to draw. `lit[f]`: face `f` faces the light point.
-fn side_quad(adj: &EdgeAdjacency, lit: &[bool], e: &crate::geom::Edge) -> Option<[u32; 3]> {
+pub fn side_quad(adj: &EdgeAdjacency, lit: &[bool], e: &crate::geom::Edge) -> Option<[u32; 3]> {
     let m: i32 = e
         .uses
         .iter()
@@ -304,15 +321,32 @@ pub fn stencil_counts(
     volume: &ShadowVolume,
     zpass: bool,
 ) -> Result<Vec<i32>> {
+    stencil_counts_of(
+        framebuffer,
+        &volume.vertices,
+        &volume.triangles,
+        zpass || volume.eye_outside,
+    )
+}
+
+/// Per-pixel stencil counts of part of a volume (`triangles` over the
+/// volume's `vertices`): a closed sub-volume (one connected caster's caps
+/// and sides) counts exactly like a whole one.
+pub fn stencil_counts_of(
+    framebuffer: &mut Framebuffer,
+    vertices: &[ClipVertex<0>],
+    triangles: &[[u32; 3]],
+    zpass: bool,
+) -> Result<Vec<i32>> {
     framebuffer.clear_stencil(0);
     let grid = framebuffer.grid();
     let mut none = vec![(); grid.tile_count()];
     let _stats = draw(
         framebuffer,
         &mut none,
-        &stencil_state(zpass || volume.eye_outside),
-        &volume.vertices,
-        &volume.triangles,
+        &stencil_state(zpass),
+        vertices,
+        triangles,
         &NoFragmentStage,
     )?;
     if std::env::var_os("PENUMBRA_DEBUG_STATS").is_some() {

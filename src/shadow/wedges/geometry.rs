@@ -236,7 +236,8 @@ pub struct Wedges {
 }
 
 impl Wedges {
-    /// Adds the two halves of the wedge of `quad`; returns false (and adds
+    /// Adds the two halves of the wedge of `quad` (only the outer or the
+    /// inner one with `only = Some(outer)`); returns false (and adds
     /// nothing) when the edge has no bounded wedge.
     pub fn add(
         &mut self,
@@ -244,6 +245,7 @@ impl Wedges {
         light: &LightBound,
         light_point: Vec3,
         quad: SilhouetteQuad,
+        only: Option<bool>,
     ) -> bool {
         let (q0, q1) = (quad.q0.as_dvec3(), quad.q1.as_dvec3());
         // A ball around the eye holding the near rectangle, with slack.
@@ -305,6 +307,9 @@ impl Wedges {
             return false;
         }
         for outer in [false, true] {
+            if only.is_some_and(|o| o != outer) {
+                continue;
+            }
             // The bounding plane of this half: angle ψ = π + φ.
             let phi = if (n_out.dot(n) > 0.0) == outer {
                 phi_lo

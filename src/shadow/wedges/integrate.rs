@@ -99,11 +99,31 @@ impl Homogeneous {
 /// light's square, all in homogeneous coordinates, so edges crossing `p`'s
 /// plane (projections through infinity) need no special case.
 pub fn region_fraction(frame: &RectFrame, p: DVec3, q0: DVec3, q1: DVec3, c_side: f64) -> f64 {
+    match projected_edge(frame, p, q0, q1) {
+        Some((a, b)) => {
+            EdgeRegion::new(a, b, c_side)
+                .polygon(Polygon::square())
+                .area()
+                / 4.0
+        }
+        None => 0.0,
+    }
+}
+
+/// The edge `q0 → q1` seen from `p` on the light's square: clipped to the
+/// slab between `p`'s plane and the light's (see [`region_fraction`]) and
+/// to the square, as `(s, t)` endpoints; `None` when nothing is left.
+pub fn projected_edge(
+    frame: &RectFrame,
+    p: DVec3,
+    q0: DVec3,
+    q1: DVec3,
+) -> Option<([f64; 2], [f64; 2])> {
     let to_light = frame.center - p;
     let h_light = to_light.dot(frame.normal);
     if h_light == 0.0 || !h_light.is_finite() {
         // `p` in the light's plane: it sees the light edge-on.
-        return 0.0;
+        return None;
     }
     // Coordinates so that W = 0 on p's plane and W = 1 on the light's.
     let n = frame.normal / h_light;
@@ -118,7 +138,7 @@ pub fn region_fraction(frame: &RectFrame, p: DVec3, q0: DVec3, q1: DVec3, c_side
             w,
         }
     };
-    let (mut a, mut b) = (project(q0), project(q1));
+    let (a, b) = (project(q0), project(q1));
     // Liang–Barsky against f(P) ≥ 0 for each linear constraint.
     let constraints: [fn(&Homogeneous) -> f64; 6] = [
         |h| h.w,
@@ -132,7 +152,7 @@ pub fn region_fraction(frame: &RectFrame, p: DVec3, q0: DVec3, q1: DVec3, c_side
     for f in constraints {
         let (fa, fb) = (f(&a), f(&b));
         if fa < 0.0 && fb < 0.0 {
-            return 0.0;
+            return None;
         }
         if fa < 0.0 {
             k0 = k0.max(fa / (fa - fb));
@@ -141,62 +161,142 @@ pub fn region_fraction(frame: &RectFrame, p: DVec3, q0: DVec3, q1: DVec3, c_side
         }
     }
     if k0 >= k1 {
-        return 0.0;
+        return None;
     }
-    (a, b) = (a.lerp(b, k0), a.lerp(b, k1));
+    let (a, b) = (a.lerp(b, k0), a.lerp(b, k1));
     // Inside the square, W ≥ |S|, |T|; W = 0 would be p itself (an edge
     // through the receiver: it occludes a set of measure zero).
     if a.w <= 0.0 || b.w <= 0.0 {
-        return 0.0;
+        return None;
     }
-    let a = [a.s / a.w, a.t / a.w];
-    let b = [b.s / b.w, b.t / b.w];
-    // R = square ∩ {beyond the line ab from c} ∩ cone(c; a, b).
-    let sigma = if c_side < 0.0 { -1.0 } else { 1.0 };
-    let orient = |o: [f64; 2], d: [f64; 2]| {
-        move |x: [f64; 2]| (d[0] - o[0]) * (x[1] - o[1]) - (d[1] - o[1]) * (x[0] - o[0])
-    };
-    let ab = orient(a, b);
-    let ca = orient([0.0, 0.0], a);
-    let cb = orient([0.0, 0.0], b);
-    let square = Polygon::square();
-    let poly = square
-        .clip(|x| -sigma * ab(x))
-        .clip(|x| sigma * ca(x))
-        .clip(|x| -sigma * cb(x));
-    poly.area() / 4.0
+    Some(([a.s / a.w, a.t / a.w], [b.s / b.w, b.t / b.w]))
 }
 
-/// A convex polygon of at most 8 vertices, on the stack: the square
-/// clipped by three half-planes has at most 7.
-#[derive(Clone, Copy)]
-struct Polygon {
-    v: [[f64; 2]; 8],
+/// `R_e` for a projected edge `a → b` with the centre (the origin) on side
+/// `c_side` of it: the part beyond the line `ab` from the centre, inside
+/// the cone from the centre through the edge.
+#[derive(Debug, Clone, Copy)]
+pub struct EdgeRegion {
+    a: [f64; 2],
+    b: [f64; 2],
+    sigma: f64,
+}
+
+fn orient(o: [f64; 2], d: [f64; 2], x: [f64; 2]) -> f64 {
+    (d[0] - o[0]) * (x[1] - o[1]) - (d[1] - o[1]) * (x[0] - o[0])
+}
+
+impl EdgeRegion {
+    /// The region of the projected edge `a → b`.
+    pub fn new(a: [f64; 2], b: [f64; 2], c_side: f64) -> Self {
+        EdgeRegion {
+            a,
+            b,
+            sigma: if c_side < 0.0 { -1.0 } else { 1.0 },
+        }
+    }
+
+    /// The three half-planes whose intersection is the region: beyond the
+    /// line, and the two sides of the cone.
+    /// As `(o, d, k)`: `k · orient(o, d, x) ≥ 0`.
+    fn half_planes(&self) -> [([f64; 2], [f64; 2], f64); 3] {
+        let s = self.sigma;
+        [
+            (self.a, self.b, -s),
+            ([0.0, 0.0], self.a, s),
+            ([0.0, 0.0], self.b, -s),
+        ]
+    }
+
+    /// The region within the convex polygon `within`.
+    pub fn polygon(&self, within: Polygon) -> Polygon {
+        self.half_planes().iter().fold(within, |poly, &(o, d, k)| {
+            poly.clip(|x| k * orient(o, d, x))
+        })
+    }
+
+    /// Bounding box of `within` minus the region: the union of `within`
+    /// cut by the complement of each of the three half-planes.
+    pub fn complement_bbox(&self, within: Polygon) -> Option<[f64; 4]> {
+        let pieces = self
+            .half_planes()
+            .map(|(o, d, k)| within.clip(|x| -k * orient(o, d, x)));
+        pieces
+            .iter()
+            .filter(|p| p.area() > 0.0)
+            .filter_map(Polygon::bbox)
+            .reduce(|a, b| {
+                [
+                    a[0].min(b[0]),
+                    a[1].min(b[1]),
+                    a[2].max(b[2]),
+                    a[3].max(b[3]),
+                ]
+            })
+    }
+}
+
+/// Vertices a [`Polygon`] holds: a rectangle clipped by five half-planes
+/// has at most 9.
+const POLYGON_CAPACITY: usize = 10;
+
+/// A convex polygon on the stack.
+#[derive(Debug, Clone, Copy)]
+pub struct Polygon {
+    v: [[f64; 2]; POLYGON_CAPACITY],
     n: usize,
 }
 
 impl Polygon {
-    fn square() -> Self {
-        let mut v = [[0.0; 2]; 8];
-        v[..4].copy_from_slice(&[[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]);
+    /// The light's whole square `[−1, 1]²`.
+    pub fn square() -> Self {
+        Polygon::rect([-1.0, -1.0, 1.0, 1.0])
+    }
+
+    /// The rectangle `[x0, y0, x1, y1]`.
+    pub fn rect([x0, y0, x1, y1]: [f64; 4]) -> Self {
+        let mut v = [[0.0; 2]; POLYGON_CAPACITY];
+        v[..4].copy_from_slice(&[[x0, y0], [x1, y0], [x1, y1], [x0, y1]]);
         Polygon { v, n: 4 }
     }
 
+    /// Bounding box `[x0, y0, x1, y1]`, if not empty.
+    pub fn bbox(&self) -> Option<[f64; 4]> {
+        (self.n > 0).then(|| {
+            self.v[..self.n].iter().fold(
+                [
+                    f64::INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::NEG_INFINITY,
+                ],
+                |b, p| {
+                    [
+                        b[0].min(p[0]),
+                        b[1].min(p[1]),
+                        b[2].max(p[0]),
+                        b[3].max(p[1]),
+                    ]
+                },
+            )
+        })
+    }
+
     /// Keeps the part where `f ≥ 0` (`f` affine).
-    fn clip(&self, f: impl Fn([f64; 2]) -> f64) -> Polygon {
+    pub fn clip(&self, f: impl Fn([f64; 2]) -> f64) -> Polygon {
         let mut out = Polygon {
-            v: [[0.0; 2]; 8],
+            v: [[0.0; 2]; POLYGON_CAPACITY],
             n: 0,
         };
         for i in 0..self.n {
             let a = self.v[i];
             let b = self.v[(i + 1) % self.n];
             let (fa, fb) = (f(a), f(b));
-            if fa >= 0.0 && out.n < 8 {
+            if fa >= 0.0 && out.n < POLYGON_CAPACITY {
                 out.v[out.n] = a;
                 out.n += 1;
             }
-            if (fa >= 0.0) != (fb >= 0.0) && out.n < 8 {
+            if (fa >= 0.0) != (fb >= 0.0) && out.n < POLYGON_CAPACITY {
                 let k = fa / (fa - fb);
                 out.v[out.n] = [a[0] + (b[0] - a[0]) * k, a[1] + (b[1] - a[1]) * k];
                 out.n += 1;
@@ -206,7 +306,7 @@ impl Polygon {
     }
 
     /// Absolute area.
-    fn area(&self) -> f64 {
+    pub fn area(&self) -> f64 {
         let mut twice = 0.0;
         for i in 0..self.n {
             let (a, b) = (self.v[i], self.v[(i + 1) % self.n]);

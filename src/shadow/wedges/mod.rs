@@ -16,6 +16,7 @@
 //! `V += ±m · |R_e(p)| / |A|` ([`integrate::region_fraction`]).
 //! `Vcoef = 1 − clamp(V, 0, 1)`.
 
+pub mod blend;
 pub mod geometry;
 pub mod integrate;
 
@@ -58,6 +59,12 @@ pub struct WedgeTile {
     touched: [usize; 4],
     vbuffer: Vec<f32>,
     halves_in: Vec<u32>,
+    /// Blending only: the current silhouette's per-light-part buffer.
+    parts: Vec<[blend::LightPart; 4]>,
+    /// Blending only: the final per-light-part buffer.
+    final_parts: Vec<[blend::LightPart; 4]>,
+    /// Blending only: rectangle of `parts` that may be non-empty.
+    parts_touched: [usize; 4],
 }
 
 impl WedgeTile {
@@ -73,6 +80,9 @@ impl WedgeTile {
             touched: [TILE_SIZE, TILE_SIZE, 0, 0],
             vbuffer,
             halves_in: vec![0; TILE_PIXELS],
+            parts: Vec::new(),
+            final_parts: Vec::new(),
+            parts_touched: [TILE_SIZE, TILE_SIZE, 0, 0],
         }
     }
 }
@@ -86,6 +96,8 @@ struct WedgeStage<'a> {
     light: LightBound,
     /// Faces in front of the receiver count (z-pass) instead of behind.
     zpass: bool,
+    /// Accumulate into the tile's per-light-part buffer (blending).
+    blend: bool,
 }
 
 impl WedgeStage<'_> {
@@ -117,6 +129,22 @@ impl WedgeStage<'_> {
                 }
                 let g = self.gbuffer.sample(i_global);
                 let p = g.position.as_dvec3();
+                if self.blend {
+                    if let LightBound::Rect(frame) = &self.light {
+                        let facing = (frame.center - p).dot(frame.normal);
+                        blend::accumulate(
+                            &mut tile.parts[i],
+                            frame,
+                            p,
+                            &half,
+                            sign * facing.signum(),
+                        );
+                        let t = &mut tile.parts_touched;
+                        *t = [t[0].min(x), t[1].min(y), t[2].max(x + 1), t[3].max(y + 1)];
+                    }
+                    tile.halves_in[i] += 1;
+                    continue;
+                }
                 let r = match &self.light {
                     LightBound::Rect(frame) => {
                         let facing = (frame.center - p).dot(frame.normal);
@@ -242,7 +270,7 @@ pub fn wedge_light(
             q1: adj.positions[b as usize],
             weight: m,
         };
-        if !wedges.add(ctx.view, &bound, point, quad) {
+        if !wedges.add(ctx.view, &bound, point, quad, None) {
             wedges.skipped += 1;
         }
     }
@@ -279,6 +307,7 @@ pub fn wedge_light(
             halves: &set.halves,
             light: bound,
             zpass,
+            blend: false,
         };
         draw(
             &mut framebuffer,
