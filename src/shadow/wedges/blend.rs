@@ -128,10 +128,20 @@ pub fn accumulate(
         return;
     };
     let region = EdgeRegion::new(a, b, c_side);
+    // The region over the whole light once; each quarter cuts it with
+    // two axis half-planes.
+    let whole = region.polygon(Polygon::square());
+    let Some(reach) = whole.bbox() else {
+        return;
+    };
     let m = half.weight as f64;
     for (part, quarter) in parts.iter_mut().zip(QUARTERS) {
-        let within = Polygon::rect(quarter);
-        let poly = region.polygon(within);
+        if reach[0] >= quarter[2] || reach[2] <= quarter[0] || reach[1] >= quarter[3] || reach[3] <= quarter[1] {
+            continue;
+        }
+        let poly = whole
+            .clip(|x| if quarter[0] < 0.0 { -x[0] } else { x[0] })
+            .clip(|x| if quarter[1] < 0.0 { -x[1] } else { x[1] });
         let covered = poly.area();
         if !(covered > 0.0) {
             continue;
@@ -143,7 +153,7 @@ pub fn accumulate(
             }
         } else {
             part.occ -= (m * covered) as f32;
-            part.rect = match region.complement_bbox(within) {
+            part.rect = match region.complement_bbox(Polygon::rect(quarter)) {
                 Some(b) => intersection(part.rect, to_f32(b)),
                 None => EMPTY,
             };
