@@ -11,6 +11,7 @@ use crate::render::{render, with_threads, Aov, RenderOptions, Technique};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::scene::{load_scene, LightShape, Scene};
+use crate::shadow::dcs::{DcsMode, SilhouetteMode};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
@@ -59,6 +60,16 @@ enum Command {
         /// Shadow volumes: count with z-pass instead of z-fail.
         #[arg(long)]
         zpass: bool,
+        /// Depth complexity sampling: wedges on the silhouettes from the
+        /// light's centre (`centre`, fast) or from the whole light
+        /// (`light`, exact).
+        #[arg(long, default_value = "centre")]
+        silhouettes: String,
+        /// Depth complexity sampling: `vcoef` (modulate the unshadowed
+        /// light, eq. 4.1) or `direct` (integrate the light per sample,
+        /// eq. 4.6).
+        #[arg(long, default_value = "vcoef")]
+        dcs_mode: String,
         /// Print each pass's time to stderr.
         #[arg(long)]
         timings: bool,
@@ -175,6 +186,8 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             samples,
             seed,
             zpass,
+            silhouettes,
+            dcs_mode,
             timings,
         } => {
             let aovs = aov
@@ -195,6 +208,8 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 samples,
                 seed,
                 zpass,
+                silhouettes: parse_silhouettes(&silhouettes)?,
+                dcs_mode: parse_dcs_mode(&dcs_mode)?,
             };
             if samples == 0 || samples > 1 << 20 {
                 return Err(Error::param(
@@ -510,5 +525,29 @@ fn relative_path(base: &Path, target: &Path) -> String {
         ".".into()
     } else {
         s
+    }
+}
+
+/// `--silhouettes`.
+fn parse_silhouettes(s: &str) -> Result<SilhouetteMode> {
+    match s {
+        "centre" | "center" => Ok(SilhouetteMode::Centre),
+        "light" | "whole-light" => Ok(SilhouetteMode::WholeLight),
+        _ => Err(Error::param(
+            "--silhouettes",
+            format!("unknown value `{s}` (known: centre, light)"),
+        )),
+    }
+}
+
+/// `--dcs-mode`.
+fn parse_dcs_mode(s: &str) -> Result<DcsMode> {
+    match s {
+        "vcoef" => Ok(DcsMode::Vcoef),
+        "direct" => Ok(DcsMode::Direct),
+        _ => Err(Error::param(
+            "--dcs-mode",
+            format!("unknown value `{s}` (known: vcoef, direct)"),
+        )),
     }
 }

@@ -25,6 +25,7 @@ use crate::report::{
     ErrorAccumulator, ErrorMetrics, Progress,
 };
 use crate::scene::Scene;
+use crate::shadow::dcs::SilhouetteMode;
 use cache::{CachedReference, ReferenceHalf, ReferenceKey, StableHasher, REFERENCE_VERSION};
 use glam::Vec3;
 use serde::Serialize;
@@ -113,6 +114,9 @@ fn splitmix(mut z: u64) -> u64 {
 /// One quality setting of a technique.
 #[derive(Debug, Clone)]
 pub struct QualitySetting {
+    /// The curve it belongs to on the charts (the technique's name, plus
+    /// a variant such as the silhouettes used).
+    pub curve: String,
     /// Short label, e.g. `16 spp` or `hard`.
     pub label: String,
     /// Light samples, where the technique samples.
@@ -128,6 +132,7 @@ pub fn quality_settings(
     base: &RenderOptions,
 ) -> Vec<QualitySetting> {
     let with = |label: String, samples: Option<u32>| QualitySetting {
+        curve: technique.name().to_string(),
         label,
         samples,
         options: RenderOptions {
@@ -144,6 +149,19 @@ pub fn quality_settings(
         Technique::Reference => samples
             .iter()
             .map(|&n| with(format!("{n} spp"), Some(n)))
+            .collect(),
+        Technique::Dcs => [SilhouetteMode::Centre, SilhouetteMode::WholeLight]
+            .into_iter()
+            .flat_map(|sil| {
+                samples.iter().map(move |&n| {
+                    let mut q = with(format!("{n} spp, {} silhouettes", sil.name()), Some(n));
+                    q.options.silhouettes = sil;
+                    if sil == SilhouetteMode::WholeLight {
+                        q.curve = "dcs light-silhouettes".into();
+                    }
+                    q
+                })
+            })
             .collect(),
     }
 }
@@ -561,7 +579,7 @@ pub fn compare_scene(
     let mut runs = Vec::new();
     for &technique in &options.techniques {
         for setting in quality_settings(technique, &options.samples, &base) {
-            let name = technique_name(technique);
+            let name = setting.curve.as_str();
             let mut totals = Vec::new();
             let mut pass_times: Vec<Vec<f64>> = Vec::new();
             let mut pass_names: Vec<String> = Vec::new();

@@ -11,6 +11,7 @@ use crate::output::Layer;
 use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::scene::Scene;
+use crate::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
 use crate::shadow::wedges::blend::WedgeBlending;
@@ -89,16 +90,19 @@ pub enum Technique {
     Wedges,
     /// Penumbra-wedge blending (EOAH over four light quarters).
     WedgeBlend,
+    /// Depth complexity sampling (exact per-sample occluder counts).
+    Dcs,
 }
 
 impl Technique {
     /// All technique names.
-    pub const NAMES: [&'static str; 5] = [
+    pub const NAMES: [&'static str; 6] = [
         "none",
         "reference",
         "shadow-volumes",
         "wedges",
         "wedge-blend",
+        "dcs",
     ];
 
     /// The command-line name.
@@ -109,6 +113,7 @@ impl Technique {
             Technique::ShadowVolumes => "shadow-volumes",
             Technique::Wedges => "wedges",
             Technique::WedgeBlend => "wedge-blend",
+            Technique::Dcs => "dcs",
         }
     }
 
@@ -124,6 +129,12 @@ impl Technique {
             }),
             Technique::Wedges => Box::new(PenumbraWedges),
             Technique::WedgeBlend => Box::new(WedgeBlending),
+            Technique::Dcs => Box::new(DepthComplexitySampling {
+                samples: options.samples,
+                seed: options.seed,
+                silhouettes: options.silhouettes,
+                mode: options.dcs_mode,
+            }),
         }
     }
 }
@@ -136,7 +147,8 @@ impl FromStr for Technique {
             Some(1) => Ok(Technique::Reference),
             Some(2) => Ok(Technique::ShadowVolumes),
             Some(3) => Ok(Technique::Wedges),
-            Some(_) => Ok(Technique::WedgeBlend),
+            Some(4) => Ok(Technique::WedgeBlend),
+            Some(_) => Ok(Technique::Dcs),
             None => Err(Error::param(
                 "--technique",
                 format!(
@@ -165,6 +177,10 @@ pub struct RenderOptions {
     pub seed: u64,
     /// Shadow volumes count with z-pass instead of z-fail.
     pub zpass: bool,
+    /// Depth complexity sampling: which edges get wedges.
+    pub silhouettes: SilhouetteMode,
+    /// Depth complexity sampling: Vcoef or direct-lighting output.
+    pub dcs_mode: DcsMode,
 }
 
 impl Default for RenderOptions {
@@ -177,6 +193,8 @@ impl Default for RenderOptions {
             samples: 64,
             seed: 0,
             zpass: false,
+            silhouettes: SilhouetteMode::Centre,
+            dcs_mode: DcsMode::Vcoef,
         }
     }
 }

@@ -362,3 +362,26 @@ fn texel_at(t: &Texture, st: Vec2) -> DVec3 {
     };
     rect::texel(t, index(st.x, t.width), index(st.y, t.height))
 }
+
+/// The shading point of G-buffer sample `g` seen from `eye`, as the
+/// shading pass builds it (material specular terms looked up; a material
+/// index out of range counts as diffuse).
+pub fn surface_point(
+    scene: &crate::scene::Scene,
+    g: &crate::gbuffer::GSample,
+    eye: Vec3,
+) -> SurfacePoint {
+    let (specular, shininess) = scene
+        .materials
+        .get(g.material as usize)
+        .map_or((Vec3::ZERO, 0.0), |m| (m.specular, m.shininess));
+    SurfacePoint {
+        p: g.position,
+        n: g.normal,
+        ng: g.geo_normal,
+        wo: (eye - g.position).normalize_or_zero(),
+        albedo: g.albedo,
+        specular,
+        shininess,
+    }
+}

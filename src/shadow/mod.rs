@@ -6,6 +6,7 @@
 //! it) or the shadowed direct radiance it integrated itself per light
 //! sample. It may add AOV layers of its own and reports its passes' times.
 
+pub mod dcs;
 pub mod reference;
 pub mod shadow_volumes;
 pub mod wedges;

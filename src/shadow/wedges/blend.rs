@@ -136,7 +136,11 @@ pub fn accumulate(
     };
     let m = half.weight as f64;
     for (part, quarter) in parts.iter_mut().zip(QUARTERS) {
-        if reach[0] >= quarter[2] || reach[2] <= quarter[0] || reach[1] >= quarter[3] || reach[3] <= quarter[1] {
+        if reach[0] >= quarter[2]
+            || reach[2] <= quarter[0]
+            || reach[1] >= quarter[3]
+            || reach[3] <= quarter[1]
+        {
             continue;
         }
         let poly = whole

@@ -59,6 +59,14 @@ impl RectFrame {
         }
     }
 
+    /// The light-plane coordinates `(s, t)` of `x` (`x = c + s u + t v`
+    /// for points of the plane; the component along the normal is
+    /// dropped).
+    pub fn chart(&self, x: DVec3) -> [f64; 2] {
+        let d = x - self.center;
+        [self.u_dual.dot(d), self.v_dual.dot(d)]
+    }
+
     /// The four corners, in order around the light.
     pub fn corners(&self) -> [DVec3; 4] {
         let (c, u, v) = (self.center, self.u, self.v);
@@ -132,25 +140,39 @@ pub fn projected_edge(
     let project = |q: DVec3| {
         let d = q - p;
         let w = d.dot(n);
-        Homogeneous {
-            s: frame.u_dual.dot(d) + w * s_p,
-            t: frame.v_dual.dot(d) + w * t_p,
+        [
+            frame.u_dual.dot(d) + w * s_p,
+            frame.v_dual.dot(d) + w * t_p,
             w,
-        }
+        ]
     };
-    let (a, b) = (project(q0), project(q1));
+    clip_to_square(project(q0), project(q1), 1.0)
+}
+
+/// The segment between the homogeneous points `a` and `b` (`(S, T, W)`,
+/// the point `(S/W, T/W)`) clipped to `0 ≤ W ≤ w_max` (in front of the
+/// receiver, not beyond the light) and to the square `|S|, |T| ≤ W`, as
+/// `(s, t)` endpoints; `None` when nothing is left. Unclipped ends are
+/// returned bit-exact (see below).
+pub fn clip_to_square(a: [f64; 3], b: [f64; 3], w_max: f64) -> Option<([f64; 2], [f64; 2])> {
+    let h = |v: [f64; 3]| Homogeneous {
+        s: v[0],
+        t: v[1],
+        w: v[2],
+    };
+    let (a, b) = (h(a), h(b));
     // Liang–Barsky against f(P) ≥ 0 for each linear constraint.
-    let constraints: [fn(&Homogeneous) -> f64; 6] = [
-        |h| h.w,
-        |h| 1.0 - h.w,
-        |h| h.w - h.s,
-        |h| h.w + h.s,
-        |h| h.w - h.t,
-        |h| h.w + h.t,
+    let constraints = [
+        |h: &Homogeneous, _: f64| h.w,
+        |h: &Homogeneous, m: f64| m - h.w,
+        |h: &Homogeneous, _: f64| h.w - h.s,
+        |h: &Homogeneous, _: f64| h.w + h.s,
+        |h: &Homogeneous, _: f64| h.w - h.t,
+        |h: &Homogeneous, _: f64| h.w + h.t,
     ];
     let (mut k0, mut k1) = (0.0f64, 1.0f64);
     for f in constraints {
-        let (fa, fb) = (f(&a), f(&b));
+        let (fa, fb) = (f(&a, w_max), f(&b, w_max));
         if fa < 0.0 && fb < 0.0 {
             return None;
         }
@@ -163,7 +185,13 @@ pub fn projected_edge(
     if k0 >= k1 {
         return None;
     }
-    let (a, b) = (a.lerp(b, k0), a.lerp(b, k1));
+    // Unclipped ends stay bit-exact (`a + (b − a)·1` need not round to
+    // `b`): two edges sharing a vertex then project it identically, which
+    // depth complexity sampling's tie rule relies on.
+    let (a, b) = (
+        if k0 > 0.0 { a.lerp(b, k0) } else { a },
+        if k1 < 1.0 { a.lerp(b, k1) } else { b },
+    );
     // Inside the square, W ≥ |S|, |T|; W = 0 would be p itself (an edge
     // through the receiver: it occludes a set of measure zero).
     if a.w <= 0.0 || b.w <= 0.0 {

@@ -53,10 +53,7 @@ const NONE: u32 = u32::MAX;
 /// order, so results do not depend on threads.
 pub struct WedgeTile {
     origin: (i32, i32),
-    counts: Vec<i32>,
-    current: u32,
-    /// Touched rectangle of `counts` (local, inclusive min, exclusive max).
-    touched: [usize; 4],
+    membership: HalfWedgeMembership,
     vbuffer: Vec<f32>,
     halves_in: Vec<u32>,
     /// Blending only: the current silhouette's per-light-part buffer.
@@ -75,9 +72,7 @@ impl WedgeTile {
         }
         WedgeTile {
             origin,
-            counts: vec![0; TILE_PIXELS],
-            current: NONE,
-            touched: [TILE_SIZE, TILE_SIZE, 0, 0],
+            membership: HalfWedgeMembership::new(),
             vbuffer,
             halves_in: vec![0; TILE_PIXELS],
             parts: Vec::new(),
@@ -103,64 +98,56 @@ struct WedgeStage<'a> {
 impl WedgeStage<'_> {
     /// Integrates the tile's current half-wedge and clears its counts.
     fn flush(&self, tile: &mut WedgeTile) {
-        if tile.current == NONE {
+        let Some(current) = tile.membership.current() else {
             return;
-        }
-        let half = self.halves[tile.current as usize];
-        let [x0, y0, x1, y1] = tile.touched;
+        };
+        let half = self.halves[current as usize];
         let width = self.gbuffer.width as usize;
         // Orientation of the light plane as seen from p decides which side
         // of the projected edge the centre is on for each half (see
         // `integrate`): outer halves see it on the unoccluded side.
         let sign = if half.outer { 1.0 } else { -1.0 };
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let i = y * TILE_SIZE + x;
-                let inside = tile.counts[i] == 1;
-                tile.counts[i] = 0;
-                if !inside {
-                    continue;
-                }
-                let gx = tile.origin.0 as usize + x;
-                let gy = tile.origin.1 as usize + y;
-                let i_global = gy * width + gx;
-                if !self.gbuffer.is_surface(i_global) {
-                    continue;
-                }
-                let g = self.gbuffer.sample(i_global);
-                let p = g.position.as_dvec3();
-                if self.blend {
-                    if let LightBound::Rect(frame) = &self.light {
-                        let facing = (frame.center - p).dot(frame.normal);
-                        blend::accumulate(
-                            &mut tile.parts[i],
-                            frame,
-                            p,
-                            &half,
-                            sign * facing.signum(),
-                        );
-                        let t = &mut tile.parts_touched;
-                        *t = [t[0].min(x), t[1].min(y), t[2].max(x + 1), t[3].max(y + 1)];
-                    }
-                    tile.halves_in[i] += 1;
-                    continue;
-                }
-                let r = match &self.light {
-                    LightBound::Rect(frame) => {
-                        let facing = (frame.center - p).dot(frame.normal);
-                        let c_side = sign * facing.signum();
-                        region_fraction(frame, p, half.q0, half.q1, c_side)
-                    }
-                    LightBound::Sphere { center, radius } => {
-                        region_fraction_sphere(*center, *radius, p, half.q0, half.q1)
-                    }
-                };
-                tile.vbuffer[i] += (sign * half.weight as f64 * r) as f32;
-                tile.halves_in[i] += 1;
+        let WedgeTile {
+            origin,
+            membership,
+            vbuffer,
+            halves_in,
+            parts,
+            parts_touched,
+            ..
+        } = tile;
+        membership.drain(|i| {
+            let (x, y) = (i % TILE_SIZE, i / TILE_SIZE);
+            let gx = origin.0 as usize + x;
+            let gy = origin.1 as usize + y;
+            let i_global = gy * width + gx;
+            if !self.gbuffer.is_surface(i_global) {
+                return;
             }
-        }
-        tile.current = NONE;
-        tile.touched = [TILE_SIZE, TILE_SIZE, 0, 0];
+            let g = self.gbuffer.sample(i_global);
+            let p = g.position.as_dvec3();
+            halves_in[i] += 1;
+            if self.blend {
+                if let LightBound::Rect(frame) = &self.light {
+                    let facing = (frame.center - p).dot(frame.normal);
+                    blend::accumulate(&mut parts[i], frame, p, &half, sign * facing.signum());
+                    let t = &mut *parts_touched;
+                    *t = [t[0].min(x), t[1].min(y), t[2].max(x + 1), t[3].max(y + 1)];
+                }
+                return;
+            }
+            let r = match &self.light {
+                LightBound::Rect(frame) => {
+                    let facing = (frame.center - p).dot(frame.normal);
+                    let c_side = sign * facing.signum();
+                    region_fraction(frame, p, half.q0, half.q1, c_side)
+                }
+                LightBound::Sphere { center, radius } => {
+                    region_fraction_sphere(*center, *radius, p, half.q0, half.q1)
+                }
+            };
+            vbuffer[i] += (sign * half.weight as f64 * r) as f32;
+        });
     }
 }
 
@@ -169,13 +156,52 @@ impl FragmentStage<0> for WedgeStage<'_> {
 
     fn shade(&self, batch: &FragmentBatch<0>, tile: &mut WedgeTile) {
         let prim = self.primitives[batch.primitive as usize];
-        if prim.half != tile.current {
+        if tile.membership.current() != Some(prim.half) {
             self.flush(tile);
-            tile.current = prim.half;
         }
-        // z-fail: faces behind the receiver count +1 leaving, −1 entering;
-        // z-pass: faces in front count +1 entering, −1 leaving.
-        let entering = if self.zpass { 1 } else { -1 };
+        tile.membership.count(batch, prim, self.zpass);
+    }
+}
+
+/// Which receivers of one tile lie inside one half-wedge: the half's face
+/// count per pixel (exact `i32`), kept for one half at a time — a half's
+/// triangles are contiguous and a tile sees them in order, so when the
+/// next half starts the previous one is complete and can be drained.
+pub struct HalfWedgeMembership {
+    counts: Vec<i32>,
+    current: u32,
+    /// Touched rectangle of `counts` (local, inclusive min, exclusive max).
+    touched: [usize; 4],
+}
+
+impl Default for HalfWedgeMembership {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl HalfWedgeMembership {
+    /// No half yet, all counts zero.
+    pub fn new() -> Self {
+        HalfWedgeMembership {
+            counts: vec![0; TILE_PIXELS],
+            current: NONE,
+            touched: [TILE_SIZE, TILE_SIZE, 0, 0],
+        }
+    }
+
+    /// The half being counted.
+    pub fn current(&self) -> Option<u32> {
+        (self.current != NONE).then_some(self.current)
+    }
+
+    /// Counts one batch of a face of `prim`'s half, which becomes current
+    /// (drain the previous one first). z-fail: faces behind the receiver
+    /// count +1 leaving, −1 entering; z-pass: faces in front count +1
+    /// entering, −1 leaving; so inside means a count of one either way.
+    pub fn count(&mut self, batch: &FragmentBatch<0>, prim: WedgePrimitive, zpass: bool) {
+        self.current = prim.half;
+        let entering = if zpass { 1 } else { -1 };
         let delta = if batch.front_facing {
             entering
         } else {
@@ -186,15 +212,32 @@ impl FragmentStage<0> for WedgeStage<'_> {
         let mut lo = usize::MAX;
         let mut hi = 0;
         for k in batch.lanes() {
-            tile.counts[batch.local + k] += delta;
+            self.counts[batch.local + k] += delta;
             lo = lo.min(lx + k);
             hi = hi.max(lx + k + 1);
         }
-        let t = &mut tile.touched;
+        let t = &mut self.touched;
         t[0] = t[0].min(lo);
         t[1] = t[1].min(ly);
         t[2] = t[2].max(hi);
         t[3] = t[3].max(ly + 1);
+    }
+
+    /// Calls `inside(local pixel)` for every pixel inside the current
+    /// half, in row-major order, and resets for the next half.
+    pub fn drain(&mut self, mut inside: impl FnMut(usize)) {
+        let [x0, y0, x1, y1] = self.touched;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let i = y * TILE_SIZE + x;
+                if self.counts[i] == 1 {
+                    inside(i);
+                }
+                self.counts[i] = 0;
+            }
+        }
+        self.current = NONE;
+        self.touched = [TILE_SIZE, TILE_SIZE, 0, 0];
     }
 }
 
@@ -217,7 +260,7 @@ fn wedge_state(zpass: bool) -> RasterState {
 }
 
 /// The light's shape for wedge construction and integration.
-fn light_bound(shape: &LightShape) -> LightBound {
+pub fn light_bound(shape: &LightShape) -> LightBound {
     match *shape {
         LightShape::Rect { center, u, v, .. } => LightBound::Rect(RectFrame::new(
             center.as_dvec3(),

@@ -1,0 +1,226 @@
+//! The edges depth complexity sampling projects, and the sign each one
+//! gives the counters of a receiver.
+//!
+//! Write `D(x)` for the number of occluders between the receiver `p` and
+//! a light point `x` — exactly what the shadow-volume stencil counts for
+//! `x` (closed casters: lit faces crossed; open casters, Bergeron: every
+//! face crossed). Moving `x` from the centre `O` to a sample `s`, `D`
+//! changes only when the segment `p → x` sweeps over an edge, and then by
+//!
+//! ```text
+//! ΔD = side(O) · μ_e(p),   μ_e(p) = Σ_faces d_f · h_f(p)
+//! ```
+//!
+//! with `side(O)` the side of the plane `(p, v0, v1)` the centre is on,
+//! `d_f = ±1` the direction the face runs along `v0 → v1`, and `h_f(p)`
+//! the shadow-volume weight of the face *as seen from `p`* (closed: 1 when
+//! `p` is in front, else 0; open: ±1 by facing) — the multiplicity
+//! [`crate::shadow::shadow_volumes::side_quad`] gives with the light
+//! point replaced by `p`. It is non-zero only for silhouettes from `p`
+//! (derivation in docs/algorithms/dcs.md).
+//!
+//! For edges the centre's shadow volume drew, `side(O)` is not computed
+//! but read off the half-wedge the rasterizer found `p` in — outer means
+//! `p` is on the outward side of the quad, i.e. `side(O) > 0` for the
+//! quad's own vertex order — which is the stencil pass's own decision on
+//! the same triangles, so the counters and their integration constant
+//! agree even when `p` lies on the quad.
+
+use crate::geom::silhouette::area_silhouettes;
+use crate::geom::EdgeAdjacency;
+use crate::shadow::shadow_volumes::side_quad;
+use glam::{DVec3, Vec3};
+
+/// One face next to a candidate edge.
+#[derive(Debug, Clone, Copy)]
+struct EdgeFace {
+    /// Unnormalised normal from the winding.
+    normal: DVec3,
+    /// A vertex of the face.
+    point: DVec3,
+    /// +1 when the face runs `v0 → v1`, −1 for `v1 → v0`.
+    direction: i8,
+    /// Part of a closed caster (else open: Bergeron's two-sided rule).
+    closed: bool,
+}
+
+/// One edge the technique projects.
+#[derive(Debug, Clone, Copy)]
+pub struct CandidateEdge {
+    /// First welded vertex (`Edge::v[0]`).
+    pub v0: DVec3,
+    /// Second welded vertex.
+    pub v1: DVec3,
+    /// The shadow-volume quad from the centre: +1 when it runs
+    /// `v0 → v1`, −1 when `v1 → v0`, 0 when the centre's volume has no
+    /// quad on this edge.
+    pub quad_sign: i8,
+    /// The quad's copies (its multiplicity from the centre); 1 otherwise.
+    pub quad_weight: u32,
+    faces: (u32, u32),
+}
+
+/// Which edges get wedges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SilhouetteMode {
+    /// Silhouettes from the light's centre (the thesis's default; misses
+    /// edges that are silhouettes only from other parts of the light).
+    #[default]
+    Centre,
+    /// Edges that are silhouettes from some point of the light (§4.1.4):
+    /// every edge that can change `D` for some receiver.
+    WholeLight,
+}
+
+impl SilhouetteMode {
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            SilhouetteMode::Centre => "centre",
+            SilhouetteMode::WholeLight => "light",
+        }
+    }
+}
+
+/// The shape silhouettes are found against.
+#[derive(Debug, Clone, Copy)]
+pub enum LightShapeForSilhouettes<'a> {
+    /// A convex polygon given by its corners.
+    Polygon(&'a [Vec3]),
+    /// A sphere.
+    Sphere {
+        /// Centre.
+        center: DVec3,
+        /// Radius.
+        radius: f64,
+    },
+}
+
+/// Every candidate edge of one light, with its faces.
+#[derive(Debug, Clone, Default)]
+pub struct CandidateEdges {
+    /// The edges, in adjacency order.
+    pub edges: Vec<CandidateEdge>,
+    faces: Vec<EdgeFace>,
+}
+
+impl CandidateEdges {
+    /// The edges of `adj` that are silhouettes from the centre (`lit`:
+    /// faces facing it) and, with [`SilhouetteMode::WholeLight`], those
+    /// that are silhouettes from some point of `light`.
+    pub fn build(
+        adj: &EdgeAdjacency,
+        lit: &[bool],
+        mode: SilhouetteMode,
+        light: LightShapeForSilhouettes,
+    ) -> CandidateEdges {
+        let whole = match mode {
+            SilhouetteMode::Centre => None,
+            SilhouetteMode::WholeLight => Some(match light {
+                LightShapeForSilhouettes::Polygon(corners) => area_silhouettes(adj, corners),
+                LightShapeForSilhouettes::Sphere { center, radius } => {
+                    sphere_silhouettes(adj, center, radius)
+                }
+            }),
+        };
+        let mut out = CandidateEdges::default();
+        for (i, e) in adj.edges.iter().enumerate() {
+            let quad = side_quad(adj, lit, e);
+            if quad.is_none() && !whole.as_ref().is_some_and(|w| w[i]) {
+                continue;
+            }
+            let (quad_sign, quad_weight) = match quad {
+                // side_quad orders [a, b] so that the quad faces out.
+                Some([a, _, m]) => (if a == e.v[0] { 1 } else { -1 }, m),
+                None => (0, 1),
+            };
+            let first = out.faces.len() as u32;
+            for u in &e.uses {
+                let [a, b, c] = adj.face_vertices[u.slot as usize]
+                    .map(|v| adj.positions[v as usize].as_dvec3());
+                out.faces.push(EdgeFace {
+                    normal: (b - a).cross(c - a),
+                    point: a,
+                    direction: u.direction,
+                    closed: adj.face_closed[u.slot as usize],
+                });
+            }
+            out.edges.push(CandidateEdge {
+                v0: adj.positions[e.v[0] as usize].as_dvec3(),
+                v1: adj.positions[e.v[1] as usize].as_dvec3(),
+                quad_sign,
+                quad_weight,
+                faces: (first, out.faces.len() as u32),
+            });
+        }
+        out
+    }
+
+    /// `μ_e(p)`: the edge's shadow-volume multiplicity with the light
+    /// point at `p` (0 unless the edge is a silhouette from `p`).
+    #[inline]
+    pub fn multiplicity_from(&self, edge: &CandidateEdge, p: DVec3) -> i32 {
+        self.faces[edge.faces.0 as usize..edge.faces.1 as usize]
+            .iter()
+            .map(|f| {
+                let front = f.normal.dot(p - f.point) > 0.0;
+                let h = match (f.closed, front) {
+                    (true, true) => 1,
+                    (true, false) => 0,
+                    (false, true) => 1,
+                    (false, false) => -1,
+                };
+                h * i32::from(f.direction)
+            })
+            .sum()
+    }
+}
+
+/// The side of the plane `(p, v0, v1)` the point `o` is on: the sign of
+/// `det(v0 − p, v1 − p, o − p)`, 0 in the plane.
+#[inline]
+pub fn side_of(p: DVec3, v0: DVec3, v1: DVec3, o: DVec3) -> i32 {
+    let d = (v0 - p).cross(v1 - p).dot(o - p);
+    if d > 0.0 {
+        1
+    } else if d < 0.0 {
+        -1
+    } else {
+        0
+    }
+}
+
+/// [`area_silhouettes`] for a sphere: a face's plane splits the sphere
+/// when the centre is closer to it than the radius.
+fn sphere_silhouettes(adj: &EdgeAdjacency, center: DVec3, radius: f64) -> Vec<bool> {
+    let class: Vec<i8> = adj
+        .face_vertices
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|i| adj.positions[i as usize].as_dvec3());
+            let n = (b - a).cross(c - a);
+            let len = n.length();
+            if !(len > 0.0) {
+                return 0;
+            }
+            let d = n.dot(center - a) / len;
+            if d > radius {
+                1
+            } else if d < -radius {
+                -1
+            } else {
+                0
+            }
+        })
+        .collect();
+    adj.edges
+        .iter()
+        .map(|e| {
+            if e.uses.len() < 2 {
+                return true;
+            }
+            let first = class[e.uses[0].slot as usize];
+            first == 0 || e.uses.iter().any(|u| class[u.slot as usize] != first)
+        })
+        .collect()
+}

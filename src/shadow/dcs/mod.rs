@@ -1,0 +1,569 @@
+//! Depth complexity sampling (thesis ch. 4, after Laine et al. 2005):
+//! exact per-light-sample occluder counts from shadow volumes and
+//! penumbra wedges.
+//!
+//! Per light:
+//!
+//! 1. **Integration constant**: the hard shadow volumes from the light's
+//!    centre give, per pixel, `D(O)`, the number of occluders between the
+//!    receiver and the centre (the stencil count, exact `i32`).
+//! 2. **Membership**: a wedge for every candidate edge (centre
+//!    silhouettes, or whole-light silhouettes, [`SilhouetteMode`]) is
+//!    rasterized through the pipeline exactly as for penumbra wedges; each
+//!    tile records which (pixel, edge) pairs lie inside one — nothing per
+//!    sample, so memory follows the wedge coverage, not width × height ×
+//!    samples.
+//! 3. **Counters**: tile by tile in parallel, each receiver with at least
+//!    one wedge gets `N` `i32` counters (on the worker's stack of scratch
+//!    buffers: 4 KiB for 1024 samples, in L1) set to `D(O)`; every
+//!    recorded edge is projected from the receiver into the light's chart
+//!    ([`chart`]) and adds its signed change to the samples it covers
+//!    ([`counters`], SIMD over samples, exact test). Receivers outside
+//!    every wedge have `D = D(O)` for all samples and do no per-sample
+//!    work at all.
+//! 4. **Shading**: Vcoef `= 1 − (1/N) Σ sat(D_i)` (eq. 4.1), or the
+//!    direct light integrated per sample with `H(D_i)` as visibility
+//!    (eq. 4.6), with the same estimator as the reference.
+
+pub mod chart;
+pub mod counters;
+pub mod edges;
+
+use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
+use super::shadow_volumes::{build_volume, caster_adjacency, light_point, stencil_counts};
+use super::wedges::geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
+use super::wedges::{light_bound, HalfWedgeMembership};
+use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
+use crate::error::Result;
+use crate::geom::silhouette::faces_point;
+use crate::output::Layer;
+use crate::raster::{draw, CompareFunc, CullMode, FragmentBatch, FragmentStage, RasterState};
+use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
+use crate::sampling::LightSampler;
+use crate::scene::LightShape;
+use crate::shade::{surface_point, LightSample, PreparedLight};
+use chart::ReceiverChart;
+use counters::{add_covered, ChartSamples, OrientedEdge};
+pub use edges::SilhouetteMode;
+use edges::{side_of, CandidateEdges, LightShapeForSilhouettes};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// What the counters are turned into.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DcsMode {
+    /// A visibility coefficient modulating the unshadowed direct light
+    /// (eq. 4.1).
+    #[default]
+    Vcoef,
+    /// The direct light integrated over the samples, each weighted by its
+    /// binary visibility (eq. 4.6).
+    Direct,
+}
+
+impl DcsMode {
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            DcsMode::Vcoef => "vcoef",
+            DcsMode::Direct => "direct",
+        }
+    }
+}
+
+/// The depth-complexity-sampling technique.
+#[derive(Debug, Clone, Copy)]
+pub struct DepthComplexitySampling {
+    /// Light samples per receiver and light (any `N ≥ 1`).
+    pub samples: u32,
+    /// Seed of the light samples (the reference's, for the same pixel).
+    pub seed: u64,
+    /// Which edges get wedges.
+    pub silhouettes: SilhouetteMode,
+    /// Vcoef or direct-lighting output.
+    pub mode: DcsMode,
+}
+
+/// One tile's (pixel, edge) pairs: `local << 33 | edge << 1 | outer`, so
+/// that sorting groups them by pixel.
+#[derive(Default)]
+struct MembershipTile {
+    membership: HalfWedgeMembership,
+    entries: Vec<u64>,
+}
+
+/// Records, per tile, which pixels each half-wedge holds.
+struct MembershipStage<'a> {
+    primitives: &'a [WedgePrimitive],
+    halves: &'a [HalfWedge],
+    /// Candidate edge of each half.
+    half_edge: &'a [u32],
+    zpass: bool,
+}
+
+impl MembershipStage<'_> {
+    fn flush(&self, tile: &mut MembershipTile) {
+        let Some(h) = tile.membership.current() else {
+            return;
+        };
+        let tag =
+            u64::from(self.half_edge[h as usize]) << 1 | u64::from(self.halves[h as usize].outer);
+        let MembershipTile {
+            membership,
+            entries,
+        } = tile;
+        membership.drain(|i| entries.push((i as u64) << 33 | tag));
+    }
+}
+
+impl FragmentStage<0> for MembershipStage<'_> {
+    type Target = MembershipTile;
+
+    fn shade(&self, batch: &FragmentBatch<0>, tile: &mut MembershipTile) {
+        let prim = self.primitives[batch.primitive as usize];
+        if tile.membership.current() != Some(prim.half) {
+            self.flush(tile);
+        }
+        tile.membership.count(batch, prim, self.zpass);
+    }
+}
+
+/// The membership pass's raster state: that of the wedge pass.
+fn membership_state(zpass: bool) -> RasterState {
+    RasterState {
+        depth_func: if zpass {
+            CompareFunc::Greater
+        } else {
+            CompareFunc::LessEqual
+        },
+        depth_write: false,
+        stencil: None,
+        cull: CullMode::None,
+    }
+}
+
+/// One pixel's results.
+#[derive(Debug, Clone, Copy, Default)]
+struct PixelResult {
+    vcoef: f32,
+    radiance: Vec3,
+    max_dc: f32,
+    mean_dc: f32,
+    edges: f32,
+}
+
+/// Per-worker buffers of the counter pass.
+#[derive(Default)]
+struct Scratch {
+    samples: Vec<LightSample>,
+    chart: ChartSamples,
+    counters: Vec<i32>,
+    visibility: Vec<f32>,
+}
+
+/// Everything the counter pass of one light reads.
+struct LightPass<'a> {
+    ctx: &'a ShadowContext<'a>,
+    technique: &'a DepthComplexitySampling,
+    light_index: usize,
+    bound: LightBound,
+    centre: DVec3,
+    sampler: LightSampler,
+    prepared: PreparedLight<'a>,
+    candidates: &'a CandidateEdges,
+    /// Edges with no bounded wedge: applied to every receiver.
+    always: &'a [u32],
+    /// `D(O)` per pixel.
+    start: &'a [i32],
+    /// `EPS_SCENE ×` the scene's diagonal.
+    eps_scene: f64,
+    /// Called with every surface pixel's samples and counters.
+    inspect: Option<&'a CounterInspector<'a>>,
+}
+
+/// A visitor of per-pixel counters: `(pixel index, samples, counters)`.
+pub type CounterInspector<'a> = dyn Fn(usize, &[LightSample], &[i32]) + Sync + 'a;
+
+impl LightPass<'_> {
+    /// The results of global pixel `i` with its recorded `(edge, outer)`
+    /// pairs (sorted, no duplicates).
+    fn pixel(&self, i: usize, tags: &[u64], scratch: &mut Scratch) -> PixelResult {
+        let gbuffer = self.ctx.gbuffer;
+        let d0 = self.start[i];
+        let g = gbuffer.sample(i);
+        let eye = self.ctx.view.eye.as_vec3();
+        let direct = self.technique.mode == DcsMode::Direct;
+        let sp = || surface_point(self.ctx.scene, &g, eye);
+        if tags.is_empty() && self.always.is_empty() && self.inspect.is_none() {
+            // Outside every wedge: D = D(O) for every sample.
+            let lit = d0 <= 0;
+            return PixelResult {
+                vcoef: if lit { 1.0 } else { 0.0 },
+                radiance: if direct && lit {
+                    self.prepared.unshadowed_direct(&sp())
+                } else {
+                    Vec3::ZERO
+                },
+                max_dc: d0.max(0) as f32,
+                mean_dc: d0.max(0) as f32,
+                edges: 0.0,
+            };
+        }
+        let width = gbuffer.width as usize;
+        let pixel = ((i % width) as u32, (i / width) as u32);
+        let n = self.technique.samples;
+        self.sampler.samples_into(
+            self.light_index,
+            g.position,
+            pixel,
+            n,
+            self.technique.seed,
+            &mut scratch.samples,
+        );
+        // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
+        // rounds it): receivers on an occluder's own surface then see its
+        // edges from the same side of its faces as the reference's rays.
+        let eps = self
+            .eps_scene
+            .max(EPS_POSITION * f64::from(g.position.abs().max_element()));
+        let p = (g.position.as_dvec3() + g.geo_normal.as_dvec3() * eps)
+            .as_vec3()
+            .as_dvec3();
+        let chart = match ReceiverChart::new(&self.bound, p) {
+            Some(c) if !scratch.samples.is_empty() => c,
+            // Inside a sphere light: no defined Vcoef (as the reference).
+            _ => {
+                return PixelResult {
+                    vcoef: 1.0,
+                    edges: tags.len() as f32,
+                    ..PixelResult::default()
+                }
+            }
+        };
+        scratch
+            .chart
+            .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
+        scratch.counters.clear();
+        scratch.counters.resize(scratch.chart.padded(), d0);
+        let edges = &self.candidates.edges;
+        let from_wedges = tags.iter().map(|&t| ((t >> 1) as u32, Some(t & 1 == 1)));
+        let from_always = self.always.iter().map(|&e| (e, None));
+        for (id, outer) in from_wedges.chain(from_always) {
+            let e = &edges[id as usize];
+            let mu = self.candidates.multiplicity_from(e, p);
+            if mu == 0 {
+                continue;
+            }
+            let side = match outer {
+                // The stencil pass's own decision (see `edges`).
+                Some(outer) if e.quad_sign != 0 => {
+                    i32::from(e.quad_sign) * if outer { 1 } else { -1 }
+                }
+                _ => side_of(p, e.v0, e.v1, self.centre),
+            };
+            if side == 0 {
+                continue;
+            }
+            let Some((a, b)) = chart.edge(e.v0, e.v1) else {
+                continue;
+            };
+            if let Some(oriented) = OrientedEdge::new(a, b) {
+                add_covered(&mut scratch.counters, &scratch.chart, &oriented, side * mu);
+            }
+        }
+        let count = scratch.chart.len();
+        let counters = &scratch.counters[..count];
+        if let Some(inspect) = self.inspect {
+            inspect(i, &scratch.samples, counters);
+        }
+        scratch.visibility.clear();
+        scratch
+            .visibility
+            .extend(counters.iter().map(|&c| if c <= 0 { 1.0 } else { 0.0 }));
+        let visible: f32 = scratch.visibility.iter().sum();
+        let max_dc = counters.iter().copied().max().unwrap_or(0).max(0);
+        let sum_dc: i64 = counters.iter().map(|&c| i64::from(c.max(0))).sum();
+        PixelResult {
+            vcoef: visible / count as f32,
+            radiance: if direct {
+                self.prepared
+                    .direct_from_samples(&sp(), &scratch.samples, &scratch.visibility)
+            } else {
+                Vec3::ZERO
+            },
+            max_dc: max_dc as f32,
+            mean_dc: (sum_dc as f64 / count as f64) as f32,
+            edges: tags.len() as f32,
+        }
+    }
+}
+
+/// Per-light buffers for `--explain`.
+#[derive(Debug, Clone, Default)]
+pub struct DcsLightReport {
+    /// Candidate edges (wedges requested).
+    pub candidate_edges: usize,
+    /// Edges with no bounded wedge (applied to every receiver).
+    pub unbounded_edges: usize,
+    /// Half-wedge triangles drawn.
+    pub wedge_triangles: usize,
+    /// (pixel, edge) pairs recorded.
+    pub pairs: usize,
+    /// Receivers that needed per-sample counters.
+    pub sampled_pixels: usize,
+}
+
+impl DepthComplexitySampling {
+    /// Runs light `k`: its term, AOV channels and report.
+    fn light(
+        &self,
+        ctx: &ShadowContext,
+        k: usize,
+        passes: &mut Vec<PassTiming>,
+        inspect: Option<&CounterInspector>,
+    ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
+        let light = &ctx.scene.lights[k];
+        let bound = light_bound(&light.shape);
+        let point = light_point(&light.shape);
+        let adj = caster_adjacency(ctx.scene, ctx.geometry);
+
+        let t = Instant::now();
+        let volume = build_volume(&adj, ctx.view, point);
+        let mut framebuffer = ctx.depth.clone();
+        let start = stencil_counts(&mut framebuffer, &volume, false)?;
+        passes.push(PassTiming {
+            name: format!("shadow volumes light {k}"),
+            time: t.elapsed(),
+        });
+
+        let t = Instant::now();
+        let lit = faces_point(&adj, point);
+        let corners: Vec<Vec3>;
+        let shape = match light.shape {
+            LightShape::Rect { center, u, v, .. } => {
+                corners = vec![
+                    center - u - v,
+                    center + u - v,
+                    center + u + v,
+                    center - u + v,
+                ];
+                LightShapeForSilhouettes::Polygon(&corners)
+            }
+            LightShape::Sphere { center, radius } => LightShapeForSilhouettes::Sphere {
+                center: center.as_dvec3(),
+                radius: f64::from(radius),
+            },
+        };
+        let candidates = CandidateEdges::build(&adj, &lit, self.silhouettes, shape);
+        let mut wedges = Wedges::default();
+        let (mut zfail_edge, mut zpass_edge) = (Vec::new(), Vec::new());
+        let mut always = Vec::new();
+        for (id, e) in candidates.edges.iter().enumerate() {
+            // The quad as the stencil pass drew it, or (no quad) any order.
+            let (q0, q1) = if e.quad_sign < 0 {
+                (e.v1, e.v0)
+            } else {
+                (e.v0, e.v1)
+            };
+            let quad = SilhouetteQuad {
+                q0: q0.as_vec3(),
+                q1: q1.as_vec3(),
+                weight: e.quad_weight,
+            };
+            if !wedges.add(ctx.view, &bound, point, quad, None) {
+                always.push(id as u32);
+                continue;
+            }
+            zfail_edge.resize(wedges.zfail.halves.len(), id as u32);
+            zpass_edge.resize(wedges.zpass.halves.len(), id as u32);
+        }
+        passes.push(PassTiming {
+            name: format!("wedge build light {k}"),
+            time: t.elapsed(),
+        });
+
+        let t = Instant::now();
+        let grid: TileGrid = framebuffer.grid();
+        let mut tiles: Vec<MembershipTile> = (0..grid.tile_count())
+            .map(|_| MembershipTile::default())
+            .collect();
+        for (set, half_edge, zpass) in [
+            (&wedges.zfail, &zfail_edge, false),
+            (&wedges.zpass, &zpass_edge, true),
+        ] {
+            if set.triangles.is_empty() {
+                continue;
+            }
+            let stage = MembershipStage {
+                primitives: &set.primitives,
+                halves: &set.halves,
+                half_edge,
+                zpass,
+            };
+            draw(
+                &mut framebuffer,
+                &mut tiles,
+                &membership_state(zpass),
+                &set.vertices,
+                &set.triangles,
+                &stage,
+            )?;
+            tiles.par_iter_mut().for_each(|t| stage.flush(t));
+        }
+        passes.push(PassTiming {
+            name: format!("wedge membership light {k}"),
+            time: t.elapsed(),
+        });
+
+        let t = Instant::now();
+        let pass = LightPass {
+            ctx,
+            technique: self,
+            light_index: k,
+            bound,
+            centre: point.as_dvec3(),
+            sampler: LightSampler::new(light),
+            prepared: PreparedLight::new(light, &ctx.scene.textures),
+            candidates: &candidates,
+            always: &always,
+            start: &start,
+            eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
+            inspect,
+        };
+        let width = grid.width as usize;
+        let height = grid.height as usize;
+        let results: Vec<(Vec<PixelResult>, usize, usize)> = tiles
+            .par_iter_mut()
+            .enumerate()
+            .map_init(Scratch::default, |scratch, (tile, t)| {
+                let (ox, oy) = grid.tile_origin(tile);
+                let pairs = t.entries.len();
+                let mut entries = std::mem::take(&mut t.entries);
+                entries.sort_unstable();
+                entries.dedup();
+                let mut out = vec![PixelResult::default(); TILE_PIXELS];
+                let mut sampled = 0;
+                let mut e = 0;
+                for (local, r) in out.iter_mut().enumerate() {
+                    let (x, y) = (
+                        ox as usize + local % TILE_SIZE,
+                        oy as usize + local / TILE_SIZE,
+                    );
+                    let first = e;
+                    while e < entries.len() && (entries[e] >> 33) as usize == local {
+                        e += 1;
+                    }
+                    if x >= width || y >= height {
+                        continue;
+                    }
+                    let i = y * width + x;
+                    if !ctx.gbuffer.is_surface(i) {
+                        continue;
+                    }
+                    let tags = &mut entries[first..e];
+                    for tag in tags.iter_mut() {
+                        *tag &= (1 << 33) - 1;
+                    }
+                    sampled += usize::from(!tags.is_empty() || !always.is_empty());
+                    *r = pass.pixel(i, tags, scratch);
+                }
+                (out, pairs, sampled)
+            })
+            .collect();
+        passes.push(PassTiming {
+            name: format!("counters light {k}"),
+            time: t.elapsed(),
+        });
+
+        let n = width * height;
+        let mut vcoef = vec![0.0f32; n];
+        let mut radiance = vec![Vec3::ZERO; if self.mode == DcsMode::Direct { n } else { 0 }];
+        let mut aovs = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+        let mut report = DcsLightReport {
+            candidate_edges: candidates.edges.len(),
+            unbounded_edges: always.len(),
+            wedge_triangles: wedges.zfail.triangles.len() + wedges.zpass.triangles.len(),
+            ..DcsLightReport::default()
+        };
+        for (tile, (out, pairs, sampled)) in results.into_iter().enumerate() {
+            report.pairs += pairs;
+            report.sampled_pixels += sampled;
+            let (ox, oy) = grid.tile_origin(tile);
+            for (local, r) in out.into_iter().enumerate() {
+                let (x, y) = (
+                    ox as usize + local % TILE_SIZE,
+                    oy as usize + local / TILE_SIZE,
+                );
+                if x >= width || y >= height {
+                    continue;
+                }
+                let i = y * width + x;
+                vcoef[i] = r.vcoef;
+                if let Some(d) = radiance.get_mut(i) {
+                    *d = r.radiance;
+                }
+                aovs[0][i] = r.max_dc;
+                aovs[1][i] = r.mean_dc;
+                aovs[2][i] = r.edges;
+            }
+        }
+        let term = LightTerm {
+            vcoef: Some(vcoef),
+            radiance: (self.mode == DcsMode::Direct).then_some(radiance),
+        };
+        Ok((term, aovs, report))
+    }
+
+    /// Runs every light, with each light's buffer report.
+    pub fn compute_with_report(
+        &self,
+        ctx: &ShadowContext,
+    ) -> Result<(ShadowOutput, Vec<DcsLightReport>)> {
+        let mut out = ShadowOutput::default();
+        let names = ["dc_max", "dc_mean", "wedges"];
+        let mut layers: Vec<Layer> = names
+            .iter()
+            .map(|n| Layer {
+                name: (*n).into(),
+                channels: Vec::new(),
+            })
+            .collect();
+        let mut reports = Vec::new();
+        for k in 0..ctx.scene.lights.len() {
+            let (term, aovs, report) = self.light(ctx, k, &mut out.passes, None)?;
+            out.lights.push(term);
+            for (layer, aov) in layers.iter_mut().zip(aovs) {
+                layer.channels.push((k.to_string(), aov));
+            }
+            reports.push(report);
+        }
+        out.layers = layers;
+        Ok((out, reports))
+    }
+}
+
+impl DepthComplexitySampling {
+    /// Runs light `k` and calls `inspect` with every surface pixel's
+    /// samples and final counters (pixels outside every wedge included),
+    /// for tests and studies of the counters themselves.
+    pub fn inspect_light(
+        &self,
+        ctx: &ShadowContext,
+        k: usize,
+        inspect: &CounterInspector,
+    ) -> Result<LightTerm> {
+        let mut passes = Vec::new();
+        Ok(self.light(ctx, k, &mut passes, Some(inspect))?.0)
+    }
+}
+
+impl ShadowTechnique for DepthComplexitySampling {
+    fn name(&self) -> &'static str {
+        "dcs"
+    }
+
+    fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
+        Ok(self.compute_with_report(ctx)?.0)
+    }
+}
