@@ -77,7 +77,7 @@ impl Frame {
 }
 
 fn run(scene: &Scene, frame: &Frame, samples: u32, seed: u64) -> ShadowOutput {
-    Reference { samples, seed }
+    Reference::new(samples, seed)
         .compute(&frame.ctx(scene))
         .expect("reference runs")
 }
@@ -1017,11 +1017,7 @@ fn technique_is_wired_into_the_renderer() {
     assert!(Technique::NAMES.contains(&"reference"));
     let scene = shipped("quad.toml");
     let frame = Frame::new(&scene, 8, 8);
-    let none = Reference {
-        samples: 0,
-        seed: 0,
-    }
-    .compute(&frame.ctx(&scene));
+    let none = Reference::new(0, 0).compute(&frame.ctx(&scene));
     assert!(none.is_err());
     let out = run(&scene, &frame, 4, 0);
     let names: Vec<&str> = out.passes.iter().map(|p| p.name.as_str()).collect();

@@ -123,6 +123,7 @@ impl Technique {
             Technique::Reference => Box::new(Reference {
                 samples: options.samples,
                 seed: options.seed,
+                ..Reference::default()
             }),
             Technique::ShadowVolumes => Box::new(ShadowVolumes {
                 zpass: options.zpass,

@@ -32,12 +32,45 @@
 //!   [`crate::shade::PreparedLight::direct_from_samples`] (which multiplies
 //!   by `cos_x / r²`) reduces to `Ω Le f_r cos_p` per sample. A receiver
 //!   inside (or on) the sphere gets no samples.
+//!
+//! # Sample patterns
+//!
+//! The layout above is [`SamplePattern::Stratified`], the default and the
+//! only one [`LightSampler::samples_into`] and [`light_samples`] use. A
+//! [`PatternSampler`] (built once per pattern, `N`, seed and light) gives
+//! the unit points of any [`SamplePattern`], and
+//! [`LightSampler::samples_with`] maps them to the light exactly as above,
+//! so a technique and the reference handed the same `PatternSampler` see
+//! the same samples at every pixel:
+//!
+//! | pattern | set | decorrelated between pixels by |
+//! |---|---|---|
+//! | `stratified` | jittered `a × b` grid | fresh jitter (key per pixel) |
+//! | `correlated` | one jittered grid | nothing: every pixel shares it |
+//! | `rotated` | the correlated grid | Cranley–Patterson rotation (toroidal shift per pixel) |
+//! | `poisson` | one Poisson-disk set (dart throwing on the torus) | Cranley–Patterson rotation |
+//! | `sobol` | first `N` points of the Sobol' (0,2)-sequence | random digital shift (XOR per pixel) |
+//! | `interleaved:n` | `n²` jittered grids, one per `(x mod n, y mod n)` | the pixel's place in the `n × n` tile |
+//!
+//! For the depth-complexity technique, [`LightSampler::chart_points`] gives
+//! each sample's coordinates in a planar chart of the light (rect: the
+//! light's own `(2s − 1, 1 − 2t)`; sphere: the gnomonic chart of the cone,
+//! [`ConeFrame`]). See `docs/algorithms/sample-patterns.md`.
 
 use crate::scene::{Light, LightShape};
 use glam::{DVec3, Vec2, Vec3};
 use std::f64::consts::PI;
 
 use crate::shade::LightSample;
+
+mod patterns;
+
+pub use patterns::{
+    max_packing_distance, poisson_dart_budget, poisson_dart_throwing, poisson_relative_radius,
+    poisson_target_distance, sobol02, toroidal_distance2, PatternSampler, PoissonSet,
+    SamplePattern, DEFAULT_INTERLEAVE, POISSON_MAX_LEVELS, POISSON_MIN_RELATIVE_RADIUS,
+    POISSON_RESTARTS, POISSON_SHRINK, POISSON_THESIS_DISTANCES,
+};
 
 /// SplitMix64's increment (the golden ratio in 64-bit fixed point).
 const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
@@ -179,7 +212,8 @@ impl LightSampler {
     /// Writes the `n` samples of light `light_index` seen from receiver `p`
     /// at `pixel` into `out` (cleared first). Sphere lights give no samples
     /// for a receiver inside or on the sphere (the contract defines nothing
-    /// there), or one that is not finite.
+    /// there), or one that is not finite. This is
+    /// [`LightSampler::samples_with`] for [`SamplePattern::Stratified`].
     pub fn samples_into(
         &self,
         light_index: usize,
@@ -189,13 +223,30 @@ impl LightSampler {
         seed: u64,
         out: &mut Vec<LightSample>,
     ) {
+        let stratified = PatternSampler::new(SamplePattern::Stratified, n, seed, light_index);
+        self.samples_with(&stratified, p, pixel, out);
+    }
+
+    /// Writes the samples of `pattern`'s light (its `N`, seed and light
+    /// index) seen from receiver `p` at `pixel` into `out` (cleared first):
+    /// unit point `k` ([`PatternSampler::unit_points`]) is mapped to the
+    /// light as the module documentation says for `(s, t)`. Sphere lights
+    /// give no samples for a receiver inside or on the sphere, or one that
+    /// is not finite. `pattern` must have been built for this light.
+    pub fn samples_with(
+        &self,
+        pattern: &PatternSampler,
+        p: Vec3,
+        pixel: (u32, u32),
+        out: &mut Vec<LightSample>,
+    ) {
         out.clear();
-        let strata = Strata::new(n);
-        let key = pixel_key(seed, light_index, pixel);
+        let n = pattern.len();
+        let points = pattern.pixel_points(pixel);
         match *self {
             LightSampler::Rect { center, u, v, area } => {
                 out.extend((0..n).map(|k| {
-                    let (s, t) = strata.point(key, k);
+                    let (s, t) = points.point(k);
                     LightSample {
                         x: (center + u * (2.0 * s - 1.0) + v * (1.0 - 2.0 * t)).as_vec3(),
                         st: Vec2::new(s as f32, t as f32),
@@ -205,11 +256,72 @@ impl LightSampler {
             }
             LightSampler::Sphere { center, radius } => {
                 if let Some(cone) = Cone::new(center, radius, p.as_dvec3()) {
-                    out.extend((0..n).map(|k| cone.sample(strata.point(key, k))));
+                    out.extend((0..n).map(|k| cone.sample(points.point(k))));
                 }
             }
         }
     }
+
+    /// The frame of the cone a sphere light subtends from receiver `p`:
+    /// `None` for a rect light, or a receiver inside or on the sphere (or
+    /// not finite), exactly when [`LightSampler::samples_with`] gives no
+    /// samples.
+    pub fn cone_frame(&self, p: DVec3) -> Option<ConeFrame> {
+        match *self {
+            LightSampler::Rect { .. } => None,
+            LightSampler::Sphere { center, radius } => {
+                Cone::new(center, radius, p).map(|c| c.frame())
+            }
+        }
+    }
+
+    /// The light-chart coordinates of the samples whose unit points are
+    /// `unit` (as [`PatternSampler::unit_points`] gives them), seen from
+    /// receiver `p`, written to `out` (cleared first), in `f64`:
+    ///
+    /// - **Rect**: `[2s − 1, 1 − 2t]`, the coordinates `(a, b)` of the
+    ///   sample `x = center + a u + b v` in the light's own frame; the
+    ///   light is the square `[−1, 1]²`. Independent of `p`.
+    /// - **Sphere**: the gnomonic chart of the cone from `p`
+    ///   ([`LightSampler::cone_frame`]): `[tan θ cos φ, tan θ sin φ]` with
+    ///   `cos θ = 1 − s (1 − cos θmax)`, `φ = 2π t` as in the sampling,
+    ///   so the sample's direction is `w ∝ axis + a t1 + b t2` (the
+    ///   central projection of the direction onto the plane tangent to the
+    ///   unit sphere at `axis`) and the light is the disk of radius
+    ///   `tan θmax`. Straight lines through `p` (and planes through `p`)
+    ///   stay straight in this chart. Empty when the receiver is inside or
+    ///   on the sphere.
+    pub fn chart_points(&self, unit: &[(f64, f64)], p: DVec3, out: &mut Vec<[f64; 2]>) {
+        out.clear();
+        match *self {
+            LightSampler::Rect { .. } => {
+                out.extend(unit.iter().map(|&(s, t)| [2.0 * s - 1.0, 1.0 - 2.0 * t]));
+            }
+            LightSampler::Sphere { center, radius } => {
+                if let Some(cone) = Cone::new(center, radius, p) {
+                    out.extend(unit.iter().map(|&st| cone.chart(st)));
+                }
+            }
+        }
+    }
+}
+
+/// The frame of the cone a sphere light subtends from a receiver, and the
+/// extent of the light in its gnomonic chart
+/// ([`LightSampler::chart_points`]): chart point `(a, b)` is the direction
+/// `normalize(axis + a t1 + b t2)`, and the light covers the disk
+/// `a² + b² ≤ tan²θmax`. `(t1, t2)` is the basis the sampling uses around
+/// the axis (Duff et al. 2017), so `φ = 0` lies along `t1`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConeFrame {
+    /// Unit axis from the receiver to the sphere's centre.
+    pub axis: DVec3,
+    /// First unit vector perpendicular to the axis (`φ = 0`).
+    pub t1: DVec3,
+    /// Second unit vector perpendicular to both (`φ = π/2`).
+    pub t2: DVec3,
+    /// `tan θmax = R / √(d² − R²)`, the chart radius of the light.
+    pub tan_max: f64,
 }
 
 /// The cone a sphere light subtends from a receiver outside it.
@@ -252,6 +364,28 @@ impl Cone {
             h,
             omega: 2.0 * PI * h,
         })
+    }
+
+    /// The frame and chart radius of the cone.
+    fn frame(&self) -> ConeFrame {
+        ConeFrame {
+            axis: self.axis,
+            t1: self.t1,
+            t2: self.t2,
+            tan_max: self.radius / ((self.d - self.radius) * (self.d + self.radius)).sqrt(),
+        }
+    }
+
+    /// The gnomonic chart coordinates `[tan θ cos φ, tan θ sin φ]` of the
+    /// unit point `(s, t)`, with `θ` and `φ` computed as [`Cone::sample`]
+    /// does.
+    fn chart(&self, (s, t): (f64, f64)) -> [f64; 2] {
+        let one_minus_cos = s * self.h;
+        let cos_t = 1.0 - one_minus_cos;
+        let sin_t = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+        let tan_t = sin_t / cos_t;
+        let phi = 2.0 * PI * t;
+        [tan_t * phi.cos(), tan_t * phi.sin()]
     }
 
     /// The sample for the grid point `(s, t)`: direction uniform in solid

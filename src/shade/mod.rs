@@ -23,6 +23,8 @@ mod brdf;
 mod rect;
 mod sphere;
 
+pub mod gather;
+
 pub use brdf::brdf;
 
 use crate::scene::{Light, LightShape, Texture};

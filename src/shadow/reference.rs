@@ -3,7 +3,8 @@
 //! (`docs/algorithms/reference.md`).
 //!
 //! Per light and surface pixel, `N` samples come from [`crate::sampling`]
-//! (keyed by seed, light, pixel and sample index). Each sample's segment
+//! (keyed by seed, light, pixel and sample index), laid out by the
+//! reference's [`SamplePattern`] (default: stratified). Each sample's segment
 //! from the offset receiver to the sample point is tested against a BVH of
 //! the opaque casters (any hit); if it is clear and the scene has
 //! non-opaque casters, a second BVH gives every crossing and the
@@ -23,7 +24,7 @@ use crate::error::{Error, Result};
 use crate::gbuffer::{GBuffer, GSample};
 use crate::geom::bvh::{Bvh, Hit};
 use crate::geom::SceneGeometry;
-use crate::sampling::LightSampler;
+use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::scene::{LightShape, Scene};
 use crate::shade::{LightSample, PreparedLight, SurfacePoint};
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -44,13 +45,34 @@ pub const END_SHORTEN: f64 = 1e-6;
 pub const MERGE_SCENE: f64 = 1e-6;
 
 /// The reference technique: `samples` light samples per pixel and light,
-/// keyed by `seed`.
+/// keyed by `seed`, laid out by `pattern`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Reference {
     /// Light samples per pixel and light (`N ≥ 1`).
     pub samples: u32,
     /// Seed of the light samples.
     pub seed: u64,
+    /// Layout and per-pixel decorrelation of the light samples
+    /// (default [`SamplePattern::Stratified`]).
+    pub pattern: SamplePattern,
+}
+
+impl Reference {
+    /// `samples` stratified samples per pixel and light under `seed`.
+    pub fn new(samples: u32, seed: u64) -> Reference {
+        Reference {
+            samples,
+            seed,
+            pattern: SamplePattern::Stratified,
+        }
+    }
+}
+
+impl Default for Reference {
+    /// 64 stratified samples, seed 0 (the render options' defaults).
+    fn default() -> Reference {
+        Reference::new(64, 0)
+    }
 }
 
 /// Timings and ray counts of one [`Reference`] run.
@@ -101,7 +123,8 @@ impl Reference {
         let mut out = ShadowOutput::default();
         for k in 0..ctx.scene.lights.len() {
             let start = Instant::now();
-            let (term, rays) = tracer.trace_light(ctx, k, self.samples, self.seed);
+            let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
+            let (term, rays) = tracer.trace_light_with(ctx, k, &pattern);
             stats.light_times.push(start.elapsed());
             stats.light_rays.push(rays);
             out.lights.push(term);
@@ -398,13 +421,27 @@ impl<'a> ShadowTracer<'a> {
     /// BVH traversals it took. Rows run in parallel; each pixel's result
     /// depends only on its own samples, so the thread count never matters.
     /// `ctx` supplies the G-buffer and the eye; it must describe the scene
-    /// the tracer was built for.
+    /// the tracer was built for. The samples are stratified
+    /// ([`ShadowTracer::trace_light_with`] with [`SamplePattern::Stratified`]).
     pub fn trace_light(
         &self,
         ctx: &ShadowContext,
         light_index: usize,
         n: u32,
         seed: u64,
+    ) -> (LightTerm, u64) {
+        let pattern = PatternSampler::new(SamplePattern::Stratified, n, seed, light_index);
+        self.trace_light_with(ctx, light_index, &pattern)
+    }
+
+    /// [`ShadowTracer::trace_light`] with the samples of `pattern` (its
+    /// `N` and seed; built for light `light_index`), mapped to the light
+    /// by [`LightSampler::samples_with`].
+    pub fn trace_light_with(
+        &self,
+        ctx: &ShadowContext,
+        light_index: usize,
+        pattern: &PatternSampler,
     ) -> (LightTerm, u64) {
         let gbuffer = ctx.gbuffer;
         let len = gbuffer.len();
@@ -440,7 +477,7 @@ impl<'a> ShadowTracer<'a> {
                         continue;
                     }
                     let pixel = (x as u32, y as u32);
-                    sampler.samples_into(light_index, g.position, pixel, n, seed, &mut samples);
+                    sampler.samples_with(pattern, g.position, pixel, &mut samples);
                     if samples.is_empty() {
                         // Inside a sphere light: no defined Vcoef; 1 keeps
                         // images NaN-free (error figures leave it out).
