@@ -10,6 +10,7 @@ use crate::output::{write_exr, write_png};
 use crate::render::{render, with_threads, Aov, RenderOptions, Technique};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
+use crate::sampling::SamplePattern;
 use crate::scene::{load_scene, LightShape, Scene};
 use crate::shadow::dcs::{DcsMode, SilhouetteMode};
 use clap::{Parser, Subcommand};
@@ -70,6 +71,10 @@ enum Command {
         /// eq. 4.6).
         #[arg(long, default_value = "vcoef")]
         dcs_mode: String,
+        /// Placement of light samples (reference, dcs): stratified,
+        /// correlated, rotated, poisson, sobol, interleaved[:N].
+        #[arg(long, default_value = "stratified")]
+        pattern: String,
         /// Print each pass's time to stderr.
         #[arg(long)]
         timings: bool,
@@ -188,6 +193,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             zpass,
             silhouettes,
             dcs_mode,
+            pattern,
             timings,
         } => {
             let aovs = aov
@@ -210,6 +216,8 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 zpass,
                 silhouettes: parse_silhouettes(&silhouettes)?,
                 dcs_mode: parse_dcs_mode(&dcs_mode)?,
+                pattern: SamplePattern::parse(&pattern)
+                    .map_err(|e| Error::param("--pattern", e))?,
             };
             if samples == 0 || samples > 1 << 20 {
                 return Err(Error::param(

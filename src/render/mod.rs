@@ -10,6 +10,7 @@ use crate::geom::SceneGeometry;
 use crate::output::Layer;
 use crate::raster::DrawStats;
 use crate::report::Progress;
+use crate::sampling::SamplePattern;
 use crate::scene::Scene;
 use crate::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::shadow::reference::Reference;
@@ -123,7 +124,7 @@ impl Technique {
             Technique::Reference => Box::new(Reference {
                 samples: options.samples,
                 seed: options.seed,
-                ..Reference::default()
+                pattern: options.pattern,
             }),
             Technique::ShadowVolumes => Box::new(ShadowVolumes {
                 zpass: options.zpass,
@@ -135,6 +136,7 @@ impl Technique {
                 seed: options.seed,
                 silhouettes: options.silhouettes,
                 mode: options.dcs_mode,
+                pattern: options.pattern,
             }),
         }
     }
@@ -182,6 +184,8 @@ pub struct RenderOptions {
     pub silhouettes: SilhouetteMode,
     /// Depth complexity sampling: Vcoef or direct-lighting output.
     pub dcs_mode: DcsMode,
+    /// Placement of light samples (sampling techniques).
+    pub pattern: SamplePattern,
 }
 
 impl Default for RenderOptions {
@@ -196,6 +200,7 @@ impl Default for RenderOptions {
             zpass: false,
             silhouettes: SilhouetteMode::Centre,
             dcs_mode: DcsMode::Vcoef,
+            pattern: SamplePattern::Stratified,
         }
     }
 }

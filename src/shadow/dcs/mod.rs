@@ -39,8 +39,9 @@ use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
 use crate::raster::{draw, CompareFunc, CullMode, FragmentBatch, FragmentStage, RasterState};
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
-use crate::sampling::LightSampler;
+use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::scene::LightShape;
+use crate::shade::gather::{gather_filter, GatherParams};
 use crate::shade::{surface_point, LightSample, PreparedLight};
 use chart::ReceiverChart;
 use counters::{add_covered, ChartSamples, OrientedEdge};
@@ -83,6 +84,8 @@ pub struct DepthComplexitySampling {
     pub silhouettes: SilhouetteMode,
     /// Vcoef or direct-lighting output.
     pub mode: DcsMode,
+    /// How samples are placed on the light (shared with the reference).
+    pub pattern: SamplePattern,
 }
 
 /// One tile's (pixel, edge) pairs: `local << 33 | edge << 1 | outer`, so
@@ -166,10 +169,10 @@ struct Scratch {
 struct LightPass<'a> {
     ctx: &'a ShadowContext<'a>,
     technique: &'a DepthComplexitySampling,
-    light_index: usize,
     bound: LightBound,
     centre: DVec3,
     sampler: LightSampler,
+    pattern: PatternSampler,
     prepared: PreparedLight<'a>,
     candidates: &'a CandidateEdges,
     /// Edges with no bounded wedge: applied to every receiver.
@@ -212,15 +215,8 @@ impl LightPass<'_> {
         }
         let width = gbuffer.width as usize;
         let pixel = ((i % width) as u32, (i / width) as u32);
-        let n = self.technique.samples;
-        self.sampler.samples_into(
-            self.light_index,
-            g.position,
-            pixel,
-            n,
-            self.technique.seed,
-            &mut scratch.samples,
-        );
+        self.sampler
+            .samples_with(&self.pattern, g.position, pixel, &mut scratch.samples);
         // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
         // rounds it): receivers on an occluder's own surface then see its
         // edges from the same side of its faces as the reference's rays.
@@ -420,10 +416,10 @@ impl DepthComplexitySampling {
         let pass = LightPass {
             ctx,
             technique: self,
-            light_index: k,
             bound,
             centre: point.as_dvec3(),
             sampler: LightSampler::new(light),
+            pattern: PatternSampler::new(self.pattern, self.samples, self.seed, k),
             prepared: PreparedLight::new(light, &ctx.scene.textures),
             candidates: &candidates,
             always: &always,
@@ -507,6 +503,25 @@ impl DepthComplexitySampling {
                 aovs[1][i] = r.mean_dc;
                 aovs[2][i] = r.edges;
             }
+        }
+        if let SamplePattern::Interleaved { n: tile } = self.pattern {
+            // Interleaved sampling: neighbours used different sample sets;
+            // gather them back, not across depth or normal discontinuities.
+            let t = Instant::now();
+            let guide = |i: usize| {
+                let g = ctx.gbuffer.sample(i);
+                g.is_surface().then_some((g.depth, g.normal))
+            };
+            let params = GatherParams::default();
+            let (w, h) = (grid.width, grid.height);
+            vcoef = gather_filter(&vcoef, w, h, tile, &guide, params);
+            if !radiance.is_empty() {
+                radiance = gather_filter(&radiance, w, h, tile, &guide, params);
+            }
+            passes.push(PassTiming {
+                name: format!("gather light {k}"),
+                time: t.elapsed(),
+            });
         }
         let term = LightTerm {
             vcoef: Some(vcoef),
