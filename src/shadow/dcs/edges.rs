@@ -19,12 +19,12 @@
 //! point replaced by `p`. It is non-zero only for silhouettes from `p`
 //! (derivation in docs/algorithms/dcs.md).
 //!
-//! For edges the centre's shadow volume drew, `side(O)` is not computed
-//! but read off the half-wedge the rasterizer found `p` in — outer means
-//! `p` is on the outward side of the quad, i.e. `side(O) > 0` for the
-//! quad's own vertex order — which is the stencil pass's own decision on
-//! the same triangles, so the counters and their integration constant
-//! agree even when `p` lies on the quad.
+//! Everything is evaluated at the reference's shadow-ray origin
+//! `p' = p + ε n_g`, so receivers on an occluder's own surface see its
+//! faces from the same side as the reference's rays. The stencil decided
+//! `D(O)` at the rasterized `p`; where a shadow-volume quad's plane passes
+//! between `p` and `p'` (the half-wedge the rasterizer found `p` in says
+//! which side the stencil took) the constant is moved across that quad.
 
 use crate::geom::silhouette::area_silhouettes;
 use crate::geom::EdgeAdjacency;

@@ -240,24 +240,37 @@ impl LightPass<'_> {
         scratch
             .chart
             .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
+        let edges = &self.candidates.edges;
+        // The stencil decided `D(O)` at the raster's receiver `p`; the
+        // counters follow the shadow-ray origin `p'`. Where a quad's
+        // plane passes between them (a receiver on the occluder, at its
+        // terminator) move the constant across that quad: +m entering the
+        // volume, −m leaving it.
+        let mut d0 = d0;
+        for &t in tags {
+            let e = &edges[(t >> 1) as usize];
+            if e.quad_sign == 0 {
+                continue;
+            }
+            let outer = t & 1 == 1;
+            let raster = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
+            let geometric = side_of(p, e.v0, e.v1, self.centre);
+            if geometric != 0 && geometric != raster {
+                let m = e.quad_weight as i32;
+                d0 += if outer { m } else { -m };
+            }
+        }
         scratch.counters.clear();
         scratch.counters.resize(scratch.chart.padded(), d0);
-        let edges = &self.candidates.edges;
-        let from_wedges = tags.iter().map(|&t| ((t >> 1) as u32, Some(t & 1 == 1)));
-        let from_always = self.always.iter().map(|&e| (e, None));
-        for (id, outer) in from_wedges.chain(from_always) {
+        let from_wedges = tags.iter().map(|&t| (t >> 1) as u32);
+        let from_always = self.always.iter().copied();
+        for id in from_wedges.chain(from_always) {
             let e = &edges[id as usize];
             let mu = self.candidates.multiplicity_from(e, p);
             if mu == 0 {
                 continue;
             }
-            let side = match outer {
-                // The stencil pass's own decision (see `edges`).
-                Some(outer) if e.quad_sign != 0 => {
-                    i32::from(e.quad_sign) * if outer { 1 } else { -1 }
-                }
-                _ => side_of(p, e.v0, e.v1, self.centre),
-            };
+            let side = side_of(p, e.v0, e.v1, self.centre);
             if side == 0 {
                 continue;
             }
