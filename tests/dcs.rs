@@ -96,6 +96,9 @@ struct Exactness {
     worst_tie: f64,
 }
 
+/// One pixel's samples and counters.
+type Inspected = (usize, Vec<LightSample>, Vec<i32>);
+
 fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
     let frame = Frame::new(scene, w, h);
     let ctx = frame.ctx(scene);
@@ -107,7 +110,7 @@ fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
         mode: DcsMode::Vcoef,
         pattern: SamplePattern::Stratified,
     };
-    let seen: Mutex<Vec<(usize, Vec<LightSample>, Vec<i32>)>> = Mutex::new(Vec::new());
+    let seen: Mutex<Vec<Inspected>> = Mutex::new(Vec::new());
     dcs.inspect_light(&ctx, 0, &|i, s, c| {
         seen.lock().unwrap().push((i, s.to_vec(), c.to_vec()));
     })
