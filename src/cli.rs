@@ -78,6 +78,10 @@ enum Command {
         /// Print each pass's time to stderr.
         #[arg(long)]
         timings: bool,
+        /// Print which passes ran and which buffers the render allocated
+        /// (or left out, and why), with their memory.
+        #[arg(long)]
+        explain: bool,
     },
     /// Time every technique at several quality settings and measure its
     /// error against a cached ray-traced reference at the same receiver
@@ -195,6 +199,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             dcs_mode,
             pattern,
             timings,
+            explain,
         } => {
             let aovs = aov
                 .iter()
@@ -234,9 +239,20 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             let progress = Progress::new(5, true);
             let out = with_threads(threads, || render(&scene, &options, &progress))??;
             progress.finish();
-            if timings {
+            if timings || explain {
                 for p in &out.passes {
                     eprintln!("{:>12.3} ms  {}", p.time.as_secs_f64() * 1e3, p.name);
+                }
+            }
+            if explain {
+                eprintln!("buffers:");
+                for b in &out.buffers {
+                    let size = if b.bytes == 0 {
+                        "-".to_string()
+                    } else {
+                        format!("{:.2} MiB", b.bytes as f64 / (1u64 << 20) as f64)
+                    };
+                    eprintln!("{size:>12}  {}: {}", b.name, b.detail);
                 }
             }
             write_png(&output, out.width, out.height, &out.radiance)?;

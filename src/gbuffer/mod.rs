@@ -148,6 +148,11 @@ pub struct GBuffer {
 }
 
 impl GBuffer {
+    /// Bytes its per-pixel arrays hold.
+    pub fn memory_bytes(&self) -> u64 {
+        (self.points.len() * std::mem::size_of::<GPoint>() + self.albedo.len() * 12) as u64
+    }
+
     /// A G-buffer of the view's size, every pixel background, bound to
     /// no scene yet.
     fn blank(view: &View) -> Self {

@@ -17,7 +17,9 @@ use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
 use crate::shadow::wedges::blend::WedgeBlending;
 use crate::shadow::wedges::PenumbraWedges;
-use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowTechnique, Unshadowed};
+use crate::shadow::{
+    BufferNote, LightTerm, PassTiming, ShadowContext, ShadowTechnique, Unshadowed,
+};
 use crate::view::{near_for_bounds, View};
 use glam::Vec3;
 use std::str::FromStr;
@@ -220,6 +222,9 @@ pub struct RenderOutput {
     pub passes: Vec<PassTiming>,
     /// Raster counters of the G-buffer pass.
     pub gbuffer_stats: DrawStats,
+    /// The buffers the render used (and those it left out), for
+    /// `--explain`.
+    pub buffers: Vec<BufferNote>,
 }
 
 /// The view a render of `scene` with `options` uses.
@@ -316,7 +321,22 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
 
     let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs);
     layers.extend(shadows.layers);
+    let pixels = u64::from(view.width) * u64::from(view.height);
+    let mut buffers = vec![
+        BufferNote {
+            name: "g-buffer".into(),
+            detail: "compact per-pixel points (f32 position, packed normals, ids)".into(),
+            bytes: gbuffer.memory_bytes(),
+        },
+        BufferNote {
+            name: "depth".into(),
+            detail: "f32 reversed Z per pixel (exact for the stencil's tie rule)".into(),
+            bytes: pixels * 4,
+        },
+    ];
+    buffers.extend(shadows.buffers);
     Ok(RenderOutput {
+        buffers,
         width: view.width,
         height: view.height,
         radiance,

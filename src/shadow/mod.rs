@@ -66,9 +66,22 @@ pub struct PassTiming {
     pub time: Duration,
 }
 
+/// One buffer (or pass) a render used, for `--explain`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BufferNote {
+    /// What it is, e.g. `counters light 0`.
+    pub name: String,
+    /// Precision and why, or why it was left out.
+    pub detail: String,
+    /// Peak bytes it held (0 when left out).
+    pub bytes: u64,
+}
+
 /// Everything a technique returns.
 #[derive(Debug, Clone, Default)]
 pub struct ShadowOutput {
+    /// The buffers it allocated and the ones it left out, with sizes.
+    pub buffers: Vec<BufferNote>,
     /// One term per light, in light order.
     pub lights: Vec<LightTerm>,
     /// Technique-specific AOV layers.

@@ -33,7 +33,7 @@ use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
 use super::shadow_volumes::{build_volume, caster_adjacency, light_point, stencil_counts};
 use super::wedges::geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use super::wedges::{light_bound, HalfWedgeMembership};
-use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
+use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
@@ -175,8 +175,6 @@ struct LightPass<'a> {
     pattern: PatternSampler,
     prepared: PreparedLight<'a>,
     candidates: &'a CandidateEdges,
-    /// Edges with no bounded wedge: applied to every receiver.
-    always: &'a [u32],
     /// `D(O)` per pixel.
     start: &'a [i32],
     /// `EPS_SCENE ×` the scene's diagonal.
@@ -191,14 +189,14 @@ pub type CounterInspector<'a> = dyn Fn(usize, &[LightSample], &[i32]) + Sync + '
 impl LightPass<'_> {
     /// The results of global pixel `i` with its recorded `(edge, outer)`
     /// pairs (sorted, no duplicates).
-    fn pixel(&self, i: usize, tags: &[u64], scratch: &mut Scratch) -> PixelResult {
+    fn pixel(&self, i: usize, tags: &[u64], extra: &[u32], scratch: &mut Scratch) -> PixelResult {
         let gbuffer = self.ctx.gbuffer;
         let d0 = self.start[i];
         let g = gbuffer.sample(i);
         let eye = self.ctx.view.eye.as_vec3();
         let direct = self.technique.mode == DcsMode::Direct;
         let sp = || surface_point(self.ctx.scene, &g, eye);
-        if tags.is_empty() && self.always.is_empty() && self.inspect.is_none() {
+        if tags.is_empty() && extra.is_empty() && self.inspect.is_none() {
             // Outside every wedge: D = D(O) for every sample.
             let lit = d0 <= 0;
             return PixelResult {
@@ -263,8 +261,7 @@ impl LightPass<'_> {
         scratch.counters.clear();
         scratch.counters.resize(scratch.chart.padded(), d0);
         let from_wedges = tags.iter().map(|&t| (t >> 1) as u32);
-        let from_always = self.always.iter().copied();
-        for id in from_wedges.chain(from_always) {
+        for id in from_wedges.chain(extra.iter().copied()) {
             let e = &edges[id as usize];
             let mu = self.candidates.multiplicity_from(e, p);
             if mu == 0 {
@@ -306,6 +303,60 @@ impl LightPass<'_> {
             edges: tags.len() as f32,
         }
     }
+}
+
+/// The screen rectangle `[x0, y0, x1, y1)` (pixels) holding every
+/// receiver from which edge `e` can be seen overlapping the light: such a
+/// receiver lies on a ray from a light point `x` through the edge, beyond
+/// it, i.e. in `conv({v0, v1}) + cone{v_i − x_j}` over the light's
+/// bounding corners `x_j` — a convex set whose image is the hull of its
+/// projected vertices (finite ones and vanishing points), when all are in
+/// front of the eye; otherwise the whole screen. Used for the few edges
+/// whose line pierces the light, where no bounded wedge exists.
+fn fallback_rect(
+    view: &crate::view::View,
+    e: &edges::CandidateEdge,
+    light: &LightBound,
+) -> [usize; 4] {
+    let whole = [0, 0, view.width as usize, view.height as usize];
+    let corners: Vec<DVec3> = match light {
+        LightBound::Rect(frame) => frame.corners().to_vec(),
+        LightBound::Sphere { center, radius } => (0..8)
+            .map(|k| {
+                let s = |b: usize| if k >> b & 1 == 1 { *radius } else { -*radius };
+                *center + DVec3::new(s(0), s(1), s(2))
+            })
+            .collect(),
+    };
+    let mut clip = vec![
+        view.clip_point(e.v0.as_vec3()),
+        view.clip_point(e.v1.as_vec3()),
+    ];
+    for q in [e.v0, e.v1] {
+        for x in &corners {
+            clip.push(view.clip_direction((q - *x).as_vec3()));
+        }
+    }
+    let (w, h) = (f64::from(view.width), f64::from(view.height));
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for c in clip {
+        if !(c.w > 1e-6 * c.truncate().length()) {
+            return whole;
+        }
+        let iw = 1.0 / f64::from(c.w);
+        let sx = (f64::from(c.x) * iw * 0.5 + 0.5) * w;
+        let sy = (0.5 - f64::from(c.y) * iw * 0.5) * h;
+        b = [b[0].min(sx), b[1].min(sy), b[2].max(sx), b[3].max(sy)];
+    }
+    // One pixel of slack covers the f32 clip coordinates' rounding.
+    let lo = |v: f64, max: f64| (v - 1.0).floor().clamp(0.0, max) as usize;
+    let hi = |v: f64, max: f64| (v + 2.0).floor().clamp(0.0, max) as usize;
+    [lo(b[0], w), lo(b[1], h), hi(b[2], w), hi(b[3], h)]
 }
 
 /// Per-light buffers for `--explain`.
@@ -381,7 +432,7 @@ impl DepthComplexitySampling {
                 weight: e.quad_weight,
             };
             if !wedges.add(ctx.view, &bound, point, quad, None) {
-                always.push(id as u32);
+                always.push((id as u32, fallback_rect(ctx.view, e, &bound)));
                 continue;
             }
             zfail_edge.resize(wedges.zfail.halves.len(), id as u32);
@@ -435,7 +486,6 @@ impl DepthComplexitySampling {
             pattern: PatternSampler::new(self.pattern, self.samples, self.seed, k),
             prepared: PreparedLight::new(light, &ctx.scene.textures),
             candidates: &candidates,
-            always: &always,
             start: &start,
             eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
             inspect,
@@ -454,6 +504,15 @@ impl DepthComplexitySampling {
                 let mut out = vec![PixelResult::default(); TILE_PIXELS];
                 let mut sampled = 0;
                 let mut e = 0;
+                let (tx1, ty1) = (ox as usize + TILE_SIZE, oy as usize + TILE_SIZE);
+                let near: Vec<(u32, [usize; 4])> = always
+                    .iter()
+                    .filter(|(_, r)| {
+                        r[0] < tx1 && r[2] > ox as usize && r[1] < ty1 && r[3] > oy as usize
+                    })
+                    .copied()
+                    .collect();
+                let mut extra = Vec::new();
                 for (local, r) in out.iter_mut().enumerate() {
                     let (x, y) = (
                         ox as usize + local % TILE_SIZE,
@@ -474,8 +533,14 @@ impl DepthComplexitySampling {
                     for tag in tags.iter_mut() {
                         *tag &= (1 << 33) - 1;
                     }
-                    sampled += usize::from(!tags.is_empty() || !always.is_empty());
-                    *r = pass.pixel(i, tags, scratch);
+                    extra.clear();
+                    extra.extend(
+                        near.iter()
+                            .filter(|(_, r)| x >= r[0] && x < r[2] && y >= r[1] && y < r[3])
+                            .map(|(id, _)| *id),
+                    );
+                    sampled += usize::from(!tags.is_empty() || !extra.is_empty());
+                    *r = pass.pixel(i, tags, &extra, scratch);
                 }
                 (out, pairs, sampled)
             })
@@ -558,8 +623,69 @@ impl DepthComplexitySampling {
             })
             .collect();
         let mut reports = Vec::new();
+        let pixels = ctx.gbuffer.len() as u64;
+        let workers = rayon::current_num_threads() as u64;
+        let n = u64::from(self.samples);
+        let padded = n.div_ceil(counters::LANES as u64) * counters::LANES as u64;
+        out.buffers.push(BufferNote {
+            name: "stencil".into(),
+            detail: "i32 per pixel: D(O), exact (no 8-bit wrap)".into(),
+            bytes: pixels * 4,
+        });
+        out.buffers.push(BufferNote {
+            name: "depth-complexity counters".into(),
+            detail: format!(
+                "i32 × {n} samples per receiver, one receiver at a time per worker ({workers}): \
+                 never width × height × samples"
+            ),
+            bytes: workers * padded * 4,
+        });
+        out.buffers.push(BufferNote {
+            name: "light samples".into(),
+            detail: format!("{n} points + f32 chart coordinates per worker"),
+            bytes: workers * (n * std::mem::size_of::<LightSample>() as u64 + padded * 8 + n * 4),
+        });
+        let opaque = ctx.scene.materials.iter().all(|m| m.is_opaque());
+        out.buffers.push(BufferNote {
+            name: "transmittance".into(),
+            detail: if opaque {
+                "not allocated: every caster is opaque".into()
+            } else {
+                "not allocated: semi-opaque casters are not handled by dcs yet \
+                 (they cast no shadow here)"
+                    .into()
+            },
+            bytes: 0,
+        });
+        let textured = ctx.scene.lights.iter().any(|l| l.texture.is_some());
+        out.buffers.push(BufferNote {
+            name: "per-sample luminance".into(),
+            detail: if textured && self.mode == DcsMode::Direct {
+                "evaluated per sample inside the direct-light estimator".into()
+            } else if textured {
+                "not used: Vcoef mode is not luminance-weighted (use --dcs-mode direct)".into()
+            } else {
+                "not allocated: no textured light".into()
+            },
+            bytes: 0,
+        });
         for k in 0..ctx.scene.lights.len() {
             let (term, aovs, report) = self.light(ctx, k, &mut out.passes, None)?;
+            out.buffers.push(BufferNote {
+                name: format!("wedge membership light {k}"),
+                detail: format!(
+                    "{} candidate edges ({} silhouettes, {} without a bounded wedge), \
+                     {} wedge triangles; (pixel, edge) pairs as u64, {} receivers sampled, \
+                     {} outside every wedge with no per-sample work",
+                    report.candidate_edges,
+                    self.silhouettes.name(),
+                    report.unbounded_edges,
+                    report.wedge_triangles,
+                    report.sampled_pixels,
+                    pixels as usize - report.sampled_pixels,
+                ),
+                bytes: report.pairs as u64 * 8,
+            });
             out.lights.push(term);
             for (layer, aov) in layers.iter_mut().zip(aovs) {
                 layer.channels.push((k.to_string(), aov));
