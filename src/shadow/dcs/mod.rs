@@ -263,12 +263,24 @@ impl LightPass<'_> {
         let from_wedges = tags.iter().map(|&t| (t >> 1) as u32);
         for id in from_wedges.chain(extra.iter().copied()) {
             let e = &edges[id as usize];
-            let mu = self.candidates.multiplicity_from(e, p);
-            if mu == 0 {
-                continue;
-            }
             let side = side_of(p, e.v0, e.v1, self.centre);
             if side == 0 {
+                continue;
+            }
+            // Whole-light silhouettes: the exact change (see `edges`).
+            // Centre silhouettes: the thesis's rule, ±m by the half the
+            // receiver is in (outer adds), whether or not the edge is a
+            // silhouette from p — the exact rule would drop those edges
+            // and miss the ones that are silhouettes from p only, which
+            // on tessellated curved occluders leaves almost hard shadows.
+            let mu = match self.technique.silhouettes {
+                SilhouetteMode::WholeLight => self.candidates.multiplicity_from(e, p),
+                SilhouetteMode::Centre if e.quad_sign != 0 => {
+                    e.quad_weight as i32 * i32::from(e.quad_sign)
+                }
+                SilhouetteMode::Centre => self.candidates.multiplicity_from(e, p),
+            };
+            if mu == 0 {
                 continue;
             }
             let Some((a, b)) = chart.edge(e.v0, e.v1) else {
