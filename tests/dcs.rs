@@ -9,78 +9,12 @@
 mod common;
 
 use glam::DVec3;
-use penumbra::gbuffer::{gbuffer_pass, GBuffer};
-use penumbra::geom::SceneGeometry;
-use penumbra::raster::Framebuffer;
-use penumbra::render::{view_for, RenderOptions};
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shade::LightSample;
 use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use penumbra::shadow::reference::{ShadowTracer, END_SHORTEN};
-use penumbra::shadow::ShadowContext;
-use penumbra::view::View;
 use std::sync::Mutex;
-
-/// Everything a technique reads, for `scene` at `w × h`.
-struct Frame {
-    geometry: SceneGeometry,
-    view: View,
-    gbuffer: GBuffer,
-    depth: Framebuffer,
-}
-
-impl Frame {
-    fn new(scene: &Scene, w: u32, h: u32) -> Frame {
-        let options = RenderOptions {
-            width: Some(w),
-            height: Some(h),
-            ..RenderOptions::default()
-        };
-        let view = view_for(scene, &options).expect("view");
-        let geometry = SceneGeometry::new(scene);
-        let (gbuffer, depth, _) = gbuffer_pass(scene, &geometry, &view).expect("g-buffer");
-        Frame {
-            geometry,
-            view,
-            gbuffer,
-            depth,
-        }
-    }
-
-    fn ctx<'a>(&'a self, scene: &'a Scene) -> ShadowContext<'a> {
-        ShadowContext {
-            scene,
-            geometry: &self.geometry,
-            view: &self.view,
-            gbuffer: &self.gbuffer,
-            depth: &self.depth,
-        }
-    }
-}
-
-/// Distance between segments `p0 p1` and `q0 q1` (sampled closely
-/// enough for a tie measure: exact at the closest-point solution).
-fn segment_distance(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> f64 {
-    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
-    let (a, e, f) = (d1.dot(d1), d2.dot(d2), d2.dot(r));
-    let (c, b) = (d1.dot(r), d1.dot(d2));
-    let denom = a * e - b * b;
-    let mut s = if denom > 1e-300 {
-        ((b * f - c * e) / denom).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let mut t = if e > 0.0 { (b * s + f) / e } else { 0.0 };
-    if t < 0.0 {
-        t = 0.0;
-        s = (-c / a).clamp(0.0, 1.0);
-    } else if t > 1.0 {
-        t = 1.0;
-        s = ((b - c) / a).clamp(0.0, 1.0);
-    }
-    (p0 + d1 * s).distance(q0 + d2 * t)
-}
 
 /// What the exactness check measured.
 #[derive(Debug, Default)]
@@ -100,7 +34,7 @@ struct Exactness {
 type Inspected = (usize, Vec<LightSample>, Vec<i32>);
 
 fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
-    let frame = Frame::new(scene, w, h);
+    let frame = common::Frame::new(scene, w, h);
     let ctx = frame.ctx(scene);
     let tracer = ShadowTracer::new(scene, &frame.geometry);
     let dcs = DepthComplexitySampling {
@@ -152,7 +86,7 @@ fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
                 let len = a.distance(b);
                 let d = edges
                     .iter()
-                    .map(|&(q0, q1)| segment_distance(a, b, q0, q1))
+                    .map(|&(q0, q1)| common::segment_distance(a, b, q0, q1))
                     .fold(f64::INFINITY, f64::min);
                 out.worst_tie = out.worst_tie.max(d / len);
             }

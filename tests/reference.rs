@@ -7,16 +7,15 @@ mod common;
 
 use common::{shipped, Rng};
 use glam::{Vec2, Vec3};
-use penumbra::gbuffer::{gbuffer_pass, GBuffer, GSample};
+use penumbra::gbuffer::GSample;
 use penumbra::geom::bvh::{intersect_triangle, Bvh};
 use penumbra::geom::SceneGeometry;
-use penumbra::raster::Framebuffer;
-use penumbra::render::{view_for, with_threads, RenderOptions};
+use penumbra::render::with_threads;
 use penumbra::sampling::{light_samples, pixel_key, LightSampler, Strata};
 use penumbra::scene::{Light, LightShape, Scene};
 use penumbra::shade::{LightSample, PreparedLight, SurfacePoint};
 use penumbra::shadow::reference::{Reference, ShadowTracer};
-use penumbra::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
+use penumbra::shadow::{ShadowOutput, ShadowTechnique};
 use penumbra::view::View;
 use rayon::prelude::*;
 
@@ -27,54 +26,7 @@ fn scene_from_toml(name: &str, toml: &str, files: &[(&str, &[u8])]) -> Scene {
     common::scene_in_scratch(&format!("reference-{name}"), toml, files)
 }
 
-/// Everything a technique reads, for `scene` at `w × h`.
-struct Frame {
-    geometry: SceneGeometry,
-    view: View,
-    gbuffer: GBuffer,
-    depth: Framebuffer,
-}
-
-impl Frame {
-    fn new(scene: &Scene, w: u32, h: u32) -> Frame {
-        let options = RenderOptions {
-            width: Some(w),
-            height: Some(h),
-            ..RenderOptions::default()
-        };
-        let view = view_for(scene, &options).expect("view");
-        let geometry = SceneGeometry::new(scene);
-        let (gbuffer, depth, _) = gbuffer_pass(scene, &geometry, &view).expect("g-buffer");
-        Frame {
-            geometry,
-            view,
-            gbuffer,
-            depth,
-        }
-    }
-
-    fn ctx<'a>(&'a self, scene: &'a Scene) -> ShadowContext<'a> {
-        ShadowContext {
-            scene,
-            geometry: &self.geometry,
-            view: &self.view,
-            gbuffer: &self.gbuffer,
-            depth: &self.depth,
-        }
-    }
-
-    /// Index of the surface pixel whose position is closest to `p`.
-    fn pixel_near(&self, p: Vec3) -> usize {
-        let mut best = (f32::INFINITY, usize::MAX);
-        for (i, g) in self.gbuffer.samples().enumerate() {
-            let d = g.position.distance(p);
-            if g.is_surface() && d < best.0 {
-                best = (d, i);
-            }
-        }
-        best.1
-    }
-}
+use common::Frame;
 
 fn run(scene: &Scene, frame: &Frame, samples: u32, seed: u64) -> ShadowOutput {
     Reference::new(samples, seed)

@@ -10,7 +10,6 @@
 
 mod common;
 
-use glam::DVec3;
 use penumbra::gbuffer::{gbuffer_pass, GBuffer};
 use penumbra::geom::SceneGeometry;
 use penumbra::raster::{draw, Framebuffer, NoFragmentStage};
@@ -62,36 +61,7 @@ fn counts(f: &Frame, zpass: bool) -> Vec<i32> {
     stencil_counts(&mut fb, &volume, zpass).expect("stencil")
 }
 
-/// Distance between segments `p0→p1` and `q0→q1` (closest points by
-/// clamped parameters; exact enough for a tie test).
-fn segment_distance(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> f64 {
-    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
-    let (a, e, f) = (d1.dot(d1), d2.dot(d2), d2.dot(r));
-    let (c, b) = (d1.dot(r), d1.dot(d2));
-    let denom = a * e - b * b;
-    let mut s = if denom > 0.0 {
-        ((b * f - c * e) / denom).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let mut t = if e > 0.0 { (b * s + f) / e } else { 0.0 };
-    if t < 0.0 {
-        t = 0.0;
-        s = if a > 0.0 {
-            (-c / a).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-    } else if t > 1.0 {
-        t = 1.0;
-        s = if a > 0.0 {
-            ((b - c) / a).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-    }
-    ((p0 + d1 * s) - (q0 + d2 * t)).length()
-}
+use common::segment_distance;
 
 struct Comparison {
     surfaces: usize,

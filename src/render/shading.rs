@@ -4,7 +4,7 @@
 
 use crate::gbuffer::GBuffer;
 use crate::scene::Scene;
-use crate::shade::{PreparedLight, SurfacePoint};
+use crate::shade::{surface_point, PreparedLight};
 use crate::shadow::LightTerm;
 use crate::view::View;
 use glam::Vec3;
@@ -28,17 +28,8 @@ pub fn shade(scene: &Scene, view: &View, gbuffer: &GBuffer, terms: &[LightTerm])
                 if !g.is_surface() {
                     continue;
                 }
-                let m = &scene.materials[g.material as usize];
                 let receives = scene.objects[g.object as usize].receive_shadows;
-                let sp = SurfacePoint {
-                    p: g.position,
-                    n: g.normal,
-                    ng: g.geo_normal,
-                    wo: (eye - g.position).normalize_or_zero(),
-                    albedo: g.albedo,
-                    specular: m.specular,
-                    shininess: m.shininess,
-                };
+                let sp = surface_point(scene, &g, eye);
                 let mut l = scene.ambient * g.albedo;
                 for (light, term) in lights.iter().zip(terms) {
                     l += match (&term.radiance, &term.vcoef) {

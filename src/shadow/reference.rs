@@ -26,7 +26,8 @@ use crate::geom::bvh::{Bvh, Hit};
 use crate::geom::SceneGeometry;
 use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::scene::{LightShape, Scene};
-use crate::shade::{LightSample, PreparedLight, SurfacePoint};
+use crate::shade::surface_point;
+use crate::shade::{LightSample, PreparedLight};
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -509,23 +510,6 @@ impl<'a> ShadowTracer<'a> {
             },
             rays,
         )
-    }
-}
-
-/// The shading point of `g` as the shading pass builds it.
-fn surface_point(scene: &Scene, g: &GSample, eye: Vec3) -> SurfacePoint {
-    let (specular, shininess) = scene
-        .materials
-        .get(g.material as usize)
-        .map_or((Vec3::ZERO, 0.0), |m| (m.specular, m.shininess));
-    SurfacePoint {
-        p: g.position,
-        n: g.normal,
-        ng: g.geo_normal,
-        wo: (eye - g.position).normalize_or_zero(),
-        albedo: g.albedo,
-        specular,
-        shininess,
     }
 }
 

@@ -51,3 +51,79 @@ pub fn shipped(name: &str) -> penumbra::scene::Scene {
         .join(name);
     penumbra::scene::load_scene(&path).expect("shipped scene loads")
 }
+
+/// Everything a technique reads, for `scene` at `w × h`.
+pub struct Frame {
+    pub geometry: penumbra::geom::SceneGeometry,
+    pub view: penumbra::view::View,
+    pub gbuffer: penumbra::gbuffer::GBuffer,
+    pub depth: penumbra::raster::Framebuffer,
+}
+
+impl Frame {
+    pub fn new(scene: &penumbra::scene::Scene, w: u32, h: u32) -> Frame {
+        let options = penumbra::render::RenderOptions {
+            width: Some(w),
+            height: Some(h),
+            ..penumbra::render::RenderOptions::default()
+        };
+        let view = penumbra::render::view_for(scene, &options).expect("view");
+        let geometry = penumbra::geom::SceneGeometry::new(scene);
+        let (gbuffer, depth, _) =
+            penumbra::gbuffer::gbuffer_pass(scene, &geometry, &view).expect("g-buffer");
+        Frame {
+            geometry,
+            view,
+            gbuffer,
+            depth,
+        }
+    }
+
+    pub fn ctx<'a>(
+        &'a self,
+        scene: &'a penumbra::scene::Scene,
+    ) -> penumbra::shadow::ShadowContext<'a> {
+        penumbra::shadow::ShadowContext {
+            scene,
+            geometry: &self.geometry,
+            view: &self.view,
+            gbuffer: &self.gbuffer,
+            depth: &self.depth,
+        }
+    }
+
+    /// Index of the surface pixel whose position is closest to `p`.
+    pub fn pixel_near(&self, p: glam::Vec3) -> usize {
+        let mut best = (f32::INFINITY, usize::MAX);
+        for (i, g) in self.gbuffer.samples().enumerate() {
+            let d = g.position.distance(p);
+            if g.is_surface() && d < best.0 {
+                best = (d, i);
+            }
+        }
+        best.1
+    }
+}
+
+/// Distance between segments `p0 p1` and `q0 q1` (sampled closely
+/// enough for a tie measure: exact at the closest-point solution).
+pub fn segment_distance(p0: glam::DVec3, p1: glam::DVec3, q0: glam::DVec3, q1: glam::DVec3) -> f64 {
+    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, e, f) = (d1.dot(d1), d2.dot(d2), d2.dot(r));
+    let (c, b) = (d1.dot(r), d1.dot(d2));
+    let denom = a * e - b * b;
+    let mut s = if denom > 1e-300 {
+        ((b * f - c * e) / denom).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let mut t = if e > 0.0 { (b * s + f) / e } else { 0.0 };
+    if t < 0.0 {
+        t = 0.0;
+        s = (-c / a).clamp(0.0, 1.0);
+    } else if t > 1.0 {
+        t = 1.0;
+        s = ((b - c) / a).clamp(0.0, 1.0);
+    }
+    (p0 + d1 * s).distance(q0 + d2 * t)
+}

@@ -123,14 +123,14 @@ pub fn add_covered(counters: &mut [i32], samples: &ChartSamples, edge: &Oriented
         .zip(samples.xs.chunks_exact(LANES))
         .zip(samples.ys.chunks_exact(LANES))
     {
-        let sx = f32x8::from(<[f32; LANES]>::try_from(xs).unwrap());
-        let sy = f32x8::from(<[f32; LANES]>::try_from(ys).unwrap());
+        let sx = f32x8::from(<[f32; LANES]>::try_from(xs).expect("chunks_exact(LANES)"));
+        let sy = f32x8::from(<[f32; LANES]>::try_from(ys).expect("chunks_exact(LANES)"));
         let c_lo = lx * sy - ly * sx;
         let c_hi = hx * sy - hy * sx;
         let beyond = dx * (sy - ly) - dy * (sx - lx);
         let m = c_lo.cmp_ge(zero) & c_hi.cmp_lt(zero) & beyond.cmp_lt(zero);
         let m: i32x8 = cast(m);
-        let cur = i32x8::from(<[i32; LANES]>::try_from(&*c).unwrap());
+        let cur = i32x8::from(<[i32; LANES]>::try_from(&*c).expect("chunks_exact(LANES)"));
         let next = cur + (m & d);
         c.copy_from_slice(&next.to_array());
     }

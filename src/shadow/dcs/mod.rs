@@ -30,14 +30,13 @@ pub mod counters;
 pub mod edges;
 
 use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
-use super::shadow_volumes::{build_volume, caster_adjacency, light_point, stencil_counts};
 use super::wedges::geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
-use super::wedges::{light_bound, HalfWedgeMembership};
+use super::wedges::{draw_wedges, light_start, HalfWedgeMembership, LightStart};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
-use crate::raster::{draw, CompareFunc, CullMode, FragmentBatch, FragmentStage, RasterState};
+use crate::raster::{FragmentBatch, FragmentStage};
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
 use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::scene::LightShape;
@@ -102,6 +101,7 @@ struct MembershipStage<'a> {
     halves: &'a [HalfWedge],
     /// Candidate edge of each half.
     half_edge: &'a [u32],
+    /// The set is counted z-pass.
     zpass: bool,
 }
 
@@ -129,20 +129,6 @@ impl FragmentStage<0> for MembershipStage<'_> {
             self.flush(tile);
         }
         tile.membership.count(batch, prim, self.zpass);
-    }
-}
-
-/// The membership pass's raster state: that of the wedge pass.
-fn membership_state(zpass: bool) -> RasterState {
-    RasterState {
-        depth_func: if zpass {
-            CompareFunc::Greater
-        } else {
-            CompareFunc::LessEqual
-        },
-        depth_write: false,
-        stencil: None,
-        cull: CullMode::None,
     }
 }
 
@@ -396,18 +382,13 @@ impl DepthComplexitySampling {
         inspect: Option<&CounterInspector>,
     ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
         let light = &ctx.scene.lights[k];
-        let bound = light_bound(&light.shape);
-        let point = light_point(&light.shape);
-        let adj = caster_adjacency(ctx.scene, ctx.geometry);
-
-        let t = Instant::now();
-        let volume = build_volume(&adj, ctx.view, point);
-        let mut framebuffer = ctx.depth.clone();
-        let start = stencil_counts(&mut framebuffer, &volume, false)?;
-        passes.push(PassTiming {
-            name: format!("shadow volumes light {k}"),
-            time: t.elapsed(),
-        });
+        let LightStart {
+            adj,
+            bound,
+            point,
+            counts: start,
+            mut framebuffer,
+        } = light_start(ctx, k, passes)?;
 
         let t = Instant::now();
         let lit = faces_point(&adj, point);
@@ -460,29 +441,18 @@ impl DepthComplexitySampling {
         let mut tiles: Vec<MembershipTile> = (0..grid.tile_count())
             .map(|_| MembershipTile::default())
             .collect();
-        for (set, half_edge, zpass) in [
-            (&wedges.zfail, &zfail_edge, false),
-            (&wedges.zpass, &zpass_edge, true),
-        ] {
-            if set.triangles.is_empty() {
-                continue;
-            }
-            let stage = MembershipStage {
+        draw_wedges(
+            &mut framebuffer,
+            &mut tiles,
+            &wedges,
+            |set, zpass| MembershipStage {
                 primitives: &set.primitives,
                 halves: &set.halves,
-                half_edge,
+                half_edge: if zpass { &zpass_edge } else { &zfail_edge },
                 zpass,
-            };
-            draw(
-                &mut framebuffer,
-                &mut tiles,
-                &membership_state(zpass),
-                &set.vertices,
-                &set.triangles,
-                &stage,
-            )?;
-            tiles.par_iter_mut().for_each(|t| stage.flush(t));
-        }
+            },
+            |stage, t| stage.flush(t),
+        )?;
         passes.push(PassTiming {
             name: format!("wedge membership light {k}"),
             time: t.elapsed(),

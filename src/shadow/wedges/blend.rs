@@ -35,11 +35,11 @@
 
 use super::geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
 use super::integrate::{projected_edge, EdgeRegion, Polygon, RectFrame};
-use super::{light_bound, wedge_state, WedgeStage, WedgeTile};
+use super::{draw_wedges, light_bound, WedgeStage, WedgeTile};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
-use crate::raster::{draw, TileGrid, TILE_PIXELS, TILE_SIZE};
+use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
 use crate::shadow::shadow_volumes::{
     build_volume, cap_triangles, caster_adjacency, light_point, side_quad, stencil_counts_of,
 };
@@ -339,29 +339,20 @@ impl ShadowTechnique for WedgeBlending {
                         }
                     }
                 }
-                for set in [&wedges.zfail, &wedges.zpass] {
-                    let zpass = std::ptr::eq(set, &wedges.zpass);
-                    if set.triangles.is_empty() {
-                        continue;
-                    }
-                    let stage = WedgeStage {
+                draw_wedges(
+                    &mut framebuffer,
+                    &mut tiles,
+                    &wedges,
+                    |set, zpass| WedgeStage {
                         gbuffer: ctx.gbuffer,
                         primitives: &set.primitives,
                         halves: &set.halves,
                         light: bound,
                         zpass,
                         blend: true,
-                    };
-                    draw(
-                        &mut framebuffer,
-                        &mut tiles,
-                        &wedge_state(zpass),
-                        &set.vertices,
-                        &set.triangles,
-                        &stage,
-                    )?;
-                    tiles.par_iter_mut().for_each(|t| stage.flush(t));
-                }
+                    },
+                    |stage, t| stage.flush(t),
+                )?;
                 // Blend the silhouette into the V-buffer and clear it.
                 tiles.par_iter_mut().for_each(|t| {
                     let [x0, y0, x1, y1] = t.parts_touched;

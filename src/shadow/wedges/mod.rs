@@ -246,7 +246,7 @@ impl HalfWedgeMembership {
 /// so the shared quad decides exactly as it did there; z-pass: strictly in
 /// front, the exact complement of that test on the same fragment, so the
 /// decision is again the stencil pass's.
-fn wedge_state(zpass: bool) -> RasterState {
+pub fn wedge_state(zpass: bool) -> RasterState {
     RasterState {
         depth_func: if zpass {
             CompareFunc::Greater
@@ -257,6 +257,79 @@ fn wedge_state(zpass: bool) -> RasterState {
         stencil: None,
         cull: CullMode::None,
     }
+}
+
+/// Draws both sets of `wedges` (z-fail halves, then z-pass halves) into
+/// `tiles` with the stage `stage_for(set, zpass)` builds, and after each
+/// set calls `flush` on every tile so its last half is finished. Penumbra
+/// wedges, blending and depth complexity sampling all count membership
+/// this way; only what they do with a finished half differs.
+pub fn draw_wedges<'w, S: FragmentStage<0>>(
+    framebuffer: &mut crate::raster::Framebuffer,
+    tiles: &mut [S::Target],
+    wedges: &'w Wedges,
+    stage_for: impl Fn(&'w geometry::WedgeSet, bool) -> S,
+    flush: impl Fn(&S, &mut S::Target) + Sync,
+) -> Result<()> {
+    for (set, zpass) in [(&wedges.zfail, false), (&wedges.zpass, true)] {
+        if set.triangles.is_empty() {
+            continue;
+        }
+        let stage = stage_for(set, zpass);
+        draw(
+            framebuffer,
+            tiles,
+            &wedge_state(zpass),
+            &set.vertices,
+            &set.triangles,
+            &stage,
+        )?;
+        tiles.par_iter_mut().for_each(|t| flush(&stage, t));
+    }
+    Ok(())
+}
+
+/// What every wedge-based technique starts a light with: the casters'
+/// adjacency, the light's shape and centre, the stencil counts `D(O)` of
+/// the hard shadow volumes from the centre, and the framebuffer (scene
+/// depth) the wedges are then drawn against.
+pub struct LightStart<'a> {
+    /// Opaque casters.
+    pub adj: std::borrow::Cow<'a, crate::geom::EdgeAdjacency>,
+    /// The light for wedge construction and integration.
+    pub bound: LightBound,
+    /// Its centre.
+    pub point: glam::Vec3,
+    /// Stencil count per pixel.
+    pub counts: Vec<i32>,
+    /// Scene depth.
+    pub framebuffer: crate::raster::Framebuffer,
+}
+
+/// Builds light `k`'s [`LightStart`], timing the shadow-volume pass.
+pub fn light_start<'a>(
+    ctx: &ShadowContext<'a>,
+    k: usize,
+    passes: &mut Vec<PassTiming>,
+) -> Result<LightStart<'a>> {
+    let light = &ctx.scene.lights[k];
+    let point = light_point(&light.shape);
+    let adj = caster_adjacency(ctx.scene, ctx.geometry);
+    let t = Instant::now();
+    let volume = build_volume(&adj, ctx.view, point);
+    let mut framebuffer = ctx.depth.clone();
+    let counts = stencil_counts(&mut framebuffer, &volume, false)?;
+    passes.push(PassTiming {
+        name: format!("shadow volumes light {k}"),
+        time: t.elapsed(),
+    });
+    Ok(LightStart {
+        adj,
+        bound: light_bound(&light.shape),
+        point,
+        counts,
+        framebuffer,
+    })
 }
 
 /// The light's shape for wedge construction and integration.
@@ -290,19 +363,13 @@ pub fn wedge_light(
     k: usize,
     passes: &mut Vec<PassTiming>,
 ) -> Result<WedgeLight> {
-    let light = &ctx.scene.lights[k];
-    let bound = light_bound(&light.shape);
-    let point = light_point(&light.shape);
-    let adj = caster_adjacency(ctx.scene, ctx.geometry);
-
-    let t = Instant::now();
-    let volume = build_volume(&adj, ctx.view, point);
-    let mut framebuffer = ctx.depth.clone();
-    let counts = stencil_counts(&mut framebuffer, &volume, false)?;
-    passes.push(PassTiming {
-        name: format!("shadow volumes light {k}"),
-        time: t.elapsed(),
-    });
+    let LightStart {
+        adj,
+        bound,
+        point,
+        counts,
+        mut framebuffer,
+    } = light_start(ctx, k, passes)?;
 
     let t = Instant::now();
     let lit = faces_point(&adj, point);
@@ -339,29 +406,20 @@ pub fn wedge_light(
             WedgeTile::new((ox, oy), start)
         })
         .collect();
-    for set in [&wedges.zfail, &wedges.zpass] {
-        let zpass = std::ptr::eq(set, &wedges.zpass);
-        if set.triangles.is_empty() {
-            continue;
-        }
-        let stage = WedgeStage {
+    draw_wedges(
+        &mut framebuffer,
+        &mut tiles,
+        &wedges,
+        |set, zpass| WedgeStage {
             gbuffer: ctx.gbuffer,
             primitives: &set.primitives,
             halves: &set.halves,
             light: bound,
             zpass,
             blend: false,
-        };
-        draw(
-            &mut framebuffer,
-            &mut tiles,
-            &wedge_state(zpass),
-            &set.vertices,
-            &set.triangles,
-            &stage,
-        )?;
-        tiles.par_iter_mut().for_each(|t| stage.flush(t));
-    }
+        },
+        |stage, t| stage.flush(t),
+    )?;
     passes.push(PassTiming {
         name: format!("wedges light {k}"),
         time: t.elapsed(),
