@@ -12,7 +12,7 @@ use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
 use crate::scene::{load_scene, LightShape, Scene};
-use crate::shadow::dcs::{DcsMode, SilhouetteMode};
+use crate::shadow::dcs::{DcsMode, SilhouetteMode, TransmittanceMode};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
@@ -71,6 +71,11 @@ enum Command {
         /// eq. 4.6).
         #[arg(long, default_value = "vcoef")]
         dcs_mode: String,
+        /// Depth complexity sampling: semi-opaque casters' transmittance,
+        /// `exact` (the product of `1 − opacity` per layer) or `summed`
+        /// (the thesis's summed-opacity approximation).
+        #[arg(long, default_value = "exact")]
+        transmittance: String,
         /// Placement of light samples (reference, dcs): stratified,
         /// correlated, rotated, poisson, sobol, interleaved[:N].
         #[arg(long, default_value = "stratified")]
@@ -104,6 +109,10 @@ enum Command {
         /// Samples per light of the reference (even: it is two halves).
         #[arg(long, default_value_t = 4096)]
         reference_samples: u32,
+        /// Comma-separated sample patterns DCS is measured with (one curve
+        /// each; the first is the reference's and whole-light silhouettes').
+        #[arg(long, value_delimiter = ',', default_value = "stratified")]
+        patterns: Vec<String>,
         /// Timed runs per setting; the median is reported.
         #[arg(long, default_value_t = 3)]
         repeat: u32,
@@ -197,6 +206,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             zpass,
             silhouettes,
             dcs_mode,
+            transmittance,
             pattern,
             timings,
             explain,
@@ -221,6 +231,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 zpass,
                 silhouettes: parse_silhouettes(&silhouettes)?,
                 dcs_mode: parse_dcs_mode(&dcs_mode)?,
+                transmittance: parse_transmittance(&transmittance)?,
                 pattern: SamplePattern::parse(&pattern)
                     .map_err(|e| Error::param("--pattern", e))?,
             };
@@ -266,6 +277,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             techniques,
             samples,
             reference_samples,
+            patterns,
             repeat,
             width,
             height,
@@ -289,6 +301,12 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 seed,
                 cache_dir: cache_dir.unwrap_or_else(|| default_cache_dir(&out.join("cache"))),
                 images: !no_images,
+                patterns: patterns
+                    .iter()
+                    .map(|p| {
+                        SamplePattern::parse(p.trim()).map_err(|e| Error::param("--patterns", e))
+                    })
+                    .collect::<Result<Vec<_>>>()?,
             };
             options.validate()?;
             let loaded = scenes
@@ -572,6 +590,18 @@ fn parse_dcs_mode(s: &str) -> Result<DcsMode> {
         _ => Err(Error::param(
             "--dcs-mode",
             format!("unknown value `{s}` (known: vcoef, direct)"),
+        )),
+    }
+}
+
+/// `--transmittance`.
+fn parse_transmittance(s: &str) -> Result<TransmittanceMode> {
+    match s {
+        "exact" => Ok(TransmittanceMode::Exact),
+        "summed" => Ok(TransmittanceMode::Summed),
+        _ => Err(Error::param(
+            "--transmittance",
+            format!("unknown value `{s}` (known: exact, summed)"),
         )),
     }
 }

@@ -32,6 +32,7 @@ fn options(cache: &Path, reference_samples: u32) -> CompareOptions {
         seed: 7,
         cache_dir: cache.to_path_buf(),
         images: true,
+        patterns: vec![penumbra::sampling::SamplePattern::Stratified],
     }
 }
 

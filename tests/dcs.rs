@@ -12,7 +12,7 @@ use glam::DVec3;
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shade::LightSample;
-use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
+use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode};
 use penumbra::shadow::reference::{ShadowTracer, END_SHORTEN};
 use std::sync::Mutex;
 
@@ -43,10 +43,13 @@ fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
         silhouettes: SilhouetteMode::WholeLight,
         mode: DcsMode::Vcoef,
         pattern: SamplePattern::Stratified,
+        transmittance: TransmittanceMode::Exact,
     };
     let seen: Mutex<Vec<Inspected>> = Mutex::new(Vec::new());
-    dcs.inspect_light(&ctx, 0, &|i, s, c| {
-        seen.lock().unwrap().push((i, s.to_vec(), c.to_vec()));
+    dcs.inspect_light(&ctx, 0, &|i, px| {
+        seen.lock()
+            .unwrap()
+            .push((i, px.samples.to_vec(), px.counters.to_vec()));
     })
     .expect("dcs runs");
     let adj = &frame.geometry.adjacency;

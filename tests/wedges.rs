@@ -67,6 +67,7 @@ fn check_exact_case(name: &str, toml: &str) {
         seed: 3,
         cache_dir: dir.join("cache"),
         images: false,
+        patterns: vec![penumbra::sampling::SamplePattern::Stratified],
     };
     let c = compare_scene(&scene, &options, &dir, &Progress::hidden()).expect("compare");
     let wedges = c.runs.iter().find(|r| r.technique == "wedges").unwrap();

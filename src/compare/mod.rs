@@ -15,6 +15,8 @@
 pub mod cache;
 mod results;
 
+use crate::sampling::SamplePattern;
+use crate::shadow::dcs::TransmittanceMode;
 pub use results::{write_csv, write_json, write_markdown};
 
 use crate::error::{Error, Result};
@@ -56,6 +58,9 @@ pub struct CompareOptions {
     pub cache_dir: PathBuf,
     /// Write per-run images and heat maps.
     pub images: bool,
+    /// Sample patterns DCS is measured with (one curve each); the first
+    /// is also the reference's and whole-light silhouettes' pattern.
+    pub patterns: Vec<SamplePattern>,
 }
 
 impl CompareOptions {
@@ -66,6 +71,12 @@ impl CompareOptions {
         }
         if self.samples.is_empty() {
             return Err(Error::param("--samples", "give at least one sample count"));
+        }
+        if self.patterns.is_empty() {
+            return Err(Error::param(
+                "--patterns",
+                "give at least one sample pattern",
+            ));
         }
         if let Some(&s) = self.samples.iter().find(|&&s| s == 0 || s > 1 << 20) {
             return Err(Error::param(
@@ -125,12 +136,18 @@ pub struct QualitySetting {
     pub options: RenderOptions,
 }
 
-/// The quality settings `compare` runs for `technique`.
+/// The quality settings `compare` runs for `technique`: every sample
+/// count, for DCS also every pattern (centre silhouettes), whole-light
+/// silhouettes (first pattern) and, when the scene has semi-opaque
+/// casters, the summed-opacity approximation (first pattern).
 pub fn quality_settings(
     technique: Technique,
     samples: &[u32],
+    patterns: &[SamplePattern],
+    semi_opaque: bool,
     base: &RenderOptions,
 ) -> Vec<QualitySetting> {
+    let first = patterns.first().copied().unwrap_or_default();
     let with = |label: String, samples: Option<u32>| QualitySetting {
         curve: technique.name().to_string(),
         label,
@@ -138,32 +155,68 @@ pub fn quality_settings(
         options: RenderOptions {
             technique,
             samples: samples.unwrap_or(base.samples),
+            pattern: first,
             ..base.clone()
         },
+    };
+    let sweep = |curve: String, suffix: String, set: &dyn Fn(&mut RenderOptions)| {
+        samples
+            .iter()
+            .map(|&n| {
+                let mut q = with(format!("{n} spp{suffix}"), Some(n));
+                q.curve = curve.clone();
+                set(&mut q.options);
+                q
+            })
+            .collect::<Vec<_>>()
     };
     match technique {
         Technique::None => vec![with("unshadowed".into(), None)],
         Technique::ShadowVolumes => vec![with("hard (z-fail)".into(), None)],
         Technique::Wedges => vec![with("centre silhouettes".into(), None)],
         Technique::WedgeBlend => vec![with("EOAH, 4 quarters".into(), None)],
-        Technique::Reference => samples
-            .iter()
-            .map(|&n| with(format!("{n} spp"), Some(n)))
-            .collect(),
-        Technique::Dcs => [SilhouetteMode::Centre, SilhouetteMode::WholeLight]
-            .into_iter()
-            .flat_map(|sil| {
-                samples.iter().map(move |&n| {
-                    let mut q = with(format!("{n} spp, {} silhouettes", sil.name()), Some(n));
-                    q.options.silhouettes = sil;
-                    if sil == SilhouetteMode::WholeLight {
-                        q.curve = "dcs light-silhouettes".into();
-                    }
-                    q
+        Technique::Reference => sweep("reference".into(), String::new(), &|_| {}),
+        Technique::Dcs => {
+            let mut out = Vec::new();
+            for (j, &pattern) in patterns.iter().enumerate() {
+                let (curve, suffix) = if j == 0 {
+                    ("dcs".to_string(), ", centre silhouettes".to_string())
+                } else {
+                    (format!("dcs {pattern}"), format!(", {pattern}"))
+                };
+                out.extend(sweep(curve, suffix, &|o| {
+                    o.pattern = pattern;
+                    o.silhouettes = SilhouetteMode::Centre;
+                }));
+            }
+            out.extend(sweep(
+                "dcs light-silhouettes".into(),
+                ", light silhouettes".into(),
+                &|o| o.silhouettes = SilhouetteMode::WholeLight,
+            ));
+            if semi_opaque {
+                out.extend(sweep(
+                    "dcs summed-opacity".into(),
+                    ", summed opacity".into(),
+                    &|o| o.transmittance = TransmittanceMode::Summed,
+                ));
+            }
+            out
+        }
+    }
+}
+
+/// Whether `scene` has casters of constant partial opacity (DCS's
+/// transmittance groups).
+pub fn has_semi_opaque_casters(scene: &Scene) -> bool {
+    scene.objects.iter().any(|o| {
+        o.cast_shadows
+            && o.mesh.material_ids.iter().any(|&m| {
+                scene.materials.get(m as usize).is_some_and(|m| {
+                    m.opacity_texture.is_none() && m.opacity > 0.0 && m.opacity < 1.0
                 })
             })
-            .collect(),
-    }
+    })
 }
 
 /// Errors over all shading points and over the penumbra only.
@@ -513,7 +566,16 @@ pub fn progress_steps(options: &CompareOptions) -> u64 {
     let settings: usize = options
         .techniques
         .iter()
-        .map(|&t| quality_settings(t, &options.samples, &RenderOptions::default()).len())
+        .map(|&t| {
+            quality_settings(
+                t,
+                &options.samples,
+                &options.patterns,
+                true,
+                &RenderOptions::default(),
+            )
+            .len()
+        })
         .sum();
     2 + settings as u64 * options.repeat as u64
 }
@@ -578,7 +640,14 @@ pub fn compare_scene(
     };
     let mut runs = Vec::new();
     for &technique in &options.techniques {
-        for setting in quality_settings(technique, &options.samples, &base) {
+        let semi_opaque = has_semi_opaque_casters(scene);
+        for setting in quality_settings(
+            technique,
+            &options.samples,
+            &options.patterns,
+            semi_opaque,
+            &base,
+        ) {
             let name = setting.curve.as_str();
             let mut totals = Vec::new();
             let mut pass_times: Vec<Vec<f64>> = Vec::new();

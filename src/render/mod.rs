@@ -12,7 +12,7 @@ use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::sampling::SamplePattern;
 use crate::scene::Scene;
-use crate::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
+use crate::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode};
 use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
 use crate::shadow::wedges::blend::WedgeBlending;
@@ -139,6 +139,7 @@ impl Technique {
                 silhouettes: options.silhouettes,
                 mode: options.dcs_mode,
                 pattern: options.pattern,
+                transmittance: options.transmittance,
             }),
         }
     }
@@ -188,6 +189,8 @@ pub struct RenderOptions {
     pub dcs_mode: DcsMode,
     /// Placement of light samples (sampling techniques).
     pub pattern: SamplePattern,
+    /// Depth complexity sampling: semi-opaque casters' transmittance.
+    pub transmittance: TransmittanceMode,
 }
 
 impl Default for RenderOptions {
@@ -203,6 +206,7 @@ impl Default for RenderOptions {
             silhouettes: SilhouetteMode::Centre,
             dcs_mode: DcsMode::Vcoef,
             pattern: SamplePattern::Stratified,
+            transmittance: TransmittanceMode::Exact,
         }
     }
 }

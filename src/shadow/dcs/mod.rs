@@ -28,8 +28,10 @@
 pub mod chart;
 pub mod counters;
 pub mod edges;
+pub mod groups;
 
 use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
+use super::shadow_volumes::{build_volume, stencil_counts};
 use super::wedges::geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use super::wedges::{draw_wedges, light_start, HalfWedgeMembership, LightStart};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -47,6 +49,8 @@ use counters::{add_covered, ChartSamples, OrientedEdge};
 pub use edges::SilhouetteMode;
 use edges::{side_of, CandidateEdges, LightShapeForSilhouettes};
 use glam::{DVec3, Vec3};
+pub use groups::TransmittanceMode;
+use groups::{semi_opaque_groups, Attenuation};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -85,6 +89,8 @@ pub struct DepthComplexitySampling {
     pub mode: DcsMode,
     /// How samples are placed on the light (shared with the reference).
     pub pattern: SamplePattern,
+    /// How semi-opaque casters' layer counts become transmittance.
+    pub transmittance: TransmittanceMode,
 }
 
 /// One tile's (pixel, edge) pairs: `local << 33 | edge << 1 | outer`, so
@@ -147,8 +153,34 @@ struct PixelResult {
 struct Scratch {
     samples: Vec<LightSample>,
     chart: ChartSamples,
+    /// The opaque group's counters `D`.
     counters: Vec<i32>,
+    /// One semi-opaque group's layer counts (reused per group).
+    layers: Vec<i32>,
+    /// Per sample: accumulated optical depth (or summed opacity) of the
+    /// semi-opaque groups; empty when the scene has none.
+    attenuation: Vec<f64>,
+    /// Per sample: transmittance from `attenuation`.
+    transmittance: Vec<f64>,
     visibility: Vec<f32>,
+}
+
+/// One caster group's state for a light: its candidate edges, its
+/// shadow-volume start `D(O)` (or layer count at the centre) per pixel,
+/// and where its edges sit in the light's global edge numbering.
+struct GroupPass {
+    /// What one layer adds to the per-sample accumulator.
+    per_layer: f64,
+    candidates: CandidateEdges,
+    start: Vec<i32>,
+    /// Global id of the group's first edge (ids are contiguous).
+    first_edge: u32,
+}
+
+impl GroupPass {
+    fn end_edge(&self) -> u32 {
+        self.first_edge + self.candidates.edges.len() as u32
+    }
 }
 
 /// Everything the counter pass of one light reads.
@@ -160,35 +192,62 @@ struct LightPass<'a> {
     sampler: LightSampler,
     pattern: PatternSampler,
     prepared: PreparedLight<'a>,
-    candidates: &'a CandidateEdges,
-    /// `D(O)` per pixel.
-    start: &'a [i32],
+    /// The opaque group first, then one group per semi-opaque opacity.
+    groups: &'a [GroupPass],
     /// `EPS_SCENE ×` the scene's diagonal.
     eps_scene: f64,
     /// Called with every surface pixel's samples and counters.
     inspect: Option<&'a CounterInspector<'a>>,
 }
 
-/// A visitor of per-pixel counters: `(pixel index, samples, counters)`.
-pub type CounterInspector<'a> = dyn Fn(usize, &[LightSample], &[i32]) + Sync + 'a;
+/// One receiver's per-sample state, as [`CounterInspector`]s see it.
+#[derive(Debug, Clone, Copy)]
+pub struct InspectedPixel<'a> {
+    /// The light samples.
+    pub samples: &'a [LightSample],
+    /// The opaque depth complexity `D` per sample.
+    pub counters: &'a [i32],
+    /// The semi-opaque casters' transmittance per sample (empty when the
+    /// scene has no semi-opaque caster).
+    pub transmittance: &'a [f64],
+}
+
+/// A visitor of per-pixel state: `(pixel index, state)`.
+pub type CounterInspector<'a> = dyn Fn(usize, &InspectedPixel) + Sync + 'a;
 
 impl LightPass<'_> {
+    /// Transmittance of the semi-opaque groups at pixel `i` when every
+    /// sample sees their start counts (no wedge of theirs holds `i`).
+    fn constant_transmittance(&self, i: usize) -> f64 {
+        let acc: f64 = self.groups[1..]
+            .iter()
+            .map(|g| f64::from(g.start[i].max(0)) * g.per_layer)
+            .sum();
+        self.technique.transmittance.transmittance(acc)
+    }
+
     /// The results of global pixel `i` with its recorded `(edge, outer)`
-    /// pairs (sorted, no duplicates).
+    /// pairs (sorted, no duplicates) and the unbounded edges `extra`
+    /// (sorted) that apply to it; edge ids are global over the groups.
     fn pixel(&self, i: usize, tags: &[u64], extra: &[u32], scratch: &mut Scratch) -> PixelResult {
         let gbuffer = self.ctx.gbuffer;
-        let d0 = self.start[i];
+        let d0 = self.groups[0].start[i];
         let g = gbuffer.sample(i);
         let eye = self.ctx.view.eye.as_vec3();
         let direct = self.technique.mode == DcsMode::Direct;
         let sp = || surface_point(self.ctx.scene, &g, eye);
         if tags.is_empty() && extra.is_empty() && self.inspect.is_none() {
-            // Outside every wedge: D = D(O) for every sample.
-            let lit = d0 <= 0;
+            // Outside every wedge: D = D(O) and the layer counts are the
+            // start counts for every sample.
+            let t = if d0 <= 0 {
+                self.constant_transmittance(i)
+            } else {
+                0.0
+            };
             return PixelResult {
-                vcoef: if lit { 1.0 } else { 0.0 },
-                radiance: if direct && lit {
-                    self.prepared.unshadowed_direct(&sp())
+                vcoef: t as f32,
+                radiance: if direct && t > 0.0 {
+                    self.prepared.unshadowed_direct(&sp()) * t as f32
                 } else {
                     Vec3::ZERO
                 },
@@ -224,67 +283,72 @@ impl LightPass<'_> {
         scratch
             .chart
             .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
-        let edges = &self.candidates.edges;
-        // The stencil decided `D(O)` at the raster's receiver `p`; the
-        // counters follow the shadow-ray origin `p'`. Where a quad's
-        // plane passes between them (a receiver on the occluder, at its
-        // terminator) move the constant across that quad: +m entering the
-        // volume, −m leaving it.
-        let mut d0 = d0;
-        for &t in tags {
-            let e = &edges[(t >> 1) as usize];
-            if e.quad_sign == 0 {
-                continue;
-            }
-            let outer = t & 1 == 1;
-            let raster = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
-            let geometric = side_of(p, e.v0, e.v1, self.centre);
-            if geometric != 0 && geometric != raster {
-                let m = e.quad_weight as i32;
-                d0 += if outer { m } else { -m };
-            }
-        }
-        scratch.counters.clear();
-        scratch.counters.resize(scratch.chart.padded(), d0);
-        let from_wedges = tags.iter().map(|&t| (t >> 1) as u32);
-        for id in from_wedges.chain(extra.iter().copied()) {
-            let e = &edges[id as usize];
-            let side = side_of(p, e.v0, e.v1, self.centre);
-            if side == 0 {
-                continue;
-            }
-            // Whole-light silhouettes: the exact change (see `edges`).
-            // Centre silhouettes: the thesis's rule, ±m by the half the
-            // receiver is in (outer adds), whether or not the edge is a
-            // silhouette from p — the exact rule would drop those edges
-            // and miss the ones that are silhouettes from p only, which
-            // on tessellated curved occluders leaves almost hard shadows.
-            let mu = match self.technique.silhouettes {
-                SilhouetteMode::WholeLight => self.candidates.multiplicity_from(e, p),
-                SilhouetteMode::Centre if e.quad_sign != 0 => {
-                    e.quad_weight as i32 * i32::from(e.quad_sign)
-                }
-                SilhouetteMode::Centre => self.candidates.multiplicity_from(e, p),
-            };
-            if mu == 0 {
-                continue;
-            }
-            let Some((a, b)) = chart.edge(e.v0, e.v1) else {
-                continue;
-            };
-            if let Some(oriented) = OrientedEdge::new(a, b) {
-                add_covered(&mut scratch.counters, &scratch.chart, &oriented, side * mu);
-            }
-        }
         let count = scratch.chart.len();
+        let semi_opaque = self.groups.len() > 1;
+        scratch.attenuation.clear();
+        if semi_opaque {
+            scratch.attenuation.resize(count, 0.0);
+        }
+        // Tags and extras are sorted by global edge id, and each group's
+        // ids are contiguous: split them group by group.
+        let (mut ti, mut xi) = (0, 0);
+        for (k, group) in self.groups.iter().enumerate() {
+            let end = group.end_edge();
+            let t_end = ti + tags[ti..].partition_point(|&t| ((t >> 1) as u32) < end);
+            let x_end = xi + extra[xi..].partition_point(|&e| e < end);
+            let (group_tags, group_extra) = (&tags[ti..t_end], &extra[xi..x_end]);
+            (ti, xi) = (t_end, x_end);
+            if k == 0 {
+                self.count_group(group, i, p, &chart, group_tags, group_extra, scratch, false);
+                continue;
+            }
+            if group_tags.is_empty() && group_extra.is_empty() {
+                let layers = group.start[i];
+                if layers > 0 {
+                    let add = f64::from(layers) * group.per_layer;
+                    scratch.attenuation.iter_mut().for_each(|a| *a += add);
+                }
+                continue;
+            }
+            self.count_group(group, i, p, &chart, group_tags, group_extra, scratch, true);
+            let Scratch {
+                layers,
+                attenuation,
+                ..
+            } = scratch;
+            for (a, &n) in attenuation.iter_mut().zip(&layers[..count]) {
+                // Counts are exact; a negative one is a tie at an edge
+                // and means no layer.
+                if n > 0 {
+                    *a += f64::from(n) * group.per_layer;
+                }
+            }
+        }
+        let mode = self.technique.transmittance;
+        scratch.transmittance.clear();
+        scratch
+            .transmittance
+            .extend(scratch.attenuation.iter().map(|&a| mode.transmittance(a)));
         let counters = &scratch.counters[..count];
         if let Some(inspect) = self.inspect {
-            inspect(i, &scratch.samples, counters);
+            inspect(
+                i,
+                &InspectedPixel {
+                    samples: &scratch.samples,
+                    counters,
+                    transmittance: &scratch.transmittance,
+                },
+            );
         }
         scratch.visibility.clear();
         scratch
             .visibility
             .extend(counters.iter().map(|&c| if c <= 0 { 1.0 } else { 0.0 }));
+        if semi_opaque {
+            for (v, &t) in scratch.visibility.iter_mut().zip(&scratch.transmittance) {
+                *v *= t as f32;
+            }
+        }
         let visible: f32 = scratch.visibility.iter().sum();
         let max_dc = counters.iter().copied().max().unwrap_or(0).max(0);
         let sum_dc: i64 = counters.iter().map(|&c| i64::from(c.max(0))).sum();
@@ -299,6 +363,85 @@ impl LightPass<'_> {
             max_dc: max_dc as f32,
             mean_dc: (sum_dc as f64 / count as f64) as f32,
             edges: tags.len() as f32,
+        }
+    }
+
+    /// Counts one group at receiver `p'` (`p`) of pixel `i` into
+    /// `scratch.counters` (opaque) or `scratch.layers` (semi-opaque):
+    /// the start count, moved across the quads that pass between the
+    /// raster's receiver and `p'`, plus every edge's signed change over
+    /// the samples it covers.
+    #[allow(clippy::too_many_arguments)]
+    fn count_group(
+        &self,
+        group: &GroupPass,
+        i: usize,
+        p: DVec3,
+        chart: &ReceiverChart,
+        tags: &[u64],
+        extra: &[u32],
+        scratch: &mut Scratch,
+        layers: bool,
+    ) {
+        let edges = &group.candidates.edges;
+        let local = |global: u32| (global - group.first_edge) as usize;
+        // The stencil decided `D(O)` at the raster's receiver `p`; the
+        // counters follow the shadow-ray origin `p'`. Where a quad's
+        // plane passes between them (a receiver on the occluder, at its
+        // terminator) move the constant across that quad: +m entering the
+        // volume, −m leaving it.
+        let mut d0 = group.start[i];
+        for &t in tags {
+            let e = &edges[local((t >> 1) as u32)];
+            if e.quad_sign == 0 {
+                continue;
+            }
+            let outer = t & 1 == 1;
+            let raster = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
+            let geometric = side_of(p, e.v0, e.v1, self.centre);
+            if geometric != 0 && geometric != raster {
+                let m = e.quad_weight as i32;
+                d0 += if outer { m } else { -m };
+            }
+        }
+        let Scratch {
+            chart: samples,
+            counters,
+            layers: layer_counts,
+            ..
+        } = scratch;
+        let counters = if layers { layer_counts } else { counters };
+        counters.clear();
+        counters.resize(samples.padded(), d0);
+        let from_wedges = tags.iter().map(|&t| (t >> 1) as u32);
+        for id in from_wedges.chain(extra.iter().copied()) {
+            let e = &edges[local(id)];
+            let side = side_of(p, e.v0, e.v1, self.centre);
+            if side == 0 {
+                continue;
+            }
+            // Whole-light silhouettes: the exact change (see `edges`).
+            // Centre silhouettes: the thesis's rule, ±m by the half the
+            // receiver is in (outer adds), whether or not the edge is a
+            // silhouette from p — the exact rule would drop those edges
+            // and miss the ones that are silhouettes from p only, which
+            // on tessellated curved occluders leaves almost hard shadows.
+            let mu = match self.technique.silhouettes {
+                SilhouetteMode::WholeLight => group.candidates.multiplicity_from(e, p),
+                SilhouetteMode::Centre if e.quad_sign != 0 => {
+                    e.quad_weight as i32 * i32::from(e.quad_sign)
+                }
+                SilhouetteMode::Centre => group.candidates.multiplicity_from(e, p),
+            };
+            if mu == 0 {
+                continue;
+            }
+            let Some((a, b)) = chart.edge(e.v0, e.v1) else {
+                continue;
+            };
+            if let Some(oriented) = OrientedEdge::new(a, b) {
+                add_covered(counters, samples, &oriented, side * mu);
+            }
         }
     }
 }
@@ -360,8 +503,10 @@ fn fallback_rect(
 /// Per-light buffers for `--explain`.
 #[derive(Debug, Clone, Default)]
 pub struct DcsLightReport {
-    /// Candidate edges (wedges requested).
+    /// Candidate edges (wedges requested), over all caster groups.
     pub candidate_edges: usize,
+    /// Semi-opaque caster groups (one per distinct opacity).
+    pub semi_opaque_groups: usize,
     /// Edges with no bounded wedge (applied to every receiver).
     pub unbounded_edges: usize,
     /// Half-wedge triangles drawn.
@@ -390,8 +535,24 @@ impl DepthComplexitySampling {
             mut framebuffer,
         } = light_start(ctx, k, passes)?;
 
+        // Semi-opaque casters: one group per opacity, each with its own
+        // shadow-volume start counts (the stencil pass reuses the depth).
         let t = Instant::now();
-        let lit = faces_point(&adj, point);
+        let partial = semi_opaque_groups(ctx.scene, ctx.geometry);
+        let mut group_adjs = vec![(Attenuation::Opaque, adj, start)];
+        for (attenuation, adj) in partial {
+            let volume = build_volume(&adj, ctx.view, point);
+            let counts = stencil_counts(&mut framebuffer, &volume, false)?;
+            group_adjs.push((attenuation, std::borrow::Cow::Owned(adj), counts));
+        }
+        if group_adjs.len() > 1 {
+            passes.push(PassTiming {
+                name: format!("semi-opaque shadow volumes light {k}"),
+                time: t.elapsed(),
+            });
+        }
+
+        let t = Instant::now();
         let corners: Vec<Vec3>;
         let shape = match light.shape {
             LightShape::Rect { center, u, v, .. } => {
@@ -408,28 +569,43 @@ impl DepthComplexitySampling {
                 radius: f64::from(radius),
             },
         };
-        let candidates = CandidateEdges::build(&adj, &lit, self.silhouettes, shape);
         let mut wedges = Wedges::default();
         let (mut zfail_edge, mut zpass_edge) = (Vec::new(), Vec::new());
         let mut always = Vec::new();
-        for (id, e) in candidates.edges.iter().enumerate() {
-            // The quad as the stencil pass drew it, or (no quad) any order.
-            let (q0, q1) = if e.quad_sign < 0 {
-                (e.v1, e.v0)
-            } else {
-                (e.v0, e.v1)
-            };
-            let quad = SilhouetteQuad {
-                q0: q0.as_vec3(),
-                q1: q1.as_vec3(),
-                weight: e.quad_weight,
-            };
-            if !wedges.add(ctx.view, &bound, point, quad, None) {
-                always.push((id as u32, fallback_rect(ctx.view, e, &bound)));
-                continue;
+        let mut groups = Vec::with_capacity(group_adjs.len());
+        let mut next_edge = 0u32;
+        for (attenuation, adj, start) in group_adjs {
+            let lit = faces_point(&adj, point);
+            let candidates = CandidateEdges::build(&adj, &lit, self.silhouettes, shape);
+            let first_edge = next_edge;
+            for e in &candidates.edges {
+                let id = next_edge;
+                next_edge += 1;
+                // The quad as the stencil pass drew it, or (no quad) any
+                // order.
+                let (q0, q1) = if e.quad_sign < 0 {
+                    (e.v1, e.v0)
+                } else {
+                    (e.v0, e.v1)
+                };
+                let quad = SilhouetteQuad {
+                    q0: q0.as_vec3(),
+                    q1: q1.as_vec3(),
+                    weight: e.quad_weight,
+                };
+                if !wedges.add(ctx.view, &bound, point, quad, None) {
+                    always.push((id, fallback_rect(ctx.view, e, &bound)));
+                    continue;
+                }
+                zfail_edge.resize(wedges.zfail.halves.len(), id);
+                zpass_edge.resize(wedges.zpass.halves.len(), id);
             }
-            zfail_edge.resize(wedges.zfail.halves.len(), id as u32);
-            zpass_edge.resize(wedges.zpass.halves.len(), id as u32);
+            groups.push(GroupPass {
+                per_layer: self.transmittance.per_layer(attenuation),
+                candidates,
+                start,
+                first_edge,
+            });
         }
         passes.push(PassTiming {
             name: format!("wedge build light {k}"),
@@ -467,8 +643,7 @@ impl DepthComplexitySampling {
             sampler: LightSampler::new(light),
             pattern: PatternSampler::new(self.pattern, self.samples, self.seed, k),
             prepared: PreparedLight::new(light, &ctx.scene.textures),
-            candidates: &candidates,
-            start: &start,
+            groups: &groups,
             eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
             inspect,
         };
@@ -537,7 +712,8 @@ impl DepthComplexitySampling {
         let mut radiance = vec![Vec3::ZERO; if self.mode == DcsMode::Direct { n } else { 0 }];
         let mut aovs = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
         let mut report = DcsLightReport {
-            candidate_edges: candidates.edges.len(),
+            candidate_edges: groups.iter().map(|g| g.candidates.edges.len()).sum(),
+            semi_opaque_groups: groups.len() - 1,
             unbounded_edges: always.len(),
             wedge_triangles: wedges.zfail.triangles.len() + wedges.zpass.triangles.len(),
             ..DcsLightReport::default()
@@ -627,18 +803,52 @@ impl DepthComplexitySampling {
             detail: format!("{n} points + f32 chart coordinates per worker"),
             bytes: workers * (n * std::mem::size_of::<LightSample>() as u64 + padded * 8 + n * 4),
         });
-        let opaque = ctx.scene.materials.iter().all(|m| m.is_opaque());
+        let partial = semi_opaque_groups(ctx.scene, ctx.geometry);
+        let opacities: Vec<String> = partial
+            .iter()
+            .filter_map(|(a, _)| match a {
+                Attenuation::Partial { opacity, .. } => Some(format!("{opacity}")),
+                Attenuation::Opaque => None,
+            })
+            .collect();
         out.buffers.push(BufferNote {
             name: "transmittance".into(),
-            detail: if opaque {
+            detail: if partial.is_empty() {
                 "not allocated: every caster is opaque".into()
             } else {
-                "not allocated: semi-opaque casters are not handled by dcs yet \
-                 (they cast no shadow here)"
-                    .into()
+                format!(
+                    "{} semi-opaque group(s) (opacity {}), {} per sample: i32 layer count \
+                     per group (reused), f64 accumulated {} and f64 transmittance, \
+                     per worker",
+                    partial.len(),
+                    opacities.join(", "),
+                    self.transmittance.name(),
+                    match self.transmittance {
+                        TransmittanceMode::Exact => "optical depth",
+                        TransmittanceMode::Summed => "opacity",
+                    }
+                )
             },
-            bytes: 0,
+            bytes: if partial.is_empty() {
+                0
+            } else {
+                workers * (padded * 4 + n * 16)
+            },
         });
+        let textured_casters = ctx
+            .scene
+            .materials
+            .iter()
+            .any(|m| m.opacity_texture.is_some());
+        if textured_casters {
+            out.buffers.push(BufferNote {
+                name: "opacity-textured casters".into(),
+                detail: "not handled by dcs yet (soft textured shadow volumes): they cast no \
+                         shadow here"
+                    .into(),
+                bytes: 0,
+            });
+        }
         let textured = ctx.scene.lights.iter().any(|l| l.texture.is_some());
         out.buffers.push(BufferNote {
             name: "per-sample luminance".into(),
@@ -656,10 +866,11 @@ impl DepthComplexitySampling {
             out.buffers.push(BufferNote {
                 name: format!("wedge membership light {k}"),
                 detail: format!(
-                    "{} candidate edges ({} silhouettes, {} without a bounded wedge), \
-                     {} wedge triangles; (pixel, edge) pairs as u64, {} receivers sampled, \
-                     {} outside every wedge with no per-sample work",
+                    "{} candidate edges in {} caster group(s) ({} silhouettes, {} without a \
+                     bounded wedge), {} wedge triangles; (pixel, edge) pairs as u64, {} \
+                     receivers sampled, {} outside every wedge with no per-sample work",
                     report.candidate_edges,
+                    1 + report.semi_opaque_groups,
                     self.silhouettes.name(),
                     report.unbounded_edges,
                     report.wedge_triangles,
