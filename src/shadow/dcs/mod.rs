@@ -29,6 +29,7 @@ pub mod chart;
 pub mod counters;
 pub mod edges;
 pub mod groups;
+pub mod region;
 
 use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
 use super::shadow_volumes::{build_volume, stencil_counts};
@@ -52,6 +53,7 @@ use glam::{DVec3, Vec3};
 pub use groups::TransmittanceMode;
 use groups::{semi_opaque_groups, Attenuation};
 use rayon::prelude::*;
+use region::RegionBound;
 use std::time::Instant;
 
 /// What the counters are turned into.
@@ -460,15 +462,7 @@ fn fallback_rect(
     light: &LightBound,
 ) -> [usize; 4] {
     let whole = [0, 0, view.width as usize, view.height as usize];
-    let corners: Vec<DVec3> = match light {
-        LightBound::Rect(frame) => frame.corners().to_vec(),
-        LightBound::Sphere { center, radius } => (0..8)
-            .map(|k| {
-                let s = |b: usize| if k >> b & 1 == 1 { *radius } else { -*radius };
-                *center + DVec3::new(s(0), s(1), s(2))
-            })
-            .collect(),
-    };
+    let corners = light_corners(light);
     let mut clip = vec![
         view.clip_point(e.v0.as_vec3()),
         view.clip_point(e.v1.as_vec3()),
@@ -500,6 +494,29 @@ fn fallback_rect(
     [lo(b[0], w), lo(b[1], h), hi(b[2], w), hi(b[3], h)]
 }
 
+/// Corners of a convex polytope holding the light: the rect's own, or a
+/// sphere's bounding cube.
+fn light_corners(light: &LightBound) -> Vec<DVec3> {
+    match light {
+        LightBound::Rect(frame) => frame.corners().to_vec(),
+        LightBound::Sphere { center, radius } => (0..8)
+            .map(|k| {
+                let s = |b: usize| if k >> b & 1 == 1 { *radius } else { -*radius };
+                *center + DVec3::new(s(0), s(1), s(2))
+            })
+            .collect(),
+    }
+}
+
+/// An edge with no bounded wedge: its global id, the screen rectangle
+/// `[x0, y0, x1, y1)` and the world-space half-spaces holding every
+/// receiver it can affect.
+struct UnboundedEdge {
+    id: u32,
+    rect: [usize; 4],
+    region: RegionBound,
+}
+
 /// Per-light buffers for `--explain`.
 #[derive(Debug, Clone, Default)]
 pub struct DcsLightReport {
@@ -513,6 +530,8 @@ pub struct DcsLightReport {
     pub wedge_triangles: usize,
     /// (pixel, edge) pairs recorded.
     pub pairs: usize,
+    /// (pixel, edge) pairs from edges without a bounded wedge.
+    pub unbounded_pairs: usize,
     /// Receivers that needed per-sample counters.
     pub sampled_pixels: usize,
 }
@@ -571,7 +590,12 @@ impl DepthComplexitySampling {
         };
         let mut wedges = Wedges::default();
         let (mut zfail_edge, mut zpass_edge) = (Vec::new(), Vec::new());
-        let mut always = Vec::new();
+        let mut always: Vec<UnboundedEdge> = Vec::new();
+        let corners = light_corners(&bound);
+        // Receivers' positions round at f32 and move by the shadow-ray
+        // offset (≤ 1e-5 relative): a generous slack keeps the test
+        // conservative.
+        let slack = 1e-4 * scene_diagonal(ctx.scene, ctx.geometry);
         let mut groups = Vec::with_capacity(group_adjs.len());
         let mut next_edge = 0u32;
         for (attenuation, adj, start) in group_adjs {
@@ -594,7 +618,11 @@ impl DepthComplexitySampling {
                     weight: e.quad_weight,
                 };
                 if !wedges.add(ctx.view, &bound, point, quad, None) {
-                    always.push((id, fallback_rect(ctx.view, e, &bound)));
+                    always.push(UnboundedEdge {
+                        id,
+                        rect: fallback_rect(ctx.view, e, &bound),
+                        region: RegionBound::new(e.v0, e.v1, &corners, slack),
+                    });
                     continue;
                 }
                 zfail_edge.resize(wedges.zfail.halves.len(), id);
@@ -649,7 +677,7 @@ impl DepthComplexitySampling {
         };
         let width = grid.width as usize;
         let height = grid.height as usize;
-        let results: Vec<(Vec<PixelResult>, usize, usize)> = tiles
+        let results: Vec<(Vec<PixelResult>, usize, usize, usize)> = tiles
             .par_iter_mut()
             .enumerate()
             .map_init(Scratch::default, |scratch, (tile, t)| {
@@ -660,15 +688,31 @@ impl DepthComplexitySampling {
                 entries.dedup();
                 let mut out = vec![PixelResult::default(); TILE_PIXELS];
                 let mut sampled = 0;
+                let mut unbounded = 0;
                 let mut e = 0;
                 let (tx1, ty1) = (ox as usize + TILE_SIZE, oy as usize + TILE_SIZE);
-                let near: Vec<(u32, [usize; 4])> = always
+                let mut near: Vec<&UnboundedEdge> = always
                     .iter()
-                    .filter(|(_, r)| {
+                    .filter(|u| {
+                        let r = u.rect;
                         r[0] < tx1 && r[2] > ox as usize && r[1] < ty1 && r[3] > oy as usize
                     })
-                    .copied()
                     .collect();
+                if !near.is_empty() {
+                    // The tile's receivers' bounding box against each
+                    // edge's region.
+                    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+                    for y in oy as usize..ty1.min(height) {
+                        for x in ox as usize..tx1.min(width) {
+                            let i = y * width + x;
+                            if ctx.gbuffer.is_surface(i) {
+                                let q = ctx.gbuffer.sample(i).position.as_dvec3();
+                                (lo, hi) = (lo.min(q), hi.max(q));
+                            }
+                        }
+                    }
+                    near.retain(|u| !u.region.excludes_box(lo, hi));
+                }
                 let mut extra = Vec::new();
                 for (local, r) in out.iter_mut().enumerate() {
                     let (x, y) = (
@@ -691,15 +735,26 @@ impl DepthComplexitySampling {
                         *tag &= (1 << 33) - 1;
                     }
                     extra.clear();
-                    extra.extend(
-                        near.iter()
-                            .filter(|(_, r)| x >= r[0] && x < r[2] && y >= r[1] && y < r[3])
-                            .map(|(id, _)| *id),
-                    );
+                    if !near.is_empty() {
+                        let q = ctx.gbuffer.sample(i).position.as_dvec3();
+                        extra.extend(
+                            near.iter()
+                                .filter(|u| {
+                                    let r = u.rect;
+                                    x >= r[0]
+                                        && x < r[2]
+                                        && y >= r[1]
+                                        && y < r[3]
+                                        && !u.region.excludes_point(q)
+                                })
+                                .map(|u| u.id),
+                        );
+                    }
                     sampled += usize::from(!tags.is_empty() || !extra.is_empty());
+                    unbounded += extra.len();
                     *r = pass.pixel(i, tags, &extra, scratch);
                 }
-                (out, pairs, sampled)
+                (out, pairs, sampled, unbounded)
             })
             .collect();
         passes.push(PassTiming {
@@ -718,7 +773,8 @@ impl DepthComplexitySampling {
             wedge_triangles: wedges.zfail.triangles.len() + wedges.zpass.triangles.len(),
             ..DcsLightReport::default()
         };
-        for (tile, (out, pairs, sampled)) in results.into_iter().enumerate() {
+        for (tile, (out, pairs, sampled, unbounded)) in results.into_iter().enumerate() {
+            report.unbounded_pairs += unbounded;
             report.pairs += pairs;
             report.sampled_pixels += sampled;
             let (ox, oy) = grid.tile_origin(tile);
@@ -807,7 +863,7 @@ impl DepthComplexitySampling {
         let opacities: Vec<String> = partial
             .iter()
             .filter_map(|(a, _)| match a {
-                Attenuation::Partial { opacity, .. } => Some(format!("{opacity}")),
+                Attenuation::Partial { opacity, .. } => Some(format!("{}", *opacity as f32)),
                 Attenuation::Opaque => None,
             })
             .collect();
@@ -817,9 +873,9 @@ impl DepthComplexitySampling {
                 "not allocated: every caster is opaque".into()
             } else {
                 format!(
-                    "{} semi-opaque group(s) (opacity {}), {} per sample: i32 layer count \
-                     per group (reused), f64 accumulated {} and f64 transmittance, \
-                     per worker",
+                    "{} semi-opaque group(s) (opacity {}), {}: i32 start count per pixel \
+                     per group; per sample i32 layer count (reused by the groups), f64 \
+                     accumulated {} and f64 transmittance, per worker",
                     partial.len(),
                     opacities.join(", "),
                     self.transmittance.name(),
@@ -832,7 +888,7 @@ impl DepthComplexitySampling {
             bytes: if partial.is_empty() {
                 0
             } else {
-                workers * (padded * 4 + n * 16)
+                partial.len() as u64 * pixels * 4 + workers * (padded * 4 + n * 16)
             },
         });
         let textured_casters = ctx
@@ -868,7 +924,8 @@ impl DepthComplexitySampling {
                 detail: format!(
                     "{} candidate edges in {} caster group(s) ({} silhouettes, {} without a \
                      bounded wedge), {} wedge triangles; (pixel, edge) pairs as u64, {} \
-                     receivers sampled, {} outside every wedge with no per-sample work",
+                     receivers sampled, {} outside every wedge with no per-sample work; {} \
+                     (pixel, unbounded edge) pairs",
                     report.candidate_edges,
                     1 + report.semi_opaque_groups,
                     self.silhouettes.name(),
@@ -876,6 +933,7 @@ impl DepthComplexitySampling {
                     report.wedge_triangles,
                     report.sampled_pixels,
                     pixels as usize - report.sampled_pixels,
+                    report.unbounded_pairs,
                 ),
                 bytes: report.pairs as u64 * 8,
             });
