@@ -39,17 +39,24 @@ impl RegionBound {
             }
         }
         let along = v1 - v0;
+        // Facet normals: across two spanning directions, and (for flat
+        // cones, where the region lies in a plane) within their plane,
+        // perpendicular to either.
         let mut normals: Vec<DVec3> = Vec::new();
-        for (k, a) in generators.iter().enumerate() {
-            for b in &generators[k + 1..] {
-                normals.push(a.cross(*b));
+        let mut span = |a: DVec3, b: DVec3| {
+            let n = a.cross(b);
+            normals.extend([n, n.cross(a), n.cross(b)]);
+        };
+        for (k, &a) in generators.iter().enumerate() {
+            for &b in &generators[k + 1..] {
+                span(a, b);
             }
-            normals.push(along.cross(*a));
+            span(along, a);
         }
         let mut planes = Vec::new();
         for n in normals {
             let len = n.length();
-            if !(len > 1e-9) || !len.is_finite() {
+            if !(len > 1e-12) || !len.is_finite() {
                 continue;
             }
             let n = n / len;
