@@ -126,3 +126,90 @@ fn dcs_equals_ray_casting_on_the_quad_and_the_bunny() {
         assert!(e.worst_tie <= TIE, "{name}: {e:?}");
     }
 }
+
+/// Eq. 4.2: with a textured light in Vcoef mode, each sample's visibility
+/// is weighted by its emitted radiance. A light whose left half is white
+/// and right half black, half hidden by an occluder: plain Vcoef shading
+/// (unshadowed × visible fraction) is far off where the occluder hides
+/// the bright half; the luminance-weighted Vcoef follows the reference's
+/// radiance (same samples) to the estimator's noise, and fully lit
+/// receivers get the unshadowed light exactly.
+#[test]
+fn textured_light_vcoef_is_luminance_weighted() {
+    use penumbra::shade::{surface_point, PreparedLight};
+    use penumbra::shadow::reference::Reference;
+    use penumbra::shadow::ShadowTechnique;
+    let mut png = Vec::new();
+    image::RgbImage::from_raw(2, 1, vec![255, 255, 255, 0, 0, 0])
+        .expect("2×1 image")
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png encodes");
+    let toml = r#"
+[scene]
+name = "half-lit"
+[camera]
+eye = [0.0, 6.0, 5.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 45.0
+width = 64
+height = 64
+[[light]]
+type = "rect"
+center = [0.0, 4.0, 0.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 0.0, 1.0]
+radiance = [6.0, 6.0, 6.0]
+texture = "half.png"
+[[object]]
+shape = "quad"
+size = [6.0, 6.0]
+[[object]]
+shape = "quad"
+size = [1.0, 1.0]
+translate = [0.3, 1.5, 0.0]
+"#;
+    let scene = common::scene_in_scratch("dcs-textured", toml, &[("half.png", &png)]);
+    let frame = common::Frame::new(&scene, 64, 64);
+    let ctx = frame.ctx(&scene);
+    let n = 256;
+    let dcs = DepthComplexitySampling {
+        samples: n,
+        seed: 3,
+        silhouettes: SilhouetteMode::WholeLight,
+        mode: DcsMode::Vcoef,
+        pattern: SamplePattern::Stratified,
+        transmittance: TransmittanceMode::Exact,
+    };
+    let ours = dcs.compute(&ctx).expect("dcs runs");
+    let reference = Reference::new(n, 3).compute(&ctx).expect("reference runs");
+    let term = &ours.lights[0];
+    let weighted = term.radiance.as_ref().expect("textured light: radiance");
+    let vcoef = term.vcoef.as_ref().expect("vcoef");
+    let truth = reference.lights[0]
+        .radiance
+        .as_ref()
+        .expect("reference radiance");
+    let prepared = PreparedLight::new(&scene.lights[0], &scene.textures);
+    let eye = frame.view.eye.as_vec3();
+    let (mut err_weighted, mut err_plain, mut penumbra) = (0.0f64, 0.0f64, 0);
+    for i in 0..frame.gbuffer.len() {
+        let g = frame.gbuffer.sample(i);
+        if !g.is_surface() {
+            continue;
+        }
+        let unshadowed = prepared.unshadowed_direct(&surface_point(&scene, &g, eye));
+        if vcoef[i] == 1.0 {
+            assert_eq!(weighted[i], unshadowed, "fully lit pixel {i}");
+        }
+        if vcoef[i] > 0.0 && vcoef[i] < 1.0 {
+            penumbra += 1;
+            err_weighted += f64::from((weighted[i] - truth[i]).abs().max_element());
+            err_plain += f64::from((unshadowed * vcoef[i] - truth[i]).abs().max_element());
+        }
+    }
+    let (mae_w, mae_p) = (err_weighted / penumbra as f64, err_plain / penumbra as f64);
+    eprintln!("penumbra pixels {penumbra}: MAE weighted {mae_w:.4}, plain {mae_p:.4}");
+    assert!(penumbra > 200);
+    assert!(mae_w < 0.25 * mae_p, "weighted {mae_w} vs plain {mae_p}");
+}

@@ -180,6 +180,21 @@ impl<'a> PreparedLight<'a> {
         to_vec3(out)
     }
 
+    /// Whether the light has a texture (its radiance varies over it).
+    pub fn is_textured(&self) -> bool {
+        self.texture.is_some()
+    }
+
+    /// The emitted radiance at a sample, `Le(x)` (the light's radiance
+    /// times its texel for a textured rect).
+    pub fn sample_radiance(&self, sample: &LightSample) -> Vec3 {
+        let le = self.light.radiance;
+        match self.texture {
+            Some(t) => le * t.texel_st(sample.st.x, sample.st.y),
+            None => le,
+        }
+    }
+
     /// The Monte-Carlo estimate from given samples; see
     /// [`direct_from_samples`].
     pub fn direct_from_samples(

@@ -246,9 +246,10 @@ impl LightPass<'_> {
             } else {
                 0.0
             };
+            let needs_radiance = direct || self.prepared.is_textured();
             return PixelResult {
                 vcoef: t as f32,
-                radiance: if direct && t > 0.0 {
+                radiance: if needs_radiance && t > 0.0 {
                     self.prepared.unshadowed_direct(&sp()) * t as f32
                 } else {
                     Vec3::ZERO
@@ -352,16 +353,30 @@ impl LightPass<'_> {
             }
         }
         let visible: f32 = scratch.visibility.iter().sum();
+        let radiance = if direct {
+            self.prepared
+                .direct_from_samples(&sp(), &scratch.samples, &scratch.visibility)
+        } else if self.prepared.is_textured() {
+            // Eq. 4.2: each sample's visibility weighted by its emitted
+            // radiance, per channel, normalised so that a fully visible
+            // light gives the unshadowed light exactly.
+            let (mut seen, mut all) = (Vec3::ZERO, Vec3::ZERO);
+            for (s, &v) in scratch.samples.iter().zip(&scratch.visibility) {
+                let le = self.prepared.sample_radiance(s);
+                seen += le * v;
+                all += le;
+            }
+            let plain = visible / count as f32;
+            let weighted = Vec3::select(all.cmpgt(Vec3::ZERO), seen / all, Vec3::splat(plain));
+            self.prepared.unshadowed_direct(&sp()) * weighted
+        } else {
+            Vec3::ZERO
+        };
         let max_dc = counters.iter().copied().max().unwrap_or(0).max(0);
         let sum_dc: i64 = counters.iter().map(|&c| i64::from(c.max(0))).sum();
         PixelResult {
             vcoef: visible / count as f32,
-            radiance: if direct {
-                self.prepared
-                    .direct_from_samples(&sp(), &scratch.samples, &scratch.visibility)
-            } else {
-                Vec3::ZERO
-            },
+            radiance,
             max_dc: max_dc as f32,
             mean_dc: (sum_dc as f64 / count as f64) as f32,
             edges: tags.len() as f32,
@@ -764,7 +779,8 @@ impl DepthComplexitySampling {
 
         let n = width * height;
         let mut vcoef = vec![0.0f32; n];
-        let mut radiance = vec![Vec3::ZERO; if self.mode == DcsMode::Direct { n } else { 0 }];
+        let with_radiance = self.mode == DcsMode::Direct || pass.prepared.is_textured();
+        let mut radiance = vec![Vec3::ZERO; if with_radiance { n } else { 0 }];
         let mut aovs = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
         let mut report = DcsLightReport {
             candidate_edges: groups.iter().map(|g| g.candidates.edges.len()).sum(),
@@ -817,7 +833,7 @@ impl DepthComplexitySampling {
         }
         let term = LightTerm {
             vcoef: Some(vcoef),
-            radiance: (self.mode == DcsMode::Direct).then_some(radiance),
+            radiance: with_radiance.then_some(radiance),
         };
         Ok((term, aovs, report))
     }
@@ -911,7 +927,10 @@ impl DepthComplexitySampling {
             detail: if textured && self.mode == DcsMode::Direct {
                 "evaluated per sample inside the direct-light estimator".into()
             } else if textured {
-                "not used: Vcoef mode is not luminance-weighted (use --dcs-mode direct)".into()
+                "looked up per sample and summed per receiver (eq. 4.2: luminance-weighted \
+                 visibility modulating the unshadowed light), no buffer; the vcoef AOV stays \
+                 plain visibility"
+                    .into()
             } else {
                 "not allocated: no textured light".into()
             },
