@@ -98,6 +98,20 @@ impl OrientedEdge {
         }
     }
 
+    /// The end the covered sector starts from (`cross(lo, hi) > 0`), as
+    /// the test uses it: other covered-sample tests (the bit-field tables
+    /// of `bitfield`) must see the same f32 values.
+    #[inline]
+    pub fn lo(&self) -> [f32; 2] {
+        self.lo
+    }
+
+    /// The end the covered sector stops at (excluded), as the test uses it.
+    #[inline]
+    pub fn hi(&self) -> [f32; 2] {
+        self.hi
+    }
+
     /// Whether the sample at chart point `s` is covered.
     #[inline]
     pub fn covers(&self, s: [f32; 2]) -> bool {

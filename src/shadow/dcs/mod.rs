@@ -25,6 +25,7 @@
 //!    direct light integrated per sample with `H(D_i)` as visibility
 //!    (eq. 4.6), with the same estimator as the reference.
 
+pub mod bitfield;
 pub mod chart;
 pub mod counters;
 pub mod edges;
