@@ -12,7 +12,7 @@ use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
 use crate::scene::{load_scene, LightShape, Scene};
-use crate::shadow::dcs::{DcsMode, SilhouetteMode, TransmittanceMode};
+use crate::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
@@ -76,6 +76,12 @@ enum Command {
         /// (the thesis's summed-opacity approximation).
         #[arg(long, default_value = "exact")]
         transmittance: String,
+        /// Depth complexity sampling: covered samples by the exact
+        /// per-sample test (`exact`) or the thesis's precomputed bit
+        /// fields (`bitfield`, approximate; correlated or interleaved
+        /// patterns on rect lights).
+        #[arg(long, default_value = "exact")]
+        coverage: String,
         /// Placement of light samples (reference, dcs): stratified,
         /// correlated, rotated, poisson, sobol, interleaved[:N].
         #[arg(long, default_value = "stratified")]
@@ -207,6 +213,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             silhouettes,
             dcs_mode,
             transmittance,
+            coverage,
             pattern,
             timings,
             explain,
@@ -232,6 +239,16 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 silhouettes: parse_silhouettes(&silhouettes)?,
                 dcs_mode: parse_dcs_mode(&dcs_mode)?,
                 transmittance: parse_transmittance(&transmittance)?,
+                coverage: match coverage.as_str() {
+                    "exact" => CoverageTest::Exact,
+                    "bitfield" => CoverageTest::BitField,
+                    other => {
+                        return Err(Error::param(
+                            "--coverage",
+                            format!("unknown value `{other}` (known: exact, bitfield)"),
+                        ))
+                    }
+                },
                 pattern: SamplePattern::parse(&pattern)
                     .map_err(|e| Error::param("--pattern", e))?,
             };

@@ -124,6 +124,7 @@ fn agreement(scene: &Scene, n: u32, mode: TransmittanceMode, summed_alpha: f64) 
         mode: DcsMode::Vcoef,
         pattern: SamplePattern::Stratified,
         transmittance: mode,
+        coverage: Default::default(),
     };
     let seen: Mutex<Vec<Inspected>> = Mutex::new(Vec::new());
     dcs.inspect_light(&ctx, 0, &|i, px| {

@@ -12,7 +12,9 @@ use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::sampling::SamplePattern;
 use crate::scene::Scene;
-use crate::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode};
+use crate::shadow::dcs::{
+    CoverageTest, DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode,
+};
 use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
 use crate::shadow::wedges::blend::WedgeBlending;
@@ -140,6 +142,7 @@ impl Technique {
                 mode: options.dcs_mode,
                 pattern: options.pattern,
                 transmittance: options.transmittance,
+                coverage: options.coverage,
             }),
         }
     }
@@ -191,6 +194,8 @@ pub struct RenderOptions {
     pub pattern: SamplePattern,
     /// Depth complexity sampling: semi-opaque casters' transmittance.
     pub transmittance: TransmittanceMode,
+    /// Depth complexity sampling: how covered samples are found.
+    pub coverage: CoverageTest,
 }
 
 impl Default for RenderOptions {
@@ -207,6 +212,7 @@ impl Default for RenderOptions {
             dcs_mode: DcsMode::Vcoef,
             pattern: SamplePattern::Stratified,
             transmittance: TransmittanceMode::Exact,
+            coverage: CoverageTest::Exact,
         }
     }
 }

@@ -46,6 +46,7 @@ use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::scene::LightShape;
 use crate::shade::gather::{gather_filter, GatherParams};
 use crate::shade::{surface_point, LightSample, PreparedLight};
+use bitfield::{CoverageTables, TableResolution};
 use chart::ReceiverChart;
 use counters::{add_covered, ChartSamples, OrientedEdge};
 pub use edges::SilhouetteMode;
@@ -94,6 +95,29 @@ pub struct DepthComplexitySampling {
     pub pattern: SamplePattern,
     /// How semi-opaque casters' layer counts become transmittance.
     pub transmittance: TransmittanceMode,
+    /// How covered samples are found.
+    pub coverage: CoverageTest,
+}
+
+/// How the samples an edge covers are found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CoverageTest {
+    /// The exact per-sample test, SIMD over samples.
+    #[default]
+    Exact,
+    /// The thesis's precomputed bit fields (Fig. 4.9), approximate; only
+    /// for sample sets shared by many pixels on rect lights.
+    BitField,
+}
+
+impl CoverageTest {
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            CoverageTest::Exact => "exact",
+            CoverageTest::BitField => "bitfield",
+        }
+    }
 }
 
 /// One tile's (pixel, edge) pairs: `local << 33 | edge << 1 | outer`, so
@@ -197,6 +221,8 @@ struct LightPass<'a> {
     prepared: PreparedLight<'a>,
     /// The opaque group first, then one group per semi-opaque opacity.
     groups: &'a [GroupPass],
+    /// Bit-field tables (one per interleaved set) when the option is on.
+    tables: &'a [CoverageTables],
     /// `EPS_SCENE ×` the scene's diagonal.
     eps_scene: f64,
     /// Called with every surface pixel's samples and counters.
@@ -429,6 +455,16 @@ impl LightPass<'_> {
             ..
         } = scratch;
         let counters = if layers { layer_counts } else { counters };
+        let table = match self.tables {
+            [] => None,
+            [one] => Some(one),
+            many => {
+                let width = self.ctx.gbuffer.width as usize;
+                let pixel = ((i % width) as u32, (i / width) as u32);
+                let set = self.pattern.interleaved_set(pixel).unwrap_or(0) as usize;
+                many.get(set)
+            }
+        };
         counters.clear();
         counters.resize(samples.padded(), d0);
         let from_wedges = tags.iter().map(|&t| (t >> 1) as u32);
@@ -458,7 +494,10 @@ impl LightPass<'_> {
                 continue;
             };
             if let Some(oriented) = OrientedEdge::new(a, b) {
-                add_covered(counters, samples, &oriented, side * mu);
+                match table {
+                    Some(t) => t.add_covered(counters, &oriented, side * mu),
+                    None => add_covered(counters, samples, &oriented, side * mu),
+                }
             }
         }
     }
@@ -553,6 +592,41 @@ pub struct DcsLightReport {
 }
 
 impl DepthComplexitySampling {
+    /// The bit-field tables of light `k` (none with the exact test): one
+    /// per sample set, built from the chart of a pixel that uses it.
+    fn coverage_tables(
+        &self,
+        ctx: &ShadowContext,
+        k: usize,
+        bound: &LightBound,
+    ) -> Result<Vec<CoverageTables>> {
+        if self.coverage == CoverageTest::Exact {
+            return Ok(Vec::new());
+        }
+        let light = &ctx.scene.lights[k];
+        let bad = |e: String| crate::error::Error::param("--coverage", e);
+        let sets = CoverageTables::applicable(self.pattern, &light.shape).map_err(bad)?;
+        let sampler = LightSampler::new(light);
+        let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
+        let n = match self.pattern {
+            SamplePattern::Interleaved { n } => n.max(1),
+            _ => 1,
+        };
+        let mut samples = Vec::new();
+        let mut chart = ChartSamples::default();
+        (0..sets)
+            .map(|set| {
+                let pixel = (set % n, set / n);
+                // Rect lights: the chart does not depend on the receiver.
+                let p = DVec3::ZERO;
+                sampler.samples_with(&pattern, p.as_vec3(), pixel, &mut samples);
+                let frame = ReceiverChart::new(bound, p).ok_or_else(|| bad("no chart".into()))?;
+                chart.set(samples.iter().map(|s| frame.point(s.x.as_dvec3())));
+                CoverageTables::from_chart(&chart, TableResolution::default()).map_err(bad)
+            })
+            .collect()
+    }
+
     /// Runs light `k`: its term, AOV channels and report.
     fn light(
         &self,
@@ -678,6 +752,7 @@ impl DepthComplexitySampling {
             time: t.elapsed(),
         });
 
+        let tables = self.coverage_tables(ctx, k, &bound)?;
         let t = Instant::now();
         let pass = LightPass {
             ctx,
@@ -688,6 +763,7 @@ impl DepthComplexitySampling {
             pattern: PatternSampler::new(self.pattern, self.samples, self.seed, k),
             prepared: PreparedLight::new(light, &ctx.scene.textures),
             groups: &groups,
+            tables: &tables,
             eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
             inspect,
         };
