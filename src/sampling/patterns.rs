@@ -481,6 +481,27 @@ pub(crate) enum PixelPoints<'a> {
 }
 
 impl PixelPoints<'_> {
+    /// Calls `f` with points `0..n` in order, the same values as
+    /// [`PixelPoints::point`] gives, walking the strata row by row instead
+    /// of dividing `k` for each (the hot path of per-pixel sampling).
+    #[inline]
+    pub(crate) fn for_each(&self, n: u32, mut f: impl FnMut((f64, f64))) {
+        match *self {
+            PixelPoints::Jittered { strata, key } if strata.count() == n && n > 0 => {
+                let (a, b) = (f64::from(strata.a), f64::from(strata.b));
+                let mut k = 0;
+                for j in 0..strata.b {
+                    for i in 0..strata.a {
+                        let (xi, xi2) = super::uniform_pair(key, k);
+                        f(((f64::from(i) + xi) / a, (f64::from(j) + xi2) / b));
+                        k += 1;
+                    }
+                }
+            }
+            _ => (0..n).for_each(|k| f(self.point(k))),
+        }
+    }
+
     /// Unit point `k` of this pixel.
     #[inline]
     pub(crate) fn point(&self, k: u32) -> (f64, f64) {
@@ -726,5 +747,35 @@ mod tests {
         assert!(wrap_add(below_one, below_one) < 1.0);
         assert!(wrap_add(0.5, 0.5) == 0.0);
         assert!(wrap_add(below_one, 1e-300) < 1.0);
+    }
+}
+
+#[cfg(test)]
+mod for_each_tests {
+    use super::*;
+
+    /// The row-by-row walk gives exactly `point(k)` for every pattern.
+    #[test]
+    fn for_each_equals_point() {
+        for pattern in [
+            "stratified",
+            "correlated",
+            "rotated",
+            "poisson",
+            "sobol",
+            "interleaved:3",
+        ] {
+            let pattern = SamplePattern::parse(pattern).unwrap();
+            for n in [1, 7, 16, 64, 100] {
+                let sampler = PatternSampler::new(pattern, n, 9, 1);
+                for pixel in [(0, 0), (5, 3), (1000, 77)] {
+                    let pts = sampler.pixel_points(pixel);
+                    let mut walked = Vec::new();
+                    pts.for_each(n, |p| walked.push(p));
+                    let direct: Vec<_> = (0..n).map(|k| pts.point(k)).collect();
+                    assert_eq!(walked, direct, "{pattern} n={n} {pixel:?}");
+                }
+            }
+        }
     }
 }

@@ -3,7 +3,7 @@
 //!
 //! - **Rect lights**: the light's own coordinates `(s, t)`,
 //!   `x = c + s u + t v`, the square `[−1, 1]²`; edges are projected from
-//!   `p` onto the light's plane ([`projected_edge`]).
+//!   `p` onto the light's plane ([`RectProjection`]).
 //! - **Sphere lights**: gnomonic coordinates around the axis `p → c`
 //!   (straight edges stay straight), scaled by `1 / tan θmax` so that the
 //!   cone the sphere subtends is the unit disc; edges are clipped to the
@@ -15,7 +15,7 @@
 //! segment from the origin to `s` crosses the projected edge.
 
 use crate::shadow::wedges::geometry::LightBound;
-use crate::shadow::wedges::integrate::{clip_to_square, projected_edge, RectFrame};
+use crate::shadow::wedges::integrate::{clip_to_square, RectFrame, RectProjection};
 use glam::DVec3;
 
 /// One receiver's view of one light.
@@ -25,8 +25,9 @@ pub enum ReceiverChart {
     Rect {
         /// The light.
         frame: RectFrame,
-        /// The receiver.
-        p: DVec3,
+        /// The projection from the receiver (`None`: in the light's
+        /// plane, where no edge projects).
+        projection: Option<RectProjection>,
     },
     /// Scaled gnomonic coordinates of a sphere light.
     Sphere {
@@ -53,7 +54,10 @@ impl ReceiverChart {
             return None;
         }
         match *light {
-            LightBound::Rect(frame) => Some(ReceiverChart::Rect { frame, p }),
+            LightBound::Rect(frame) => Some(ReceiverChart::Rect {
+                frame,
+                projection: RectProjection::new(&frame, p),
+            }),
             LightBound::Sphere { center, radius } => {
                 let rel = center - p;
                 let d = rel.length();
@@ -107,7 +111,7 @@ impl ReceiverChart {
     #[inline]
     pub fn edge(&self, v0: DVec3, v1: DVec3) -> Option<([f64; 2], [f64; 2])> {
         match self {
-            ReceiverChart::Rect { frame, p } => projected_edge(frame, *p, v0, v1),
+            ReceiverChart::Rect { projection, .. } => projection.as_ref()?.edge(v0, v1),
             ReceiverChart::Sphere {
                 p,
                 axis,

@@ -41,12 +41,29 @@ pub struct ChartSamples {
 impl ChartSamples {
     /// Replaces the samples.
     pub fn set(&mut self, points: impl Iterator<Item = [f64; 2]>) {
+        self.clear();
+        for p in points {
+            self.push(p);
+        }
+        self.finish();
+    }
+
+    /// Starts a new set (then [`ChartSamples::push`] each sample and
+    /// [`ChartSamples::finish`]).
+    pub fn clear(&mut self) {
         self.xs.clear();
         self.ys.clear();
-        for [x, y] in points {
-            self.xs.push(x as f32);
-            self.ys.push(y as f32);
-        }
+    }
+
+    /// Appends a sample.
+    #[inline]
+    pub fn push(&mut self, [x, y]: [f64; 2]) {
+        self.xs.push(x as f32);
+        self.ys.push(y as f32);
+    }
+
+    /// Ends the set: pads it to a multiple of [`LANES`] with the origin.
+    pub fn finish(&mut self) {
         self.n = self.xs.len();
         let padded = self.n.div_ceil(LANES) * LANES;
         self.xs.resize(padded, 0.0);

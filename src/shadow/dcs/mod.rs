@@ -288,8 +288,17 @@ impl LightPass<'_> {
         }
         let width = gbuffer.width as usize;
         let pixel = ((i % width) as u32, (i / width) as u32);
-        self.sampler
-            .samples_with(&self.pattern, g.position, pixel, &mut scratch.samples);
+        // Rect lights: the chart is the light's own `(2s − 1, 1 − 2t)`,
+        // straight from the unit points; the world points are made only
+        // when something reads them (the direct estimator, the texture,
+        // an inspector). Sphere lights chart the world points.
+        let rect = matches!(self.bound, LightBound::Rect(_));
+        if !rect || direct || self.prepared.is_textured() || self.inspect.is_some() {
+            self.sampler
+                .samples_with(&self.pattern, g.position, pixel, &mut scratch.samples);
+        } else {
+            scratch.samples.clear();
+        }
         // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
         // rounds it): receivers on an occluder's own surface then see its
         // edges from the same side of its faces as the reference's rays.
@@ -300,7 +309,7 @@ impl LightPass<'_> {
             .as_vec3()
             .as_dvec3();
         let chart = match ReceiverChart::new(&self.bound, p) {
-            Some(c) if !scratch.samples.is_empty() => c,
+            Some(c) if rect || !scratch.samples.is_empty() => c,
             // Inside a sphere light: no defined Vcoef (as the reference).
             _ => {
                 return PixelResult {
@@ -310,9 +319,19 @@ impl LightPass<'_> {
                 }
             }
         };
-        scratch
-            .chart
-            .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
+        if rect {
+            scratch.chart.clear();
+            self.pattern
+                .pixel_points(pixel)
+                .for_each(self.pattern.len(), |(s, t)| {
+                    scratch.chart.push([2.0 * s - 1.0, 1.0 - 2.0 * t])
+                });
+            scratch.chart.finish();
+        } else {
+            scratch
+                .chart
+                .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
+        }
         let count = scratch.chart.len();
         let semi_opaque = self.groups.len() > 1;
         scratch.attenuation.clear();

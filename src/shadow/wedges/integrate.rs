@@ -127,26 +127,56 @@ pub fn projected_edge(
     q0: DVec3,
     q1: DVec3,
 ) -> Option<([f64; 2], [f64; 2])> {
-    let to_light = frame.center - p;
-    let h_light = to_light.dot(frame.normal);
-    if h_light == 0.0 || !h_light.is_finite() {
-        // `p` in the light's plane: it sees the light edge-on.
-        return None;
+    RectProjection::new(frame, p)?.edge(q0, q1)
+}
+
+/// The projection from one receiver `p` onto a rect light's plane, its
+/// per-receiver constants computed once for all the edges `p` sees.
+#[derive(Debug, Clone, Copy)]
+pub struct RectProjection {
+    p: DVec3,
+    /// The light's normal scaled so that `W = 1` on its plane.
+    n: DVec3,
+    u_dual: DVec3,
+    v_dual: DVec3,
+    s_p: f64,
+    t_p: f64,
+}
+
+impl RectProjection {
+    /// `None` when `p` is in the light's plane (it sees the light edge-on)
+    /// or not finite.
+    pub fn new(frame: &RectFrame, p: DVec3) -> Option<RectProjection> {
+        let to_light = frame.center - p;
+        let h_light = to_light.dot(frame.normal);
+        if h_light == 0.0 || !h_light.is_finite() {
+            return None;
+        }
+        // Coordinates so that W = 0 on p's plane and W = 1 on the light's.
+        Some(RectProjection {
+            p,
+            n: frame.normal / h_light,
+            u_dual: frame.u_dual,
+            v_dual: frame.v_dual,
+            s_p: frame.u_dual.dot(p - frame.center),
+            t_p: frame.v_dual.dot(p - frame.center),
+        })
     }
-    // Coordinates so that W = 0 on p's plane and W = 1 on the light's.
-    let n = frame.normal / h_light;
-    let s_p = frame.u_dual.dot(p - frame.center);
-    let t_p = frame.v_dual.dot(p - frame.center);
-    let project = |q: DVec3| {
-        let d = q - p;
-        let w = d.dot(n);
-        [
-            frame.u_dual.dot(d) + w * s_p,
-            frame.v_dual.dot(d) + w * t_p,
-            w,
-        ]
-    };
-    clip_to_square(project(q0), project(q1), 1.0)
+
+    /// The edge `q0 → q1` projected and clipped (see [`projected_edge`]).
+    #[inline]
+    pub fn edge(&self, q0: DVec3, q1: DVec3) -> Option<([f64; 2], [f64; 2])> {
+        let project = |q: DVec3| {
+            let d = q - self.p;
+            let w = d.dot(self.n);
+            [
+                self.u_dual.dot(d) + w * self.s_p,
+                self.v_dual.dot(d) + w * self.t_p,
+                w,
+            ]
+        };
+        clip_to_square(project(q0), project(q1), 1.0)
+    }
 }
 
 /// The segment between the homogeneous points `a` and `b` (`(S, T, W)`,
