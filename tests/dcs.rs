@@ -260,6 +260,6 @@ fn bitfield_coverage_is_close_to_exact_and_refused_where_invalid() {
     assert!(max <= 4.0 / 64.0 + 1e-6, "max {max}");
     assert!(mae < 1e-3, "MAE {mae}");
     let refused = run(CoverageTest::BitField, SamplePattern::Stratified);
-    let message = refused.err().expect("stratified is refused").to_string();
+    let message = refused.expect_err("stratified is refused").to_string();
     assert!(message.contains("--coverage"), "{message}");
 }
