@@ -53,6 +53,42 @@ pub enum Filter {
     Bilinear,
 }
 
+/// Light sample positions as structure of arrays, padded to a multiple
+/// of eight: laid out once per receiver, tested against each of its
+/// S-triangles.
+#[derive(Debug, Clone, Default)]
+pub struct SamplePositions {
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    zs: Vec<f32>,
+    n: usize,
+}
+
+impl SamplePositions {
+    /// Replaces the positions with those of `samples`.
+    pub fn set(&mut self, samples: &[LightSample]) {
+        self.n = samples.len();
+        let padded = self.n.div_ceil(LANES) * LANES;
+        for v in [&mut self.xs, &mut self.ys, &mut self.zs] {
+            v.clear();
+            v.resize(padded, 0.0);
+        }
+        for (k, s) in samples.iter().enumerate() {
+            (self.xs[k], self.ys[k], self.zs[k]) = (s.x.x, s.x.y, s.x.z);
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+}
+
 /// `J` for one receiver and one S-triangle, in f32.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SampleProjector {
@@ -104,40 +140,55 @@ impl SampleProjector {
     /// Calls `hit(k, b1, b2)`, in sample order, for every sample `k` whose
     /// segment from the origin crosses the triangle, with the crossing's
     /// barycentrics (weights of the second and third corner). Eight
-    /// samples at a time.
-    pub fn for_each_hit(&self, samples: &[LightSample], mut hit: impl FnMut(usize, f32, f32)) {
+    /// samples at a time; for many S-triangles seen from one receiver,
+    /// [`SampleProjector::for_each_hit_in`] with the positions laid out
+    /// once is faster.
+    pub fn for_each_hit(&self, samples: &[LightSample], hit: impl FnMut(usize, f32, f32)) {
+        let mut positions = SamplePositions::default();
+        positions.set(samples);
+        self.for_each_hit_in(&positions, hit);
+    }
+
+    /// [`SampleProjector::for_each_hit`] on sample positions laid out by
+    /// [`SamplePositions::set`].
+    pub fn for_each_hit_in(
+        &self,
+        positions: &SamplePositions,
+        mut hit: impl FnMut(usize, f32, f32),
+    ) {
         let [r1, r2, rz] = self.rows.map(|r| r.map(f32x8::splat));
         let o = self.origin;
         let (ox, oy, oz) = (f32x8::splat(o.x), f32x8::splat(o.y), f32x8::splat(o.z));
         let threshold = f32x8::splat(self.threshold);
         let zero = f32x8::ZERO;
-        for (chunk, group) in samples.chunks(LANES).enumerate() {
-            // Padding lanes repeat the origin: d = 0, Z = 0, never a hit.
-            let mut xs = [o.x; LANES];
-            let mut ys = [o.y; LANES];
-            let mut zs = [o.z; LANES];
-            for (k, s) in group.iter().enumerate() {
-                (xs[k], ys[k], zs[k]) = (s.x.x, s.x.y, s.x.z);
-            }
-            let dx = f32x8::from(xs) - ox;
-            let dy = f32x8::from(ys) - oy;
-            let dz = f32x8::from(zs) - oz;
+        let p = positions;
+        let chunks =
+            p.xs.chunks_exact(LANES)
+                .zip(p.ys.chunks_exact(LANES))
+                .zip(p.zs.chunks_exact(LANES));
+        for (chunk, ((xs, ys), zs)) in chunks.enumerate() {
+            let load = |v: &[f32]| f32x8::from(<[f32; LANES]>::try_from(v).unwrap_or([0.0; LANES]));
+            let dx = load(xs) - ox;
+            let dy = load(ys) - oy;
+            let dz = load(zs) - oz;
             let x = r1[0] * dx + r1[1] * dy + r1[2] * dz;
             let y = r2[0] * dx + r2[1] * dy + r2[2] * dz;
             let z = rz[0] * dx + rz[1] * dy + rz[2] * dz;
             let w = z - x - y;
             let inside = x.cmp_ge(zero) & y.cmp_ge(zero) & w.cmp_ge(zero) & z.cmp_gt(threshold);
-            let mask = inside.move_mask();
+            // Padding lanes past the last sample never count.
+            let valid = p.n.saturating_sub(chunk * LANES).min(LANES);
+            let mut mask = inside.move_mask() as u32 & ((1u32 << valid) - 1);
             if mask == 0 {
                 continue;
             }
             // Z > threshold ≥ 0 on every hit lane; elsewhere divide by 1.
             let z = inside.blend(z, f32x8::ONE);
             let (b1, b2) = ((x / z).to_array(), (y / z).to_array());
-            for k in 0..group.len() {
-                if mask >> k & 1 == 1 {
-                    hit(chunk * LANES + k, b1[k], b2[k]);
-                }
+            while mask != 0 {
+                let k = mask.trailing_zeros() as usize;
+                hit(chunk * LANES + k, b1[k], b2[k]);
+                mask &= mask - 1;
             }
         }
     }
@@ -322,7 +373,12 @@ mod tests {
             .map(|k| sample(Vec3::new(0.01 * k as f32, 0.5 - 0.02 * k as f32, 0.0)))
             .collect();
         let p = SampleProjector::new(&t, origin).unwrap();
-        p.for_each_hit(&s, |k, _, _| assert!(s[k].x.y < 0.0, "{k}"));
+        let mut hits = 0;
+        p.for_each_hit(&s, |k, _, _| {
+            assert!(s[k].x.y < 0.0, "{k}");
+            hits += 1;
+        });
+        assert!(hits > 10, "{hits}");
     }
 
     fn texture(w: u32, h: u32, d: Vec<f32>) -> Texture {

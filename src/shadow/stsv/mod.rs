@@ -28,7 +28,7 @@ pub mod lookup;
 pub mod membership;
 pub mod volume;
 
-pub use lookup::{bilinear_scalar, Filter, SampleProjector};
+pub use lookup::{bilinear_scalar, Filter, SamplePositions, SampleProjector};
 pub use membership::{membership, StsvMembership};
 pub use volume::{build_volumes, HalfSpace, Stsv, VolumeParams};
 
@@ -165,8 +165,8 @@ impl STriangles {
     /// [`ShadowOrigin::of`]) to the sample crosses it, 0 where it misses
     /// (and for all samples if `s` is out of range or the origin lies in
     /// the triangle's plane), written to `out` (as many as both slices
-    /// hold). SIMD over samples; [`STriangles::sample_opacities_scalar`]
-    /// is its twin.
+    /// hold). SIMD over samples; lays the samples out on every call, which
+    /// [`STriangles::sample_opacities_in`] does once per receiver.
     pub fn sample_opacities(
         &self,
         scene: &Scene,
@@ -176,10 +176,39 @@ impl STriangles {
         filter: Filter,
         out: &mut [f32],
     ) {
-        self.opacities_with(scene, s, origin, samples, filter, out, false);
+        let mut positions = SamplePositions::default();
+        positions.set(samples);
+        self.sample_opacities_in(scene, s, origin, &positions, filter, out);
     }
 
-    /// [`STriangles::sample_opacities`] one sample at a time.
+    /// [`STriangles::sample_opacities`] with the samples laid out by
+    /// [`SamplePositions::set`] (reused for every S-triangle a receiver
+    /// is in).
+    pub fn sample_opacities_in(
+        &self,
+        scene: &Scene,
+        s: usize,
+        origin: Vec3,
+        positions: &SamplePositions,
+        filter: Filter,
+        out: &mut [f32],
+    ) {
+        let n = positions.len().min(out.len());
+        out[..n].fill(0.0);
+        let Some(tri) = self.list.get(s) else {
+            return;
+        };
+        if let Some(projector) = SampleProjector::new(tri, origin) {
+            projector.for_each_hit_in(positions, |k, b1, b2| {
+                if let Some(o) = out.get_mut(k) {
+                    *o = tri.opacity_at(scene, b1, b2, filter);
+                }
+            });
+        }
+    }
+
+    /// [`STriangles::sample_opacities`] one sample at a time (the scalar
+    /// twin: the same bits).
     pub fn sample_opacities_scalar(
         &self,
         scene: &Scene,
@@ -189,35 +218,15 @@ impl STriangles {
         filter: Filter,
         out: &mut [f32],
     ) {
-        self.opacities_with(scene, s, origin, samples, filter, out, true);
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn opacities_with(
-        &self,
-        scene: &Scene,
-        s: usize,
-        origin: Vec3,
-        samples: &[LightSample],
-        filter: Filter,
-        out: &mut [f32],
-        scalar: bool,
-    ) {
         let n = samples.len().min(out.len());
         out[..n].fill(0.0);
         let Some(tri) = self.list.get(s) else {
             return;
         };
-        let Some(projector) = SampleProjector::new(tri, origin) else {
-            return;
-        };
-        let write = |k: usize, b1: f32, b2: f32| {
-            out[k] = tri.opacity_at(scene, b1, b2, filter);
-        };
-        if scalar {
-            projector.for_each_hit_scalar(&samples[..n], write);
-        } else {
-            projector.for_each_hit(&samples[..n], write);
+        if let Some(projector) = SampleProjector::new(tri, origin) {
+            projector.for_each_hit_scalar(&samples[..n], |k, b1, b2| {
+                out[k] = tri.opacity_at(scene, b1, b2, filter);
+            });
         }
     }
 }
