@@ -11,7 +11,7 @@
 //!    through the triangle, one per side of the triangle's plane the light
 //!    reaches (the two-sided case), and the exact planes of the
 //!    point-in-STSV test (§5.1.3).
-//! 3. [`membership`]: all volumes rasterized with z-fail counting against
+//! 3. [`membership()`]: all volumes rasterized with z-fail counting against
 //!    the scene depth; per tile, the `(pixel, S-triangle)` pairs whose
 //!    receiver is inside, after the exact plane test on the shadow-ray
 //!    origin.
@@ -29,8 +29,8 @@ pub mod membership;
 pub mod volume;
 
 pub use lookup::{bilinear_scalar, Filter, SamplePositions, SampleProjector};
-pub use membership::{membership, StsvMembership};
-pub use volume::{build_volumes, HalfSpace, Stsv, VolumeParams};
+pub use membership::{membership, raster_mesh, StsvMembership};
+pub use volume::{build_volumes, stsv_planes, HalfSpace, Stsv, VolumeParams};
 
 use crate::geom::{SceneGeometry, TriangleFrame};
 use crate::scene::Scene;
