@@ -9,6 +9,7 @@
 pub mod dcs;
 pub mod reference;
 pub mod shadow_volumes;
+pub mod stsv;
 pub mod wedges;
 
 use crate::error::Result;

@@ -317,8 +317,9 @@ impl<'a> ShadowTracer<'a> {
         transmittance
     }
 
-    /// Opacity `d × map_d(uv)` at a hit, clamped to `[0, 1]`.
-    fn opacity(&self, h: &Hit) -> f64 {
+    /// Opacity `d × map_d(uv)` at a hit, clamped to `[0, 1]` (public so
+    /// that other techniques' look-ups can be checked against it).
+    pub fn opacity(&self, h: &Hit) -> f64 {
         let tri = h.triangle as usize;
         let Some(m) = self
             .geometry
