@@ -13,6 +13,7 @@ use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
 use crate::scene::{load_scene, LightShape, Scene};
 use crate::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
+use crate::shadow::stsv::Filter;
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
@@ -82,6 +83,10 @@ enum Command {
         /// patterns on rect lights).
         #[arg(long, default_value = "exact")]
         coverage: String,
+        /// Opacity textures of S-triangles (soft textured shadow
+        /// volumes): `nearest` texel (the contract's rule) or `bilinear`.
+        #[arg(long, default_value = "nearest")]
+        opacity_filter: String,
         /// Placement of light samples (reference, dcs): stratified,
         /// correlated, rotated, poisson, sobol, interleaved[:N].
         #[arg(long, default_value = "stratified")]
@@ -214,6 +219,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             dcs_mode,
             transmittance,
             coverage,
+            opacity_filter,
             pattern,
             timings,
             explain,
@@ -239,6 +245,16 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 silhouettes: parse_silhouettes(&silhouettes)?,
                 dcs_mode: parse_dcs_mode(&dcs_mode)?,
                 transmittance: parse_transmittance(&transmittance)?,
+                opacity_filter: match opacity_filter.as_str() {
+                    "nearest" => Filter::Nearest,
+                    "bilinear" => Filter::Bilinear,
+                    other => {
+                        return Err(Error::param(
+                            "--opacity-filter",
+                            format!("unknown value `{other}` (known: nearest, bilinear)"),
+                        ))
+                    }
+                },
                 coverage: match coverage.as_str() {
                     "exact" => CoverageTest::Exact,
                     "bitfield" => CoverageTest::BitField,

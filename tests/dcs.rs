@@ -45,6 +45,7 @@ fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
         pattern: SamplePattern::Stratified,
         transmittance: TransmittanceMode::Exact,
         coverage: Default::default(),
+        opacity_filter: Default::default(),
     };
     let seen: Mutex<Vec<Inspected>> = Mutex::new(Vec::new());
     dcs.inspect_light(&ctx, 0, &|i, px| {
@@ -182,6 +183,7 @@ translate = [0.3, 1.5, 0.0]
         pattern: SamplePattern::Stratified,
         transmittance: TransmittanceMode::Exact,
         coverage: Default::default(),
+        opacity_filter: Default::default(),
     };
     let ours = dcs.compute(&ctx).expect("dcs runs");
     let reference = Reference::new(n, 3).compute(&ctx).expect("reference runs");

@@ -17,6 +17,7 @@ use crate::shadow::dcs::{
 };
 use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
+use crate::shadow::stsv::Filter;
 use crate::shadow::wedges::blend::WedgeBlending;
 use crate::shadow::wedges::PenumbraWedges;
 use crate::shadow::{
@@ -143,6 +144,7 @@ impl Technique {
                 pattern: options.pattern,
                 transmittance: options.transmittance,
                 coverage: options.coverage,
+                opacity_filter: options.opacity_filter,
             }),
         }
     }
@@ -196,6 +198,9 @@ pub struct RenderOptions {
     pub transmittance: TransmittanceMode,
     /// Depth complexity sampling: how covered samples are found.
     pub coverage: CoverageTest,
+    /// Look-up of S-triangles' opacity textures (soft textured shadow
+    /// volumes).
+    pub opacity_filter: Filter,
 }
 
 impl Default for RenderOptions {
@@ -213,6 +218,7 @@ impl Default for RenderOptions {
             pattern: SamplePattern::Stratified,
             transmittance: TransmittanceMode::Exact,
             coverage: CoverageTest::Exact,
+            opacity_filter: Filter::Nearest,
         }
     }
 }

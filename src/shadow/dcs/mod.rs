@@ -34,6 +34,7 @@ pub mod region;
 
 use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
 use super::shadow_volumes::{build_volume, stencil_counts};
+use super::stsv::{membership as stsv_membership, Filter, STriangles, SamplePositions};
 use super::wedges::geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use super::wedges::{draw_wedges, light_start, HalfWedgeMembership, LightStart};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -97,6 +98,8 @@ pub struct DepthComplexitySampling {
     pub transmittance: TransmittanceMode,
     /// How covered samples are found.
     pub coverage: CoverageTest,
+    /// Look-up of S-triangles' opacity textures.
+    pub opacity_filter: Filter,
 }
 
 /// How the samples an edge covers are found.
@@ -189,6 +192,10 @@ struct Scratch {
     attenuation: Vec<f64>,
     /// Per sample: transmittance from `attenuation`.
     transmittance: Vec<f64>,
+    /// Sample positions laid out for the S-triangle look-ups.
+    positions: SamplePositions,
+    /// One S-triangle's opacity per sample.
+    opacities: Vec<f32>,
     visibility: Vec<f32>,
 }
 
@@ -223,6 +230,8 @@ struct LightPass<'a> {
     groups: &'a [GroupPass],
     /// Bit-field tables (one per interleaved set) when the option is on.
     tables: &'a [CoverageTables],
+    /// The scene's S-triangles, when it has any.
+    s_triangles: Option<&'a STriangles>,
     /// `EPS_SCENE ×` the scene's diagonal.
     eps_scene: f64,
     /// Called with every surface pixel's samples and counters.
@@ -258,14 +267,21 @@ impl LightPass<'_> {
     /// The results of global pixel `i` with its recorded `(edge, outer)`
     /// pairs (sorted, no duplicates) and the unbounded edges `extra`
     /// (sorted) that apply to it; edge ids are global over the groups.
-    fn pixel(&self, i: usize, tags: &[u64], extra: &[u32], scratch: &mut Scratch) -> PixelResult {
+    fn pixel(
+        &self,
+        i: usize,
+        tags: &[u64],
+        extra: &[u32],
+        s_triangles: &[u32],
+        scratch: &mut Scratch,
+    ) -> PixelResult {
         let gbuffer = self.ctx.gbuffer;
         let d0 = self.groups[0].start[i];
         let g = gbuffer.sample(i);
         let eye = self.ctx.view.eye.as_vec3();
         let direct = self.technique.mode == DcsMode::Direct;
         let sp = || surface_point(self.ctx.scene, &g, eye);
-        if tags.is_empty() && extra.is_empty() && self.inspect.is_none() {
+        if tags.is_empty() && extra.is_empty() && s_triangles.is_empty() && self.inspect.is_none() {
             // Outside every wedge: D = D(O) and the layer counts are the
             // start counts for every sample.
             let t = if d0 <= 0 {
@@ -293,7 +309,12 @@ impl LightPass<'_> {
         // when something reads them (the direct estimator, the texture,
         // an inspector). Sphere lights chart the world points.
         let rect = matches!(self.bound, LightBound::Rect(_));
-        if !rect || direct || self.prepared.is_textured() || self.inspect.is_some() {
+        if !rect
+            || direct
+            || self.prepared.is_textured()
+            || self.inspect.is_some()
+            || !s_triangles.is_empty()
+        {
             self.sampler
                 .samples_with(&self.pattern, g.position, pixel, &mut scratch.samples);
         } else {
@@ -333,7 +354,7 @@ impl LightPass<'_> {
                 .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
         }
         let count = scratch.chart.len();
-        let semi_opaque = self.groups.len() > 1;
+        let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
         scratch.attenuation.clear();
         if semi_opaque {
             scratch.attenuation.resize(count, 0.0);
@@ -374,6 +395,40 @@ impl LightPass<'_> {
             }
         }
         let mode = self.technique.transmittance;
+        if let (Some(stris), false) = (self.s_triangles, s_triangles.is_empty()) {
+            // Soft textured shadow volumes (§5.2): per sample, the
+            // opacity of each S-triangle the receiver's volume test
+            // passed; a fully opaque texel is one more occluder in `D`, a
+            // partial one a layer of transmittance.
+            let Scratch {
+                samples,
+                positions,
+                opacities,
+                counters,
+                attenuation,
+                ..
+            } = scratch;
+            positions.set(samples);
+            opacities.resize(count, 0.0);
+            let origin = p.as_vec3();
+            for &s in s_triangles {
+                stris.sample_opacities_in(
+                    self.ctx.scene,
+                    s as usize,
+                    origin,
+                    positions,
+                    self.technique.opacity_filter,
+                    opacities,
+                );
+                for (k, &a) in opacities.iter().enumerate() {
+                    if a >= 1.0 {
+                        counters[k] += 1;
+                    } else if a > 0.0 {
+                        attenuation[k] += mode.per_layer(Attenuation::partial(f64::from(a)));
+                    }
+                }
+            }
+        }
         scratch.transmittance.clear();
         scratch
             .transmittance
@@ -772,6 +827,20 @@ impl DepthComplexitySampling {
         });
 
         let tables = self.coverage_tables(ctx, k, &bound)?;
+        // S-triangles: soft textured shadow volumes, only when the scene
+        // has some.
+        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
+        let stsv = if s_triangles.is_empty() {
+            None
+        } else {
+            let t = Instant::now();
+            let m = stsv_membership(ctx, k, &s_triangles)?;
+            passes.push(PassTiming {
+                name: format!("soft textured shadow volumes light {k}"),
+                time: t.elapsed(),
+            });
+            Some(m)
+        };
         let t = Instant::now();
         let pass = LightPass {
             ctx,
@@ -783,6 +852,7 @@ impl DepthComplexitySampling {
             prepared: PreparedLight::new(light, &ctx.scene.textures),
             groups: &groups,
             tables: &tables,
+            s_triangles: (!s_triangles.is_empty()).then_some(&s_triangles),
             eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
             inspect,
         };
@@ -825,11 +895,18 @@ impl DepthComplexitySampling {
                     near.retain(|u| !u.region.excludes_box(lo, hi));
                 }
                 let mut extra = Vec::new();
+                let stsv_entries: &[u64] = stsv.as_ref().map_or(&[], |m| &m.tiles[tile]);
+                let (mut si, mut here) = (0, Vec::new());
                 for (local, r) in out.iter_mut().enumerate() {
                     let (x, y) = (
                         ox as usize + local % TILE_SIZE,
                         oy as usize + local / TILE_SIZE,
                     );
+                    here.clear();
+                    while si < stsv_entries.len() && (stsv_entries[si] >> 32) as usize == local {
+                        here.push(stsv_entries[si] as u32);
+                        si += 1;
+                    }
                     let first = e;
                     while e < entries.len() && (entries[e] >> 33) as usize == local {
                         e += 1;
@@ -861,9 +938,10 @@ impl DepthComplexitySampling {
                                 .map(|u| u.id),
                         );
                     }
-                    sampled += usize::from(!tags.is_empty() || !extra.is_empty());
+                    sampled +=
+                        usize::from(!tags.is_empty() || !extra.is_empty() || !here.is_empty());
                     unbounded += extra.len();
-                    *r = pass.pixel(i, tags, &extra, scratch);
+                    *r = pass.pixel(i, tags, &extra, &here, scratch);
                 }
                 (out, pairs, sampled, unbounded)
             })
@@ -972,6 +1050,11 @@ impl DepthComplexitySampling {
             bytes: workers * (n * std::mem::size_of::<LightSample>() as u64 + padded * 8 + n * 4),
         });
         let partial = semi_opaque_groups(ctx.scene, ctx.geometry);
+        let s_triangles_present = ctx
+            .scene
+            .materials
+            .iter()
+            .any(|m| m.opacity_texture.is_some());
         let opacities: Vec<String> = partial
             .iter()
             .filter_map(|(a, _)| match a {
@@ -981,7 +1064,11 @@ impl DepthComplexitySampling {
             .collect();
         out.buffers.push(BufferNote {
             name: "transmittance".into(),
-            detail: if partial.is_empty() {
+            detail: if partial.is_empty() && s_triangles_present {
+                "per sample f64 accumulated optical depth and transmittance per worker, for \
+                 S-triangles' partial texels only"
+                    .into()
+            } else if partial.is_empty() {
                 "not allocated: every caster is opaque".into()
             } else {
                 format!(
@@ -1003,20 +1090,30 @@ impl DepthComplexitySampling {
                 partial.len() as u64 * pixels * 4 + workers * (padded * 4 + n * 16)
             },
         });
-        let textured_casters = ctx
-            .scene
-            .materials
-            .iter()
-            .any(|m| m.opacity_texture.is_some());
-        if textured_casters {
-            out.buffers.push(BufferNote {
-                name: "opacity-textured casters".into(),
-                detail: "not handled by dcs yet (soft textured shadow volumes): they cast no \
-                         shadow here"
-                    .into(),
-                bytes: 0,
-            });
-        }
+        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
+        out.buffers.push(BufferNote {
+            name: "soft textured shadow volumes".into(),
+            detail: if s_triangles.is_empty() {
+                "not used: no opacity-textured caster (S-triangle)".into()
+            } else {
+                format!(
+                    "{} S-triangles: one volume each per light, (pixel, S-triangle) pairs as \
+                     u64 per tile; per sample f32 position and opacity per worker; {} \
+                     texel look-up; opaque texels add to D, partial ones to the \
+                     transmittance",
+                    s_triangles.len(),
+                    match self.opacity_filter {
+                        Filter::Nearest => "nearest",
+                        Filter::Bilinear => "bilinear",
+                    }
+                )
+            },
+            bytes: if s_triangles.is_empty() {
+                0
+            } else {
+                workers * (padded * 16 + n * 16)
+            },
+        });
         let textured = ctx.scene.lights.iter().any(|l| l.texture.is_some());
         out.buffers.push(BufferNote {
             name: "per-sample luminance".into(),
