@@ -238,6 +238,7 @@ fn bitfield_coverage_is_close_to_exact_and_refused_where_invalid() {
             pattern,
             transmittance: TransmittanceMode::Exact,
             coverage,
+            opacity_filter: Default::default(),
         }
         .compute(&ctx)
     };
