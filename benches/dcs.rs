@@ -1,0 +1,80 @@
+//! Depth complexity sampling against the reference's shadow rays with the
+//! same samples, on `scenes/spheres.toml` at 1024² (the setting):
+//! the shadow technique alone on a prebuilt G-buffer (geometry, G-buffer
+//! and shading are the same for both and excluded), 64 light samples,
+//! stratified, 2 threads. DCS runs with centre silhouettes (the fast mode)
+//! and whole-light silhouettes (the exact mode).
+//!
+//! Run: `cargo bench --bench dcs`. The llvmpipe peer (64 accumulated
+//! hard-shadow passes, `../shared/peers/glsv`) is measured in the same
+//! session by the command in docs/performance.md.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use penumbra::gbuffer::gbuffer_pass;
+use penumbra::geom::SceneGeometry;
+use penumbra::render::{view_for, RenderOptions};
+use penumbra::sampling::SamplePattern;
+use penumbra::scene::load_scene;
+use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
+use penumbra::shadow::reference::Reference;
+use penumbra::shadow::{ShadowContext, ShadowTechnique};
+use std::path::Path;
+use std::time::Duration;
+
+const SAMPLES: u32 = 64;
+const SIZE: u32 = 1024;
+
+fn dcs(c: &mut Criterion) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml");
+    let scene = load_scene(&path).expect("shipped scene loads");
+    let options = RenderOptions {
+        width: Some(SIZE),
+        height: Some(SIZE),
+        ..RenderOptions::default()
+    };
+    let view = view_for(&scene, &options).expect("view");
+    let geometry = SceneGeometry::new(&scene);
+    let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
+    let ctx = ShadowContext {
+        scene: &scene,
+        geometry: &geometry,
+        view: &view,
+        gbuffer: &gbuffer,
+        depth: &depth,
+    };
+    let technique = |silhouettes| DepthComplexitySampling {
+        samples: SAMPLES,
+        seed: 0,
+        silhouettes,
+        mode: DcsMode::Vcoef,
+        pattern: SamplePattern::Stratified,
+        transmittance: Default::default(),
+        coverage: Default::default(),
+        opacity_filter: Default::default(),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("thread pool");
+    let mut group = c.benchmark_group(format!("shadows_spheres_{SIZE}_{SAMPLES}spp_2t"));
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(20));
+    for (name, sil) in [
+        ("dcs_centre", SilhouetteMode::Centre),
+        ("dcs_light", SilhouetteMode::WholeLight),
+    ] {
+        let t = technique(sil);
+        group.bench_function(name, |b| {
+            b.iter(|| pool.install(|| t.compute(&ctx).expect("dcs runs")))
+        });
+    }
+    let reference = Reference::new(SAMPLES, 0);
+    group.bench_function("reference", |b| {
+        b.iter(|| pool.install(|| reference.compute(&ctx).expect("reference runs")))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, dcs);
+criterion_main!(benches);
