@@ -196,6 +196,9 @@ struct Scratch {
     positions: SamplePositions,
     /// One S-triangle's opacity per sample.
     opacities: Vec<f32>,
+    /// Per recorded edge of the group being counted: the centre's side of
+    /// the plane through the receiver and the edge.
+    sides: Vec<i8>,
     visibility: Vec<f32>,
 }
 
@@ -508,15 +511,18 @@ impl LightPass<'_> {
         // plane passes between them (a receiver on the occluder, at its
         // terminator) move the constant across that quad: +m entering the
         // volume, −m leaving it.
+        // Each tag's side is computed once, here, and reused below.
         let mut d0 = group.start[i];
+        scratch.sides.clear();
         for &t in tags {
             let e = &edges[local((t >> 1) as u32)];
+            let geometric = side_of(p, e.v0, e.v1, self.centre);
+            scratch.sides.push(geometric as i8);
             if e.quad_sign == 0 {
                 continue;
             }
             let outer = t & 1 == 1;
             let raster = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
-            let geometric = side_of(p, e.v0, e.v1, self.centre);
             if geometric != 0 && geometric != raster {
                 let m = e.quad_weight as i32;
                 d0 += if outer { m } else { -m };
@@ -526,6 +532,7 @@ impl LightPass<'_> {
             chart: samples,
             counters,
             layers: layer_counts,
+            sides,
             ..
         } = scratch;
         let counters = if layers { layer_counts } else { counters };
@@ -541,10 +548,16 @@ impl LightPass<'_> {
         };
         counters.clear();
         counters.resize(samples.padded(), d0);
-        let from_wedges = tags.iter().map(|&t| (t >> 1) as u32);
-        for id in from_wedges.chain(extra.iter().copied()) {
+        let from_wedges = tags
+            .iter()
+            .zip(sides.iter())
+            .map(|(&t, &side)| ((t >> 1) as u32, Some(side)));
+        for (id, side) in from_wedges.chain(extra.iter().map(|&id| (id, None))) {
             let e = &edges[local(id)];
-            let side = side_of(p, e.v0, e.v1, self.centre);
+            let side = match side {
+                Some(side) => i32::from(side),
+                None => side_of(p, e.v0, e.v1, self.centre),
+            };
             if side == 0 {
                 continue;
             }
