@@ -156,6 +156,29 @@ impl CandidateEdges {
         out
     }
 
+    /// For a manifold edge whose two faces run it in opposite directions:
+    /// their unit normals and offsets `(n, n · point)`. `μ_e(p)` is then
+    /// non-zero exactly when `p` is strictly in front of one face and not
+    /// of the other (closed or open faces alike), so a receiver in front of
+    /// both or behind both gets nothing from the edge. `None` otherwise.
+    pub fn dihedral(&self, edge: &CandidateEdge) -> Option<[(DVec3, f64); 2]> {
+        let faces = &self.faces[edge.faces.0 as usize..edge.faces.1 as usize];
+        let [a, b] = faces else {
+            return None;
+        };
+        if a.direction == b.direction {
+            return None;
+        }
+        let plane = |f: &EdgeFace| {
+            let len = f.normal.length();
+            (len > 0.0 && len.is_finite()).then(|| {
+                let n = f.normal / len;
+                (n, n.dot(f.point))
+            })
+        };
+        Some([plane(a)?, plane(b)?])
+    }
+
     /// `μ_e(p)`: the edge's shadow-volume multiplicity with the light
     /// point at `p` (0 unless the edge is a silhouette from `p`).
     #[inline]

@@ -794,11 +794,21 @@ impl DepthComplexitySampling {
                     q1: q1.as_vec3(),
                     weight: e.quad_weight,
                 };
-                if !wedges.add(ctx.view, &bound, point, quad, None) {
+                // Edges that are no silhouette from the centre (whole-light
+                // mode) matter only where they are silhouettes from the
+                // receiver: a thin dihedral region inside their wedge. A
+                // world-space test finds those receivers far more cheaply
+                // than rasterizing a full wedge for each.
+                let dihedral = (e.quad_sign == 0).then(|| candidates.dihedral(e)).flatten();
+                if dihedral.is_some() || !wedges.add(ctx.view, &bound, point, quad, None) {
+                    let mut region = RegionBound::new(e.v0, e.v1, &corners, slack);
+                    if let Some(faces) = dihedral {
+                        region = region.with_dihedral(faces, slack);
+                    }
                     always.push(UnboundedEdge {
                         id,
                         rect: fallback_rect(ctx.view, e, &bound),
-                        region: RegionBound::new(e.v0, e.v1, &corners, slack),
+                        region,
                     });
                     continue;
                 }
@@ -892,12 +902,13 @@ impl DepthComplexitySampling {
                         r[0] < tx1 && r[2] > ox as usize && r[1] < ty1 && r[3] > oy as usize
                     })
                     .collect();
-                if !near.is_empty() {
-                    // The tile's receivers' bounding box against each
-                    // edge's region.
+                // Receivers' bounding boxes, tile, then 16² and 4² blocks,
+                // against each edge's world-space region: per pixel only
+                // the edges of its 4² block are tested.
+                let bbox = |x0: usize, y0: usize, size: usize| {
                     let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-                    for y in oy as usize..ty1.min(height) {
-                        for x in ox as usize..tx1.min(width) {
+                    for y in y0..(y0 + size).min(height) {
+                        for x in x0..(x0 + size).min(width) {
                             let i = y * width + x;
                             if ctx.gbuffer.is_surface(i) {
                                 let q = ctx.gbuffer.sample(i).position.as_dvec3();
@@ -905,7 +916,54 @@ impl DepthComplexitySampling {
                             }
                         }
                     }
-                    near.retain(|u| !u.region.excludes_box(lo, hi));
+                    (lo.x <= hi.x).then_some((lo, hi))
+                };
+                let keeps =
+                    |u: &UnboundedEdge, x0: usize, y0: usize, size: usize, b: (DVec3, DVec3)| {
+                        let r = u.rect;
+                        r[0] < x0 + size
+                            && r[2] > x0
+                            && r[1] < y0 + size
+                            && r[3] > y0
+                            && !u.region.excludes_box(b.0, b.1)
+                    };
+                const OUTER: usize = 16;
+                const INNER: usize = 4;
+                const PER_ROW: usize = TILE_SIZE / INNER;
+                let mut block_edges: Vec<Vec<u32>> = vec![Vec::new(); PER_ROW * PER_ROW];
+                if let Some(b) = bbox(ox as usize, oy as usize, TILE_SIZE) {
+                    near.retain(|u| !u.region.excludes_box(b.0, b.1));
+                }
+                if !near.is_empty() {
+                    for by in 0..TILE_SIZE / OUTER {
+                        for bx in 0..TILE_SIZE / OUTER {
+                            let (x0, y0) = (ox as usize + bx * OUTER, oy as usize + by * OUTER);
+                            let Some(b) = bbox(x0, y0, OUTER) else {
+                                continue;
+                            };
+                            let outer: Vec<u32> = (0..near.len() as u32)
+                                .filter(|&k| keeps(near[k as usize], x0, y0, OUTER, b))
+                                .collect();
+                            if outer.is_empty() {
+                                continue;
+                            }
+                            for sy in 0..OUTER / INNER {
+                                for sx in 0..OUTER / INNER {
+                                    let (x1, y1) = (x0 + sx * INNER, y0 + sy * INNER);
+                                    let Some(b) = bbox(x1, y1, INNER) else {
+                                        continue;
+                                    };
+                                    let cell = (y1 - oy as usize) / INNER * PER_ROW
+                                        + (x1 - ox as usize) / INNER;
+                                    block_edges[cell] = outer
+                                        .iter()
+                                        .copied()
+                                        .filter(|&k| keeps(near[k as usize], x1, y1, INNER, b))
+                                        .collect();
+                                }
+                            }
+                        }
+                    }
                 }
                 let mut extra = Vec::new();
                 let stsv_entries: &[u64] = stsv.as_ref().map_or(&[], |m| &m.tiles[tile]);
@@ -936,10 +994,13 @@ impl DepthComplexitySampling {
                         *tag &= (1 << 33) - 1;
                     }
                     extra.clear();
-                    if !near.is_empty() {
+                    let cell = (local / TILE_SIZE) / INNER * PER_ROW + (local % TILE_SIZE) / INNER;
+                    if !block_edges[cell].is_empty() {
                         let q = ctx.gbuffer.sample(i).position.as_dvec3();
                         extra.extend(
-                            near.iter()
+                            block_edges[cell]
+                                .iter()
+                                .map(|&k| near[k as usize])
                                 .filter(|u| {
                                     let r = u.rect;
                                     x >= r[0]

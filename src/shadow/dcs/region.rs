@@ -22,6 +22,9 @@ use glam::DVec3;
 #[derive(Debug, Clone, Default)]
 pub struct RegionBound {
     planes: Vec<(DVec3, f64)>,
+    /// The edge's two face planes when it only matters where they
+    /// disagree (see [`RegionBound::with_dihedral`]), and the slack.
+    dihedral: Option<([(DVec3, f64); 2], f64)>,
 }
 
 impl RegionBound {
@@ -72,18 +75,66 @@ impl RegionBound {
                 }
             }
         }
-        RegionBound { planes }
+        RegionBound {
+            planes,
+            dihedral: None,
+        }
+    }
+
+    /// Also excludes receivers in front of both face planes or behind
+    /// both (beyond `slack`): where the edge is not a silhouette, its
+    /// multiplicity is 0 and it changes no counter.
+    pub fn with_dihedral(mut self, faces: [(DVec3, f64); 2], slack: f64) -> RegionBound {
+        self.dihedral = Some((faces, slack));
+        self
+    }
+
+    /// Whether the dihedral test excludes every point whose signed
+    /// distances to the two face planes lie in `[lo0, hi0]`, `[lo1, hi1]`.
+    #[inline]
+    fn dihedral_excludes(&self, d: [(f64, f64); 2]) -> bool {
+        match self.dihedral {
+            Some((_, slack)) => {
+                let front = d.iter().all(|&(lo, _)| lo > slack);
+                let behind = d.iter().all(|&(_, hi)| hi < -slack);
+                front || behind
+            }
+            None => false,
+        }
     }
 
     /// Whether `p` is outside the region (then the edge cannot change its
     /// counters).
     #[inline]
     pub fn excludes_point(&self, p: DVec3) -> bool {
+        if let Some((faces, _)) = self.dihedral {
+            let d = faces.map(|(n, h)| {
+                let d = n.dot(p) - h;
+                (d, d)
+            });
+            if self.dihedral_excludes(d) {
+                return true;
+            }
+        }
         self.planes.iter().any(|&(n, h)| n.dot(p) < h)
     }
 
     /// Whether the whole box `[lo, hi]` is outside the region.
     pub fn excludes_box(&self, lo: DVec3, hi: DVec3) -> bool {
+        let far = |n: DVec3, up: bool| {
+            let pick = |c: f64, l: f64, h: f64| if (c >= 0.0) == up { h } else { l };
+            DVec3::new(
+                pick(n.x, lo.x, hi.x),
+                pick(n.y, lo.y, hi.y),
+                pick(n.z, lo.z, hi.z),
+            )
+        };
+        if let Some((faces, _)) = self.dihedral {
+            let d = faces.map(|(n, h)| (n.dot(far(n, false)) - h, n.dot(far(n, true)) - h));
+            if self.dihedral_excludes(d) {
+                return true;
+            }
+        }
         self.planes.iter().any(|&(n, h)| {
             // The box corner furthest along n.
             let far = DVec3::new(
@@ -173,5 +224,34 @@ mod tests {
         // points on the edge itself.
         let d = RegionBound::new(DVec3::ZERO, DVec3::ZERO, &[DVec3::ZERO], 0.0);
         assert!(!d.excludes_point(DVec3::ZERO));
+    }
+
+    /// The dihedral test drops points in front of both faces or behind
+    /// both, keeps points where they disagree, and boxes follow points.
+    #[test]
+    fn dihedral_keeps_only_silhouette_sides() {
+        let corners = [DVec3::new(-1.0, 5.0, -1.0), DVec3::new(1.0, 5.0, 1.0)];
+        // Edge along x at the origin; faces with normals +y+z and +y-z.
+        let (n0, n1) = (
+            DVec3::new(0.0, 1.0, 1.0).normalize(),
+            DVec3::new(0.0, 1.0, -1.0).normalize(),
+        );
+        let b = RegionBound::new(DVec3::ZERO, DVec3::X, &corners, 0.0)
+            .with_dihedral([(n0, 0.0), (n1, 0.0)], 1e-9);
+        // Below the edge, between the planes' negative sides: behind both.
+        assert!(b.excludes_point(DVec3::new(0.5, -3.0, 0.0)));
+        // Off to the side: in front of one, behind the other — kept
+        // unless the cone excludes it.
+        let side = DVec3::new(0.5, -1.0, 2.0);
+        assert!(n0.dot(side) > 0.0 && n1.dot(side) < 0.0);
+        let plain = RegionBound::new(DVec3::ZERO, DVec3::X, &corners, 0.0);
+        assert_eq!(b.excludes_point(side), plain.excludes_point(side));
+        // A box straddling both planes is kept by the dihedral test.
+        let big = RegionBound {
+            planes: Vec::new(),
+            dihedral: b.dihedral,
+        };
+        assert!(!big.excludes_box(DVec3::splat(-1.0), DVec3::splat(1.0)));
+        assert!(big.excludes_box(DVec3::new(0.0, -5.0, -0.1), DVec3::new(1.0, -4.0, 0.1)));
     }
 }
