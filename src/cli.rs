@@ -53,7 +53,8 @@ enum Command {
         /// Shadow technique.
         #[arg(long, default_value = "none")]
         technique: String,
-        /// Light samples per pixel and light (sampling techniques).
+        /// Light samples per pixel and light (sampling techniques; wedges
+        /// and wedge-blend: for S-triangles only).
         #[arg(long, default_value_t = 64)]
         samples: u32,
         /// Seed of the per-pixel random numbers.
@@ -87,8 +88,9 @@ enum Command {
         /// volumes): `nearest` texel (the contract's rule) or `bilinear`.
         #[arg(long, default_value = "nearest")]
         opacity_filter: String,
-        /// Placement of light samples (reference, dcs): stratified,
-        /// correlated, rotated, poisson, sobol, interleaved[:N].
+        /// Placement of light samples (reference, dcs; wedges and
+        /// wedge-blend for S-triangles): stratified, correlated, rotated,
+        /// poisson, sobol, interleaved[:N].
         #[arg(long, default_value = "stratified")]
         pattern: String,
         /// Print each pass's time to stderr.

@@ -17,7 +17,7 @@ use crate::shadow::dcs::{
 };
 use crate::shadow::reference::Reference;
 use crate::shadow::shadow_volumes::ShadowVolumes;
-use crate::shadow::stsv::Filter;
+use crate::shadow::stsv::{Filter, StsvSampling};
 use crate::shadow::wedges::blend::WedgeBlending;
 use crate::shadow::wedges::PenumbraWedges;
 use crate::shadow::{
@@ -134,8 +134,10 @@ impl Technique {
             Technique::ShadowVolumes => Box::new(ShadowVolumes {
                 zpass: options.zpass,
             }),
-            Technique::Wedges => Box::new(PenumbraWedges),
-            Technique::WedgeBlend => Box::new(WedgeBlending),
+            Technique::Wedges => Box::new(PenumbraWedges::with_sampling(options.stsv_sampling())),
+            Technique::WedgeBlend => {
+                Box::new(WedgeBlending::with_sampling(options.stsv_sampling()))
+            }
             Technique::Dcs => Box::new(DepthComplexitySampling {
                 samples: options.samples,
                 seed: options.seed,
@@ -201,6 +203,20 @@ pub struct RenderOptions {
     /// Look-up of S-triangles' opacity textures (soft textured shadow
     /// volumes).
     pub opacity_filter: Filter,
+}
+
+impl RenderOptions {
+    /// How the Vcoef techniques (wedges, wedge blending) sample the light
+    /// for S-triangles: the render's samples, seed, pattern and opacity
+    /// filter, the reference's for the same options.
+    pub fn stsv_sampling(&self) -> StsvSampling {
+        StsvSampling {
+            samples: self.samples,
+            seed: self.seed,
+            pattern: self.pattern,
+            filter: self.opacity_filter,
+        }
+    }
 }
 
 impl Default for RenderOptions {

@@ -20,16 +20,22 @@
 //!    from the receiver's shadow-ray origin to the sample crosses the
 //!    triangle, 0 where it misses (eq. 5.10); nearest (the reference's
 //!    rule) or bilinear, eight samples at a time.
+//! 5. [`occlusion`]: for the Vcoef techniques (penumbra wedges, wedge
+//!    blending, §5.2.1), each receiver's occluded fraction
+//!    `1 − mean_k Π (1 − α)`, added to their V-buffer. Depth complexity
+//!    sampling (§5.2.2) uses 3 and 4 directly in its counter pass.
 //!
 //! `docs/algorithms/stsv.md` says what the thesis does, what we do and
 //! where we differ.
 
 pub mod lookup;
 pub mod membership;
+pub mod occlusion;
 pub mod volume;
 
 pub use lookup::{bilinear_scalar, Filter, SamplePositions, SampleProjector};
 pub use membership::{membership, raster_mesh, StsvMembership};
+pub use occlusion::{occlusion_note, stsv_occlusion, StsvOcclusion, StsvSampling};
 pub use volume::{build_volumes, stsv_planes, HalfSpace, Stsv, VolumeParams};
 
 use crate::geom::{SceneGeometry, TriangleFrame};

@@ -35,14 +35,16 @@
 
 use super::geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
 use super::integrate::{projected_edge, EdgeRegion, Polygon, RectFrame};
-use super::{draw_wedges, light_bound, WedgeStage, WedgeTile};
+use super::{draw_wedges, light_bound, subtract_occlusion, WedgeStage, WedgeTile};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
+use crate::sampling::SamplePattern;
 use crate::shadow::shadow_volumes::{
     build_volume, cap_triangles, caster_adjacency, light_point, side_quad, stencil_counts_of,
 };
+use crate::shadow::stsv::{occlusion_note, stsv_occlusion, Filter, STriangles, StsvSampling};
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -184,9 +186,52 @@ pub fn blend_part(v: &mut LightPart, s: &LightPart) {
     v.rect = union(v.rect, s.rect);
 }
 
-/// The penumbra-wedge blending technique.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct WedgeBlending;
+/// The penumbra-wedge blending technique. As for [`PenumbraWedges`], the
+/// sampling fields matter only for S-triangles (soft textured shadow
+/// volumes, their occluded fraction added to the blended V-buffer).
+///
+/// [`PenumbraWedges`]: super::PenumbraWedges
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WedgeBlending {
+    /// Light samples per receiver in an S-triangle's volume.
+    pub samples: u32,
+    /// Seed of those samples (the reference's, for the same pixel).
+    pub seed: u64,
+    /// How those samples are placed on the light.
+    pub pattern: SamplePattern,
+    /// Look-up of S-triangles' opacity textures.
+    pub opacity_filter: Filter,
+}
+
+impl Default for WedgeBlending {
+    /// The render options' defaults (64 stratified samples, seed 0,
+    /// nearest texel).
+    fn default() -> Self {
+        Self::with_sampling(StsvSampling::default())
+    }
+}
+
+impl WedgeBlending {
+    /// Wedge blending whose S-triangles are sampled with `s`.
+    pub fn with_sampling(s: StsvSampling) -> Self {
+        WedgeBlending {
+            samples: s.samples,
+            seed: s.seed,
+            pattern: s.pattern,
+            opacity_filter: s.filter,
+        }
+    }
+
+    /// How S-triangles are sampled.
+    pub fn stsv_sampling(&self) -> StsvSampling {
+        StsvSampling {
+            samples: self.samples,
+            seed: self.seed,
+            pattern: self.pattern,
+            filter: self.opacity_filter,
+        }
+    }
+}
 
 /// Connected components of the faces of `adj` (through shared edges):
 /// a component id per face slot, and the count.
@@ -239,6 +284,14 @@ impl ShadowTechnique for WedgeBlending {
             name: "wedges".into(),
             channels: Vec::new(),
         };
+        // S-triangles are not wedge casters; soft textured shadow volumes
+        // shadow them, when there are any.
+        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
+        let mut slayer = Layer {
+            name: "stsv".into(),
+            channels: Vec::new(),
+        };
+        let mut stsv_stats = Vec::new();
         for k in 0..ctx.scene.lights.len() {
             let light = &ctx.scene.lights[k];
             let bound = light_bound(&light.shape);
@@ -387,10 +440,27 @@ impl ShadowTechnique for WedgeBlending {
                     }
                 }
             }
+            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv_sampling(), &mut out.passes)?;
+            if let Some(stsv) = &stsv {
+                subtract_occlusion(&mut vcoef, &stsv.occluded);
+                slayer.channels.push((k.to_string(), stsv.occluded.clone()));
+            }
+            stsv_stats.push(stsv.map(|s| (s.pairs, s.receivers)));
             out.lights.push(LightTerm::vcoef(vcoef));
             wlayer.channels.push((k.to_string(), halves_in));
         }
         out.layers.push(wlayer);
+        if !slayer.channels.is_empty() {
+            out.layers.push(slayer);
+        }
+        out.buffers.push(occlusion_note(
+            self.name(),
+            &s_triangles,
+            self.stsv_sampling(),
+            &stsv_stats,
+            ctx.gbuffer.len() as u64,
+            rayon::current_num_threads() as u64,
+        ));
         Ok(out)
     }
 }

@@ -23,6 +23,7 @@ pub mod integrate;
 use super::shadow_volumes::{
     build_volume, caster_adjacency, light_point, silhouette_quads, stencil_counts,
 };
+use super::stsv::{occlusion_note, stsv_occlusion, Filter, STriangles, StsvSampling};
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::gbuffer::GBuffer;
@@ -32,15 +33,59 @@ use crate::raster::{
     draw, CompareFunc, CullMode, FragmentBatch, FragmentStage, RasterState, TileGrid, TILE_PIXELS,
     TILE_SIZE,
 };
+use crate::sampling::SamplePattern;
 use crate::scene::LightShape;
 use geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use integrate::{region_fraction, region_fraction_sphere, RectFrame};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// The penumbra-wedge technique.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct PenumbraWedges;
+/// The penumbra-wedge technique. The sampling fields matter only when the
+/// scene has S-triangles (opacity-textured casters): those are shadowed
+/// with soft textured shadow volumes, sampled like the reference
+/// ([`stsv_occlusion`]), and their occluded fraction is added to the
+/// V-buffer (thesis §5.2.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PenumbraWedges {
+    /// Light samples per receiver in an S-triangle's volume.
+    pub samples: u32,
+    /// Seed of those samples (the reference's, for the same pixel).
+    pub seed: u64,
+    /// How those samples are placed on the light.
+    pub pattern: SamplePattern,
+    /// Look-up of S-triangles' opacity textures.
+    pub opacity_filter: Filter,
+}
+
+impl Default for PenumbraWedges {
+    /// The render options' defaults (64 stratified samples, seed 0,
+    /// nearest texel).
+    fn default() -> Self {
+        Self::with_sampling(StsvSampling::default())
+    }
+}
+
+impl PenumbraWedges {
+    /// Penumbra wedges whose S-triangles are sampled with `s`.
+    pub fn with_sampling(s: StsvSampling) -> Self {
+        PenumbraWedges {
+            samples: s.samples,
+            seed: s.seed,
+            pattern: s.pattern,
+            opacity_filter: s.filter,
+        }
+    }
+
+    /// How S-triangles are sampled.
+    pub fn stsv_sampling(&self) -> StsvSampling {
+        StsvSampling {
+            samples: self.samples,
+            seed: self.seed,
+            pattern: self.pattern,
+            filter: self.opacity_filter,
+        }
+    }
+}
 
 /// Marks "no half-wedge yet" in a tile.
 const NONE: u32 = u32::MAX;
@@ -444,6 +489,18 @@ pub fn wedge_light(
     })
 }
 
+/// Adds the S-triangles' occluded fraction `f` to a Vcoef technique's
+/// result (thesis §5.2.1: the STSV Vcoef is added to the wedges' one):
+/// `Vcoef = clamp(Vcoef − f, 0, 1)`. Pixels outside every STSV have
+/// `f = 0` and keep their value bit for bit.
+pub fn subtract_occlusion(vcoef: &mut [f32], occluded: &[f32]) {
+    for (v, &f) in vcoef.iter_mut().zip(occluded) {
+        if f > 0.0 {
+            *v = (*v - f).clamp(0.0, 1.0);
+        }
+    }
+}
+
 impl ShadowTechnique for PenumbraWedges {
     fn name(&self) -> &'static str {
         "wedges"
@@ -459,9 +516,18 @@ impl ShadowTechnique for PenumbraWedges {
             name: "wedges".into(),
             channels: Vec::new(),
         };
+        // S-triangles are not wedge casters (`caster_adjacency` keeps
+        // opaque materials only); soft textured shadow volumes shadow
+        // them, when there are any.
+        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
+        let mut slayer = Layer {
+            name: "stsv".into(),
+            channels: Vec::new(),
+        };
+        let mut stsv_stats = Vec::new();
         for k in 0..ctx.scene.lights.len() {
             let w = wedge_light(ctx, k, &mut out.passes)?;
-            let vcoef = w
+            let mut vcoef: Vec<f32> = w
                 .vbuffer
                 .iter()
                 .zip(ctx.gbuffer.samples())
@@ -473,6 +539,12 @@ impl ShadowTechnique for PenumbraWedges {
                     }
                 })
                 .collect();
+            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv_sampling(), &mut out.passes)?;
+            if let Some(stsv) = &stsv {
+                subtract_occlusion(&mut vcoef, &stsv.occluded);
+                slayer.channels.push((k.to_string(), stsv.occluded.clone()));
+            }
+            stsv_stats.push(stsv.map(|s| (s.pairs, s.receivers)));
             out.lights.push(LightTerm::vcoef(vcoef));
             vlayer.channels.push((k.to_string(), w.vbuffer));
             wlayer.channels.push((
@@ -482,6 +554,17 @@ impl ShadowTechnique for PenumbraWedges {
         }
         out.layers.push(vlayer);
         out.layers.push(wlayer);
+        if !slayer.channels.is_empty() {
+            out.layers.push(slayer);
+        }
+        out.buffers.push(occlusion_note(
+            self.name(),
+            &s_triangles,
+            self.stsv_sampling(),
+            &stsv_stats,
+            ctx.gbuffer.len() as u64,
+            rayon::current_num_threads() as u64,
+        ));
         Ok(out)
     }
 }
