@@ -290,6 +290,11 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     eprintln!("{:>12.3} ms  {}", p.time.as_secs_f64() * 1e3, p.name);
                 }
             }
+            if !explain {
+                for b in out.buffers.iter().filter(|b| b.detail.starts_with("NOT ")) {
+                    eprintln!("penumbra: warning: {}: {}", b.name, b.detail);
+                }
+            }
             if explain {
                 eprintln!("buffers:");
                 for b in &out.buffers {

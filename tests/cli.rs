@@ -167,3 +167,41 @@ fn bad_input_fails_cleanly() {
         assert!(!Path::new(o).exists(), "{args:?} left an output behind");
     }
 }
+
+/// Techniques that count opaque occluders only say so, instead of
+/// silently dropping semi-opaque casters' shadows; DCS does not warn.
+#[test]
+fn unsupported_semi_opaque_casters_are_not_silent() {
+    let dir = std::env::temp_dir().join(format!("penumbra-cli-warn-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("t.png");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/tinted.toml");
+    let (ok, stderr) = penumbra(&[
+        "render",
+        scene,
+        "--technique",
+        "wedges",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("NOT shadowed"), "{stderr}");
+    let (ok, stderr) = penumbra(&[
+        "render",
+        scene,
+        "--technique",
+        "dcs",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+}

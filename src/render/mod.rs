@@ -367,6 +367,22 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
         },
     ];
     buffers.extend(shadows.buffers);
+    let hard_or_wedges = matches!(
+        options.technique,
+        Technique::ShadowVolumes | Technique::Wedges | Technique::WedgeBlend
+    );
+    if hard_or_wedges && crate::compare::has_semi_opaque_casters(scene) {
+        // Not silent: these techniques count opaque occluders only.
+        buffers.push(BufferNote {
+            name: "semi-opaque casters".into(),
+            detail: format!(
+                "NOT shadowed: `{}` counts opaque occluders only; casters of constant \
+                 opacity below 1 cast no shadow here (use dcs or reference)",
+                options.technique.name()
+            ),
+            bytes: 0,
+        });
+    }
     Ok(RenderOutput {
         buffers,
         width: view.width,
