@@ -198,3 +198,45 @@ fn textured_albedo_in_gbuffer() {
     };
     assert!(bits(&run(1)) == bits(&run(2)));
 }
+
+/// The sampling techniques with semi-opaque casters and S-triangles:
+/// per-sample transmittance, STSV look-ups and the interleaved gather give
+/// the same bits for any thread count.
+#[test]
+fn shadow_techniques_bit_identical_across_threads() {
+    use penumbra::render::Technique;
+    use penumbra::sampling::SamplePattern;
+    for (name, technique, pattern) in [
+        ("tinted.toml", Technique::Dcs, SamplePattern::Stratified),
+        (
+            "fence.toml",
+            Technique::Dcs,
+            SamplePattern::Interleaved { n: 3 },
+        ),
+        ("fence.toml", Technique::Wedges, SamplePattern::Stratified),
+    ] {
+        let scene = common::shipped(name);
+        let options = RenderOptions {
+            width: Some(131),
+            height: Some(97),
+            aovs: Aov::ALL.to_vec(),
+            technique,
+            samples: 16,
+            pattern,
+            ..RenderOptions::default()
+        };
+        let run = |threads| {
+            with_threads(Some(threads), || {
+                render(&scene, &options, &Progress::hidden()).expect("render")
+            })
+            .expect("pool")
+        };
+        let one = bits(&run(1));
+        for threads in [2, 8] {
+            assert!(
+                bits(&run(threads)) == one,
+                "{name} {technique:?}: {threads} threads differ from 1"
+            );
+        }
+    }
+}
