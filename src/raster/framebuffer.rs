@@ -200,6 +200,15 @@ impl Framebuffer {
         }
     }
 
+    /// Replaces every depth value `d` by `f(d)` (tiles in parallel).
+    pub fn map_depth(&mut self, f: impl Fn(f32) -> f32 + Sync) {
+        self.tiles.par_iter_mut().for_each(|t| {
+            for d in t.depth.iter_mut() {
+                *d = f(*d);
+            }
+        });
+    }
+
     /// Depth at pixel `(x, y)`.
     pub fn depth(&self, x: u32, y: u32) -> f32 {
         let (t, i) = self.grid.locate(x, y);

@@ -31,10 +31,13 @@ pub mod counters;
 pub mod edges;
 pub mod groups;
 pub mod region;
+pub mod ties;
 
 use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
 use super::shadow_volumes::{build_volume, stencil_counts};
-use super::stsv::{membership as stsv_membership, Filter, STriangles, SamplePositions};
+use super::stsv::{
+    membership as stsv_membership, Filter, STriangles, SamplePositions, ShadowOrigin,
+};
 use super::wedges::geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use super::wedges::{draw_wedges, light_start, HalfWedgeMembership, LightStart};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -58,6 +61,7 @@ use groups::{semi_opaque_groups, Attenuation};
 use rayon::prelude::*;
 use region::RegionBound;
 use std::time::Instant;
+use ties::{tied_pixels, ExactStart};
 
 /// What the counters are turned into.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -235,6 +239,9 @@ struct LightPass<'a> {
     tables: &'a [CoverageTables],
     /// The scene's S-triangles, when it has any.
     s_triangles: Option<&'a STriangles>,
+    /// Per pixel: the start counts were recounted at the shadow-ray
+    /// origin (a depth tie), so no quad correction applies.
+    exact_start: &'a [bool],
     /// `EPS_SCENE ×` the scene's diagonal.
     eps_scene: f64,
     /// Called with every surface pixel's samples and counters.
@@ -518,7 +525,7 @@ impl LightPass<'_> {
             let e = &edges[local((t >> 1) as u32)];
             let geometric = side_of(p, e.v0, e.v1, self.centre);
             scratch.sides.push(geometric as i8);
-            if e.quad_sign == 0 {
+            if e.quad_sign == 0 || self.exact_start[i] {
                 continue;
             }
             let outer = t & 1 == 1;
@@ -748,6 +755,65 @@ impl DepthComplexitySampling {
             });
         }
 
+        // Depth ties of the start counts (`ties`): recounted exactly at
+        // the shadow-ray origin by one ray to the centre. Only in the
+        // exact mode (whole-light silhouettes), where per-sample counts
+        // are meant to equal ray casting; the fast centre mode keeps the
+        // thesis's approximations and the stencil's constant.
+        let t = Instant::now();
+        let mut tied = vec![false; ctx.gbuffer.len()];
+        if self.silhouettes == SilhouetteMode::WholeLight {
+            for (_, adj, counts) in &group_adjs {
+                let volume = build_volume(adj, ctx.view, point);
+                for (a, b) in tied
+                    .iter_mut()
+                    .zip(tied_pixels(ctx.depth, &volume, counts, true)?)
+                {
+                    *a |= b;
+                }
+            }
+        }
+        let mut exact_start = vec![false; tied.len()];
+        let tied_surface: Vec<usize> = (0..tied.len())
+            .filter(|&i| tied[i] && ctx.gbuffer.is_surface(i))
+            .collect();
+        if !tied_surface.is_empty() {
+            let lits: Vec<Vec<bool>> = group_adjs
+                .iter()
+                .map(|(_, adj, _)| faces_point(adj, point))
+                .collect();
+            let sets: Vec<(&crate::geom::EdgeAdjacency, &[bool])> = group_adjs
+                .iter()
+                .zip(&lits)
+                .map(|((_, adj, _), lit)| (&**adj, lit.as_slice()))
+                .collect();
+            let exact = ExactStart::new(ctx.geometry, &sets);
+            let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
+            let n_groups = group_adjs.len();
+            let fixes: Vec<(usize, Vec<i32>)> = tied_surface
+                .par_iter()
+                .map(|&i| {
+                    let g = ctx.gbuffer.sample(i);
+                    let mut counts = vec![0; n_groups];
+                    exact.counts(origin.of(g.position, g.geo_normal), point, &mut counts);
+                    (i, counts)
+                })
+                .collect();
+            for (i, counts) in fixes {
+                for (group, c) in group_adjs.iter_mut().zip(counts) {
+                    group.2[i] = c;
+                }
+                exact_start[i] = true;
+            }
+        }
+        passes.push(PassTiming {
+            name: format!(
+                "start-count ties light {k} ({} receivers)",
+                tied_surface.len()
+            ),
+            time: t.elapsed(),
+        });
+
         let t = Instant::now();
         let corners: Vec<Vec3>;
         let shape = match light.shape {
@@ -876,6 +942,7 @@ impl DepthComplexitySampling {
             groups: &groups,
             tables: &tables,
             s_triangles: (!s_triangles.is_empty()).then_some(&s_triangles),
+            exact_start: &exact_start,
             eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
             inspect,
         };
