@@ -318,7 +318,7 @@ fn sponza_plants_dcs_matches_the_reference() {
     assert!(r.by_s_triangles > r.relations / 100, "{r:?}");
     assert!(r.blocked > r.by_s_triangles, "{r:?}");
     assert!(r.mismatches * 1000 <= r.relations, "{r:?}");
-    // The leaves' share on its own: measured 1 of 12,176 (a sample whose
-    // opaque count went negative on the vase, see docs/algorithms/stsv.md).
+    // The leaves' share on its own: measured 0 of 12,176 since the exact
+    // mode recounts start-count ties (1 before; docs/algorithms/dcs.md).
     assert!(r.s_missed * 1000 <= r.by_s_triangles, "{r:?}");
 }
