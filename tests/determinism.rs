@@ -9,20 +9,6 @@ use penumbra::report::Progress;
 use penumbra::scene::{load_scene, Scene};
 use std::path::Path;
 
-fn bits(out: &penumbra::render::RenderOutput) -> Vec<u32> {
-    let mut v: Vec<u32> = out
-        .radiance
-        .iter()
-        .flat_map(|c| c.to_array().map(f32::to_bits))
-        .collect();
-    for layer in &out.layers {
-        for (_, ch) in &layer.channels {
-            v.extend(ch.iter().map(|x| x.to_bits()));
-        }
-    }
-    v
-}
-
 #[test]
 fn bit_identical_for_1_2_and_8_threads() {
     for name in ["spheres.toml", "quad.toml"] {
@@ -51,10 +37,10 @@ fn bit_identical_for_1_2_and_8_threads() {
             one.radiance.iter().all(|c| c.is_finite()),
             "{name}: NaN/inf"
         );
-        let reference = bits(&one);
+        let reference = common::render_bits(&one);
         for threads in [2, 8] {
             assert!(
-                bits(&run(threads)) == reference,
+                common::render_bits(&run(threads)) == reference,
                 "{name}: {threads} threads differ from 1"
             );
         }
@@ -196,7 +182,7 @@ fn textured_albedo_in_gbuffer() {
         })
         .expect("pool")
     };
-    assert!(bits(&run(1)) == bits(&run(2)));
+    assert!(common::render_bits(&run(1)) == common::render_bits(&run(2)));
 }
 
 /// The sampling techniques with semi-opaque casters and S-triangles:
@@ -231,10 +217,10 @@ fn shadow_techniques_bit_identical_across_threads() {
             })
             .expect("pool")
         };
-        let one = bits(&run(1));
+        let one = common::render_bits(&run(1));
         for threads in [2, 8] {
             assert!(
-                bits(&run(threads)) == one,
+                common::render_bits(&run(threads)) == one,
                 "{name} {technique:?}: {threads} threads differ from 1"
             );
         }

@@ -105,9 +105,9 @@ fn wedges_on_the_fence_match_the_reference() {
         seed: 7,
         ..StsvSampling::default()
     };
-    let d = vcoef_diff(&scene, &PenumbraWedges::with_sampling(sampling), 16, 7);
+    let d = vcoef_diff(&scene, &PenumbraWedges { stsv: sampling }, 16, 7);
     check_fence("wedges, rect light", &d, 16);
-    let d = vcoef_diff(&scene, &WedgeBlending::with_sampling(sampling), 16, 7);
+    let d = vcoef_diff(&scene, &WedgeBlending { stsv: sampling }, 16, 7);
     check_fence("wedge-blend, rect light", &d, 16);
 }
 
@@ -119,7 +119,7 @@ fn wedges_on_the_fence_under_a_sphere_light_match_the_reference() {
         seed: 3,
         ..StsvSampling::default()
     };
-    let d = vcoef_diff(&scene, &PenumbraWedges::with_sampling(sampling), 16, 3);
+    let d = vcoef_diff(&scene, &PenumbraWedges { stsv: sampling }, 16, 3);
     check_fence("wedges, sphere light", &d, 16);
 }
 
@@ -135,25 +135,10 @@ fn bilinear_look_ups_change_the_fence_shadow_a_little() {
         filter: Filter::Bilinear,
         ..StsvSampling::default()
     };
-    let d = vcoef_diff(&scene, &PenumbraWedges::with_sampling(sampling), 16, 7);
+    let d = vcoef_diff(&scene, &PenumbraWedges { stsv: sampling }, 16, 7);
     eprintln!("bilinear: {d:?}");
     assert!(d.differing > 0, "{d:?}");
     assert!(d.mean < 0.02, "{d:?}");
-}
-
-/// Every bit of a render's radiance and layers.
-fn bits(out: &penumbra::render::RenderOutput) -> Vec<u32> {
-    let mut v: Vec<u32> = out
-        .radiance
-        .iter()
-        .flat_map(|c| c.to_array().map(f32::to_bits))
-        .collect();
-    for layer in &out.layers {
-        for (_, channel) in &layer.channels {
-            v.extend(channel.iter().map(|x| x.to_bits()));
-        }
-    }
-    v
 }
 
 #[test]
@@ -181,7 +166,11 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
         };
         let a = run(64, 0, SamplePattern::Stratified, Filter::Nearest);
         let b = run(3, 99, SamplePattern::Poisson, Filter::Bilinear);
-        assert_eq!(bits(&a), bits(&b), "{technique:?}");
+        assert_eq!(
+            common::render_bits(&a),
+            common::render_bits(&b),
+            "{technique:?}"
+        );
         assert!(a.layers.iter().all(|l| l.name != "stsv"));
         let note = a
             .buffers
@@ -227,8 +216,10 @@ fn zero_samples_is_an_error_with_s_triangles() {
     let frame = common::Frame::new(&scene, 32, 32);
     let ctx = frame.ctx(&scene);
     let wedges = PenumbraWedges {
-        samples: 0,
-        ..PenumbraWedges::default()
+        stsv: StsvSampling {
+            samples: 0,
+            ..StsvSampling::default()
+        },
     };
     assert!(wedges.compute(&ctx).is_err());
 }

@@ -50,6 +50,39 @@ pub fn area_silhouettes(adj: &EdgeAdjacency, light_points: &[Vec3]) -> Vec<bool>
             split((b - a).cross(c - a), a, &lp)
         })
         .collect();
+    silhouettes_from_classes(adj, &class)
+}
+
+/// [`area_silhouettes`] for a sphere light: a face's plane splits the
+/// sphere when the centre is closer to it than the radius.
+pub fn sphere_silhouettes(adj: &EdgeAdjacency, center: DVec3, radius: f64) -> Vec<bool> {
+    let class: Vec<i8> = adj
+        .face_vertices
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|i| adj.positions[i as usize].as_dvec3());
+            let n = (b - a).cross(c - a);
+            let len = n.length();
+            if !(len > 0.0) {
+                return 0;
+            }
+            let d = n.dot(center - a) / len;
+            if d > radius {
+                1
+            } else if d < -radius {
+                -1
+            } else {
+                0
+            }
+        })
+        .collect();
+    silhouettes_from_classes(adj, &class)
+}
+
+/// Edges whose adjacent faces do not all see the whole light from the same
+/// side, given each face's class (+1 / −1: the light wholly in front /
+/// behind, 0: split). Boundary edges always qualify.
+fn silhouettes_from_classes(adj: &EdgeAdjacency, class: &[i8]) -> Vec<bool> {
     adj.edges
         .iter()
         .map(|e| {

@@ -134,10 +134,12 @@ impl Technique {
             Technique::ShadowVolumes => Box::new(ShadowVolumes {
                 zpass: options.zpass,
             }),
-            Technique::Wedges => Box::new(PenumbraWedges::with_sampling(options.stsv_sampling())),
-            Technique::WedgeBlend => {
-                Box::new(WedgeBlending::with_sampling(options.stsv_sampling()))
-            }
+            Technique::Wedges => Box::new(PenumbraWedges {
+                stsv: options.stsv_sampling(),
+            }),
+            Technique::WedgeBlend => Box::new(WedgeBlending {
+                stsv: options.stsv_sampling(),
+            }),
             Technique::Dcs => Box::new(DepthComplexitySampling {
                 samples: options.samples,
                 seed: options.seed,

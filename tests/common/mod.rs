@@ -127,3 +127,18 @@ pub fn segment_distance(p0: glam::DVec3, p1: glam::DVec3, q0: glam::DVec3, q1: g
     }
     (p0 + d1 * s).distance(q0 + d2 * t)
 }
+
+/// Every bit of a render's radiance and layers (for bit-identity checks).
+pub fn render_bits(out: &penumbra::render::RenderOutput) -> Vec<u32> {
+    let mut v: Vec<u32> = out
+        .radiance
+        .iter()
+        .flat_map(|c| c.to_array().map(f32::to_bits))
+        .collect();
+    for layer in &out.layers {
+        for (_, channel) in &layer.channels {
+            v.extend(channel.iter().map(|x| x.to_bits()));
+        }
+    }
+    v
+}

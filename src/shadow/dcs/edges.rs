@@ -26,7 +26,7 @@
 //! between `p` and `p'` (the half-wedge the rasterizer found `p` in says
 //! which side the stencil took) the constant is moved across that quad.
 
-use crate::geom::silhouette::area_silhouettes;
+use crate::geom::silhouette::{area_silhouettes, sphere_silhouettes};
 use crate::geom::EdgeAdjacency;
 use crate::shadow::shadow_volumes::side_quad;
 use glam::{DVec3, Vec3};
@@ -211,39 +211,4 @@ pub fn side_of(p: DVec3, v0: DVec3, v1: DVec3, o: DVec3) -> i32 {
     } else {
         0
     }
-}
-
-/// [`area_silhouettes`] for a sphere: a face's plane splits the sphere
-/// when the centre is closer to it than the radius.
-fn sphere_silhouettes(adj: &EdgeAdjacency, center: DVec3, radius: f64) -> Vec<bool> {
-    let class: Vec<i8> = adj
-        .face_vertices
-        .iter()
-        .map(|f| {
-            let [a, b, c] = f.map(|i| adj.positions[i as usize].as_dvec3());
-            let n = (b - a).cross(c - a);
-            let len = n.length();
-            if !(len > 0.0) {
-                return 0;
-            }
-            let d = n.dot(center - a) / len;
-            if d > radius {
-                1
-            } else if d < -radius {
-                -1
-            } else {
-                0
-            }
-        })
-        .collect();
-    adj.edges
-        .iter()
-        .map(|e| {
-            if e.uses.len() < 2 {
-                return true;
-            }
-            let first = class[e.uses[0].slot as usize];
-            first == 0 || e.uses.iter().any(|u| class[u.slot as usize] != first)
-        })
-        .collect()
 }

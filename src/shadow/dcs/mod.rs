@@ -666,6 +666,22 @@ struct UnboundedEdge {
     region: RegionBound,
 }
 
+/// What DCS counts besides the opaque casters, found once per render
+/// (not per light): the semi-opaque groups and the S-triangles.
+struct SceneCasters {
+    partial: Vec<(Attenuation, crate::geom::EdgeAdjacency)>,
+    s_triangles: STriangles,
+}
+
+impl SceneCasters {
+    fn new(ctx: &ShadowContext) -> SceneCasters {
+        SceneCasters {
+            partial: semi_opaque_groups(ctx.scene, ctx.geometry),
+            s_triangles: STriangles::collect(ctx.scene, ctx.geometry),
+        }
+    }
+}
+
 /// Per-light buffers for `--explain`.
 #[derive(Debug, Clone, Default)]
 pub struct DcsLightReport {
@@ -726,6 +742,7 @@ impl DepthComplexitySampling {
         &self,
         ctx: &ShadowContext,
         k: usize,
+        casters: &SceneCasters,
         passes: &mut Vec<PassTiming>,
         inspect: Option<&CounterInspector>,
     ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
@@ -736,17 +753,19 @@ impl DepthComplexitySampling {
             point,
             counts: start,
             mut framebuffer,
+            volume,
         } = light_start(ctx, k, passes)?;
 
         // Semi-opaque casters: one group per opacity, each with its own
         // shadow-volume start counts (the stencil pass reuses the depth).
         let t = Instant::now();
-        let partial = semi_opaque_groups(ctx.scene, ctx.geometry);
         let mut group_adjs = vec![(Attenuation::Opaque, adj, start)];
-        for (attenuation, adj) in partial {
-            let volume = build_volume(&adj, ctx.view, point);
+        let mut volumes = vec![volume];
+        for (attenuation, adj) in &casters.partial {
+            let volume = build_volume(adj, ctx.view, point);
             let counts = stencil_counts(&mut framebuffer, &volume, false)?;
-            group_adjs.push((attenuation, std::borrow::Cow::Owned(adj), counts));
+            group_adjs.push((*attenuation, std::borrow::Cow::Borrowed(adj), counts));
+            volumes.push(volume);
         }
         if group_adjs.len() > 1 {
             passes.push(PassTiming {
@@ -763,11 +782,10 @@ impl DepthComplexitySampling {
         let t = Instant::now();
         let mut tied = vec![false; ctx.gbuffer.len()];
         if self.silhouettes == SilhouetteMode::WholeLight {
-            for (_, adj, counts) in &group_adjs {
-                let volume = build_volume(adj, ctx.view, point);
+            for ((_, _, counts), volume) in group_adjs.iter().zip(&volumes) {
                 for (a, b) in tied
                     .iter_mut()
-                    .zip(tied_pixels(ctx.depth, &volume, counts, true)?)
+                    .zip(tied_pixels(ctx.depth, volume, counts, true)?)
                 {
                     *a |= b;
                 }
@@ -918,12 +936,12 @@ impl DepthComplexitySampling {
         let tables = self.coverage_tables(ctx, k, &bound)?;
         // S-triangles: soft textured shadow volumes, only when the scene
         // has some.
-        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
+        let s_triangles = &casters.s_triangles;
         let stsv = if s_triangles.is_empty() {
             None
         } else {
             let t = Instant::now();
-            let m = stsv_membership(ctx, k, &s_triangles)?;
+            let m = stsv_membership(ctx, k, s_triangles)?;
             passes.push(PassTiming {
                 name: format!("soft textured shadow volumes light {k}"),
                 time: t.elapsed(),
@@ -941,7 +959,7 @@ impl DepthComplexitySampling {
             prepared: PreparedLight::new(light, &ctx.scene.textures),
             groups: &groups,
             tables: &tables,
-            s_triangles: (!s_triangles.is_empty()).then_some(&s_triangles),
+            s_triangles: (!s_triangles.is_empty()).then_some(s_triangles),
             exact_start: &exact_start,
             eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
             inspect,
@@ -998,8 +1016,11 @@ impl DepthComplexitySampling {
                 const INNER: usize = 4;
                 const PER_ROW: usize = TILE_SIZE / INNER;
                 let mut block_edges: Vec<Vec<u32>> = vec![Vec::new(); PER_ROW * PER_ROW];
-                if let Some(b) = bbox(ox as usize, oy as usize, TILE_SIZE) {
-                    near.retain(|u| !u.region.excludes_box(b.0, b.1));
+                if !near.is_empty() {
+                    match bbox(ox as usize, oy as usize, TILE_SIZE) {
+                        Some(b) => near.retain(|u| !u.region.excludes_box(b.0, b.1)),
+                        None => near.clear(),
+                    }
                 }
                 if !near.is_empty() {
                     for by in 0..TILE_SIZE / OUTER {
@@ -1190,12 +1211,9 @@ impl DepthComplexitySampling {
             detail: format!("{n} points + f32 chart coordinates per worker"),
             bytes: workers * (n * std::mem::size_of::<LightSample>() as u64 + padded * 8 + n * 4),
         });
-        let partial = semi_opaque_groups(ctx.scene, ctx.geometry);
-        let s_triangles_present = ctx
-            .scene
-            .materials
-            .iter()
-            .any(|m| m.opacity_texture.is_some());
+        let casters = SceneCasters::new(ctx);
+        let partial = &casters.partial;
+        let s_triangles_present = !casters.s_triangles.is_empty();
         let opacities: Vec<String> = partial
             .iter()
             .filter_map(|(a, _)| match a {
@@ -1231,7 +1249,7 @@ impl DepthComplexitySampling {
                 partial.len() as u64 * pixels * 4 + workers * (padded * 4 + n * 16)
             },
         });
-        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
+        let s_triangles = &casters.s_triangles;
         out.buffers.push(BufferNote {
             name: "soft textured shadow volumes".into(),
             detail: if s_triangles.is_empty() {
@@ -1271,7 +1289,7 @@ impl DepthComplexitySampling {
             bytes: 0,
         });
         for k in 0..ctx.scene.lights.len() {
-            let (term, aovs, report) = self.light(ctx, k, &mut out.passes, None)?;
+            let (term, aovs, report) = self.light(ctx, k, &casters, &mut out.passes, None)?;
             out.buffers.push(BufferNote {
                 name: format!("wedge membership light {k}"),
                 detail: format!(
@@ -1312,7 +1330,8 @@ impl DepthComplexitySampling {
         inspect: &CounterInspector,
     ) -> Result<LightTerm> {
         let mut passes = Vec::new();
-        Ok(self.light(ctx, k, &mut passes, Some(inspect))?.0)
+        let casters = SceneCasters::new(ctx);
+        Ok(self.light(ctx, k, &casters, &mut passes, Some(inspect))?.0)
     }
 }
 

@@ -258,19 +258,9 @@ pub fn bilinear_scalar(t: &Texture, uv: Vec2) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::TriangleFrame;
-    use glam::{DVec2, DVec3};
+    use glam::DVec3;
 
-    fn tri(corners: [DVec3; 3]) -> STriangle {
-        STriangle {
-            triangle: 0,
-            corners,
-            frame: TriangleFrame::new(corners),
-            uvs: Some([DVec2::ZERO, DVec2::X, DVec2::Y]),
-            opacity: 1.0,
-            texture: 0,
-        }
-    }
+    use crate::shadow::stsv::test_triangle as tri;
 
     fn sample(x: Vec3) -> LightSample {
         LightSample {

@@ -280,3 +280,17 @@ impl ShadowOrigin {
         (p.as_dvec3() + ng.as_dvec3() * eps).as_vec3()
     }
 }
+
+/// An S-triangle for unit tests: `corners`, uvs (0,0), (1,0), (0,1),
+/// opacity 1, texture 0.
+#[cfg(test)]
+pub(crate) fn test_triangle(corners: [DVec3; 3]) -> STriangle {
+    STriangle {
+        triangle: 0,
+        corners,
+        frame: TriangleFrame::new(corners),
+        uvs: Some([DVec2::ZERO, DVec2::X, DVec2::Y]),
+        opacity: 1.0,
+        texture: 0,
+    }
+}

@@ -523,21 +523,10 @@ fn newell(points: &[DVec3]) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::TriangleFrame;
     use crate::shadow::wedges::integrate::RectFrame;
-    use glam::DVec2;
     use std::collections::HashMap;
 
-    fn tri(corners: [DVec3; 3]) -> STriangle {
-        STriangle {
-            triangle: 0,
-            corners,
-            frame: TriangleFrame::new(corners),
-            uvs: Some([DVec2::ZERO, DVec2::X, DVec2::Y]),
-            opacity: 1.0,
-            texture: 0,
-        }
-    }
+    use crate::shadow::stsv::test_triangle as tri;
 
     struct Rng(u64);
     impl Rng {

@@ -40,11 +40,10 @@ use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
-use crate::sampling::SamplePattern;
 use crate::shadow::shadow_volumes::{
     build_volume, cap_triangles, caster_adjacency, light_point, side_quad, stencil_counts_of,
 };
-use crate::shadow::stsv::{occlusion_note, stsv_occlusion, Filter, STriangles, StsvSampling};
+use crate::shadow::stsv::{occlusion_note, stsv_occlusion, STriangles, StsvSampling};
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -191,46 +190,11 @@ pub fn blend_part(v: &mut LightPart, s: &LightPart) {
 /// volumes, their occluded fraction added to the blended V-buffer).
 ///
 /// [`PenumbraWedges`]: super::PenumbraWedges
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct WedgeBlending {
-    /// Light samples per receiver in an S-triangle's volume.
-    pub samples: u32,
-    /// Seed of those samples (the reference's, for the same pixel).
-    pub seed: u64,
-    /// How those samples are placed on the light.
-    pub pattern: SamplePattern,
-    /// Look-up of S-triangles' opacity textures.
-    pub opacity_filter: Filter,
-}
-
-impl Default for WedgeBlending {
-    /// The render options' defaults (64 stratified samples, seed 0,
-    /// nearest texel).
-    fn default() -> Self {
-        Self::with_sampling(StsvSampling::default())
-    }
-}
-
-impl WedgeBlending {
-    /// Wedge blending whose S-triangles are sampled with `s`.
-    pub fn with_sampling(s: StsvSampling) -> Self {
-        WedgeBlending {
-            samples: s.samples,
-            seed: s.seed,
-            pattern: s.pattern,
-            opacity_filter: s.filter,
-        }
-    }
-
-    /// How S-triangles are sampled.
-    pub fn stsv_sampling(&self) -> StsvSampling {
-        StsvSampling {
-            samples: self.samples,
-            seed: self.seed,
-            pattern: self.pattern,
-            filter: self.opacity_filter,
-        }
-    }
+    /// How S-triangles' light samples are drawn and looked up (the
+    /// render's samples, seed, pattern and opacity filter).
+    pub stsv: StsvSampling,
 }
 
 /// Connected components of the faces of `adj` (through shared edges):
@@ -440,7 +404,7 @@ impl ShadowTechnique for WedgeBlending {
                     }
                 }
             }
-            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv_sampling(), &mut out.passes)?;
+            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv, &mut out.passes)?;
             if let Some(stsv) = &stsv {
                 subtract_occlusion(&mut vcoef, &stsv.occluded);
                 slayer.channels.push((k.to_string(), stsv.occluded.clone()));
@@ -456,7 +420,7 @@ impl ShadowTechnique for WedgeBlending {
         out.buffers.push(occlusion_note(
             self.name(),
             &s_triangles,
-            self.stsv_sampling(),
+            self.stsv,
             &stsv_stats,
             ctx.gbuffer.len() as u64,
             rayon::current_num_threads() as u64,

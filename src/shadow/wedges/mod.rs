@@ -23,7 +23,7 @@ pub mod integrate;
 use super::shadow_volumes::{
     build_volume, caster_adjacency, light_point, silhouette_quads, stencil_counts,
 };
-use super::stsv::{occlusion_note, stsv_occlusion, Filter, STriangles, StsvSampling};
+use super::stsv::{occlusion_note, stsv_occlusion, STriangles, StsvSampling};
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::gbuffer::GBuffer;
@@ -33,7 +33,6 @@ use crate::raster::{
     draw, CompareFunc, CullMode, FragmentBatch, FragmentStage, RasterState, TileGrid, TILE_PIXELS,
     TILE_SIZE,
 };
-use crate::sampling::SamplePattern;
 use crate::scene::LightShape;
 use geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use integrate::{region_fraction, region_fraction_sphere, RectFrame};
@@ -45,46 +44,11 @@ use std::time::Instant;
 /// with soft textured shadow volumes, sampled like the reference
 /// ([`stsv_occlusion`]), and their occluded fraction is added to the
 /// V-buffer (thesis §5.2.1).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct PenumbraWedges {
-    /// Light samples per receiver in an S-triangle's volume.
-    pub samples: u32,
-    /// Seed of those samples (the reference's, for the same pixel).
-    pub seed: u64,
-    /// How those samples are placed on the light.
-    pub pattern: SamplePattern,
-    /// Look-up of S-triangles' opacity textures.
-    pub opacity_filter: Filter,
-}
-
-impl Default for PenumbraWedges {
-    /// The render options' defaults (64 stratified samples, seed 0,
-    /// nearest texel).
-    fn default() -> Self {
-        Self::with_sampling(StsvSampling::default())
-    }
-}
-
-impl PenumbraWedges {
-    /// Penumbra wedges whose S-triangles are sampled with `s`.
-    pub fn with_sampling(s: StsvSampling) -> Self {
-        PenumbraWedges {
-            samples: s.samples,
-            seed: s.seed,
-            pattern: s.pattern,
-            opacity_filter: s.filter,
-        }
-    }
-
-    /// How S-triangles are sampled.
-    pub fn stsv_sampling(&self) -> StsvSampling {
-        StsvSampling {
-            samples: self.samples,
-            seed: self.seed,
-            pattern: self.pattern,
-            filter: self.opacity_filter,
-        }
-    }
+    /// How S-triangles' light samples are drawn and looked up (the
+    /// render's samples, seed, pattern and opacity filter).
+    pub stsv: StsvSampling,
 }
 
 /// Marks "no half-wedge yet" in a tile.
@@ -349,6 +313,8 @@ pub struct LightStart<'a> {
     pub counts: Vec<i32>,
     /// Scene depth.
     pub framebuffer: crate::raster::Framebuffer,
+    /// The hard shadow volume the counts came from.
+    pub volume: crate::shadow::shadow_volumes::ShadowVolume,
 }
 
 /// Builds light `k`'s [`LightStart`], timing the shadow-volume pass.
@@ -374,6 +340,7 @@ pub fn light_start<'a>(
         point,
         counts,
         framebuffer,
+        volume,
     })
 }
 
@@ -414,6 +381,7 @@ pub fn wedge_light(
         point,
         counts,
         mut framebuffer,
+        ..
     } = light_start(ctx, k, passes)?;
 
     let t = Instant::now();
@@ -539,7 +507,7 @@ impl ShadowTechnique for PenumbraWedges {
                     }
                 })
                 .collect();
-            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv_sampling(), &mut out.passes)?;
+            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv, &mut out.passes)?;
             if let Some(stsv) = &stsv {
                 subtract_occlusion(&mut vcoef, &stsv.occluded);
                 slayer.channels.push((k.to_string(), stsv.occluded.clone()));
@@ -560,7 +528,7 @@ impl ShadowTechnique for PenumbraWedges {
         out.buffers.push(occlusion_note(
             self.name(),
             &s_triangles,
-            self.stsv_sampling(),
+            self.stsv,
             &stsv_stats,
             ctx.gbuffer.len() as u64,
             rayon::current_num_threads() as u64,
