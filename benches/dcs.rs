@@ -35,12 +35,14 @@ fn dcs(c: &mut Criterion) {
     let view = view_for(&scene, &options).expect("view");
     let geometry = SceneGeometry::new(&scene);
     let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
+    let cache = penumbra::shadow::ShadowCache::new(&scene, &geometry);
     let ctx = ShadowContext {
         scene: &scene,
         geometry: &geometry,
         view: &view,
         gbuffer: &gbuffer,
         depth: &depth,
+        cache: &cache,
     };
     let technique = |silhouettes| DepthComplexitySampling {
         samples: SAMPLES,

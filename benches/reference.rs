@@ -29,12 +29,14 @@ fn reference(c: &mut Criterion) {
     let view = view_for(&scene, &options).expect("view");
     let geometry = SceneGeometry::new(&scene);
     let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
+    let cache = penumbra::shadow::ShadowCache::new(&scene, &geometry);
     let ctx = ShadowContext {
         scene: &scene,
         geometry: &geometry,
         view: &view,
         gbuffer: &gbuffer,
         depth: &depth,
+        cache: &cache,
     };
     let tracer = ShadowTracer::new(&scene, &geometry);
     let (_, rays) = tracer.trace_light(&ctx, 0, SAMPLES, 1);

@@ -7,13 +7,13 @@ use crate::compare::{
 };
 use crate::error::{Error, Result};
 use crate::output::{write_exr, write_png};
-use crate::render::{render, with_threads, Aov, RenderOptions, Technique};
+use crate::render::{render, with_threads, Aov, RenderOptions};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
 use crate::scene::{load_scene, LightShape, Scene};
-use crate::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
-use crate::shadow::stsv::Filter;
+use crate::shadow::registry::DEFAULT_TECHNIQUE;
+use crate::shadow::{Technique, TechniqueOptions};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
@@ -50,49 +50,24 @@ enum Command {
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
-        /// Shadow technique.
-        #[arg(long, default_value = "none")]
-        technique: String,
-        /// Light samples per pixel and light (sampling techniques; wedges
-        /// and wedge-blend: for S-triangles only).
+        /// Shadow technique (`penumbra techniques` lists them with their
+        /// capabilities).
+        #[arg(long, default_value = DEFAULT_TECHNIQUE, value_parser = technique_parser())]
+        technique: Technique,
+        /// Light samples per pixel and light (sampling techniques; wedges,
+        /// wedge-blend and shadow-volumes: for S-triangles only).
         #[arg(long, default_value_t = 64)]
         samples: u32,
         /// Seed of the per-pixel random numbers.
         #[arg(long, default_value_t = 0)]
         seed: u64,
-        /// Shadow volumes: count with z-pass instead of z-fail.
-        #[arg(long)]
-        zpass: bool,
-        /// Depth complexity sampling: wedges on the silhouettes from the
-        /// light's centre (`centre`, fast) or from the whole light
-        /// (`light`, exact).
-        #[arg(long, default_value = "centre")]
-        silhouettes: String,
-        /// Depth complexity sampling: `vcoef` (modulate the unshadowed
-        /// light, eq. 4.1) or `direct` (integrate the light per sample,
-        /// eq. 4.6).
-        #[arg(long, default_value = "vcoef")]
-        dcs_mode: String,
-        /// Depth complexity sampling: semi-opaque casters' transmittance,
-        /// `exact` (the product of `1 − opacity` per layer) or `summed`
-        /// (the thesis's summed-opacity approximation).
-        #[arg(long, default_value = "exact")]
-        transmittance: String,
-        /// Depth complexity sampling: covered samples by the exact
-        /// per-sample test (`exact`) or the thesis's precomputed bit
-        /// fields (`bitfield`, approximate; correlated or interleaved
-        /// patterns on rect lights).
-        #[arg(long, default_value = "exact")]
-        coverage: String,
-        /// Opacity textures of S-triangles (soft textured shadow
-        /// volumes): `nearest` texel (the contract's rule) or `bilinear`.
-        #[arg(long, default_value = "nearest")]
-        opacity_filter: String,
-        /// Placement of light samples (reference, dcs; wedges and
-        /// wedge-blend for S-triangles): stratified, correlated, rotated,
-        /// poisson, sobol, interleaved[:N].
-        #[arg(long, default_value = "stratified")]
-        pattern: String,
+        /// Placement of light samples (reference, dcs; S-triangles of the
+        /// others): stratified, correlated, rotated, poisson, sobol,
+        /// interleaved[:N].
+        #[arg(long, default_value = "stratified", value_parser = SamplePattern::parse)]
+        pattern: SamplePattern,
+        #[command(flatten)]
+        options: TechniqueOptions,
         /// Print each pass's time to stderr.
         #[arg(long)]
         timings: bool,
@@ -109,13 +84,14 @@ enum Command {
         /// there are several.
         #[arg(required = true)]
         scenes: Vec<PathBuf>,
-        /// Comma-separated techniques.
+        /// Comma-separated techniques (`penumbra techniques` lists them).
         #[arg(
             long,
             value_delimiter = ',',
-            default_value = "shadow-volumes,reference"
+            default_value = "shadow-volumes,reference",
+            value_parser = technique_parser()
         )]
-        techniques: Vec<String>,
+        techniques: Vec<Technique>,
         /// Comma-separated light-sample counts for sampling techniques.
         #[arg(long, value_delimiter = ',', default_value = "4,16,64,256")]
         samples: Vec<u32>,
@@ -155,6 +131,16 @@ enum Command {
         /// Skip per-run images and heat maps (charts and tables only).
         #[arg(long)]
         no_images: bool,
+        /// The techniques' own options, the base every quality setting
+        /// starts from.
+        #[command(flatten)]
+        options: TechniqueOptions,
+    },
+    /// List the shadow techniques with what each can honour.
+    Techniques {
+        /// Print the markdown table of the docs instead.
+        #[arg(long)]
+        markdown: bool,
     },
     /// Error metrics between two images (PNG or EXR); exits with 1 when a
     /// tolerance is exceeded, 2 on an error.
@@ -216,13 +202,8 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             technique,
             samples,
             seed,
-            zpass,
-            silhouettes,
-            dcs_mode,
-            transmittance,
-            coverage,
-            opacity_filter,
             pattern,
+            options: technique_options,
             timings,
             explain,
         } => {
@@ -240,35 +221,11 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 width,
                 height,
                 aovs,
-                technique: technique.parse::<Technique>()?,
+                technique,
                 samples,
                 seed,
-                zpass,
-                silhouettes: parse_silhouettes(&silhouettes)?,
-                dcs_mode: parse_dcs_mode(&dcs_mode)?,
-                transmittance: parse_transmittance(&transmittance)?,
-                opacity_filter: match opacity_filter.as_str() {
-                    "nearest" => Filter::Nearest,
-                    "bilinear" => Filter::Bilinear,
-                    other => {
-                        return Err(Error::param(
-                            "--opacity-filter",
-                            format!("unknown value `{other}` (known: nearest, bilinear)"),
-                        ))
-                    }
-                },
-                coverage: match coverage.as_str() {
-                    "exact" => CoverageTest::Exact,
-                    "bitfield" => CoverageTest::BitField,
-                    other => {
-                        return Err(Error::param(
-                            "--coverage",
-                            format!("unknown value `{other}` (known: exact, bitfield)"),
-                        ))
-                    }
-                },
-                pattern: SamplePattern::parse(&pattern)
-                    .map_err(|e| Error::param("--pattern", e))?,
+                pattern,
+                options: technique_options,
             };
             if samples == 0 || samples > 1 << 20 {
                 return Err(Error::param(
@@ -290,10 +247,8 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     eprintln!("{:>12.3} ms  {}", p.time.as_secs_f64() * 1e3, p.name);
                 }
             }
-            if !explain {
-                for b in out.buffers.iter().filter(|b| b.detail.starts_with("NOT ")) {
-                    eprintln!("penumbra: warning: {}: {}", b.name, b.detail);
-                }
+            for w in &out.warnings {
+                eprintln!("penumbra: warning: {w}");
             }
             if explain {
                 eprintln!("buffers:");
@@ -304,6 +259,9 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                         format!("{:.2} MiB", b.bytes as f64 / (1u64 << 20) as f64)
                     };
                     eprintln!("{size:>12}  {}: {}", b.name, b.detail);
+                }
+                for w in &out.warnings {
+                    eprintln!("{:>12}  note: {w}", "-");
                 }
             }
             write_png(&output, out.width, out.height, &out.radiance)?;
@@ -327,12 +285,11 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             cache_dir,
             report,
             no_images,
+            options: technique_options,
         } => {
             let options = CompareOptions {
-                techniques: techniques
-                    .iter()
-                    .map(|s| s.trim().parse())
-                    .collect::<Result<Vec<Technique>>>()?,
+                techniques,
+                technique_options,
                 samples,
                 reference_samples,
                 repeat,
@@ -440,6 +397,14 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             } else {
                 Outcome::ToleranceExceeded
             })
+        }
+        Command::Techniques { markdown } => {
+            if markdown {
+                print!("{}", crate::shadow::registry::markdown_table());
+            } else {
+                print!("{}", crate::shadow::registry::listing());
+            }
+            Ok(Outcome::Success)
         }
         Command::Info { scene } => {
             let scene = load_scene(&scene)?;
@@ -610,38 +575,11 @@ fn relative_path(base: &Path, target: &Path) -> String {
     }
 }
 
-/// `--silhouettes`.
-fn parse_silhouettes(s: &str) -> Result<SilhouetteMode> {
-    match s {
-        "centre" | "center" => Ok(SilhouetteMode::Centre),
-        "light" | "whole-light" => Ok(SilhouetteMode::WholeLight),
-        _ => Err(Error::param(
-            "--silhouettes",
-            format!("unknown value `{s}` (known: centre, light)"),
-        )),
-    }
-}
-
-/// `--dcs-mode`.
-fn parse_dcs_mode(s: &str) -> Result<DcsMode> {
-    match s {
-        "vcoef" => Ok(DcsMode::Vcoef),
-        "direct" => Ok(DcsMode::Direct),
-        _ => Err(Error::param(
-            "--dcs-mode",
-            format!("unknown value `{s}` (known: vcoef, direct)"),
-        )),
-    }
-}
-
-/// `--transmittance`.
-fn parse_transmittance(s: &str) -> Result<TransmittanceMode> {
-    match s {
-        "exact" => Ok(TransmittanceMode::Exact),
-        "summed" => Ok(TransmittanceMode::Summed),
-        _ => Err(Error::param(
-            "--transmittance",
-            format!("unknown value `{s}` (known: exact, summed)"),
-        )),
-    }
+/// The `--technique` parser: the registry's names, listed in the help and
+/// in the error for an unknown one.
+fn technique_parser() -> impl clap::builder::TypedValueParser<Value = Technique> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(crate::shadow::registry::names()).map(
+        |name: String| Technique::named(&name).expect("the parser offers registered names only"),
+    )
 }

@@ -23,7 +23,11 @@ fn quad_toml(occluder_height: f32) -> String {
 
 fn options(cache: &Path, reference_samples: u32) -> CompareOptions {
     CompareOptions {
-        techniques: vec![Technique::ShadowVolumes, Technique::Reference],
+        techniques: vec![
+            Technique::named("shadow-volumes").unwrap(),
+            Technique::named("reference").unwrap(),
+        ],
+        technique_options: Default::default(),
         samples: vec![4, 64],
         reference_samples,
         repeat: 2,

@@ -188,12 +188,9 @@ translate = [0.3, 1.5, 0.0]
     let ours = dcs.compute(&ctx).expect("dcs runs");
     let reference = Reference::new(n, 3).compute(&ctx).expect("reference runs");
     let term = &ours.lights[0];
-    let weighted = term.radiance.as_ref().expect("textured light: radiance");
-    let vcoef = term.vcoef.as_ref().expect("vcoef");
-    let truth = reference.lights[0]
-        .radiance
-        .as_ref()
-        .expect("reference radiance");
+    let weighted = term.radiance().expect("textured light: radiance");
+    let vcoef = term.vcoef();
+    let truth = reference.lights[0].radiance().expect("reference radiance");
     let prepared = PreparedLight::new(&scene.lights[0], &scene.textures);
     let eye = frame.view.eye.as_vec3();
     let (mut err_weighted, mut err_plain, mut penumbra) = (0.0f64, 0.0f64, 0);
@@ -244,10 +241,7 @@ fn bitfield_coverage_is_close_to_exact_and_refused_where_invalid() {
     };
     let exact = run(CoverageTest::Exact, SamplePattern::Correlated).expect("exact runs");
     let table = run(CoverageTest::BitField, SamplePattern::Correlated).expect("bitfield runs");
-    let (a, b) = (
-        exact.lights[0].vcoef.as_ref().unwrap(),
-        table.lights[0].vcoef.as_ref().unwrap(),
-    );
+    let (a, b) = (exact.lights[0].vcoef(), table.lights[0].vcoef());
     let (mut sum, mut max, mut differ) = (0.0f64, 0.0f32, 0);
     for (x, y) in a.iter().zip(b) {
         let d = (x - y).abs();

@@ -193,13 +193,21 @@ fn shadow_techniques_bit_identical_across_threads() {
     use penumbra::render::Technique;
     use penumbra::sampling::SamplePattern;
     for (name, technique, pattern) in [
-        ("tinted.toml", Technique::Dcs, SamplePattern::Stratified),
+        (
+            "tinted.toml",
+            Technique::named("dcs").unwrap(),
+            SamplePattern::Stratified,
+        ),
         (
             "fence.toml",
-            Technique::Dcs,
+            Technique::named("dcs").unwrap(),
             SamplePattern::Interleaved { n: 3 },
         ),
-        ("fence.toml", Technique::Wedges, SamplePattern::Stratified),
+        (
+            "fence.toml",
+            Technique::named("wedges").unwrap(),
+            SamplePattern::Stratified,
+        ),
     ] {
         let scene = common::shipped(name);
         let options = RenderOptions {

@@ -121,22 +121,24 @@ fn frame_ctx<R>(scene: &Scene, w: u32, h: u32, f: impl FnOnce(&ShadowContext) ->
     let view = view_for(scene, &options).expect("view");
     let geometry = SceneGeometry::new(scene);
     let (gbuffer, depth, _) = gbuffer_pass(scene, &geometry, &view).expect("g-buffer");
+    let cache = penumbra::shadow::ShadowCache::new(scene, &geometry);
     f(&ShadowContext {
         scene,
         geometry: &geometry,
         view: &view,
         gbuffer: &gbuffer,
         depth: &depth,
+        cache: &cache,
     })
 }
 
 fn output_digest(out: &ShadowOutput) -> u64 {
     let mut h = 0xcbf2_9ce4_8422_2325u64;
     for l in &out.lights {
-        for v in l.vcoef.as_ref().expect("vcoef") {
+        for v in l.vcoef() {
             fnv(&mut h, v.to_bits());
         }
-        for r in l.radiance.as_ref().expect("radiance") {
+        for r in l.radiance().expect("radiance") {
             for c in r.to_array() {
                 fnv(&mut h, c.to_bits());
             }
@@ -190,7 +192,7 @@ fn reference_uses_the_shared_pattern_samples() {
                 };
                 let out = reference.compute(ctx).expect("runs");
                 digests.push(output_digest(&out));
-                let vcoef = out.lights[0].vcoef.as_ref().expect("vcoef");
+                let vcoef = out.lights[0].vcoef();
                 let ps = PatternSampler::new(pattern, 16, 9, 0);
                 let mut samples = Vec::new();
                 let mut checked = 0;

@@ -12,8 +12,6 @@ use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::reference::Reference;
 use penumbra::shadow::stsv::{Filter, StsvSampling};
-use penumbra::shadow::wedges::blend::WedgeBlending;
-use penumbra::shadow::wedges::PenumbraWedges;
 use penumbra::shadow::ShadowTechnique;
 
 /// The shipped fence with its light made a sphere of the same half-size.
@@ -52,10 +50,38 @@ struct VcoefDiff {
 /// Equal but for f32 rounding of the same mean.
 const EXACT: f32 = 1e-5;
 
-fn vcoef_diff(scene: &Scene, technique: &dyn ShadowTechnique, n: u32, seed: u64) -> VcoefDiff {
+/// Runs the registered technique `name` the way a render does (its
+/// STSV add-on included) with the S-triangles sampled as `sampling` says.
+fn run_with(
+    name: &str,
+    sampling: StsvSampling,
+    ctx: &penumbra::shadow::ShadowContext,
+) -> penumbra::Result<penumbra::shadow::ShadowOutput> {
+    let options = penumbra::shadow::TechniqueOptions {
+        stsv: penumbra::shadow::stsv::StsvOptions {
+            opacity_filter: sampling.filter,
+        },
+        ..Default::default()
+    };
+    let params = penumbra::shadow::registry::BuildParams {
+        samples: sampling.samples,
+        seed: sampling.seed,
+        pattern: sampling.pattern,
+        options: &options,
+    };
+    penumbra::shadow::run_technique(Technique::named(name)?, &params, ctx)
+}
+
+fn vcoef_diff(
+    scene: &Scene,
+    technique: &str,
+    sampling: StsvSampling,
+    n: u32,
+    seed: u64,
+) -> VcoefDiff {
     let frame = common::Frame::new(scene, 96, 96);
     let ctx = frame.ctx(scene);
-    let ours = technique.compute(&ctx).expect("technique runs");
+    let ours = run_with(technique, sampling, &ctx).expect("technique runs");
     let reference = Reference {
         samples: n,
         seed,
@@ -63,8 +89,8 @@ fn vcoef_diff(scene: &Scene, technique: &dyn ShadowTechnique, n: u32, seed: u64)
     }
     .compute(&ctx)
     .expect("reference runs");
-    let a = ours.lights[0].vcoef.as_ref().expect("vcoef");
-    let b = reference.lights[0].vcoef.as_ref().expect("vcoef");
+    let a = ours.lights[0].vcoef();
+    let b = reference.lights[0].vcoef();
     let mut d = VcoefDiff::default();
     for (i, (&a, &b)) in a.iter().zip(b).enumerate() {
         if !frame.gbuffer.is_surface(i) {
@@ -105,9 +131,9 @@ fn wedges_on_the_fence_match_the_reference() {
         seed: 7,
         ..StsvSampling::default()
     };
-    let d = vcoef_diff(&scene, &PenumbraWedges { stsv: sampling }, 16, 7);
+    let d = vcoef_diff(&scene, "wedges", sampling, 16, 7);
     check_fence("wedges, rect light", &d, 16);
-    let d = vcoef_diff(&scene, &WedgeBlending { stsv: sampling }, 16, 7);
+    let d = vcoef_diff(&scene, "wedge-blend", sampling, 16, 7);
     check_fence("wedge-blend, rect light", &d, 16);
 }
 
@@ -119,7 +145,7 @@ fn wedges_on_the_fence_under_a_sphere_light_match_the_reference() {
         seed: 3,
         ..StsvSampling::default()
     };
-    let d = vcoef_diff(&scene, &PenumbraWedges { stsv: sampling }, 16, 3);
+    let d = vcoef_diff(&scene, "wedges", sampling, 16, 3);
     check_fence("wedges, sphere light", &d, 16);
 }
 
@@ -135,7 +161,7 @@ fn bilinear_look_ups_change_the_fence_shadow_a_little() {
         filter: Filter::Bilinear,
         ..StsvSampling::default()
     };
-    let d = vcoef_diff(&scene, &PenumbraWedges { stsv: sampling }, 16, 7);
+    let d = vcoef_diff(&scene, "wedges", sampling, 16, 7);
     eprintln!("bilinear: {d:?}");
     assert!(d.differing > 0, "{d:?}");
     assert!(d.mean < 0.02, "{d:?}");
@@ -149,7 +175,10 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
     // the previous commit's binary too: bit-identical EXRs for spheres,
     // bunny, quad and tinted, wedges and wedge-blend.)
     let scene = common::shipped("spheres.toml");
-    for technique in [Technique::Wedges, Technique::WedgeBlend] {
+    for technique in [
+        Technique::named("wedges").unwrap(),
+        Technique::named("wedge-blend").unwrap(),
+    ] {
         let run = |samples, seed, pattern, filter| {
             let options = RenderOptions {
                 width: Some(64),
@@ -158,7 +187,12 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
                 samples,
                 seed,
                 pattern,
-                opacity_filter: filter,
+                options: penumbra::shadow::TechniqueOptions {
+                    stsv: penumbra::shadow::stsv::StsvOptions {
+                        opacity_filter: filter,
+                    },
+                    ..Default::default()
+                },
                 aovs: vec![penumbra::render::Aov::Vcoef],
                 ..RenderOptions::default()
             };
@@ -184,7 +218,10 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
 #[test]
 fn explain_says_the_wedges_use_stsv() {
     let scene = common::shipped("fence.toml");
-    for technique in [Technique::Wedges, Technique::WedgeBlend] {
+    for technique in [
+        Technique::named("wedges").unwrap(),
+        Technique::named("wedge-blend").unwrap(),
+    ] {
         let options = RenderOptions {
             width: Some(48),
             height: Some(48),
@@ -215,13 +252,11 @@ fn zero_samples_is_an_error_with_s_triangles() {
     let scene = common::shipped("fence.toml");
     let frame = common::Frame::new(&scene, 32, 32);
     let ctx = frame.ctx(&scene);
-    let wedges = PenumbraWedges {
-        stsv: StsvSampling {
-            samples: 0,
-            ..StsvSampling::default()
-        },
+    let sampling = StsvSampling {
+        samples: 0,
+        ..StsvSampling::default()
     };
-    assert!(wedges.compute(&ctx).is_err());
+    assert!(run_with("wedges", sampling, &ctx).is_err());
 }
 
 /// `(pixel, sample)` relations of DCS (whole-light silhouettes, S-triangles

@@ -58,7 +58,11 @@ fn check_exact_case(name: &str, toml: &str) {
     let scene = common::scene_in_scratch(name, toml, &[]);
     let dir = common::scratch_dir(&format!("{name}-out"));
     let options = CompareOptions {
-        techniques: vec![Technique::Wedges, Technique::ShadowVolumes],
+        techniques: vec![
+            Technique::named("wedges").unwrap(),
+            Technique::named("shadow-volumes").unwrap(),
+        ],
+        technique_options: Default::default(),
         samples: vec![1],
         reference_samples: 2048,
         repeat: 1,
@@ -147,8 +151,8 @@ translate = [0.0, 1.2, 0.0]
         let l = out.layers.iter().find(|l| l.name == layer).unwrap();
         l.channels.iter().find(|(n, _)| n == ch).unwrap().1.clone()
     };
-    let wedges = run(Technique::Wedges, 1);
-    let reference = run(Technique::Reference, 4096);
+    let wedges = run(Technique::named("wedges").unwrap(), 1);
+    let reference = run(Technique::named("reference").unwrap(), 4096);
     let (w, r) = (
         channel(&wedges, "vcoef", "0"),
         channel(&reference, "vcoef", "0"),
@@ -204,7 +208,7 @@ fn penumbra_errors(
         l.channels.iter().find(|(n, _)| n == ch).unwrap().1.clone()
     };
     let test = run(technique, 1);
-    let reference = run(Technique::Reference, 4096);
+    let reference = run(Technique::named("reference").unwrap(), 4096);
     let t = channel(&test, "vcoef", "0");
     let r = channel(&reference, "vcoef", "0");
     let pos = ["X", "Y", "Z"].map(|c| channel(&reference, "position", c));
@@ -278,9 +282,18 @@ translate = [0.35, 1.6, 0.2]
         SQUARE_LIGHT,
     );
     let ground = |p: [f32; 3]| p[1].abs() < 1e-4;
-    let (plain, _, n, _) = penumbra_errors("overlap-wedges", &toml, Technique::Wedges, ground);
-    let (blend, blend_max, _, bad) =
-        penumbra_errors("overlap-blend", &toml, Technique::WedgeBlend, ground);
+    let (plain, _, n, _) = penumbra_errors(
+        "overlap-wedges",
+        &toml,
+        Technique::named("wedges").unwrap(),
+        ground,
+    );
+    let (blend, blend_max, _, bad) = penumbra_errors(
+        "overlap-blend",
+        &toml,
+        Technique::named("wedge-blend").unwrap(),
+        ground,
+    );
     assert!(n > 500);
     assert_eq!(bad, 0);
     // Measured at 96²: plain 0.08, blended 0.002 (over all penumbra
@@ -313,7 +326,10 @@ translate = [0.0, {y:?}, 0.0]
             SQUARE_LIGHT,
         );
         let ground = |p: [f32; 3]| p[1].abs() < 1e-4;
-        for technique in [Technique::Wedges, Technique::WedgeBlend] {
+        for technique in [
+            Technique::named("wedges").unwrap(),
+            Technique::named("wedge-blend").unwrap(),
+        ] {
             let (rmse, max, n, bad) =
                 penumbra_errors(&format!("{name}-{technique:?}"), &toml, technique, ground);
             assert_eq!(bad, 0);
@@ -354,7 +370,10 @@ translate = [0.0, 0.8, 1.2]
         light,
     );
     let all = |_: [f32; 3]| true;
-    for technique in [Technique::Wedges, Technique::WedgeBlend] {
+    for technique in [
+        Technique::named("wedges").unwrap(),
+        Technique::named("wedge-blend").unwrap(),
+    ] {
         let (rmse, max, _, bad) =
             penumbra_errors(&format!("grazing-{technique:?}"), &toml, technique, all);
         assert_eq!(bad, 0);

@@ -16,7 +16,9 @@ pub mod cache;
 mod results;
 
 use crate::sampling::SamplePattern;
-use crate::shadow::dcs::TransmittanceMode;
+use crate::shadow::registry::Sweep;
+pub use crate::shadow::registry::{has_semi_opaque_casters, QualitySetting};
+use crate::shadow::TechniqueOptions;
 pub use results::{write_csv, write_json, write_markdown};
 
 use crate::error::{Error, Result};
@@ -27,7 +29,6 @@ use crate::report::{
     ErrorAccumulator, ErrorMetrics, Progress,
 };
 use crate::scene::Scene;
-use crate::shadow::dcs::SilhouetteMode;
 use cache::{CachedReference, ReferenceHalf, ReferenceKey, StableHasher, REFERENCE_VERSION};
 use glam::Vec3;
 use serde::Serialize;
@@ -42,6 +43,8 @@ pub const HEATMAP_SCALE: f32 = 0.25;
 pub struct CompareOptions {
     /// Techniques to measure, in order.
     pub techniques: Vec<Technique>,
+    /// The techniques' options every quality setting starts from.
+    pub technique_options: TechniqueOptions,
     /// Light-sample counts for techniques that sample.
     pub samples: Vec<u32>,
     /// Samples per light of the reference (even: two halves).
@@ -122,101 +125,35 @@ fn splitmix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// One quality setting of a technique.
-#[derive(Debug, Clone)]
-pub struct QualitySetting {
-    /// The curve it belongs to on the charts (the technique's name, plus
-    /// a variant such as the silhouettes used).
-    pub curve: String,
-    /// Short label, e.g. `16 spp` or `hard`.
-    pub label: String,
-    /// Light samples, where the technique samples.
-    pub samples: Option<u32>,
-    /// The render options.
-    pub options: RenderOptions,
-}
-
-/// The quality settings `compare` runs for `technique`: every sample
-/// count, for DCS also every pattern (centre silhouettes), whole-light
-/// silhouettes (first pattern) and, when the scene has semi-opaque
-/// casters, the summed-opacity approximation (first pattern).
+/// The quality settings `compare` runs for `technique`, from the
+/// registry, as render options on top of `base`.
 pub fn quality_settings(
     technique: Technique,
     samples: &[u32],
     patterns: &[SamplePattern],
     semi_opaque: bool,
     base: &RenderOptions,
-) -> Vec<QualitySetting> {
-    let first = patterns.first().copied().unwrap_or_default();
-    let with = |label: String, samples: Option<u32>| QualitySetting {
-        curve: technique.name().to_string(),
-        label,
+) -> Vec<(QualitySetting, RenderOptions)> {
+    let sweep = Sweep {
         samples,
-        options: RenderOptions {
-            technique,
-            samples: samples.unwrap_or(base.samples),
-            pattern: first,
-            ..base.clone()
-        },
+        patterns,
+        semi_opaque,
+        base: &base.options,
     };
-    let sweep = |curve: String, suffix: String, set: &dyn Fn(&mut RenderOptions)| {
-        samples
-            .iter()
-            .map(|&n| {
-                let mut q = with(format!("{n} spp{suffix}"), Some(n));
-                q.curve = curve.clone();
-                set(&mut q.options);
-                q
-            })
-            .collect::<Vec<_>>()
-    };
-    match technique {
-        Technique::None => vec![with("unshadowed".into(), None)],
-        Technique::ShadowVolumes => vec![with("hard (z-fail)".into(), None)],
-        Technique::Wedges => vec![with("centre silhouettes".into(), None)],
-        Technique::WedgeBlend => vec![with("EOAH, 4 quarters".into(), None)],
-        Technique::Reference => sweep("reference".into(), String::new(), &|_| {}),
-        Technique::Dcs => {
-            let mut out = Vec::new();
-            for (j, &pattern) in patterns.iter().enumerate() {
-                let (curve, suffix) = if j == 0 {
-                    ("dcs".to_string(), ", centre silhouettes".to_string())
-                } else {
-                    (format!("dcs {pattern}"), format!(", {pattern}"))
-                };
-                out.extend(sweep(curve, suffix, &|o| {
-                    o.pattern = pattern;
-                    o.silhouettes = SilhouetteMode::Centre;
-                }));
-            }
-            out.extend(sweep(
-                "dcs light-silhouettes".into(),
-                ", light silhouettes".into(),
-                &|o| o.silhouettes = SilhouetteMode::WholeLight,
-            ));
-            if semi_opaque {
-                out.extend(sweep(
-                    "dcs summed-opacity".into(),
-                    ", summed opacity".into(),
-                    &|o| o.transmittance = TransmittanceMode::Summed,
-                ));
-            }
-            out
-        }
-    }
-}
-
-/// Whether `scene` has casters of constant partial opacity (DCS's
-/// transmittance groups).
-pub fn has_semi_opaque_casters(scene: &Scene) -> bool {
-    scene.objects.iter().any(|o| {
-        o.cast_shadows
-            && o.mesh.material_ids.iter().any(|&m| {
-                scene.materials.get(m as usize).is_some_and(|m| {
-                    m.opacity_texture.is_none() && m.opacity > 0.0 && m.opacity < 1.0
-                })
-            })
-    })
+    technique
+        .quality_settings(&sweep)
+        .into_iter()
+        .map(|q| {
+            let options = RenderOptions {
+                technique,
+                samples: q.samples.unwrap_or(base.samples),
+                pattern: q.pattern,
+                options: q.options.clone(),
+                ..base.clone()
+            };
+            (q, options)
+        })
+        .collect()
 }
 
 /// Errors over all shading points and over the penumbra only.
@@ -454,15 +391,17 @@ impl ReferenceImages {
     }
 }
 
-/// The Vcoef of light `k` in a render's layers, if it has one.
-fn vcoef_of(out: &RenderOutput, k: usize) -> Option<&[f32]> {
-    let layer = out.layers.iter().find(|l| l.name == "vcoef")?;
-    let name = k.to_string();
-    layer
-        .channels
-        .iter()
-        .find(|(n, _)| *n == name)
-        .map(|(_, v)| v.as_slice())
+/// The Vcoef of light `k` of a render, background pixels 0 (as in the
+/// `vcoef` AOV the cached references store).
+fn vcoef_of(out: &RenderOutput, k: usize, surface: &[bool]) -> Option<Vec<f32>> {
+    let term = out.lights.get(k)?;
+    Some(
+        term.vcoef()
+            .iter()
+            .zip(surface)
+            .map(|(&v, &s)| if s { v } else { 0.0 })
+            .collect(),
+    )
 }
 
 /// A file-name-safe form of `s`.
@@ -523,23 +462,24 @@ fn reference(
         let out = render(
             scene,
             &RenderOptions {
-                aovs: vec![Aov::Mask, Aov::Vcoef],
-                technique: Technique::Reference,
+                aovs: vec![Aov::Mask],
+                technique: Technique::named("reference")?,
                 samples: options.reference_samples / 2,
                 seed,
                 ..view_options.clone()
             },
             &Progress::hidden(),
         )?;
-        let vcoef = (0..scene.lights.len())
-            .map(|k| vcoef_of(&out, k).map(<[f32]>::to_vec).unwrap_or_default())
-            .collect();
         mask = out
             .layers
             .iter()
             .find(|l| l.name == "mask")
             .map(|l| l.channels[0].1.clone())
             .unwrap_or_default();
+        let surface: Vec<bool> = mask.iter().map(|&m| m > 0.5).collect();
+        let vcoef = (0..scene.lights.len())
+            .map(|k| vcoef_of(&out, k, &surface).unwrap_or_default())
+            .collect();
         halves.push(ReferenceHalf {
             radiance: out.radiance,
             vcoef,
@@ -572,7 +512,10 @@ pub fn progress_steps(options: &CompareOptions) -> u64 {
                 &options.samples,
                 &options.patterns,
                 true,
-                &RenderOptions::default(),
+                &RenderOptions {
+                    options: options.technique_options.clone(),
+                    ..RenderOptions::default()
+                },
             )
             .len()
         })
@@ -634,14 +577,14 @@ pub fn compare_scene(
     let base = RenderOptions {
         width: Some(width),
         height: Some(height),
-        aovs: vec![Aov::Vcoef],
         seed: options.seed,
+        options: options.technique_options.clone(),
         ..RenderOptions::default()
     };
     let mut runs = Vec::new();
     for &technique in &options.techniques {
         let semi_opaque = has_semi_opaque_casters(scene);
-        for setting in quality_settings(
+        for (setting, setting_options) in quality_settings(
             technique,
             &options.samples,
             &options.patterns,
@@ -661,7 +604,7 @@ pub fn compare_scene(
                     options.repeat
                 ));
                 let start = Instant::now();
-                let rendered = render(scene, &setting.options, &Progress::hidden())?;
+                let rendered = render(scene, &setting_options, &Progress::hidden())?;
                 totals.push(start.elapsed().as_secs_f64() * 1e3);
                 if pass_names.is_empty() {
                     pass_names = rendered.passes.iter().map(|p| p.name.clone()).collect();
@@ -676,7 +619,10 @@ pub fn compare_scene(
                         // Free insurance: the renderer promises the same bits
                         // every run; a comparison built on anything else
                         // would be meaningless.
-                        if f.radiance != rendered.radiance || f.layers != rendered.layers {
+                        if f.radiance != rendered.radiance
+                            || f.layers != rendered.layers
+                            || f.lights != rendered.lights
+                        {
                             return Err(Error::param(
                                 "--technique",
                                 format!("{name} ({}) gave different images in two runs of the same render", setting.label),
@@ -687,7 +633,10 @@ pub fn compare_scene(
                 progress.step();
             }
             let Some(rendered) = first else { continue };
-            let tests: Vec<Option<&[f32]>> = (0..lights).map(|k| vcoef_of(&rendered, k)).collect();
+            let owned: Vec<Option<Vec<f32>>> = (0..lights)
+                .map(|k| vcoef_of(&rendered, k, &reference.surface))
+                .collect();
+            let tests: Vec<Option<&[f32]>> = owned.iter().map(|v| v.as_deref()).collect();
             let vcoef: Vec<Option<RegionMetrics>> = tests
                 .iter()
                 .enumerate()
@@ -826,9 +775,4 @@ pub fn compare_scene(
         chart,
         chart_all,
     })
-}
-
-/// The command-line name of a technique.
-pub fn technique_name(t: Technique) -> &'static str {
-    t.name()
 }

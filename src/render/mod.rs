@@ -12,16 +12,10 @@ use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::sampling::SamplePattern;
 use crate::scene::Scene;
-use crate::shadow::dcs::{
-    CoverageTest, DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode,
-};
-use crate::shadow::reference::Reference;
-use crate::shadow::shadow_volumes::ShadowVolumes;
-use crate::shadow::stsv::{Filter, StsvSampling};
-use crate::shadow::wedges::blend::WedgeBlending;
-use crate::shadow::wedges::PenumbraWedges;
+use crate::shadow::registry::BuildParams;
 use crate::shadow::{
-    BufferNote, LightTerm, PassTiming, ShadowContext, ShadowTechnique, Unshadowed,
+    run_technique, BufferNote, LightTerm, PassTiming, ShadowCache, ShadowContext, TechniqueOptions,
+    Warning,
 };
 use crate::view::{near_for_bounds, View};
 use glam::Vec3;
@@ -82,98 +76,7 @@ impl FromStr for Aov {
     }
 }
 
-/// Which shadow technique renders the image.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Technique {
-    /// No shadows.
-    None,
-    /// The ray-traced reference (`options.samples` light samples).
-    Reference,
-    /// Hard shadow volumes from each light's centre (z-fail, or z-pass
-    /// with `options.zpass`).
-    ShadowVolumes,
-    /// Penumbra wedges from each light's centre silhouettes.
-    Wedges,
-    /// Penumbra-wedge blending (EOAH over four light quarters).
-    WedgeBlend,
-    /// Depth complexity sampling (exact per-sample occluder counts).
-    Dcs,
-}
-
-impl Technique {
-    /// All technique names.
-    pub const NAMES: [&'static str; 6] = [
-        "none",
-        "reference",
-        "shadow-volumes",
-        "wedges",
-        "wedge-blend",
-        "dcs",
-    ];
-
-    /// The command-line name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Technique::None => "none",
-            Technique::Reference => "reference",
-            Technique::ShadowVolumes => "shadow-volumes",
-            Technique::Wedges => "wedges",
-            Technique::WedgeBlend => "wedge-blend",
-            Technique::Dcs => "dcs",
-        }
-    }
-
-    fn build(self, options: &RenderOptions) -> Box<dyn ShadowTechnique> {
-        match self {
-            Technique::None => Box::new(Unshadowed),
-            Technique::Reference => Box::new(Reference {
-                samples: options.samples,
-                seed: options.seed,
-                pattern: options.pattern,
-            }),
-            Technique::ShadowVolumes => Box::new(ShadowVolumes {
-                zpass: options.zpass,
-            }),
-            Technique::Wedges => Box::new(PenumbraWedges {
-                stsv: options.stsv_sampling(),
-            }),
-            Technique::WedgeBlend => Box::new(WedgeBlending {
-                stsv: options.stsv_sampling(),
-            }),
-            Technique::Dcs => Box::new(DepthComplexitySampling {
-                samples: options.samples,
-                seed: options.seed,
-                silhouettes: options.silhouettes,
-                mode: options.dcs_mode,
-                pattern: options.pattern,
-                transmittance: options.transmittance,
-                coverage: options.coverage,
-                opacity_filter: options.opacity_filter,
-            }),
-        }
-    }
-}
-
-impl FromStr for Technique {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Technique> {
-        match Technique::NAMES.iter().position(|n| *n == s) {
-            Some(0) => Ok(Technique::None),
-            Some(1) => Ok(Technique::Reference),
-            Some(2) => Ok(Technique::ShadowVolumes),
-            Some(3) => Ok(Technique::Wedges),
-            Some(4) => Ok(Technique::WedgeBlend),
-            Some(_) => Ok(Technique::Dcs),
-            None => Err(Error::param(
-                "--technique",
-                format!(
-                    "unknown technique `{s}` (known: {})",
-                    Technique::NAMES.join(", ")
-                ),
-            )),
-        }
-    }
-}
+pub use crate::shadow::registry::Technique;
 
 /// Options of one render.
 #[derive(Debug, Clone)]
@@ -190,53 +93,36 @@ pub struct RenderOptions {
     pub samples: u32,
     /// Seed of every random choice (per-pixel keyed).
     pub seed: u64,
-    /// Shadow volumes count with z-pass instead of z-fail.
-    pub zpass: bool,
-    /// Depth complexity sampling: which edges get wedges.
-    pub silhouettes: SilhouetteMode,
-    /// Depth complexity sampling: Vcoef or direct-lighting output.
-    pub dcs_mode: DcsMode,
     /// Placement of light samples (sampling techniques).
     pub pattern: SamplePattern,
-    /// Depth complexity sampling: semi-opaque casters' transmittance.
-    pub transmittance: TransmittanceMode,
-    /// Depth complexity sampling: how covered samples are found.
-    pub coverage: CoverageTest,
-    /// Look-up of S-triangles' opacity textures (soft textured shadow
-    /// volumes).
-    pub opacity_filter: Filter,
+    /// Every technique's own options (only the chosen one's matter).
+    pub options: TechniqueOptions,
 }
 
 impl RenderOptions {
-    /// How the Vcoef techniques (wedges, wedge blending) sample the light
-    /// for S-triangles: the render's samples, seed, pattern and opacity
-    /// filter, the reference's for the same options.
-    pub fn stsv_sampling(&self) -> StsvSampling {
-        StsvSampling {
+    /// What the technique is built from.
+    pub fn build_params(&self) -> BuildParams<'_> {
+        BuildParams {
             samples: self.samples,
             seed: self.seed,
             pattern: self.pattern,
-            filter: self.opacity_filter,
+            options: &self.options,
         }
     }
 }
 
 impl Default for RenderOptions {
+    /// The command line's defaults.
     fn default() -> Self {
         RenderOptions {
             width: None,
             height: None,
             aovs: Vec::new(),
-            technique: Technique::None,
+            technique: Technique::default(),
             samples: 64,
             seed: 0,
-            zpass: false,
-            silhouettes: SilhouetteMode::Centre,
-            dcs_mode: DcsMode::Vcoef,
             pattern: SamplePattern::Stratified,
-            transmittance: TransmittanceMode::Exact,
-            coverage: CoverageTest::Exact,
-            opacity_filter: Filter::Nearest,
+            options: TechniqueOptions::default(),
         }
     }
 }
@@ -259,6 +145,10 @@ pub struct RenderOutput {
     /// The buffers the render used (and those it left out), for
     /// `--explain`.
     pub buffers: Vec<BufferNote>,
+    /// The technique's result per light, in light order.
+    pub lights: Vec<LightTerm>,
+    /// What the result leaves out of the scene.
+    pub warnings: Vec<Warning>,
 }
 
 /// The view a render of `scene` with `options` uses.
@@ -336,15 +226,16 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
     timed("gbuffer", &mut passes, t);
 
     progress.stage("shadows");
-    let technique = options.technique.build(options);
+    let cache = ShadowCache::new(scene, &geometry);
     let ctx = ShadowContext {
         scene,
         geometry: &geometry,
         view: &view,
         gbuffer: &gbuffer,
         depth: &depth,
+        cache: &cache,
     };
-    let shadows = technique.compute(&ctx)?;
+    let shadows = run_technique(options.technique, &options.build_params(), &ctx)?;
     passes.extend(shadows.passes.iter().cloned());
     progress.step();
 
@@ -369,24 +260,10 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
         },
     ];
     buffers.extend(shadows.buffers);
-    let hard_or_wedges = matches!(
-        options.technique,
-        Technique::ShadowVolumes | Technique::Wedges | Technique::WedgeBlend
-    );
-    if hard_or_wedges && crate::compare::has_semi_opaque_casters(scene) {
-        // Not silent: these techniques count opaque occluders only.
-        buffers.push(BufferNote {
-            name: "semi-opaque casters".into(),
-            detail: format!(
-                "NOT shadowed: `{}` counts opaque occluders only; casters of constant \
-                 opacity below 1 cast no shadow here (use dcs or reference)",
-                options.technique.name()
-            ),
-            bytes: 0,
-        });
-    }
     Ok(RenderOutput {
         buffers,
+        lights: shadows.lights,
+        warnings: shadows.warnings,
         width: view.width,
         height: view.height,
         radiance,
@@ -431,15 +308,15 @@ pub fn aov_layers(gbuffer: &GBuffer, terms: &[LightTerm], aovs: &[Aov]) -> Vec<L
             Aov::Vcoef => terms
                 .iter()
                 .enumerate()
-                .filter_map(|(k, t)| {
-                    let v = t.vcoef.as_ref()?;
-                    Some((
+                .map(|(k, t)| {
+                    (
                         k.to_string(),
-                        v.iter()
+                        t.vcoef()
+                            .iter()
                             .enumerate()
                             .map(|(i, v)| if gbuffer.is_surface(i) { *v } else { 0.0 })
                             .collect(),
-                    ))
+                    )
                 })
                 .collect(),
         };

@@ -32,12 +32,11 @@ pub fn shade(scene: &Scene, view: &View, gbuffer: &GBuffer, terms: &[LightTerm])
                 let sp = surface_point(scene, &g, eye);
                 let mut l = scene.ambient * g.albedo;
                 for (light, term) in lights.iter().zip(terms) {
-                    l += match (&term.radiance, &term.vcoef) {
+                    l += match term {
                         _ if !receives => light.unshadowed_direct(&sp),
-                        (Some(r), _) => r[i],
-                        (None, Some(v)) if v[i] > 0.0 => light.unshadowed_direct(&sp) * v[i],
-                        (None, Some(_)) => Vec3::ZERO,
-                        (None, None) => light.unshadowed_direct(&sp),
+                        LightTerm::Radiance { radiance, .. } => radiance[i],
+                        LightTerm::Vcoef(v) if v[i] > 0.0 => light.unshadowed_direct(&sp) * v[i],
+                        LightTerm::Vcoef(_) => Vec3::ZERO,
                     };
                 }
                 *radiance = l;

@@ -7,10 +7,15 @@
 //! sample. It may add AOV layers of its own and reports its passes' times.
 
 pub mod dcs;
+pub mod kit;
 pub mod reference;
+pub mod registry;
 pub mod shadow_volumes;
 pub mod stsv;
 pub mod wedges;
+
+pub use kit::cache::ShadowCache;
+pub use registry::{Technique, TechniqueOptions, Warning};
 
 use crate::error::Result;
 use crate::gbuffer::GBuffer;
@@ -23,6 +28,7 @@ use glam::Vec3;
 use std::time::Duration;
 
 /// What a technique may read.
+#[derive(Clone, Copy)]
 pub struct ShadowContext<'a> {
     /// The scene.
     pub scene: &'a Scene,
@@ -34,26 +40,41 @@ pub struct ShadowContext<'a> {
     pub gbuffer: &'a GBuffer,
     /// The scene's depth (and stencil) after the G-buffer pass.
     pub depth: &'a Framebuffer,
+    /// What several techniques and lights derive from the scene, computed
+    /// once per render on first use.
+    pub cache: &'a ShadowCache<'a>,
 }
 
 /// A technique's result for one light, per pixel (row-major).
-#[derive(Debug, Clone, Default)]
-pub struct LightTerm {
-    /// Visibility coefficient in [0, 1] per pixel (the `vcoef` AOV). When
-    /// `radiance` is absent, shading multiplies the unshadowed direct light
-    /// by it.
-    pub vcoef: Option<Vec<f32>>,
+#[derive(Debug, Clone, PartialEq)]
+pub enum LightTerm {
+    /// A visibility coefficient in [0, 1] per pixel (the `vcoef` AOV);
+    /// shading multiplies the unshadowed direct light by it.
+    Vcoef(Vec<f32>),
     /// Shadowed direct radiance per pixel, integrated by the technique per
-    /// light sample; shading uses it as is.
-    pub radiance: Option<Vec<Vec3>>,
+    /// light sample (shading uses it as is), with the visibility
+    /// coefficient it measured on the way (the `vcoef` AOV).
+    Radiance {
+        /// Shadowed direct radiance.
+        radiance: Vec<Vec3>,
+        /// Visibility coefficient.
+        vcoef: Vec<f32>,
+    },
 }
 
 impl LightTerm {
-    /// A visibility-coefficient-only term.
-    pub fn vcoef(v: Vec<f32>) -> Self {
-        LightTerm {
-            vcoef: Some(v),
-            radiance: None,
+    /// The visibility coefficient per pixel.
+    pub fn vcoef(&self) -> &[f32] {
+        match self {
+            LightTerm::Vcoef(v) | LightTerm::Radiance { vcoef: v, .. } => v,
+        }
+    }
+
+    /// The integrated radiance, for techniques that integrate it.
+    pub fn radiance(&self) -> Option<&[Vec3]> {
+        match self {
+            LightTerm::Vcoef(_) => None,
+            LightTerm::Radiance { radiance, .. } => Some(radiance),
         }
     }
 }
@@ -89,6 +110,9 @@ pub struct ShadowOutput {
     pub layers: Vec<Layer>,
     /// Its passes, in execution order.
     pub passes: Vec<PassTiming>,
+    /// What the result leaves out of the scene (the render adds those its
+    /// capabilities declare).
+    pub warnings: Vec<Warning>,
 }
 
 /// A shadow technique.
@@ -103,6 +127,26 @@ pub trait ShadowTechnique: Sync {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Unshadowed;
 
+/// `none` in the technique registry.
+pub static UNSHADOWED: registry::TechniqueInfo = registry::TechniqueInfo {
+    name: "none",
+    summary: "no shadows: every light fully visible (the unshadowed baseline)",
+    module: "shadow/mod.rs",
+    page: None,
+    // Ignoring every occluder is what `none` is asked for: nothing to warn.
+    capabilities: |_| registry::Capabilities {
+        rect_lights: registry::Support::Yes,
+        sphere_lights: registry::Support::Yes,
+        textured_lights: registry::Support::Yes,
+        semi_opaque: registry::Support::Yes,
+        s_triangles: registry::Support::Yes,
+        output: registry::TermKind::Vcoef,
+        exact: false,
+    },
+    quality_settings: |s| vec![s.single("none", "unshadowed")],
+    build: |_| Box::new(Unshadowed),
+};
+
 impl ShadowTechnique for Unshadowed {
     fn name(&self) -> &'static str {
         "none"
@@ -115,9 +159,34 @@ impl ShadowTechnique for Unshadowed {
                 .scene
                 .lights
                 .iter()
-                .map(|_| LightTerm::vcoef(vec![1.0; n]))
+                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
                 .collect(),
             ..ShadowOutput::default()
         })
     }
+}
+
+/// Runs `technique` on `ctx` the way every render does: checks the scene
+/// against its declared capabilities (refusing, or warning), computes it,
+/// and applies the shared add-ons it declares (soft textured shadow
+/// volumes for S-triangles).
+pub fn run_technique(
+    technique: Technique,
+    params: &registry::BuildParams,
+    ctx: &ShadowContext,
+) -> Result<ShadowOutput> {
+    let warnings = registry::check_scene(technique, params.options, ctx.scene)?;
+    let built = technique.build(params);
+    let mut out = built.compute(ctx)?;
+    if technique.capabilities(params.options).s_triangles == registry::Support::StsvAddOn {
+        let sampling = stsv::StsvSampling {
+            samples: params.samples,
+            seed: params.seed,
+            pattern: params.pattern,
+            filter: params.options.stsv.opacity_filter,
+        };
+        stsv::addon::apply(ctx, technique.name(), sampling, &mut out)?;
+    }
+    out.warnings.extend(warnings);
+    Ok(out)
 }

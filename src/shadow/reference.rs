@@ -28,6 +28,7 @@ use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::scene::{LightShape, Scene};
 use crate::shade::surface_point;
 use crate::shade::{LightSample, PreparedLight};
+use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -105,6 +106,31 @@ impl ReferenceStats {
     }
 }
 
+/// The ray-traced reference in the technique registry.
+pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
+    name: "reference",
+    summary: "the ray-traced reference: shadow rays through a BVH per light sample; Vcoef and direct light",
+    module: "shadow/reference.rs",
+    page: Some("reference.md"),
+    capabilities: |_| Capabilities {
+        rect_lights: Support::Yes,
+        sphere_lights: Support::Yes,
+        textured_lights: Support::Yes,
+        semi_opaque: Support::Yes,
+        s_triangles: Support::Yes,
+        output: TermKind::Radiance,
+        exact: true,
+    },
+    quality_settings: |s| s.per_sample_count("reference", "", s.first_pattern(), |_| {}),
+    build: |p| {
+        Box::new(Reference {
+            samples: p.samples,
+            seed: p.seed,
+            pattern: p.pattern,
+        })
+    },
+};
+
 impl Reference {
     /// Runs the reference and also returns its timings and ray counts.
     pub fn compute_with_stats(
@@ -119,7 +145,7 @@ impl Reference {
         }
         let mut stats = ReferenceStats::default();
         let start = Instant::now();
-        let tracer = ShadowTracer::new(ctx.scene, ctx.geometry);
+        let tracer = ctx.cache.tracer();
         stats.bvh_time = start.elapsed();
         let mut out = ShadowOutput::default();
         for k in 0..ctx.scene.lights.len() {
@@ -450,13 +476,7 @@ impl<'a> ShadowTracer<'a> {
         let mut vcoef = vec![0.0f32; len];
         let mut radiance = vec![Vec3::ZERO; len];
         let Some(light) = self.scene.lights.get(light_index) else {
-            return (
-                LightTerm {
-                    vcoef: Some(vcoef),
-                    radiance: Some(radiance),
-                },
-                0,
-            );
+            return (LightTerm::Radiance { radiance, vcoef }, 0);
         };
         let prepared = PreparedLight::new(light, &self.scene.textures);
         let sampler = LightSampler::new(light);
@@ -504,20 +524,14 @@ impl<'a> ShadowTracer<'a> {
                 rays
             })
             .sum();
-        (
-            LightTerm {
-                vcoef: Some(vcoef),
-                radiance: Some(radiance),
-            },
-            rays,
-        )
+        (LightTerm::Radiance { radiance, vcoef }, rays)
     }
 }
 
 /// Hard-shadow visibility from light `light`'s centre per pixel (see
 /// [`ShadowTracer::hard_visibility`]); builds the BVHs first.
 pub fn hard_visibility(ctx: &ShadowContext, light: usize) -> Vec<f32> {
-    ShadowTracer::new(ctx.scene, ctx.geometry).hard_visibility(ctx.gbuffer, light)
+    ctx.cache.tracer().hard_visibility(ctx.gbuffer, light)
 }
 
 /// Per-sample `V·T` of the reference at pixel `pixel` for `samples`,
@@ -537,5 +551,5 @@ pub fn sample_visibility(
         None
     };
     let g = g.unwrap_or(GSample::BACKGROUND);
-    ShadowTracer::new(ctx.scene, ctx.geometry).sample_visibility(&g, samples, out);
+    ctx.cache.tracer().sample_visibility(&g, samples, out);
 }

@@ -11,6 +11,7 @@
 //! (s = ±1 the face's facing). The stencil then counts occluding layers;
 //! zero means lit either way.
 
+use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::geom::silhouette::faces_point;
@@ -26,6 +27,51 @@ use glam::Vec3;
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::time::Instant;
+
+/// Hard shadow volumes' command-line options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::Args)]
+pub struct ShadowVolumeOptions {
+    /// Shadow volumes: count with z-pass instead of z-fail.
+    #[arg(long)]
+    pub zpass: bool,
+}
+
+/// What shadow volumes and the wedge techniques built on their stencil
+/// counts say of semi-opaque casters.
+pub const OPAQUE_ONLY: Support = Support::Ignored(
+    "it counts opaque occluders only; casters of constant opacity below 1 cast no shadow \
+     here (use dcs or reference)",
+);
+
+/// Hard shadow volumes in the technique registry.
+pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
+    name: "shadow-volumes",
+    summary: "hard shadow volumes from each light's centre: exact integer stencil counts, z-fail or z-pass (thesis §2.2.1)",
+    module: "shadow/shadow_volumes.rs",
+    page: Some("shadow-volumes.md"),
+    capabilities: |_| Capabilities {
+        rect_lights: Support::Yes,
+        sphere_lights: Support::Yes,
+        textured_lights: Support::Yes,
+        semi_opaque: OPAQUE_ONLY,
+        s_triangles: Support::StsvAddOn,
+        output: TermKind::Vcoef,
+        exact: false,
+    },
+    quality_settings: |s| {
+        let label = if s.base.shadow_volumes.zpass {
+            "hard (z-pass)"
+        } else {
+            "hard (z-fail)"
+        };
+        vec![s.single("shadow-volumes", label)]
+    },
+    build: |p| {
+        Box::new(ShadowVolumes {
+            zpass: p.options.shadow_volumes.zpass,
+        })
+    },
+};
 
 /// The hard-shadow technique.
 #[derive(Debug, Clone, Copy, Default)]
@@ -363,7 +409,7 @@ impl ShadowTechnique for ShadowVolumes {
     fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
         let mut out = ShadowOutput::default();
         let t = Instant::now();
-        let adj = caster_adjacency(ctx.scene, ctx.geometry);
+        let adj = ctx.cache.casters();
         out.passes.push(PassTiming {
             name: "adjacency".into(),
             time: t.elapsed(),
@@ -400,7 +446,7 @@ impl ShadowTechnique for ShadowVolumes {
             stencil_layer
                 .channels
                 .push((k.to_string(), counts.iter().map(|&c| c as f32).collect()));
-            out.lights.push(LightTerm::vcoef(vcoef));
+            out.lights.push(LightTerm::Vcoef(vcoef));
         }
         out.layers.push(stencil_layer);
         Ok(out)

@@ -83,12 +83,19 @@ impl Frame {
         &'a self,
         scene: &'a penumbra::scene::Scene,
     ) -> penumbra::shadow::ShadowContext<'a> {
+        // A test's few contexts each get their own cache, leaked: the
+        // context must borrow it for as long as the frame, and tests are
+        // short-lived processes.
+        let cache: &'a penumbra::shadow::ShadowCache<'a> = Box::leak(Box::new(
+            penumbra::shadow::ShadowCache::new(scene, &self.geometry),
+        ));
         penumbra::shadow::ShadowContext {
             scene,
             geometry: &self.geometry,
             view: &self.view,
             gbuffer: &self.gbuffer,
             depth: &self.depth,
+            cache,
         }
     }
 

@@ -61,14 +61,18 @@ pub struct CandidateEdge {
 }
 
 /// Which edges get wedges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum SilhouetteMode {
-    /// Silhouettes from the light's centre (the thesis's default; misses
-    /// edges that are silhouettes only from other parts of the light).
-    #[default]
+    /// Silhouettes from the light's centre (the thesis's default; fast,
+    /// but misses edges that are silhouettes only from other parts of the
+    /// light).
+    #[value(alias = "center")]
     Centre,
     /// Edges that are silhouettes from some point of the light (§4.1.4):
-    /// every edge that can change `D` for some receiver.
+    /// every edge that can change `D` for some receiver. Exact; our
+    /// default.
+    #[default]
+    #[value(name = "light", alias = "whole-light")]
     WholeLight,
 }
 

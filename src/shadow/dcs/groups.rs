@@ -91,7 +91,7 @@ pub fn semi_opaque_groups(
 }
 
 /// Per-sample transmittance from the semi-opaque counts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum TransmittanceMode {
     /// `T = Π_g (1 − α_g)^{n_g}`, the contract's product (stable form).
     #[default]

@@ -34,6 +34,7 @@ pub mod region;
 pub mod ties;
 
 use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
+use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use super::shadow_volumes::{build_volume, stencil_counts};
 use super::stsv::{
     membership as stsv_membership, Filter, STriangles, SamplePositions, ShadowOrigin,
@@ -56,15 +57,15 @@ use counters::{add_covered, ChartSamples, OrientedEdge};
 pub use edges::SilhouetteMode;
 use edges::{side_of, CandidateEdges, LightShapeForSilhouettes};
 use glam::{DVec3, Vec3};
+use groups::Attenuation;
 pub use groups::TransmittanceMode;
-use groups::{semi_opaque_groups, Attenuation};
 use rayon::prelude::*;
 use region::RegionBound;
 use std::time::Instant;
 use ties::{tied_pixels, ExactStart};
 
 /// What the counters are turned into.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum DcsMode {
     /// A visibility coefficient modulating the unshadowed direct light
     /// (eq. 4.1).
@@ -84,6 +85,97 @@ impl DcsMode {
         }
     }
 }
+
+/// Depth complexity sampling's command-line options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
+pub struct DcsOptions {
+    /// Depth complexity sampling: wedges on the silhouettes from the whole
+    /// light (`light`, exact, the default) or from the light's centre
+    /// (`centre`, faster, misses edges that are silhouettes only from
+    /// other points of the light).
+    #[arg(long, value_enum, default_value_t = SilhouetteMode::WholeLight)]
+    pub silhouettes: SilhouetteMode,
+    /// Depth complexity sampling: `vcoef` (modulate the unshadowed light,
+    /// eq. 4.1) or `direct` (integrate the light per sample, eq. 4.6).
+    #[arg(long = "dcs-mode", value_enum, default_value_t = DcsMode::Vcoef)]
+    pub mode: DcsMode,
+    /// Depth complexity sampling: semi-opaque casters' transmittance,
+    /// `exact` (the product of `1 − opacity` per layer) or `summed` (the
+    /// thesis's summed-opacity approximation).
+    #[arg(long, value_enum, default_value_t = TransmittanceMode::Exact)]
+    pub transmittance: TransmittanceMode,
+    /// Depth complexity sampling: covered samples by the exact per-sample
+    /// test (`exact`) or the thesis's precomputed bit fields (`bitfield`,
+    /// approximate; correlated or interleaved patterns on rect lights).
+    #[arg(long, value_enum, default_value_t = CoverageTest::Exact)]
+    pub coverage: CoverageTest,
+}
+
+/// Depth complexity sampling in the technique registry.
+pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
+    name: "dcs",
+    summary: "depth complexity sampling: exact per-sample occluder counts from shadow volumes and wedges (thesis ch. 4)",
+    module: "shadow/dcs/",
+    page: Some("dcs.md"),
+    capabilities: |o| Capabilities {
+        rect_lights: Support::Yes,
+        sphere_lights: match o.dcs.coverage {
+            CoverageTest::Exact => Support::Yes,
+            CoverageTest::BitField => Support::Refused {
+                param: "--coverage",
+                why: "the bit-field tables are built for rect lights (use --coverage exact)",
+            },
+        },
+        textured_lights: Support::Yes,
+        semi_opaque: Support::Yes,
+        s_triangles: Support::Yes,
+        output: match o.dcs.mode {
+            DcsMode::Vcoef => TermKind::Vcoef,
+            DcsMode::Direct => TermKind::Radiance,
+        },
+        exact: o.dcs.silhouettes == SilhouetteMode::WholeLight
+            && o.dcs.coverage == CoverageTest::Exact
+            && o.dcs.transmittance == TransmittanceMode::Exact,
+    },
+    quality_settings: |s| {
+        // The default (exact) first, then the centre-silhouette
+        // approximation with every pattern, then summed opacity.
+        let mut out = s.per_sample_count("dcs", "", s.first_pattern(), |o| {
+            o.dcs.silhouettes = SilhouetteMode::WholeLight
+        });
+        for (j, &pattern) in s.patterns.iter().enumerate() {
+            let (curve, suffix) = if j == 0 {
+                ("dcs centre".to_string(), ", centre silhouettes".to_string())
+            } else {
+                (format!("dcs centre {pattern}"), format!(", centre, {pattern}"))
+            };
+            out.extend(s.per_sample_count(&curve, &suffix, pattern, |o| {
+                o.dcs.silhouettes = SilhouetteMode::Centre
+            }));
+        }
+        if s.semi_opaque {
+            out.extend(s.per_sample_count(
+                "dcs summed-opacity",
+                ", summed opacity",
+                s.first_pattern(),
+                |o| o.dcs.transmittance = TransmittanceMode::Summed,
+            ));
+        }
+        out
+    },
+    build: |p| {
+        Box::new(DepthComplexitySampling {
+            samples: p.samples,
+            seed: p.seed,
+            silhouettes: p.options.dcs.silhouettes,
+            mode: p.options.dcs.mode,
+            pattern: p.pattern,
+            transmittance: p.options.dcs.transmittance,
+            coverage: p.options.dcs.coverage,
+            opacity_filter: p.options.stsv.opacity_filter,
+        })
+    },
+};
 
 /// The depth-complexity-sampling technique.
 #[derive(Debug, Clone, Copy)]
@@ -107,13 +199,14 @@ pub struct DepthComplexitySampling {
 }
 
 /// How the samples an edge covers are found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum CoverageTest {
     /// The exact per-sample test, SIMD over samples.
     #[default]
     Exact,
     /// The thesis's precomputed bit fields (Fig. 4.9), approximate; only
     /// for sample sets shared by many pixels on rect lights.
+    #[value(name = "bitfield")]
     BitField,
 }
 
@@ -225,8 +318,8 @@ impl GroupPass {
 }
 
 /// Everything the counter pass of one light reads.
-struct LightPass<'a> {
-    ctx: &'a ShadowContext<'a>,
+struct LightPass<'a, 'c> {
+    ctx: &'a ShadowContext<'c>,
     technique: &'a DepthComplexitySampling,
     bound: LightBound,
     centre: DVec3,
@@ -263,7 +356,7 @@ pub struct InspectedPixel<'a> {
 /// A visitor of per-pixel state: `(pixel index, state)`.
 pub type CounterInspector<'a> = dyn Fn(usize, &InspectedPixel) + Sync + 'a;
 
-impl LightPass<'_> {
+impl LightPass<'_, '_> {
     /// Transmittance of the semi-opaque groups at pixel `i` when every
     /// sample sees their start counts (no wedge of theirs holds `i`).
     fn constant_transmittance(&self, i: usize) -> f64 {
@@ -666,18 +759,19 @@ struct UnboundedEdge {
     region: RegionBound,
 }
 
-/// What DCS counts besides the opaque casters, found once per render
-/// (not per light): the semi-opaque groups and the S-triangles.
-struct SceneCasters {
-    partial: Vec<(Attenuation, crate::geom::EdgeAdjacency)>,
-    s_triangles: STriangles,
+/// What DCS counts besides the opaque casters, from the render's cache
+/// (found once per render, not per light): the semi-opaque groups and the
+/// S-triangles.
+struct SceneCasters<'a> {
+    partial: &'a [(Attenuation, crate::geom::EdgeAdjacency)],
+    s_triangles: &'a STriangles,
 }
 
-impl SceneCasters {
-    fn new(ctx: &ShadowContext) -> SceneCasters {
+impl<'a> SceneCasters<'a> {
+    fn new(ctx: &ShadowContext<'a>) -> SceneCasters<'a> {
         SceneCasters {
-            partial: semi_opaque_groups(ctx.scene, ctx.geometry),
-            s_triangles: STriangles::collect(ctx.scene, ctx.geometry),
+            partial: ctx.cache.semi_opaque_groups(),
+            s_triangles: ctx.cache.s_triangles(),
         }
     }
 }
@@ -761,10 +855,10 @@ impl DepthComplexitySampling {
         let t = Instant::now();
         let mut group_adjs = vec![(Attenuation::Opaque, adj, start)];
         let mut volumes = vec![volume];
-        for (attenuation, adj) in &casters.partial {
+        for (attenuation, adj) in casters.partial {
             let volume = build_volume(adj, ctx.view, point);
             let counts = stencil_counts(&mut framebuffer, &volume, false)?;
-            group_adjs.push((*attenuation, std::borrow::Cow::Borrowed(adj), counts));
+            group_adjs.push((*attenuation, adj, counts));
             volumes.push(volume);
         }
         if group_adjs.len() > 1 {
@@ -936,7 +1030,7 @@ impl DepthComplexitySampling {
         let tables = self.coverage_tables(ctx, k, &bound)?;
         // S-triangles: soft textured shadow volumes, only when the scene
         // has some.
-        let s_triangles = &casters.s_triangles;
+        let s_triangles = casters.s_triangles;
         let stsv = if s_triangles.is_empty() {
             None
         } else {
@@ -1167,9 +1261,10 @@ impl DepthComplexitySampling {
                 time: t.elapsed(),
             });
         }
-        let term = LightTerm {
-            vcoef: Some(vcoef),
-            radiance: with_radiance.then_some(radiance),
+        let term = if with_radiance {
+            LightTerm::Radiance { radiance, vcoef }
+        } else {
+            LightTerm::Vcoef(vcoef)
         };
         Ok((term, aovs, report))
     }
@@ -1212,7 +1307,7 @@ impl DepthComplexitySampling {
             bytes: workers * (n * std::mem::size_of::<LightSample>() as u64 + padded * 8 + n * 4),
         });
         let casters = SceneCasters::new(ctx);
-        let partial = &casters.partial;
+        let partial = casters.partial;
         let s_triangles_present = !casters.s_triangles.is_empty();
         let opacities: Vec<String> = partial
             .iter()
@@ -1249,7 +1344,7 @@ impl DepthComplexitySampling {
                 partial.len() as u64 * pixels * 4 + workers * (padded * 4 + n * 16)
             },
         });
-        let s_triangles = &casters.s_triangles;
+        let s_triangles = casters.s_triangles;
         out.buffers.push(BufferNote {
             name: "soft textured shadow volumes".into(),
             detail: if s_triangles.is_empty() {

@@ -42,7 +42,7 @@ use wide::{f32x8, CmpGe, CmpGt};
 const LANES: usize = 8;
 
 /// How the opacity texture is read at a crossing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Filter {
     /// Nearest texel (the contract's default and the reference's rule:
     /// [`Texture::lookup_scalar`]).

@@ -28,11 +28,13 @@
 //! `docs/algorithms/stsv.md` says what the thesis does, what we do and
 //! where we differ.
 
+pub mod addon;
 pub mod lookup;
 pub mod membership;
 pub mod occlusion;
 pub mod volume;
 
+pub use addon::{subtract_occlusion, StsvOptions};
 pub use lookup::{bilinear_scalar, Filter, SamplePositions, SampleProjector};
 pub use membership::{membership, raster_mesh, StsvMembership};
 pub use occlusion::{occlusion_note, stsv_occlusion, StsvOcclusion, StsvSampling};

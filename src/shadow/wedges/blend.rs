@@ -35,15 +35,16 @@
 
 use super::geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
 use super::integrate::{projected_edge, EdgeRegion, Polygon, RectFrame};
-use super::{draw_wedges, light_bound, subtract_occlusion, WedgeStage, WedgeTile};
+use super::{draw_wedges, light_bound, WedgeStage, WedgeTile};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
+use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::shadow_volumes::OPAQUE_ONLY;
 use crate::shadow::shadow_volumes::{
-    build_volume, cap_triangles, caster_adjacency, light_point, side_quad, stencil_counts_of,
+    build_volume, cap_triangles, light_point, side_quad, stencil_counts_of,
 };
-use crate::shadow::stsv::{occlusion_note, stsv_occlusion, STriangles, StsvSampling};
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -185,17 +186,32 @@ pub fn blend_part(v: &mut LightPart, s: &LightPart) {
     v.rect = union(v.rect, s.rect);
 }
 
-/// The penumbra-wedge blending technique. As for [`PenumbraWedges`], the
-/// sampling fields matter only for S-triangles (soft textured shadow
-/// volumes, their occluded fraction added to the blended V-buffer).
-///
-/// [`PenumbraWedges`]: super::PenumbraWedges
+/// Penumbra-wedge blending in the technique registry.
+pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
+    name: "wedge-blend",
+    summary: "penumbra-wedge blending: four light quarters, bounding rectangles, EOAH blending (thesis §3.2)",
+    module: "shadow/wedges/blend.rs",
+    page: Some("wedge-blending.md"),
+    capabilities: |_| Capabilities {
+        rect_lights: Support::Yes,
+        sphere_lights: Support::Refused {
+            param: "--technique",
+            why: "blending splits rect lights into quarters (use wedges or reference)",
+        },
+        textured_lights: Support::Yes,
+        semi_opaque: OPAQUE_ONLY,
+        s_triangles: Support::StsvAddOn,
+        output: TermKind::Vcoef,
+        exact: false,
+    },
+    quality_settings: |s| vec![s.single("wedge-blend", "EOAH, 4 quarters")],
+    build: |_| Box::new(WedgeBlending),
+};
+
+/// The penumbra-wedge blending technique. S-triangles are shadowed by
+/// the soft-textured-shadow-volume add-on the render applies to its Vcoef.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct WedgeBlending {
-    /// How S-triangles' light samples are drawn and looked up (the
-    /// render's samples, seed, pattern and opacity filter).
-    pub stsv: StsvSampling,
-}
+pub struct WedgeBlending;
 
 /// Connected components of the faces of `adj` (through shared edges):
 /// a component id per face slot, and the count.
@@ -248,14 +264,6 @@ impl ShadowTechnique for WedgeBlending {
             name: "wedges".into(),
             channels: Vec::new(),
         };
-        // S-triangles are not wedge casters; soft textured shadow volumes
-        // shadow them, when there are any.
-        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
-        let mut slayer = Layer {
-            name: "stsv".into(),
-            channels: Vec::new(),
-        };
-        let mut stsv_stats = Vec::new();
         for k in 0..ctx.scene.lights.len() {
             let light = &ctx.scene.lights[k];
             let bound = light_bound(&light.shape);
@@ -267,7 +275,7 @@ impl ShadowTechnique for WedgeBlending {
             };
             let point = light_point(&light.shape);
             let t = Instant::now();
-            let adj = caster_adjacency(ctx.scene, ctx.geometry);
+            let adj = ctx.cache.casters();
             let lit = faces_point(&adj, point);
             let volume = build_volume(&adj, ctx.view, point);
             let (component, count) = components(&adj);
@@ -404,27 +412,10 @@ impl ShadowTechnique for WedgeBlending {
                     }
                 }
             }
-            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv, &mut out.passes)?;
-            if let Some(stsv) = &stsv {
-                subtract_occlusion(&mut vcoef, &stsv.occluded);
-                slayer.channels.push((k.to_string(), stsv.occluded.clone()));
-            }
-            stsv_stats.push(stsv.map(|s| (s.pairs, s.receivers)));
-            out.lights.push(LightTerm::vcoef(vcoef));
+            out.lights.push(LightTerm::Vcoef(vcoef));
             wlayer.channels.push((k.to_string(), halves_in));
         }
         out.layers.push(wlayer);
-        if !slayer.channels.is_empty() {
-            out.layers.push(slayer);
-        }
-        out.buffers.push(occlusion_note(
-            self.name(),
-            &s_triangles,
-            self.stsv,
-            &stsv_stats,
-            ctx.gbuffer.len() as u64,
-            rayon::current_num_threads() as u64,
-        ));
         Ok(out)
     }
 }

@@ -20,10 +20,9 @@ pub mod blend;
 pub mod geometry;
 pub mod integrate;
 
-use super::shadow_volumes::{
-    build_volume, caster_adjacency, light_point, silhouette_quads, stencil_counts,
-};
-use super::stsv::{occlusion_note, stsv_occlusion, STriangles, StsvSampling};
+use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::shadow_volumes::OPAQUE_ONLY;
+use super::shadow_volumes::{build_volume, light_point, silhouette_quads, stencil_counts};
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::gbuffer::GBuffer;
@@ -39,17 +38,30 @@ use integrate::{region_fraction, region_fraction_sphere, RectFrame};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// The penumbra-wedge technique. The sampling fields matter only when the
-/// scene has S-triangles (opacity-textured casters): those are shadowed
-/// with soft textured shadow volumes, sampled like the reference
-/// ([`stsv_occlusion`]), and their occluded fraction is added to the
-/// V-buffer (thesis §5.2.1).
+/// The penumbra-wedge technique. S-triangles (opacity-textured casters)
+/// are shadowed by the soft-textured-shadow-volume add-on the render
+/// applies to its Vcoef (thesis §5.2.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct PenumbraWedges {
-    /// How S-triangles' light samples are drawn and looked up (the
-    /// render's samples, seed, pattern and opacity filter).
-    pub stsv: StsvSampling,
-}
+pub struct PenumbraWedges;
+
+/// Penumbra wedges in the technique registry.
+pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
+    name: "wedges",
+    summary: "penumbra wedges on the centre silhouettes: analytic Vcoef, over-shadows where silhouettes overlap (thesis §3.1)",
+    module: "shadow/wedges/",
+    page: Some("penumbra-wedges.md"),
+    capabilities: |_| Capabilities {
+        rect_lights: Support::Yes,
+        sphere_lights: Support::Yes,
+        textured_lights: Support::Yes,
+        semi_opaque: OPAQUE_ONLY,
+        s_triangles: Support::StsvAddOn,
+        output: TermKind::Vcoef,
+        exact: false,
+    },
+    quality_settings: |s| vec![s.single("wedges", "centre silhouettes")],
+    build: |_| Box::new(PenumbraWedges),
+};
 
 /// Marks "no half-wedge yet" in a tile.
 const NONE: u32 = u32::MAX;
@@ -304,7 +316,7 @@ pub fn draw_wedges<'w, S: FragmentStage<0>>(
 /// depth) the wedges are then drawn against.
 pub struct LightStart<'a> {
     /// Opaque casters.
-    pub adj: std::borrow::Cow<'a, crate::geom::EdgeAdjacency>,
+    pub adj: &'a crate::geom::EdgeAdjacency,
     /// The light for wedge construction and integration.
     pub bound: LightBound,
     /// Its centre.
@@ -325,7 +337,7 @@ pub fn light_start<'a>(
 ) -> Result<LightStart<'a>> {
     let light = &ctx.scene.lights[k];
     let point = light_point(&light.shape);
-    let adj = caster_adjacency(ctx.scene, ctx.geometry);
+    let adj = ctx.cache.casters();
     let t = Instant::now();
     let volume = build_volume(&adj, ctx.view, point);
     let mut framebuffer = ctx.depth.clone();
@@ -457,18 +469,6 @@ pub fn wedge_light(
     })
 }
 
-/// Adds the S-triangles' occluded fraction `f` to a Vcoef technique's
-/// result (thesis §5.2.1: the STSV Vcoef is added to the wedges' one):
-/// `Vcoef = clamp(Vcoef − f, 0, 1)`. Pixels outside every STSV have
-/// `f = 0` and keep their value bit for bit.
-pub fn subtract_occlusion(vcoef: &mut [f32], occluded: &[f32]) {
-    for (v, &f) in vcoef.iter_mut().zip(occluded) {
-        if f > 0.0 {
-            *v = (*v - f).clamp(0.0, 1.0);
-        }
-    }
-}
-
 impl ShadowTechnique for PenumbraWedges {
     fn name(&self) -> &'static str {
         "wedges"
@@ -484,18 +484,9 @@ impl ShadowTechnique for PenumbraWedges {
             name: "wedges".into(),
             channels: Vec::new(),
         };
-        // S-triangles are not wedge casters (`caster_adjacency` keeps
-        // opaque materials only); soft textured shadow volumes shadow
-        // them, when there are any.
-        let s_triangles = STriangles::collect(ctx.scene, ctx.geometry);
-        let mut slayer = Layer {
-            name: "stsv".into(),
-            channels: Vec::new(),
-        };
-        let mut stsv_stats = Vec::new();
         for k in 0..ctx.scene.lights.len() {
             let w = wedge_light(ctx, k, &mut out.passes)?;
-            let mut vcoef: Vec<f32> = w
+            let vcoef: Vec<f32> = w
                 .vbuffer
                 .iter()
                 .zip(ctx.gbuffer.samples())
@@ -507,13 +498,7 @@ impl ShadowTechnique for PenumbraWedges {
                     }
                 })
                 .collect();
-            let stsv = stsv_occlusion(ctx, &s_triangles, k, self.stsv, &mut out.passes)?;
-            if let Some(stsv) = &stsv {
-                subtract_occlusion(&mut vcoef, &stsv.occluded);
-                slayer.channels.push((k.to_string(), stsv.occluded.clone()));
-            }
-            stsv_stats.push(stsv.map(|s| (s.pairs, s.receivers)));
-            out.lights.push(LightTerm::vcoef(vcoef));
+            out.lights.push(LightTerm::Vcoef(vcoef));
             vlayer.channels.push((k.to_string(), w.vbuffer));
             wlayer.channels.push((
                 k.to_string(),
@@ -522,17 +507,6 @@ impl ShadowTechnique for PenumbraWedges {
         }
         out.layers.push(vlayer);
         out.layers.push(wlayer);
-        if !slayer.channels.is_empty() {
-            out.layers.push(slayer);
-        }
-        out.buffers.push(occlusion_note(
-            self.name(),
-            &s_triangles,
-            self.stsv,
-            &stsv_stats,
-            ctx.gbuffer.len() as u64,
-            rayon::current_num_threads() as u64,
-        ));
         Ok(out)
     }
 }

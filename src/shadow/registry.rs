@@ -1,0 +1,508 @@
+//! The technique registry: every shadow technique describes itself once —
+//! name, one-line summary, options, capabilities, quality settings for
+//! `compare`, and how it is built — and `render`, `compare`, `--explain`,
+//! the CLI help and `penumbra techniques` all read it from here.
+//!
+//! Adding a technique is one folder under `src/shadow/` that exports a
+//! [`TechniqueInfo`] static, one line in [`TECHNIQUES`] and, if it has
+//! options of its own, one flattened field in [`TechniqueOptions`]
+//! (see docs/architecture.md, "How to add a technique").
+
+use super::dcs::DcsOptions;
+use super::shadow_volumes::ShadowVolumeOptions;
+use super::stsv::StsvOptions;
+use super::ShadowTechnique;
+use crate::error::{Error, Result};
+use crate::sampling::SamplePattern;
+use crate::scene::{LightShape, Scene};
+use std::fmt;
+
+/// Every technique, in the order `penumbra techniques` and the docs list
+/// them.
+pub static TECHNIQUES: &[&TechniqueInfo] = &[
+    &super::UNSHADOWED,
+    &super::reference::TECHNIQUE,
+    &super::shadow_volumes::TECHNIQUE,
+    &super::wedges::TECHNIQUE,
+    &super::wedges::blend::TECHNIQUE,
+    &super::dcs::TECHNIQUE,
+];
+
+/// The name `render` uses when no `--technique` is given: exact depth
+/// complexity sampling, the exact soft-shadow technique.
+pub const DEFAULT_TECHNIQUE: &str = "dcs";
+
+/// Every technique's own options, flattened into `render` and `compare`.
+/// One field per technique that has options.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct TechniqueOptions {
+    /// Hard shadow volumes.
+    #[command(flatten)]
+    pub shadow_volumes: ShadowVolumeOptions,
+    /// Depth complexity sampling.
+    #[command(flatten)]
+    pub dcs: DcsOptions,
+    /// Soft textured shadow volumes (every technique that shadows
+    /// S-triangles through the add-on, and DCS).
+    #[command(flatten)]
+    pub stsv: StsvOptions,
+}
+
+impl Default for TechniqueOptions {
+    /// The command line's defaults, so that the library and the CLI can
+    /// never disagree on them.
+    fn default() -> Self {
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            options: TechniqueOptions,
+        }
+        <Defaults as clap::Parser>::parse_from(["penumbra"]).options
+    }
+}
+
+/// What a technique is built from: the render's sampling parameters and
+/// every technique's options.
+#[derive(Debug, Clone, Copy)]
+pub struct BuildParams<'a> {
+    /// Light samples per pixel and light.
+    pub samples: u32,
+    /// Seed of the per-pixel random numbers.
+    pub seed: u64,
+    /// Placement of light samples.
+    pub pattern: SamplePattern,
+    /// The techniques' own options.
+    pub options: &'a TechniqueOptions,
+}
+
+/// How a technique handles one kind of scene content.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Support {
+    /// Handled as the scene contract says.
+    Yes,
+    /// S-triangles only: shadowed by the shared soft-textured-shadow-volume
+    /// add-on, which the render applies to the technique's Vcoef.
+    StsvAddOn,
+    /// Not handled, but the result is still meaningful without it: a
+    /// warning, and an `--explain` note.
+    Ignored(&'static str),
+    /// Not handled: the render is refused with this reason, naming the
+    /// parameter that asked for it.
+    Refused {
+        /// The parameter to change (`--technique`, `--coverage`, ...).
+        param: &'static str,
+        /// Why.
+        why: &'static str,
+    },
+}
+
+/// What a technique returns per light.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TermKind {
+    /// A visibility coefficient modulating the unshadowed light.
+    Vcoef,
+    /// Shadowed direct radiance it integrated itself (and its Vcoef).
+    Radiance,
+}
+
+/// What a technique can honour, given its options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Capabilities {
+    /// Rectangular area lights.
+    pub rect_lights: Support,
+    /// Spherical lights.
+    pub sphere_lights: Support,
+    /// Lights with a radiance texture.
+    pub textured_lights: Support,
+    /// Casters of constant opacity below 1.
+    pub semi_opaque: Support,
+    /// Casters with an opacity texture (S-triangles).
+    pub s_triangles: Support,
+    /// Its per-light result.
+    pub output: TermKind,
+    /// Per-sample visibility equals the shadow rays' (up to ties).
+    pub exact: bool,
+}
+
+/// One quality setting of a technique in `compare`.
+#[derive(Debug, Clone)]
+pub struct QualitySetting {
+    /// The curve it belongs to on the charts (the technique's name, plus
+    /// a variant such as the silhouettes used).
+    pub curve: String,
+    /// Short label, e.g. `16 spp` or `hard`.
+    pub label: String,
+    /// Light samples, where the technique samples.
+    pub samples: Option<u32>,
+    /// Sample pattern.
+    pub pattern: SamplePattern,
+    /// The technique options of this setting.
+    pub options: TechniqueOptions,
+}
+
+/// What `compare` sweeps a technique over.
+#[derive(Debug, Clone, Copy)]
+pub struct Sweep<'a> {
+    /// Light-sample counts.
+    pub samples: &'a [u32],
+    /// Sample patterns (the first is the reference's).
+    pub patterns: &'a [SamplePattern],
+    /// The scene has semi-opaque casters.
+    pub semi_opaque: bool,
+    /// The options given on the command line.
+    pub base: &'a TechniqueOptions,
+}
+
+impl Sweep<'_> {
+    /// The first pattern (the reference's).
+    pub fn first_pattern(&self) -> SamplePattern {
+        self.patterns.first().copied().unwrap_or_default()
+    }
+
+    /// One setting of `curve` without light samples.
+    pub fn single(&self, curve: &str, label: &str) -> QualitySetting {
+        QualitySetting {
+            curve: curve.into(),
+            label: label.into(),
+            samples: None,
+            pattern: self.first_pattern(),
+            options: self.base.clone(),
+        }
+    }
+
+    /// One setting per sample count on `curve`, labelled `N spp{suffix}`,
+    /// with `set` applied to the options.
+    pub fn per_sample_count(
+        &self,
+        curve: &str,
+        suffix: &str,
+        pattern: SamplePattern,
+        set: impl Fn(&mut TechniqueOptions),
+    ) -> Vec<QualitySetting> {
+        self.samples
+            .iter()
+            .map(|&n| {
+                let mut options = self.base.clone();
+                set(&mut options);
+                QualitySetting {
+                    curve: curve.into(),
+                    label: format!("{n} spp{suffix}"),
+                    samples: Some(n),
+                    pattern,
+                    options,
+                }
+            })
+            .collect()
+    }
+}
+
+/// A technique's description: everything the program needs to know of it.
+pub struct TechniqueInfo {
+    /// The command-line name.
+    pub name: &'static str,
+    /// One line for `penumbra techniques` and the docs table.
+    pub summary: &'static str,
+    /// Its module, for the docs table.
+    pub module: &'static str,
+    /// Its page under docs/algorithms, if it has one.
+    pub page: Option<&'static str>,
+    /// What it can honour with these options.
+    pub capabilities: fn(&TechniqueOptions) -> Capabilities,
+    /// Its settings in `compare`.
+    pub quality_settings: fn(&Sweep) -> Vec<QualitySetting>,
+    /// Builds it.
+    pub build: fn(&BuildParams) -> Box<dyn ShadowTechnique>,
+}
+
+/// A registered technique: a cheap handle to its [`TechniqueInfo`].
+#[derive(Clone, Copy)]
+pub struct Technique(&'static TechniqueInfo);
+
+impl Technique {
+    /// The technique called `name`, or an error that lists the known ones.
+    pub fn named(name: &str) -> Result<Technique> {
+        TECHNIQUES
+            .iter()
+            .find(|t| t.name == name)
+            .map(|t| Technique(t))
+            .ok_or_else(|| {
+                Error::param(
+                    "--technique",
+                    format!("unknown technique `{name}` (known: {})", names().join(", ")),
+                )
+            })
+    }
+
+    /// Every registered technique, in registry order.
+    pub fn all() -> impl Iterator<Item = Technique> {
+        TECHNIQUES.iter().map(|t| Technique(t))
+    }
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        self.0.name
+    }
+
+    /// Its description.
+    pub fn info(self) -> &'static TechniqueInfo {
+        self.0
+    }
+
+    /// Its capabilities with `options`.
+    pub fn capabilities(self, options: &TechniqueOptions) -> Capabilities {
+        (self.0.capabilities)(options)
+    }
+
+    /// Builds it.
+    pub fn build(self, params: &BuildParams) -> Box<dyn ShadowTechnique> {
+        (self.0.build)(params)
+    }
+
+    /// Its quality settings in `compare`.
+    pub fn quality_settings(self, sweep: &Sweep) -> Vec<QualitySetting> {
+        (self.0.quality_settings)(sweep)
+    }
+}
+
+impl Default for Technique {
+    fn default() -> Self {
+        Technique::named(DEFAULT_TECHNIQUE).expect("the default technique is registered")
+    }
+}
+
+impl PartialEq for Technique {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.name == other.0.name
+    }
+}
+
+impl Eq for Technique {}
+
+impl fmt::Debug for Technique {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Technique({})", self.0.name)
+    }
+}
+
+impl fmt::Display for Technique {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.0.name)
+    }
+}
+
+impl std::str::FromStr for Technique {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Technique> {
+        Technique::named(s)
+    }
+}
+
+/// Every technique's name, in registry order.
+pub fn names() -> Vec<&'static str> {
+    TECHNIQUES.iter().map(|t| t.name).collect()
+}
+
+/// Scene content a technique may not honour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneContent {
+    /// A rectangular light.
+    RectLight,
+    /// A spherical light.
+    SphereLight,
+    /// A light with a radiance texture.
+    TexturedLight,
+    /// Casters of constant opacity below 1.
+    SemiOpaqueCasters,
+    /// Casters with an opacity texture.
+    STriangles,
+}
+
+impl SceneContent {
+    /// What it is, in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            SceneContent::RectLight => "rect lights",
+            SceneContent::SphereLight => "sphere lights",
+            SceneContent::TexturedLight => "textured lights",
+            SceneContent::SemiOpaqueCasters => "semi-opaque casters",
+            SceneContent::STriangles => "opacity-textured casters (S-triangles)",
+        }
+    }
+}
+
+/// A warning of a render whose result is meaningful but not all the scene
+/// asks for.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Warning {
+    /// The technique ignores some of the scene's content.
+    Ignored {
+        /// The technique.
+        technique: &'static str,
+        /// What it ignores.
+        content: SceneContent,
+        /// What happens instead and what to use.
+        why: &'static str,
+    },
+}
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Warning::Ignored {
+                technique,
+                content,
+                why,
+            } => write!(
+                f,
+                "{}: NOT shadowed by `{technique}`: {why}",
+                content.describe()
+            ),
+        }
+    }
+}
+
+/// Whether `scene` has casters of constant partial opacity.
+pub fn has_semi_opaque_casters(scene: &Scene) -> bool {
+    scene.objects.iter().any(|o| {
+        o.cast_shadows
+            && o.mesh.material_ids.iter().any(|&m| {
+                scene.materials.get(m as usize).is_some_and(|m| {
+                    m.opacity_texture.is_none() && m.opacity > 0.0 && m.opacity < 1.0
+                })
+            })
+    })
+}
+
+/// Whether `scene` has shadow-casting triangles with an opacity texture.
+pub fn has_s_triangles(scene: &Scene) -> bool {
+    scene.objects.iter().any(|o| {
+        o.cast_shadows
+            && o.mesh.material_ids.iter().any(|&m| {
+                scene
+                    .materials
+                    .get(m as usize)
+                    .is_some_and(|m| m.opacity_texture.is_some())
+            })
+    })
+}
+
+/// Answers, from `technique`'s declared capabilities, whether it can
+/// render `scene`: an error for content it refuses, a warning for content
+/// it ignores. The same rule for every technique.
+pub fn check_scene(
+    technique: Technique,
+    options: &TechniqueOptions,
+    scene: &Scene,
+) -> Result<Vec<Warning>> {
+    let caps = technique.capabilities(options);
+    let mut present = Vec::new();
+    for light in &scene.lights {
+        present.push(match light.shape {
+            LightShape::Rect { .. } => (SceneContent::RectLight, caps.rect_lights),
+            LightShape::Sphere { .. } => (SceneContent::SphereLight, caps.sphere_lights),
+        });
+        if light.texture.is_some() {
+            present.push((SceneContent::TexturedLight, caps.textured_lights));
+        }
+    }
+    if has_semi_opaque_casters(scene) {
+        present.push((SceneContent::SemiOpaqueCasters, caps.semi_opaque));
+    }
+    if has_s_triangles(scene) {
+        present.push((SceneContent::STriangles, caps.s_triangles));
+    }
+    let mut warnings = Vec::new();
+    for (content, support) in present {
+        match support {
+            Support::Yes | Support::StsvAddOn => {}
+            Support::Ignored(why) => {
+                let w = Warning::Ignored {
+                    technique: technique.name(),
+                    content,
+                    why,
+                };
+                if !warnings.contains(&w) {
+                    warnings.push(w);
+                }
+            }
+            Support::Refused { param, why } => {
+                return Err(Error::param(
+                    param,
+                    format!(
+                        "`{}` cannot render {}: {why}",
+                        technique.name(),
+                        content.describe()
+                    ),
+                ))
+            }
+        }
+    }
+    Ok(warnings)
+}
+
+/// The techniques table of docs/architecture.md and the README, generated
+/// from the registry (`penumbra techniques --markdown`).
+pub fn markdown_table() -> String {
+    let mut s = String::from(
+        "| name | what it does | exact | output | sphere lights | semi-opaque | S-triangles | module | page |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
+    );
+    for t in Technique::all() {
+        let info = t.info();
+        let caps = t.capabilities(&TechniqueOptions::default());
+        let page = info
+            .page
+            .map(|p| format!("[{p}](docs/algorithms/{p})"))
+            .unwrap_or_else(|| "—".into());
+        s.push_str(&format!(
+            "| `{}` | {} | {} | {} | {} | {} | {} | `{}` | {} |\n",
+            info.name,
+            info.summary,
+            if caps.exact { "yes" } else { "no" },
+            term_name(caps.output),
+            support_name(caps.sphere_lights),
+            support_name(caps.semi_opaque),
+            support_name(caps.s_triangles),
+            info.module,
+            page
+        ));
+    }
+    s
+}
+
+/// The `penumbra techniques` listing.
+pub fn listing() -> String {
+    let mut s = String::new();
+    for t in Technique::all() {
+        let caps = t.capabilities(&TechniqueOptions::default());
+        s.push_str(&format!("{:<16}{}\n", t.name(), t.info().summary));
+        s.push_str(&format!(
+            "{:<16}{}, {}; rect lights: {}, sphere lights: {}, textured lights: {}, semi-opaque casters: {}, S-triangles: {}\n",
+            "",
+            if caps.exact { "exact" } else { "approximate" },
+            term_name(caps.output),
+            support_name(caps.rect_lights),
+            support_name(caps.sphere_lights),
+            support_name(caps.textured_lights),
+            support_name(caps.semi_opaque),
+            support_name(caps.s_triangles),
+        ));
+    }
+    s
+}
+
+fn term_name(t: TermKind) -> &'static str {
+    match t {
+        TermKind::Vcoef => "Vcoef",
+        TermKind::Radiance => "radiance",
+    }
+}
+
+fn support_name(s: Support) -> &'static str {
+    match s {
+        Support::Yes => "yes",
+        Support::StsvAddOn => "yes (STSV add-on)",
+        Support::Ignored(_) => "ignored (warning)",
+        Support::Refused { .. } => "refused",
+    }
+}
