@@ -10,9 +10,7 @@ use penumbra::gbuffer::{depth_pass, gbuffer_pass, transform_vertices, GBufferPas
 use penumbra::geom::SceneGeometry;
 use penumbra::render::{view_for, RenderOptions};
 use penumbra::scene::load_scene;
-use penumbra::shadow::shadow_volumes::{
-    build_volume, caster_adjacency, light_point, stencil_counts,
-};
+use penumbra::shadow::kit::volumes::{build_volume, caster_adjacency, light_point, stencil_counts};
 use std::path::Path;
 
 fn raster(c: &mut Criterion) {

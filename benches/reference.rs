@@ -12,7 +12,7 @@ use penumbra::gbuffer::gbuffer_pass;
 use penumbra::geom::SceneGeometry;
 use penumbra::render::{view_for, RenderOptions};
 use penumbra::scene::load_scene;
-use penumbra::shadow::reference::ShadowTracer;
+use penumbra::shadow::kit::rays::ShadowTracer;
 use penumbra::shadow::ShadowContext;
 use std::path::Path;
 

@@ -13,7 +13,7 @@ use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shade::LightSample;
 use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode};
-use penumbra::shadow::reference::{ShadowTracer, END_SHORTEN};
+use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
 use std::sync::Mutex;
 
 /// What the exactness check measured.

@@ -16,7 +16,8 @@ use penumbra::sampling::{
 use penumbra::scene::{Light, LightShape, Scene};
 use penumbra::shade::gather::{gather_filter, GatherParams};
 use penumbra::shade::LightSample;
-use penumbra::shadow::reference::{Reference, ShadowTracer};
+use penumbra::shadow::kit::rays::ShadowTracer;
+use penumbra::shadow::reference::Reference;
 use penumbra::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
 
 const ALL: [SamplePattern; 7] = [

@@ -652,7 +652,7 @@ fn counting_path_equals_general_stencil_path() {
     let volume_tris: Vec<[u32; 3]> = (0..100).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
     for zpass in [false, true] {
         // The states the shadow-volume technique itself uses.
-        let state = penumbra::shadow::shadow_volumes::stencil_state(zpass);
+        let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
         let run = |general: bool| {
             let grid = TileGrid::new(w, h).unwrap();
             let mut fb = Framebuffer::new(grid);
@@ -751,7 +751,7 @@ fn counting_path_merges_quads_exactly() {
         }
     }
     for zpass in [false, true] {
-        let state = penumbra::shadow::shadow_volumes::stencil_state(zpass);
+        let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
         let run = |general: bool| {
             let grid = TileGrid::new(w, h).unwrap();
             let mut fb = Framebuffer::new(grid);

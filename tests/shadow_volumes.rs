@@ -15,8 +15,8 @@ use penumbra::geom::SceneGeometry;
 use penumbra::raster::{draw, Framebuffer, NoFragmentStage};
 use penumbra::render::{view_for, RenderOptions};
 use penumbra::scene::Scene;
-use penumbra::shadow::reference::ShadowTracer;
-use penumbra::shadow::shadow_volumes::{
+use penumbra::shadow::kit::rays::ShadowTracer;
+use penumbra::shadow::kit::volumes::{
     build_volume, caster_adjacency, light_point, stencil_counts, stencil_state,
 };
 use penumbra::view::View;

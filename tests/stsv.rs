@@ -12,12 +12,12 @@ use glam::{DVec3, Vec3};
 use penumbra::sampling::{LightSampler, PatternSampler, SamplePattern};
 use penumbra::scene::{LightShape, Scene};
 use penumbra::shade::LightSample;
-use penumbra::shadow::reference::{ShadowTracer, END_SHORTEN};
+use penumbra::shadow::kit::membership::light_bound;
+use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
 use penumbra::shadow::stsv::{
     build_volumes, membership, Filter, STriangle, STriangles, SamplePositions, SampleProjector,
     ShadowOrigin, StsvMembership, VolumeParams,
 };
-use penumbra::shadow::wedges::light_bound;
 use rayon::prelude::*;
 
 /// The fence's opacity texture: a diamond wire mesh, 256 × 256 RGBA,

@@ -276,7 +276,7 @@ struct Relations {
 
 fn dcs_relations(scene: &Scene, w: u32, h: u32, n: u32, seed: u64) -> Relations {
     use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
-    use penumbra::shadow::reference::{ShadowTracer, END_SHORTEN};
+    use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
     use std::sync::atomic::{AtomicUsize, Ordering};
     let frame = common::Frame::new(scene, w, h);
     let ctx = frame.ctx(scene);

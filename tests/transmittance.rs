@@ -13,7 +13,7 @@ use glam::DVec3;
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode};
-use penumbra::shadow::reference::{ShadowTracer, END_SHORTEN};
+use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
 use std::sync::Mutex;
 
 /// Relative agreement of `V·T` (the two sides form the same product in

@@ -96,6 +96,13 @@ pub enum Support {
     },
 }
 
+/// What shadow volumes and the wedge techniques built on their stencil
+/// counts say of semi-opaque casters.
+pub const OPAQUE_ONLY: Support = Support::Ignored(
+    "it counts opaque occluders only; casters of constant opacity below 1 cast no shadow \
+     here (use dcs or reference)",
+);
+
 /// What a technique returns per light.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TermKind {

@@ -14,8 +14,8 @@
 //! occluded by an edge's change of depth complexity exactly when the
 //! segment from the origin to `s` crosses the projected edge.
 
-use crate::shadow::wedges::geometry::LightBound;
-use crate::shadow::wedges::integrate::{clip_to_square, RectFrame, RectProjection};
+use crate::shadow::kit::light_frame::{clip_to_square, RectFrame, RectProjection};
+use crate::shadow::kit::wedge_geometry::LightBound;
 use glam::DVec3;
 
 /// One receiver's view of one light.

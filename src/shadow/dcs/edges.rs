@@ -15,7 +15,7 @@
 //! `d_f = ±1` the direction the face runs along `v0 → v1`, and `h_f(p)`
 //! the shadow-volume weight of the face *as seen from `p`* (closed: 1 when
 //! `p` is in front, else 0; open: ±1 by facing) — the multiplicity
-//! [`crate::shadow::shadow_volumes::side_quad`] gives with the light
+//! [`crate::shadow::kit::volumes::side_quad`] gives with the light
 //! point replaced by `p`. It is non-zero only for silhouettes from `p`
 //! (derivation in docs/algorithms/dcs.md).
 //!
@@ -28,7 +28,7 @@
 
 use crate::geom::silhouette::{area_silhouettes, sphere_silhouettes};
 use crate::geom::EdgeAdjacency;
-use crate::shadow::shadow_volumes::side_quad;
+use crate::shadow::kit::volumes::side_quad;
 use glam::{DVec3, Vec3};
 
 /// One face next to a candidate edge.

@@ -29,18 +29,19 @@ pub mod bitfield;
 pub mod chart;
 pub mod counters;
 pub mod edges;
-pub mod groups;
 pub mod region;
 pub mod ties;
 
-use super::reference::{scene_diagonal, EPS_POSITION, EPS_SCENE};
+use super::kit::groups::Attenuation;
+pub use super::kit::groups::TransmittanceMode;
+use super::kit::membership::{draw_wedges, light_start, HalfWedgeMembership, LightStart};
+use super::kit::rays::{scene_diagonal, EPS_POSITION, EPS_SCENE};
+use super::kit::volumes::{build_volume, stencil_counts};
+use super::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use super::shadow_volumes::{build_volume, stencil_counts};
 use super::stsv::{
     membership as stsv_membership, Filter, STriangles, SamplePositions, ShadowOrigin,
 };
-use super::wedges::geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
-use super::wedges::{draw_wedges, light_start, HalfWedgeMembership, LightStart};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::geom::silhouette::faces_point;
@@ -57,8 +58,6 @@ use counters::{add_covered, ChartSamples, OrientedEdge};
 pub use edges::SilhouetteMode;
 use edges::{side_of, CandidateEdges, LightShapeForSilhouettes};
 use glam::{DVec3, Vec3};
-use groups::Attenuation;
-pub use groups::TransmittanceMode;
 use rayon::prelude::*;
 use region::RegionBound;
 use std::time::Instant;

@@ -23,7 +23,7 @@ use crate::error::Result;
 use crate::geom::bvh::Bvh;
 use crate::geom::{EdgeAdjacency, SceneGeometry};
 use crate::raster::Framebuffer;
-use crate::shadow::shadow_volumes::{stencil_counts, ShadowVolume};
+use crate::shadow::kit::volumes::{stencil_counts, ShadowVolume};
 use glam::Vec3;
 
 /// Relative depth band of the tie test: 64 f32 ulps, far above the
@@ -99,7 +99,7 @@ impl ExactStart {
         out.fill(0);
         let dir = centre - origin;
         // Stop just short of the centre, as the reference's rays do.
-        let t_max = (1.0 - crate::shadow::reference::END_SHORTEN) as f32;
+        let t_max = (1.0 - crate::shadow::kit::rays::END_SHORTEN) as f32;
         self.bvh.for_each_hit(origin, dir, t_max, |h| {
             let e = self.table[h.triangle as usize];
             if e != NONE {

@@ -3,12 +3,25 @@
 //!
 //! - [`cache`]: per-render caches filled on first use (caster adjacency,
 //!   S-triangles, semi-opaque caster groups, the shadow-ray tracer).
+//! - [`rays`]: shadow rays, the shadow-ray origin rule and its epsilons.
+//! - [`volumes`]: hard shadow volumes and exact stencil counts.
+//! - [`wedge_geometry`]: the light's bound, penumbra wedges and their halves.
+//! - [`membership`]: half-wedge membership and the per-light start.
+//! - [`light_frame`]: the rect light's frame, projections into it,
+//!   clipping to it and region integrals.
+//! - [`groups`]: semi-opaque caster groups and transmittance.
 //! - [`timing`]: pass timing.
 //! - [`tiles`]: tile-local to image pixel mapping.
 
 pub mod cache;
+pub mod groups;
+pub mod light_frame;
+pub mod membership;
+pub mod rays;
 pub mod tiles;
 pub mod timing;
+pub mod volumes;
+pub mod wedge_geometry;
 
 pub use cache::ShadowCache;
 pub use tiles::TilePixels;

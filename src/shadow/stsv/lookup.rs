@@ -34,7 +34,7 @@
 use super::STriangle;
 use crate::scene::{Texture, TextureData};
 use crate::shade::LightSample;
-use crate::shadow::reference::END_SHORTEN;
+use crate::shadow::kit::rays::END_SHORTEN;
 use glam::{Vec2, Vec3};
 use wide::{f32x8, CmpGe, CmpGt};
 

@@ -256,7 +256,7 @@ fn mesh_uvs(scene: &Scene, geometry: &SceneGeometry, t: u32) -> Option<[DVec2; 3
 /// The reference's shadow-ray origin rule without building its BVHs:
 /// `o = p + ε_p n_g`, `ε_p = max(EPS_SCENE × D, EPS_POSITION × max_i |p_i|)`
 /// (see [`crate::shadow::reference`]); bit-identical to
-/// [`crate::shadow::reference::ShadowTracer::shadow_origin`].
+/// [`crate::shadow::kit::rays::ShadowTracer::shadow_origin`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShadowOrigin {
     eps_scene: f64,
@@ -265,7 +265,7 @@ pub struct ShadowOrigin {
 impl ShadowOrigin {
     /// The rule for a scene.
     pub fn new(scene: &Scene, geometry: &SceneGeometry) -> Self {
-        use crate::shadow::reference::{scene_diagonal, EPS_SCENE};
+        use crate::shadow::kit::rays::{scene_diagonal, EPS_SCENE};
         ShadowOrigin {
             eps_scene: EPS_SCENE * scene_diagonal(scene, geometry),
         }
@@ -275,7 +275,7 @@ impl ShadowOrigin {
     /// viewer).
     #[inline]
     pub fn of(&self, p: Vec3, ng: Vec3) -> Vec3 {
-        use crate::shadow::reference::EPS_POSITION;
+        use crate::shadow::kit::rays::EPS_POSITION;
         let eps = self
             .eps_scene
             .max(EPS_POSITION * f64::from(p.abs().max_element()));

@@ -37,8 +37,8 @@
 use super::{STriangle, STriangles};
 use crate::geom::SceneGeometry;
 use crate::scene::Scene;
-use crate::shadow::reference::scene_diagonal;
-use crate::shadow::wedges::geometry::LightBound;
+use crate::shadow::kit::rays::scene_diagonal;
+use crate::shadow::kit::wedge_geometry::LightBound;
 use crate::view::View;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -523,7 +523,7 @@ fn newell(points: &[DVec3]) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shadow::wedges::integrate::RectFrame;
+    use crate::shadow::kit::light_frame::RectFrame;
     use std::collections::HashMap;
 
     use crate::shadow::stsv::test_triangle as tri;

@@ -33,18 +33,19 @@
 //! - Rect lights only (the quarters are the light's own); sphere lights
 //!   are refused with a clear error.
 
-use super::geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
-use super::integrate::{projected_edge, EdgeRegion, Polygon, RectFrame};
-use super::{draw_wedges, light_bound, WedgeStage, WedgeTile};
+use super::{WedgeStage, WedgeTile};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
-use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use crate::shadow::shadow_volumes::OPAQUE_ONLY;
-use crate::shadow::shadow_volumes::{
+use crate::shadow::kit::light_frame::{projected_edge, EdgeRegion, Polygon, RectFrame};
+use crate::shadow::kit::membership::{draw_wedges, light_bound};
+use crate::shadow::kit::volumes::{
     build_volume, cap_triangles, light_point, side_quad, stencil_counts_of,
 };
+use crate::shadow::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
+use crate::shadow::registry::OPAQUE_ONLY;
+use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -470,7 +471,8 @@ mod tests {
             outer: true,
         };
         for side in [1.0, -1.0] {
-            let whole = super::super::integrate::region_fraction(&frame, p, half.q0, half.q1, side);
+            let whole =
+                crate::shadow::kit::light_frame::region_fraction(&frame, p, half.q0, half.q1, side);
             let mut parts = [LightPart::default(); 4];
             accumulate(&mut parts, &frame, p, &half, side);
             let sum: f32 = parts.iter().map(|p| p.occ).sum::<f32>() / 4.0;

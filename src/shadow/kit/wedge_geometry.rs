@@ -27,7 +27,7 @@
 //! their ties do not matter. Faces share vertices exactly (no T-junctions),
 //! including at infinity, so z-fail counting of each half is exact.
 
-use super::integrate::RectFrame;
+use super::light_frame::RectFrame;
 use crate::raster::ClipVertex;
 use crate::view::View;
 use glam::{DVec3, Vec3};

@@ -1,0 +1,381 @@
+//! Shadow rays: the opaque and translucent casters' BVHs, the shadow-ray
+//! origin rule and its epsilons (one copy for the reference, STSV and
+//! DCS's tie recount), segment transmittance.
+//!
+//! **Shadow-ray offset** (the oracle's rule): origin
+//! `o = p + ε_p n_g` with `n_g` the G-buffer's geometric normal (facing the
+//! viewer, also when the sample is behind the surface: `V` is pure
+//! visibility), `ε_p = max(1e-6 × D, 1e-5 × max_i |p_i|)`, `D` the diagonal
+//! of the bounding box of all triangles and lights. The second term keeps
+//! the origin about 80 f32 ulps off the surface far from the world origin.
+//! The segment ends at `t_max = |x − o| (1 − 1e-6)`.
+
+use crate::gbuffer::{GBuffer, GSample};
+use crate::geom::bvh::{Bvh, Hit};
+use crate::geom::SceneGeometry;
+use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
+use crate::scene::{LightShape, Scene};
+use crate::shade::surface_point;
+use crate::shade::{LightSample, PreparedLight};
+use crate::shadow::{LightTerm, ShadowContext};
+use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Scene-relative part of the shadow-ray offset: `ε = EPS_SCENE × D`.
+pub const EPS_SCENE: f64 = 1e-6;
+/// Position-relative part of the offset: `ε_p ≥ EPS_POSITION × max_i |p_i|`.
+pub const EPS_POSITION: f64 = 1e-5;
+/// A segment ends at `(1 − END_SHORTEN)` of the way to the light sample, so
+/// a light lying on a surface does not shadow itself.
+pub const END_SHORTEN: f64 = 1e-6;
+/// Crossings of non-opaque surfaces closer than `MERGE_SCENE × D` along a
+/// segment count once (the oracle's step past each hit); this is what makes
+/// a segment through an edge shared by two triangles cross one surface.
+pub const MERGE_SCENE: f64 = 1e-6;
+
+/// Diagonal of the bounding box of all triangles and lights (rect corners,
+/// sphere bounds): the scale of the shadow-ray offset. 0 for an empty
+/// scene.
+pub fn scene_diagonal(scene: &Scene, geometry: &SceneGeometry) -> f64 {
+    let mut lo = DVec3::INFINITY;
+    let mut hi = DVec3::NEG_INFINITY;
+    let mut grow = |p: DVec3| {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    };
+    for p in &geometry.positions {
+        grow(p.as_dvec3());
+    }
+    for light in &scene.lights {
+        match light.shape {
+            LightShape::Rect { center, u, v, .. } => {
+                let (c, u, v) = (center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
+                for (a, b) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+                    grow(c + u * a + v * b);
+                }
+            }
+            LightShape::Sphere { center, radius } => {
+                let r = DVec3::splat(f64::from(radius));
+                grow(center.as_dvec3() - r);
+                grow(center.as_dvec3() + r);
+            }
+        }
+    }
+    if lo.x > hi.x {
+        return 0.0;
+    }
+    (hi - lo).length()
+}
+
+/// Shadow rays against a scene: the opaque casters' BVH (any hit) and the
+/// non-opaque casters' BVH (transmittance walk), with the offset rule.
+/// Build it once per scene; every query is `&self` and thread-safe.
+#[derive(Debug, Clone)]
+pub struct ShadowTracer<'a> {
+    scene: &'a Scene,
+    geometry: &'a SceneGeometry,
+    opaque: Bvh,
+    translucent: Bvh,
+    /// `EPS_SCENE × D`.
+    eps_scene: f64,
+    /// `MERGE_SCENE × D`.
+    merge: f64,
+}
+
+/// Reusable per-thread buffers for transmittance walks.
+#[derive(Debug, Default)]
+struct Scratch {
+    hits: Vec<Hit>,
+}
+
+impl<'a> ShadowTracer<'a> {
+    /// Builds both BVHs: casters (`cast_shadows`) whose material is opaque,
+    /// and casters whose material is not.
+    pub fn new(scene: &'a Scene, geometry: &'a SceneGeometry) -> Self {
+        let caster = |t: u32| -> Option<bool> {
+            let o = scene
+                .objects
+                .get(*geometry.triangle_object.get(t as usize)? as usize)?;
+            let m = geometry.triangle_material.get(t as usize)?;
+            let opaque = scene.materials.get(*m as usize)?.is_opaque();
+            o.cast_shadows.then_some(opaque)
+        };
+        let (opaque, translucent) = rayon::join(
+            || Bvh::build(geometry, |t| caster(t) == Some(true)),
+            || Bvh::build(geometry, |t| caster(t) == Some(false)),
+        );
+        let d = scene_diagonal(scene, geometry);
+        ShadowTracer {
+            scene,
+            geometry,
+            opaque,
+            translucent,
+            eps_scene: EPS_SCENE * d,
+            merge: MERGE_SCENE * d,
+        }
+    }
+
+    /// The BVH of opaque casters.
+    pub fn opaque_bvh(&self) -> &Bvh {
+        &self.opaque
+    }
+
+    /// The BVH of non-opaque casters.
+    pub fn translucent_bvh(&self) -> &Bvh {
+        &self.translucent
+    }
+
+    /// The shadow-ray offset at `p`: `max(1e-6 × D, 1e-5 × max_i |p_i|)`.
+    pub fn epsilon(&self, p: Vec3) -> f64 {
+        self.eps_scene
+            .max(EPS_POSITION * f64::from(p.abs().max_element()))
+    }
+
+    /// The shadow-ray origin for receiver `p` with geometric normal `ng`
+    /// (facing the viewer): `p + ε_p n_g`.
+    pub fn shadow_origin(&self, p: Vec3, ng: Vec3) -> Vec3 {
+        (p.as_dvec3() + ng.as_dvec3() * self.epsilon(p)).as_vec3()
+    }
+
+    /// Transmittance `Π (1 − opacity)` of the non-opaque casters crossed
+    /// at `t ∈ (0, t_max)` on `origin + t · dir`, crossings closer than
+    /// `MERGE_SCENE × D` counting once (the first in `(t, triangle)` order).
+    /// Opaque casters are ignored. 1 when nothing is crossed.
+    pub fn transmittance(&self, origin: Vec3, dir: Vec3, t_max: f32) -> f64 {
+        self.walk(origin, dir, t_max, &mut Scratch::default())
+    }
+
+    /// `V·T` of the segment from `origin` to `x` (the contract's product
+    /// for one light sample, the segment shortened by `END_SHORTEN`), and
+    /// the BVH traversals it took.
+    pub fn segment(&self, origin: Vec3, x: Vec3) -> (f64, u64) {
+        self.segment_with(origin, x, &mut Scratch::default())
+    }
+
+    fn segment_with(&self, origin: Vec3, x: Vec3, scratch: &mut Scratch) -> (f64, u64) {
+        let dir = (x.as_dvec3() - origin.as_dvec3()).as_vec3();
+        // The direction is not normalised, so the segment is t ∈ (0, 1).
+        let t_max = (1.0 - END_SHORTEN) as f32;
+        if self.opaque.occluded(origin, dir, t_max) {
+            return (0.0, 1);
+        }
+        if self.translucent.triangle_count() == 0 {
+            return (1.0, 1);
+        }
+        (self.walk(origin, dir, t_max, scratch), 2)
+    }
+
+    /// The transmittance walk: every crossing, sorted, merged, multiplied.
+    fn walk(&self, origin: Vec3, dir: Vec3, t_max: f32, scratch: &mut Scratch) -> f64 {
+        let hits = &mut scratch.hits;
+        hits.clear();
+        self.translucent
+            .for_each_hit(origin, dir, t_max, |h| hits.push(h));
+        if hits.is_empty() {
+            return 1.0;
+        }
+        // Sorting by (t, triangle) fixes which of several merged crossings
+        // gives the opacity, whatever the traversal order.
+        hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.triangle.cmp(&b.triangle)));
+        let len = f64::from(dir.length());
+        let merge_t = if len > 0.0 { self.merge / len } else { 0.0 };
+        let mut transmittance = 1.0f64;
+        let mut next = f64::NEG_INFINITY;
+        for h in hits.iter() {
+            let t = f64::from(h.t);
+            if t < next {
+                continue;
+            }
+            transmittance *= 1.0 - self.opacity(h);
+            if transmittance <= 0.0 {
+                return 0.0;
+            }
+            next = t + merge_t;
+        }
+        transmittance
+    }
+
+    /// Opacity `d × map_d(uv)` at a hit, clamped to `[0, 1]` (public so
+    /// that other techniques' look-ups can be checked against it).
+    pub fn opacity(&self, h: &Hit) -> f64 {
+        let tri = h.triangle as usize;
+        let Some(m) = self
+            .geometry
+            .triangle_material
+            .get(tri)
+            .and_then(|&m| self.scene.materials.get(m as usize))
+        else {
+            return 1.0;
+        };
+        let texture = m.opacity_texture.and_then(|t| self.scene.textures.get(t));
+        let tex = texture.map_or(1.0, |t| t.lookup_scalar(self.hit_uv(h)));
+        f64::from(m.opacity * tex).clamp(0.0, 1.0)
+    }
+
+    /// Texture coordinates at a hit, interpolated (in f64) from the
+    /// object's mesh uvs like the G-buffer does; 0 without uvs.
+    fn hit_uv(&self, h: &Hit) -> Vec2 {
+        let uv = || -> Option<Vec2> {
+            let (o, local) = self.geometry.locate(h.triangle);
+            let mesh = &self.scene.objects.get(o)?.mesh;
+            let uvs = mesh.uvs.as_ref()?;
+            let [i, j, k] = mesh.triangles.get(local)?;
+            let (i, j, k) = (
+                uvs.get(*i as usize)?.as_dvec2(),
+                uvs.get(*j as usize)?.as_dvec2(),
+                uvs.get(*k as usize)?.as_dvec2(),
+            );
+            let (b1, b2) = (f64::from(h.b1), f64::from(h.b2));
+            Some((i * (1.0 - b1 - b2) + j * b1 + k * b2).as_vec2())
+        };
+        uv().unwrap_or(Vec2::ZERO)
+    }
+
+    /// Whether `g`'s object receives shadows (unknown objects do).
+    fn receives(&self, g: &GSample) -> bool {
+        self.scene
+            .objects
+            .get(g.object as usize)
+            .is_none_or(|o| o.receive_shadows)
+    }
+
+    /// Per-sample `V·T` at shading point `g` for the given light samples,
+    /// written to `out` (as many as both slices hold): 0 for a background
+    /// pixel, 1 for a receiver with `receive_shadows = false`. The
+    /// reference's own per-sample values, for checking other techniques
+    /// sample by sample.
+    pub fn sample_visibility(&self, g: &GSample, samples: &[LightSample], out: &mut [f32]) {
+        let mut scratch = Scratch::default();
+        for (s, o) in samples.iter().zip(out.iter_mut()) {
+            *o = self.gsample_vt(g, s.x, &mut scratch).0 as f32;
+        }
+    }
+
+    /// `V·T` from shading point `g` to `x` and the traversals it took.
+    fn gsample_vt(&self, g: &GSample, x: Vec3, scratch: &mut Scratch) -> (f64, u64) {
+        if !g.is_surface() {
+            return (0.0, 0);
+        }
+        if !self.receives(g) {
+            return (1.0, 0);
+        }
+        self.segment_with(self.shadow_origin(g.position, g.geo_normal), x, scratch)
+    }
+
+    /// Hard-shadow visibility from light `light`'s centre (a sphere light:
+    /// its centre) per pixel: 1 or 0 by the opaque casters only (the
+    /// contract's binary `V`; non-opaque casters are not counted), 0 for
+    /// background, 1 for non-receivers. Empty for a light index out of
+    /// range.
+    pub fn hard_visibility(&self, gbuffer: &GBuffer, light: usize) -> Vec<f32> {
+        let Some(light) = self.scene.lights.get(light) else {
+            return Vec::new();
+        };
+        let centre = match light.shape {
+            LightShape::Rect { center, .. } | LightShape::Sphere { center, .. } => center,
+        };
+        gbuffer
+            .par_samples()
+            .map(|g| {
+                if !g.is_surface() {
+                    0.0
+                } else if !self.receives(&g) {
+                    1.0
+                } else {
+                    let o = self.shadow_origin(g.position, g.geo_normal);
+                    let dir = (centre.as_dvec3() - o.as_dvec3()).as_vec3();
+                    let blocked = self.opaque.occluded(o, dir, (1.0 - END_SHORTEN) as f32);
+                    if blocked {
+                        0.0
+                    } else {
+                        1.0
+                    }
+                }
+            })
+            .collect()
+    }
+
+    /// One light's reference term over the whole G-buffer: Vcoef and the
+    /// sampled radiance per pixel (0 for background; Vcoef 1 and radiance 0
+    /// for a receiver inside a sphere light, which has no samples), and the
+    /// BVH traversals it took. Rows run in parallel; each pixel's result
+    /// depends only on its own samples, so the thread count never matters.
+    /// `ctx` supplies the G-buffer and the eye; it must describe the scene
+    /// the tracer was built for. The samples are stratified
+    /// ([`ShadowTracer::trace_light_with`] with [`SamplePattern::Stratified`]).
+    pub fn trace_light(
+        &self,
+        ctx: &ShadowContext,
+        light_index: usize,
+        n: u32,
+        seed: u64,
+    ) -> (LightTerm, u64) {
+        let pattern = PatternSampler::new(SamplePattern::Stratified, n, seed, light_index);
+        self.trace_light_with(ctx, light_index, &pattern)
+    }
+
+    /// [`ShadowTracer::trace_light`] with the samples of `pattern` (its
+    /// `N` and seed; built for light `light_index`), mapped to the light
+    /// by [`LightSampler::samples_with`].
+    pub fn trace_light_with(
+        &self,
+        ctx: &ShadowContext,
+        light_index: usize,
+        pattern: &PatternSampler,
+    ) -> (LightTerm, u64) {
+        let gbuffer = ctx.gbuffer;
+        let len = gbuffer.len();
+        let mut vcoef = vec![0.0f32; len];
+        let mut radiance = vec![Vec3::ZERO; len];
+        let Some(light) = self.scene.lights.get(light_index) else {
+            return (LightTerm::Radiance { radiance, vcoef }, 0);
+        };
+        let prepared = PreparedLight::new(light, &self.scene.textures);
+        let sampler = LightSampler::new(light);
+        let eye = ctx.view.eye.as_vec3();
+        let width = (gbuffer.width as usize).max(1);
+        let rays = vcoef
+            .par_chunks_mut(width)
+            .zip(radiance.par_chunks_mut(width))
+            .enumerate()
+            .map(|(y, (vrow, rrow))| {
+                let mut samples = Vec::new();
+                let mut vis = Vec::new();
+                let mut scratch = Scratch::default();
+                let mut rays = 0u64;
+                for (x, (v, r)) in vrow.iter_mut().zip(rrow.iter_mut()).enumerate() {
+                    let Some(g) = gbuffer.get(y * width + x) else {
+                        continue;
+                    };
+                    if !g.is_surface() {
+                        continue;
+                    }
+                    let pixel = (x as u32, y as u32);
+                    sampler.samples_with(pattern, g.position, pixel, &mut samples);
+                    if samples.is_empty() {
+                        // Inside a sphere light: no defined Vcoef; 1 keeps
+                        // images NaN-free (error figures leave it out).
+                        *v = 1.0;
+                        continue;
+                    }
+                    vis.clear();
+                    let mut sum = 0.0f64;
+                    for s in &samples {
+                        let (vt, traced) = self.gsample_vt(&g, s.x, &mut scratch);
+                        rays += traced;
+                        sum += vt;
+                        vis.push(vt as f32);
+                    }
+                    *v = (sum / samples.len() as f64) as f32;
+                    *r = prepared.direct_from_samples(
+                        &surface_point(self.scene, &g, eye),
+                        &samples,
+                        &vis,
+                    );
+                }
+                rays
+            })
+            .sum();
+        (LightTerm::Radiance { radiance, vcoef }, rays)
+    }
+}
