@@ -7,6 +7,7 @@
 //! sample. It may add AOV layers of its own and reports its passes' times.
 
 pub mod dcs;
+pub mod light_view;
 pub mod reference;
 pub mod shadow_volumes;
 pub mod stsv;
