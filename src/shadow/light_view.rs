@@ -194,8 +194,7 @@ fn bounds_of(scene: &Scene, keep: impl Fn(usize) -> bool) -> Option<Bounds> {
 }
 
 fn check_size((w, h): (u32, u32)) -> Result<()> {
-    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE || w as u64 * h as u64 > MAX_DEPTH_TEXELS
-    {
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE || w as u64 * h as u64 > MAX_DEPTH_TEXELS {
         return Err(Error::param(
             "size",
             format!(
@@ -209,10 +208,7 @@ fn check_size((w, h): (u32, u32)) -> Result<()> {
 
 fn check_point(p: Vec3) -> Result<DVec3> {
     if !p.is_finite() {
-        return Err(Error::param(
-            "point_on_light",
-            format!("{p} is not finite"),
-        ));
+        return Err(Error::param("point_on_light", format!("{p} is not finite")));
     }
     Ok(p.as_dvec3())
 }
@@ -289,7 +285,12 @@ fn cut_box((lo, hi): (DVec3, DVec3), cuts: &[HalfSpace]) -> Vec<DVec3> {
 /// in the frame `(right, up, forward)`; all points have depth > 0.
 fn window_of(points: &[DVec3], eye: DVec3, frame: [DVec3; 3]) -> [f64; 4] {
     let [r, u, f] = frame;
-    let mut w = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+    let mut w = [
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
     for &q in points {
         let d = q - eye;
         let z = d.dot(f);
