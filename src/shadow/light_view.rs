@@ -69,7 +69,7 @@ impl LightView {
     /// half-space, intersected with the receivers' bounds cut the same way,
     /// both projected from the point: nothing outside it can shadow a
     /// receiver from this point. The near distance is half the casters'
-    /// nearest distance along the normal (at least [`MIN_NEAR`] of the
+    /// nearest distance along the normal (at least 1e-6 of the
     /// bounds' reach), so no caster in front of the light is clipped unless
     /// it touches the light's plane. `Ok(None)` when nothing of the casters
     /// or the receivers is in front of the point: it shadows nothing.
