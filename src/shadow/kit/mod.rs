@@ -7,6 +7,7 @@
 //! - [`volumes`]: hard shadow volumes and exact stencil counts.
 //! - [`wedge_geometry`]: the light's bound, penumbra wedges and their halves.
 //! - [`membership`]: half-wedge membership and the per-light start.
+//! - [`light_view`]: views from a point on a light and caster depth maps.
 //! - [`light_frame`]: the rect light's frame, projections into it,
 //!   clipping to it and region integrals.
 //! - [`groups`]: semi-opaque caster groups and transmittance.
@@ -16,6 +17,7 @@
 pub mod cache;
 pub mod groups;
 pub mod light_frame;
+pub mod light_view;
 pub mod membership;
 pub mod rays;
 pub mod tiles;
