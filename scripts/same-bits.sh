@@ -31,15 +31,13 @@ if [ -z "$base_bin" ]; then
 fi
 cargo build --release --quiet
 new_bin=target/release/penumbra
-# technique name | extra options (the main options of each technique)
-runs=(
-  "none|"
-  "reference|"
+# Every registered technique with its defaults, then the main options of
+# each (technique name | extra options).
+runs=()
+for t in $("$new_bin" techniques --names); do runs+=("$t|"); done
+runs+=(
   "reference|--pattern sobol"
-  "shadow-volumes|"
   "shadow-volumes|--zpass"
-  "wedges|"
-  "wedge-blend|"
   "dcs|--silhouettes centre"
   "dcs|--silhouettes light"
   "dcs|--silhouettes centre --dcs-mode direct"

@@ -138,9 +138,13 @@ enum Command {
     },
     /// List the shadow techniques with what each can honour.
     Techniques {
-        /// Print the markdown table of the docs instead.
+        /// Print the markdown table of the docs instead (links relative to
+        /// docs/).
         #[arg(long)]
         markdown: bool,
+        /// Print only the names, one per line (for scripts).
+        #[arg(long, conflicts_with = "markdown")]
+        names: bool,
     },
     /// Error metrics between two images (PNG or EXR); exits with 1 when a
     /// tolerance is exceeded, 2 on an error.
@@ -398,9 +402,13 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 Outcome::ToleranceExceeded
             })
         }
-        Command::Techniques { markdown } => {
+        Command::Techniques { markdown, names } => {
             if markdown {
-                print!("{}", crate::shadow::registry::markdown_table());
+                print!("{}", crate::shadow::registry::markdown_table("algorithms/"));
+            } else if names {
+                for name in crate::shadow::registry::names() {
+                    println!("{name}");
+                }
             } else {
                 print!("{}", crate::shadow::registry::listing());
             }

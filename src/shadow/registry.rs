@@ -448,8 +448,10 @@ pub fn check_scene(
 }
 
 /// The techniques table of docs/architecture.md and the README, generated
-/// from the registry (`penumbra techniques --markdown`).
-pub fn markdown_table() -> String {
+/// from the registry (`penumbra techniques --markdown`); pages are linked
+/// as `{pages}{page}` (`algorithms/` from docs/, `docs/algorithms/` from
+/// the README).
+pub fn markdown_table(pages: &str) -> String {
     let mut s = String::from(
         "| name | what it does | exact | output | sphere lights | semi-opaque | S-triangles | module | page |\n\
          |---|---|---|---|---|---|---|---|---|\n",
@@ -459,7 +461,7 @@ pub fn markdown_table() -> String {
         let caps = t.capabilities(&TechniqueOptions::default());
         let page = info
             .page
-            .map(|p| format!("[{p}](docs/algorithms/{p})"))
+            .map(|p| format!("[{p}]({pages}{p})"))
             .unwrap_or_else(|| "—".into());
         s.push_str(&format!(
             "| `{}` | {} | {} | {} | {} | {} | {} | `{}` | {} |\n",

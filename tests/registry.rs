@@ -1,0 +1,228 @@
+//! The technique registry: names, the docs table, capability checks and
+//! defaults all come from one place, and every technique is reachable
+//! through it.
+
+mod common;
+
+use penumbra::render::{render, RenderOptions};
+use penumbra::report::Progress;
+use penumbra::shadow::registry::{
+    check_scene, markdown_table, names, Support, TermKind, Warning, DEFAULT_TECHNIQUE,
+};
+use penumbra::shadow::{Technique, TechniqueOptions};
+use std::process::Command;
+
+#[test]
+fn names_are_unique_and_each_parses_to_itself() {
+    let all = names();
+    assert!(all.len() >= 6, "{all:?}");
+    for (i, n) in all.iter().enumerate() {
+        assert!(!all[..i].contains(n), "{n} registered twice");
+        assert_eq!(Technique::named(n).expect("registered").name(), *n);
+        assert_eq!(n.parse::<Technique>().expect("parses").name(), *n);
+    }
+}
+
+#[test]
+fn an_unknown_name_lists_every_known_one() {
+    let e = Technique::named("dsc").expect_err("unknown").to_string();
+    assert!(e.contains("--technique") && e.contains("dsc"), "{e}");
+    for n in names() {
+        assert!(e.contains(n), "{n} missing from: {e}");
+    }
+}
+
+#[test]
+fn the_docs_table_is_the_registry_table() {
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/architecture.md"))
+        .expect("docs/architecture.md");
+    let begin = "<!-- techniques:begin -->\n";
+    let a = doc.find(begin).expect("begin marker") + begin.len();
+    let b = doc.find("<!-- techniques:end -->").expect("end marker");
+    assert_eq!(
+        &doc[a..b],
+        markdown_table("algorithms/"),
+        "regenerate with `penumbra techniques --markdown`"
+    );
+}
+
+#[test]
+fn the_default_is_exact_dcs_and_equals_the_command_line_defaults() {
+    let options = RenderOptions::default();
+    assert_eq!(options.technique.name(), DEFAULT_TECHNIQUE);
+    assert_eq!(DEFAULT_TECHNIQUE, "dcs");
+    let caps = options.technique.capabilities(&options.options);
+    assert!(caps.exact, "the default technique must be exact: {caps:?}");
+    // The CLI's defaults are the library's: render with no options at all
+    // and with the library defaults gives the same bits.
+    let dir = common::scratch_dir("registry-default");
+    let png = dir.join("default.png");
+    let exr = dir.join("default.exr");
+    let status = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args([
+            "render",
+            "scenes/quad.toml",
+            "--width",
+            "48",
+            "--height",
+            "32",
+        ])
+        .arg("-o")
+        .arg(&png)
+        .arg("--exr")
+        .arg(&exr)
+        .args(["--aov", "vcoef"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .status()
+        .expect("runs");
+    assert!(status.success());
+    let scene = common::shipped("quad.toml");
+    let out = render(
+        &scene,
+        &RenderOptions {
+            width: Some(48),
+            height: Some(32),
+            aovs: vec![penumbra::render::Aov::Vcoef],
+            ..RenderOptions::default()
+        },
+        &Progress::hidden(),
+    )
+    .expect("render");
+    let lib = dir.join("lib.exr");
+    penumbra::output::write_exr(&lib, out.width, out.height, &out.radiance, &out.layers)
+        .expect("exr");
+    assert_eq!(
+        std::fs::read(&exr).expect("cli exr"),
+        std::fs::read(&lib).expect("lib exr")
+    );
+}
+
+/// Every technique whose capabilities refuse something is refused the same
+/// way, with the parameter named; one that ignores something warns.
+#[test]
+fn capabilities_answer_for_every_technique() {
+    let sphere = common::scene_in_scratch(
+        "registry-sphere",
+        r#"
+[camera]
+eye = [0.0, 3.0, 6.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 45.0
+width = 32
+height = 24
+
+[[light]]
+type = "sphere"
+center = [0.0, 4.0, 0.0]
+radius = 0.5
+radiance = [5.0, 5.0, 5.0]
+
+[[object]]
+shape = "quad"
+size = [6.0, 6.0]
+
+[[object]]
+shape = "box"
+size = [0.5, 0.5, 0.5]
+translate = [0.0, 1.0, 0.0]
+"#,
+        &[],
+    );
+    let defaults = TechniqueOptions::default();
+    for t in Technique::all() {
+        let caps = t.capabilities(&defaults);
+        let checked = check_scene(t, &defaults, &sphere);
+        match caps.sphere_lights {
+            Support::Refused { param, .. } => {
+                let e = checked.expect_err("refused").to_string();
+                assert!(e.contains(param) && e.contains(t.name()), "{e}");
+                // And the render says the same, before any work.
+                let r = render(
+                    &sphere,
+                    &RenderOptions {
+                        technique: t,
+                        ..RenderOptions::default()
+                    },
+                    &Progress::hidden(),
+                );
+                assert!(r.is_err(), "{}", t.name());
+            }
+            _ => assert!(checked.expect("accepted").is_empty(), "{}", t.name()),
+        }
+    }
+    // An option can change a capability: bit fields need rect lights.
+    let mut bitfield = TechniqueOptions::default();
+    bitfield.dcs.coverage = penumbra::shadow::dcs::CoverageTest::BitField;
+    let dcs = Technique::named("dcs").unwrap();
+    let e = check_scene(dcs, &bitfield, &sphere).expect_err("refused");
+    assert!(e.to_string().contains("--coverage"), "{e}");
+    assert!(!dcs.capabilities(&bitfield).exact);
+}
+
+#[test]
+fn semi_opaque_casters_warn_with_techniques_that_ignore_them() {
+    let scene = common::shipped("tinted.toml");
+    let defaults = TechniqueOptions::default();
+    for t in Technique::all() {
+        let warnings = check_scene(t, &defaults, &scene).expect("accepted");
+        match t.capabilities(&defaults).semi_opaque {
+            Support::Ignored(_) => assert!(
+                matches!(warnings.as_slice(), [Warning::Ignored { technique, .. }] if *technique == t.name()),
+                "{}: {warnings:?}",
+                t.name()
+            ),
+            _ => assert!(warnings.is_empty(), "{}: {warnings:?}", t.name()),
+        }
+    }
+}
+
+#[test]
+fn declared_output_kinds_match_the_terms_returned() {
+    let scene = common::shipped("quad.toml");
+    for t in Technique::all() {
+        let options = RenderOptions {
+            width: Some(32),
+            height: Some(24),
+            technique: t,
+            samples: 4,
+            ..RenderOptions::default()
+        };
+        let out = render(&scene, &options, &Progress::hidden()).expect("render");
+        let kind = t.capabilities(&options.options).output;
+        for term in &out.lights {
+            assert_eq!(
+                term.radiance().is_some(),
+                kind == TermKind::Radiance,
+                "{}",
+                t.name()
+            );
+            assert!(term.vcoef().iter().all(|v| (0.0..=1.0).contains(v)));
+        }
+    }
+}
+
+#[test]
+fn every_technique_has_quality_settings_and_a_listing_line() {
+    let listing = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(["techniques"])
+        .output()
+        .expect("runs");
+    assert!(listing.status.success());
+    let text = String::from_utf8_lossy(&listing.stdout);
+    let defaults = TechniqueOptions::default();
+    for t in Technique::all() {
+        assert!(text.lines().any(|l| l.starts_with(t.name())), "{text}");
+        let sweep = penumbra::shadow::registry::Sweep {
+            samples: &[4, 16],
+            patterns: &[penumbra::sampling::SamplePattern::Stratified],
+            semi_opaque: true,
+            base: &defaults,
+        };
+        let settings = t.quality_settings(&sweep);
+        assert!(!settings.is_empty(), "{}", t.name());
+        for q in &settings {
+            assert!(q.curve.starts_with(t.name()), "{}: {}", t.name(), q.curve);
+        }
+    }
+}
