@@ -10,6 +10,7 @@ pub mod dcs;
 pub mod kit;
 pub mod reference;
 pub mod registry;
+pub mod shadow_map;
 pub mod shadow_volumes;
 pub mod stsv;
 pub mod wedges;

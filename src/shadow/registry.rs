@@ -9,6 +9,7 @@
 //! (see docs/architecture.md, "How to add a technique").
 
 use super::dcs::DcsOptions;
+use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
 use super::stsv::StsvOptions;
 use super::ShadowTechnique;
@@ -26,6 +27,7 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::wedges::TECHNIQUE,
     &super::wedges::blend::TECHNIQUE,
     &super::dcs::TECHNIQUE,
+    &super::shadow_map::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -42,6 +44,9 @@ pub struct TechniqueOptions {
     /// Depth complexity sampling.
     #[command(flatten)]
     pub dcs: DcsOptions,
+    /// Shadow maps.
+    #[command(flatten)]
+    pub shadow_map: ShadowMapOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]
