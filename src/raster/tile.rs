@@ -9,11 +9,11 @@ use super::fragment::{FragmentBatch, FragmentStage};
 use super::framebuffer::{DepthStencilTile, TILE_SIZE};
 use super::setup::{EdgeFunction, QuadExtra, SetupTriangle};
 use super::simd::{
-    compare_f32, compare_f32_lanes, compare_i32, load_f32, load_i32, select_f32, select_i32,
-    stencil_op, LANES, LANE_OFFSETS,
+    compare_f32, compare_f32_lanes, compare_i32, select_f32, select_i32, stencil_op, LANES,
+    LANE_OFFSETS,
 };
 use super::state::{CompareFunc, RasterState, StencilFace, StencilOp};
-use wide::{f32x8, f64x4, i32x8, CmpGe, CmpGt};
+use crate::simd::{f32x8, f64x4, i32x8};
 
 const BLOCK: i32 = 8;
 const OFFSETS_LO: f64x4 = f64x4::new([0.0, 1.0, 2.0, 3.0]);
@@ -104,7 +104,7 @@ impl EdgeLines {
     fn extent(&self, y0: i32, y1: i32, x_min: i32, x_max: i32) -> (i32, i32) {
         let a = self.x0 + self.slope * f64x4::splat(y0 as f64);
         let b = self.x0 + self.slope * f64x4::splat(y1 as f64);
-        let (mn, mx) = (a.fast_min(b).to_array(), a.fast_max(b).to_array());
+        let (mn, mx) = (a.min(b).to_array(), a.max(b).to_array());
         let lo = if mn[0] > mn[1] { mn[0] } else { mn[1] } - 1.0;
         let hi = if mx[2] < mx[3] { mx[2] } else { mx[3] } + 1.0;
         // Compared before converting: the bounds may be far out.
@@ -151,9 +151,9 @@ impl DepthBounds {
             let mut mx = f32x8::splat(f32::NEG_INFINITY);
             for r in 0..LANES {
                 let i = (by * LANES + r) * TILE_SIZE + bx * LANES;
-                let v = load_f32(&depth[i..]);
-                mn = mn.fast_min(v);
-                mx = mx.fast_max(v);
+                let v = f32x8::load(&depth[i..]);
+                mn = mn.min(v);
+                mx = mx.max(v);
             }
             b.min[0][k] = mn.to_array().into_iter().fold(f32::INFINITY, f32::min);
             b.max[0][k] = mx.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max);
@@ -270,7 +270,7 @@ fn plane_bound(plane: &super::setup::Plane, rect: [i32; 4], max: bool) -> f32 {
     } else {
         rect[1]
     };
-    // As the SIMD path's fast_max / fast_min do for finite values.
+    // As the SIMD path's `max` / `min` (the same compare and pick).
     let v = plane.at(x, y);
     let v = if v > 0.0 { v } else { 0.0 };
     if v < 1.0 {
@@ -627,7 +627,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         // The depth compare is monomorphised for the one volumes use.
         match self.state.depth_func {
             CompareFunc::Greater => {
-                self.count_spans(c, ds, target, |f, s| bytemuck::cast(f.cmp_gt(s)))
+                self.count_spans(c, ds, target, |f, s| f.cmp_gt(s).cast_i32())
             }
             func => self.count_spans(c, ds, target, |f, s| compare_f32_lanes(func, f, s)),
         }
@@ -771,9 +771,9 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                                 // plane, computed as for it alone.
                                 let second = p2.lanes(x, yy);
                                 let first = edge_lanes(&q.diagonal, x, yy);
-                                frag = bytemuck::cast::<i32x8, f32x8>(first).blend(frag, second);
+                                frag = first.cast_f32().blend(frag, second);
                             }
-                            let frag = frag.fast_max(f32x8::splat(0.0)).fast_min(f32x8::splat(1.0));
+                            let frag = frag.max(f32x8::splat(0.0)).min(f32x8::splat(1.0));
                             let stored: &[f32; LANES] =
                                 depth[local..local + LANES].try_into().expect("8 lanes");
                             (test(frag, f32x8::new(*stored)) ^ flip) & live
@@ -944,21 +944,21 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         stats: &mut TileStats,
     ) {
         let local = ((y - self.origin.1) as usize) * TILE_SIZE + (x - self.origin.0) as usize;
-        // Planes are finite, so the NaN-unaware (single instruction)
-        // clamps are exact here.
+        // Clamped into [0, 1] (planes are finite; the facade's `max` /
+        // `min` are one instruction each on x86).
         let depth = t
             .depth
             .lanes(x, y)
-            .fast_max(f32x8::splat(0.0))
-            .fast_min(f32x8::splat(1.0));
-        let stored_depth = load_f32(&ds.depth[local..]);
+            .max(f32x8::splat(0.0))
+            .min(f32x8::splat(1.0));
+        let stored_depth = f32x8::load(&ds.depth[local..]);
         if let (Some(c), Some(stencil)) = (self.counting, ds.stencil.as_mut()) {
             let pass = compare_f32(self.state.depth_func, depth, stored_depth);
             let lanes = mask & if c.on_depth_fail { !pass } else { pass };
             let delta = if t.front_facing { c.front } else { c.back };
             stats.fragments += POPCOUNT[mask as usize] as u64;
             if lanes != 0 && delta != 0 {
-                let stored = load_i32(&stencil[local..]);
+                let stored = i32x8::load(&stencil[local..]);
                 let add = select_i32(lanes, i32x8::splat(delta), i32x8::splat(0));
                 stencil[local..local + LANES].copy_from_slice(&(stored + add).to_array());
             }
@@ -994,7 +994,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let passed = match (&state.stencil, ds.stencil.as_mut()) {
             (Some(st), Some(stencil)) => {
                 let face = if t.front_facing { st.front } else { st.back };
-                let stored = load_i32(&stencil[local..]);
+                let stored = i32x8::load(&stencil[local..]);
                 let s_pass = match face.func {
                     CompareFunc::Always => mask,
                     func => compare_i32(func, st.reference, stored) & mask,
@@ -1260,8 +1260,8 @@ mod tests {
                 for x in (rect[0]..=rect[2]).step_by(LANES) {
                     let v = plane
                         .lanes(x, y)
-                        .fast_max(f32x8::splat(0.0))
-                        .fast_min(f32x8::splat(1.0))
+                        .max(f32x8::splat(0.0))
+                        .min(f32x8::splat(1.0))
                         .to_array();
                     for (k, v) in v.iter().enumerate() {
                         if x + (k as i32) <= rect[2] {

@@ -36,7 +36,7 @@ use crate::scene::{Texture, TextureData};
 use crate::shade::LightSample;
 use crate::shadow::reference::END_SHORTEN;
 use glam::{Vec2, Vec3};
-use wide::{f32x8, CmpGe, CmpGt};
+use crate::simd::f32x8;
 
 /// Samples per SIMD step.
 const LANES: usize = 8;
