@@ -14,10 +14,10 @@ use crate::error::Result;
 use crate::geom::{SceneGeometry, TriangleFrame};
 use crate::raster::{TiledTarget, TILE_SIZE};
 use crate::scene::{Scene, Texture};
+use crate::simd::{f32x4, f64x4, i32x4, u32x4};
 use crate::view::View;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
-use crate::simd::{f32x4, f64x4, i32x4, u32x4};
 
 /// Pixels per lane group.
 const LANES: usize = 4;
@@ -278,7 +278,10 @@ fn run_starts(seg: &[u32], n: usize) -> u64 {
     // Lane k of chunk c compares seg[4c + k] with seg[4c + k - 1].
     let first = load(0);
     let shifted: [u32; 4] = [!seg[0], seg[0], seg[1], seg[2]];
-    same |= first.cmp_eq(i32x4::from(shifted.map(|v| v as i32))).move_mask() as u64 & 0xf;
+    same |= first
+        .cmp_eq(i32x4::from(shifted.map(|v| v as i32)))
+        .move_mask() as u64
+        & 0xf;
     for c in 1..TILE_SIZE / 4 {
         let eq = load(4 * c).cmp_eq(load(4 * c - 1)).move_mask() as u64 & 0xf;
         same |= eq << (4 * c);

@@ -24,10 +24,10 @@
 //!   both miss a ray through it.
 
 use crate::geom::SceneGeometry;
+use crate::simd::f32x4;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::Range;
-use crate::simd::f32x4;
 
 /// Most triangles in a leaf.
 pub const MAX_LEAF: usize = 4;
@@ -542,7 +542,7 @@ impl Ray {
                 // The ray stays in the plane `origin[axis]`: the box's slab
                 // contains all of it or none (faces included).
                 let o = self.org[axis];
-                inside &= (lo.cmp_le(o) & o.cmp_le(hi)).move_mask() as u32;
+                inside &= (lo.cmp_le(o) & o.cmp_le(hi)).move_mask();
                 continue;
             }
             let t0 = (lo - self.org[axis]) * self.inv[axis];
@@ -551,7 +551,7 @@ impl Ray {
             near = near.max(t0.min(t1));
             far = far.min(t0.max(t1));
         }
-        (near.cmp_le(far * f32x4::splat(FAR_SCALE)).move_mask() as u32) & inside
+        near.cmp_le(far * f32x4::splat(FAR_SCALE)).move_mask() & inside
     }
 
     /// Watertight intersection with `tri` at `t ∈ (0, t_max)`:

@@ -78,7 +78,6 @@ macro_rules! lanes_common {
             pub fn blend(self, t: Self, f: Self) -> Self {
                 Self(self.0.blend(t.0, f.0))
             }
-
         }
 
         impl From<[$t; $n]> for $name {
@@ -248,12 +247,18 @@ macro_rules! float_lanes {
             /// lane, or two equal lanes (±0), give `o`.
             #[inline(always)]
             pub fn max(self, o: Self) -> Self {
-                #[cfg(all(any(target_arch = "x86", target_arch = "x86_64"), target_feature = "sse2"))]
+                #[cfg(all(
+                    any(target_arch = "x86", target_arch = "x86_64"),
+                    target_feature = "sse2"
+                ))]
                 {
                     // `maxps` / `maxpd`: exactly this rule.
                     Self(self.0.fast_max(o.0))
                 }
-                #[cfg(not(all(any(target_arch = "x86", target_arch = "x86_64"), target_feature = "sse2")))]
+                #[cfg(not(all(
+                    any(target_arch = "x86", target_arch = "x86_64"),
+                    target_feature = "sse2"
+                )))]
                 {
                     self.cmp_gt(o).blend(self, o)
                 }
@@ -263,12 +268,18 @@ macro_rules! float_lanes {
             /// lane, or two equal lanes (±0), give `o`.
             #[inline(always)]
             pub fn min(self, o: Self) -> Self {
-                #[cfg(all(any(target_arch = "x86", target_arch = "x86_64"), target_feature = "sse2"))]
+                #[cfg(all(
+                    any(target_arch = "x86", target_arch = "x86_64"),
+                    target_feature = "sse2"
+                ))]
                 {
                     // `minps` / `minpd`: exactly this rule.
                     Self(self.0.fast_min(o.0))
                 }
-                #[cfg(not(all(any(target_arch = "x86", target_arch = "x86_64"), target_feature = "sse2")))]
+                #[cfg(not(all(
+                    any(target_arch = "x86", target_arch = "x86_64"),
+                    target_feature = "sse2"
+                )))]
                 {
                     self.cmp_lt(o).blend(self, o)
                 }

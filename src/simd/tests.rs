@@ -121,7 +121,13 @@ fn lanes<T: Lane, const N: usize>(rng: &mut Rng, other: &[T; N]) -> [T; N] {
 /// Whether the facade's lanes are the twin's: bit for bit, or both NaN
 /// when `nan_class`.
 #[track_caller]
-fn same<T: Lane, const N: usize>(op: &str, inputs: &str, simd: [T; N], twin: [T; N], nan_class: bool) {
+fn same<T: Lane, const N: usize>(
+    op: &str,
+    inputs: &str,
+    simd: [T; N],
+    twin: [T; N],
+    nan_class: bool,
+) {
     for k in 0..N {
         let ((a, a_nan), (b, b_nan)) = (simd[k].key(), twin[k].key());
         let ok = a == b || (nan_class && a_nan && b_nan);
@@ -166,8 +172,20 @@ macro_rules! float_tests {
                 y -= sa;
                 same("sub_assign", i, x.to_array(), y.to_array(), true);
                 same("abs", i, va.abs().to_array(), sa.abs().to_array(), false);
-                same("max", i, va.max(vb).to_array(), sa.max(sb).to_array(), false);
-                same("min", i, va.min(vb).to_array(), sa.min(sb).to_array(), false);
+                same(
+                    "max",
+                    i,
+                    va.max(vb).to_array(),
+                    sa.max(sb).to_array(),
+                    false,
+                );
+                same(
+                    "min",
+                    i,
+                    va.min(vb).to_array(),
+                    sa.min(sb).to_array(),
+                    false,
+                );
                 same("and", i, (va & vb).to_array(), (sa & sb).to_array(), false);
                 same("or", i, (va | vb).to_array(), (sa | sb).to_array(), false);
                 same("xor", i, (va ^ vb).to_array(), (sa ^ sb).to_array(), false);
@@ -190,15 +208,39 @@ macro_rules! float_tests {
                     same(op, i, m.to_array(), sm.to_array(), false);
                     assert_eq!(m.move_mask(), sm.move_mask(), "{op} move_mask on {i}");
                     assert_eq!(m.any(), sm.any(), "{op} any on {i}");
-                    same(op, i, m.blend(va, vb).to_array(), sm.blend(sa, sb).to_array(), false);
+                    same(
+                        op,
+                        i,
+                        m.blend(va, vb).to_array(),
+                        sm.blend(sa, sb).to_array(),
+                        false,
+                    );
                 }
                 // Random bits: move_mask reads the sign bits.
                 assert_eq!(va.move_mask(), sa.move_mask(), "move_mask on {i}");
                 let m = mask_bits::<$n>(&mut rng).map(|on| if on { ones } else { 0.0 });
                 let (vm, sm) = (V::new(m), S::new(m));
-                same("blend", i, vm.blend(va, vb).to_array(), sm.blend(sa, sb).to_array(), false);
-                same("splat", i, V::splat(a[0]).to_array(), S::splat(a[0]).to_array(), false);
-                same("load", i, V::load(&b).to_array(), S::load(&b).to_array(), false);
+                same(
+                    "blend",
+                    i,
+                    vm.blend(va, vb).to_array(),
+                    sm.blend(sa, sb).to_array(),
+                    false,
+                );
+                same(
+                    "splat",
+                    i,
+                    V::splat(a[0]).to_array(),
+                    S::splat(a[0]).to_array(),
+                    false,
+                );
+                same(
+                    "load",
+                    i,
+                    V::load(&b).to_array(),
+                    S::load(&b).to_array(),
+                    false,
+                );
                 same("from", i, V::from(a).to_array(), a, false);
             }
             same("ZERO", "", V::ZERO.to_array(), S::ZERO.to_array(), false);
@@ -248,9 +290,27 @@ macro_rules! int_tests {
                 let ones = !0;
                 let m = mask_bits::<$n>(&mut rng).map(|on| if on { ones } else { 0 });
                 let (vm, sm) = (V::new(m), S::new(m));
-                same("blend", i, vm.blend(va, vb).to_array(), sm.blend(sa, sb).to_array(), false);
-                same("splat", i, V::splat(a[0]).to_array(), S::splat(a[0]).to_array(), false);
-                same("load", i, V::load(&b).to_array(), S::load(&b).to_array(), false);
+                same(
+                    "blend",
+                    i,
+                    vm.blend(va, vb).to_array(),
+                    sm.blend(sa, sb).to_array(),
+                    false,
+                );
+                same(
+                    "splat",
+                    i,
+                    V::splat(a[0]).to_array(),
+                    S::splat(a[0]).to_array(),
+                    false,
+                );
+                same(
+                    "load",
+                    i,
+                    V::load(&b).to_array(),
+                    S::load(&b).to_array(),
+                    false,
+                );
                 same("from", i, V::from(a).to_array(), a, false);
             }
             same("ZERO", "", V::ZERO.to_array(), S::ZERO.to_array(), false);
@@ -283,7 +343,13 @@ macro_rules! signed_tests {
                     same(op, i, m.to_array(), sm.to_array(), false);
                     assert_eq!(m.move_mask(), sm.move_mask(), "{op} move_mask on {i}");
                     assert_eq!(m.any(), sm.any(), "{op} any on {i}");
-                    same(op, i, m.blend(va, vb).to_array(), sm.blend(sa, sb).to_array(), false);
+                    same(
+                        op,
+                        i,
+                        m.blend(va, vb).to_array(),
+                        sm.blend(sa, sb).to_array(),
+                        false,
+                    );
                 }
                 assert_eq!(va.move_mask(), sa.move_mask(), "move_mask on {i}");
             }
@@ -303,8 +369,20 @@ fn i32x4_min_max_agree() {
         let (va, vb) = (super::i32x4::new(a), super::i32x4::new(b));
         let (sa, sb) = (scalar::i32x4::new(a), scalar::i32x4::new(b));
         let i = &format!("{a:?} {b:?}");
-        same("max", i, va.max(vb).to_array(), sa.max(sb).to_array(), false);
-        same("min", i, va.min(vb).to_array(), sa.min(sb).to_array(), false);
+        same(
+            "max",
+            i,
+            va.max(vb).to_array(),
+            sa.max(sb).to_array(),
+            false,
+        );
+        same(
+            "min",
+            i,
+            va.min(vb).to_array(),
+            sa.min(sb).to_array(),
+            false,
+        );
     }
 }
 
@@ -316,26 +394,74 @@ fn conversions_agree() {
         let a: [f32; 8] = lanes(&mut rng, &[0.0; 8]);
         let i = &format!("{a:?}");
         let (v, s) = (super::f32x8::new(a), scalar::f32x8::new(a));
-        same("f32x8 cast_i32", i, v.cast_i32().to_array(), s.cast_i32().to_array(), false);
+        same(
+            "f32x8 cast_i32",
+            i,
+            v.cast_i32().to_array(),
+            s.cast_i32().to_array(),
+            false,
+        );
         let back = v.cast_i32().cast_f32().to_array();
         same("f32x8 cast round trip", i, back, a, false);
         let bits = s.cast_i32().to_array();
         let (vi, si) = (super::i32x8::new(bits), scalar::i32x8::new(bits));
-        same("i32x8 cast_f32", i, vi.cast_f32().to_array(), si.cast_f32().to_array(), false);
+        same(
+            "i32x8 cast_f32",
+            i,
+            vi.cast_f32().to_array(),
+            si.cast_f32().to_array(),
+            false,
+        );
 
         let q = [a[0], a[1], a[2], a[3]];
         let (v, s) = (super::f32x4::new(q), scalar::f32x4::new(q));
-        same("f32x4 cast_u32", i, v.cast_u32().to_array(), s.cast_u32().to_array(), false);
-        same("f32x4 cast_i32", i, v.cast_i32().to_array(), s.cast_i32().to_array(), false);
+        same(
+            "f32x4 cast_u32",
+            i,
+            v.cast_u32().to_array(),
+            s.cast_u32().to_array(),
+            false,
+        );
+        same(
+            "f32x4 cast_i32",
+            i,
+            v.cast_i32().to_array(),
+            s.cast_i32().to_array(),
+            false,
+        );
         let u = s.cast_u32().to_array();
         let (vu, su) = (super::u32x4::new(u), scalar::u32x4::new(u));
-        same("u32x4 cast_f32", i, vu.cast_f32().to_array(), su.cast_f32().to_array(), false);
+        same(
+            "u32x4 cast_f32",
+            i,
+            vu.cast_f32().to_array(),
+            su.cast_f32().to_array(),
+            false,
+        );
         let n = s.cast_i32().to_array();
         let (vn, sn) = (super::i32x4::new(n), scalar::i32x4::new(n));
-        same("i32x4 cast_f32", i, vn.cast_f32().to_array(), sn.cast_f32().to_array(), false);
+        same(
+            "i32x4 cast_f32",
+            i,
+            vn.cast_f32().to_array(),
+            sn.cast_f32().to_array(),
+            false,
+        );
         // Saturating, NaN to 0: `as i32`.
-        same("trunc_int", i, v.trunc_int().to_array(), s.trunc_int().to_array(), false);
-        same("trunc_int is as", i, s.trunc_int().to_array(), q.map(|x| x as i32), false);
+        same(
+            "trunc_int",
+            i,
+            v.trunc_int().to_array(),
+            s.trunc_int().to_array(),
+            false,
+        );
+        same(
+            "trunc_int is as",
+            i,
+            s.trunc_int().to_array(),
+            q.map(|x| x as i32),
+            false,
+        );
 
         let rows: [[f32; 4]; 4] = std::array::from_fn(|_| lanes(&mut rng, &[0.0; 4]));
         let t = super::f32x4::transpose(rows.map(super::f32x4::new)).map(|r| r.to_array());
@@ -365,7 +491,12 @@ fn twin_semantics_at_the_edges() {
     // cmp_ne is true on NaN, the others false.
     let n = f32x8::splat(nan);
     assert_eq!(n.cmp_ne(n).move_mask(), 0xff);
-    assert_eq!(super::f32x8::splat(nan).cmp_ne(super::f32x8::splat(nan)).move_mask(), 0xff);
+    assert_eq!(
+        super::f32x8::splat(nan)
+            .cmp_ne(super::f32x8::splat(nan))
+            .move_mask(),
+        0xff
+    );
     assert_eq!(n.cmp_eq(n).move_mask() | n.cmp_le(n).move_mask(), 0);
     // Wrapping integer arithmetic.
     let m = i32x8::splat(i32::MAX) + i32x8::splat(1);
