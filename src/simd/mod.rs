@@ -398,6 +398,9 @@ impl f32x4 {
     /// The 4×4 transpose: lane `j` of row `i` becomes lane `i` of row `j`.
     #[inline(always)]
     pub fn transpose(rows: [f32x4; 4]) -> [f32x4; 4] {
-        wide::f32x4::transpose(rows.map(|r| r.0)).map(f32x4)
+        // Destructured rather than `map`ped: no array copies to optimise away.
+        let [a, b, c, d] = rows;
+        let [a, b, c, d] = wide::f32x4::transpose([a.0, b.0, c.0, d.0]);
+        [f32x4(a), f32x4(b), f32x4(c), f32x4(d)]
     }
 }
