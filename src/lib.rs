@@ -21,6 +21,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shade;
 pub mod shadow;
+pub mod simd;
 pub mod view;
 
 pub use error::{Error, Result};

@@ -108,7 +108,7 @@ impl GPoint {
 
     /// From lanes `[x, y, z, depth]` and `[nx, ny, nz, triangle bits]`.
     #[inline(always)]
-    fn from_lanes(position_depth: wide::f32x4, normal_triangle: wide::f32x4) -> Self {
+    fn from_lanes(position_depth: crate::simd::f32x4, normal_triangle: crate::simd::f32x4) -> Self {
         GPoint {
             position_depth: position_depth.to_array(),
             normal_triangle: normal_triangle.to_array(),

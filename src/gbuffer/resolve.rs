@@ -14,11 +14,10 @@ use crate::error::Result;
 use crate::geom::{SceneGeometry, TriangleFrame};
 use crate::raster::{TiledTarget, TILE_SIZE};
 use crate::scene::{Scene, Texture};
+use crate::simd::{f32x4, f64x4, i32x4, u32x4};
 use crate::view::View;
-use bytemuck::cast;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
-use wide::{f32x4, f64x4, i32x4, u32x4, CmpEq, CmpGt, CmpLt};
 
 /// Pixels per lane group.
 const LANES: usize = 4;
@@ -273,13 +272,16 @@ impl<'a> Ctx<'a> {
 fn run_starts(seg: &[u32], n: usize) -> u64 {
     let load = |k: usize| -> i32x4 {
         let a: [u32; 4] = seg[k..k + 4].try_into().expect("tile row of 64");
-        cast(a)
+        i32x4::from(a.map(|v| v as i32))
     };
     let mut same = 0u64;
     // Lane k of chunk c compares seg[4c + k] with seg[4c + k - 1].
     let first = load(0);
     let shifted: [u32; 4] = [!seg[0], seg[0], seg[1], seg[2]];
-    same |= first.cmp_eq(cast(shifted)).move_mask() as u64 & 0xf;
+    same |= first
+        .cmp_eq(i32x4::from(shifted.map(|v| v as i32)))
+        .move_mask() as u64
+        & 0xf;
     for c in 1..TILE_SIZE / 4 {
         let eq = load(4 * c).cmp_eq(load(4 * c - 1)).move_mask() as u64 & 0xf;
         same |= eq << (4 * c);
@@ -472,9 +474,9 @@ fn normal_lanes(r: &RunTriangle, b1: f32x4, b2: f32x4) -> [f32x4; LANES] {
         None => (r.sign, r.flat.to_array()[3]),
         Some(turned) => {
             let away = turned.blend(r.front, r.back);
-            let flag: f32x4 = cast(u32x4::splat(GEO_FLIPPED));
-            let id = u32x4::splat(r.id) | cast::<f32x4, u32x4>((turned ^ away) & flag);
-            let id: f32x4 = cast(id);
+            let flag = u32x4::splat(GEO_FLIPPED).cast_f32();
+            let id = u32x4::splat(r.id) | ((turned ^ away) & flag).cast_u32();
+            let id = id.cast_f32();
             return f32x4::transpose([
                 normal.x ^ (away & f32x4::splat(-0.0)),
                 normal.y ^ (away & f32x4::splat(-0.0)),
@@ -726,8 +728,8 @@ impl<'a> RunTriangle<'a> {
     #[inline(always)]
     fn normals(&self, b1: f32x4, b2: f32x4) -> (V4f, Option<f32x4>) {
         let (zero, one) = (f32x4::splat(0.0), f32x4::splat(1.0));
-        let mut b1 = b1.fast_max(zero).fast_min(one);
-        let mut b2 = b2.fast_max(zero).fast_min(one);
+        let mut b1 = b1.max(zero).min(one);
+        let mut b2 = b2.max(zero).min(one);
         let sum = b1 + b2;
         let over = sum.cmp_gt(one);
         if over.any() {

@@ -7,7 +7,7 @@
 //!   parallel with `rayon::join`, but every decision (bins, costs,
 //!   partition) is made by one thread from the same data in the same
 //!   order, so the tree is identical for any thread count.
-//! - **Boxes**: f32, tested four at a time with `wide::f32x4` slabs. The
+//! - **Boxes**: f32, tested four at a time with `simd::f32x4` slabs. The
 //!   test is conservative (Ize 2013: the far distance is scaled by
 //!   `1 + 2γ₃`). An axis along which the direction is exactly 0 is tested
 //!   by comparing the origin with the slab (faces included); other axes
@@ -24,10 +24,10 @@
 //!   both miss a ray through it.
 
 use crate::geom::SceneGeometry;
+use crate::simd::f32x4;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::Range;
-use wide::{f32x4, CmpLe};
 
 /// Most triangles in a leaf.
 pub const MAX_LEAF: usize = 4;
@@ -542,16 +542,16 @@ impl Ray {
                 // The ray stays in the plane `origin[axis]`: the box's slab
                 // contains all of it or none (faces included).
                 let o = self.org[axis];
-                inside &= (lo.cmp_le(o) & o.cmp_le(hi)).move_mask() as u32;
+                inside &= (lo.cmp_le(o) & o.cmp_le(hi)).move_mask();
                 continue;
             }
             let t0 = (lo - self.org[axis]) * self.inv[axis];
             let t1 = (hi - self.org[axis]) * self.inv[axis];
-            // No NaN can occur (see `Ray::new`), so the fast min/max are exact.
-            near = near.fast_max(t0.fast_min(t1));
-            far = far.fast_min(t0.fast_max(t1));
+            // No NaN can occur (see `Ray::new`).
+            near = near.max(t0.min(t1));
+            far = far.min(t0.max(t1));
         }
-        (near.cmp_le(far * f32x4::splat(FAR_SCALE)).move_mask() as u32) & inside
+        near.cmp_le(far * f32x4::splat(FAR_SCALE)).move_mask() & inside
     }
 
     /// Watertight intersection with `tri` at `t ∈ (0, t_max)`:

@@ -1,7 +1,7 @@
 //! The programmable fragment stage.
 
 use super::simd::LANES;
-use wide::f32x8;
+use crate::simd::f32x8;
 
 /// Eight horizontally adjacent fragments of one triangle (one row of an
 /// 8×8 block): lane `k` is pixel `(x + k, y)`.

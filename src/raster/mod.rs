@@ -6,6 +6,8 @@
 
 mod bin;
 mod clip;
+mod counting;
+mod depth_bounds;
 mod fragment;
 mod framebuffer;
 mod pipeline;

@@ -14,7 +14,7 @@
 use super::clip::MAX_CLIPPED_VERTICES;
 use super::simd::LANE_OFFSETS;
 use super::vertex::ClipVertex;
-use wide::f32x8;
+use crate::simd::f32x8;
 
 /// Sub-pixel precision of snapped vertices, in bits.
 pub const SUBPIXEL_BITS: u32 = 8;

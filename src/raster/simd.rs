@@ -1,12 +1,10 @@
-//! The small SIMD facade of the rasterizer: 8-lane masks, compares and
-//! stencil operations on `wide` vectors.
-//!
-//! Only exact IEEE operations are used (add, sub, mul, div, compares,
-//! selects): no `mul_add`, no approximate reciprocals, so every SIMD level
-//! `wide` compiles for gives the same bits.
+//! The rasterizer's part of the SIMD facade: 8-lane coverage masks,
+//! depth and stencil compares and stencil operations on the
+//! [`crate::simd`] lane types (which keep every SIMD level to the same
+//! bits).
 
 use super::state::{CompareFunc, StencilOp};
-use wide::{f32x8, i32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt, CmpNe};
+use crate::simd::{f32x8, i32x8};
 
 /// Lanes per fragment batch (one row of an 8×8 block).
 pub const LANES: usize = 8;
@@ -51,7 +49,7 @@ pub fn compare_f32_lanes(func: CompareFunc, incoming: f32x8, stored: f32x8) -> i
         CompareFunc::Greater => incoming.cmp_gt(stored),
         CompareFunc::NotEqual => incoming.cmp_ne(stored),
     };
-    bytemuck::cast(m)
+    m.cast_i32()
 }
 
 /// Bit mask of lanes where `reference func stored` holds.
@@ -93,24 +91,7 @@ pub fn select_i32(bits: u8, new: i32x8, old: i32x8) -> i32x8 {
 /// `new` where `bits` is set, `old` elsewhere.
 #[inline]
 pub fn select_f32(bits: u8, new: f32x8, old: f32x8) -> f32x8 {
-    let m: f32x8 = bytemuck::cast(lanes_from_bits(bits));
-    m.blend(new, old)
-}
-
-/// Loads 8 consecutive values.
-#[inline]
-pub fn load_f32(s: &[f32]) -> f32x8 {
-    let mut a = [0.0; LANES];
-    a.copy_from_slice(&s[..LANES]);
-    f32x8::new(a)
-}
-
-/// Loads 8 consecutive values.
-#[inline]
-pub fn load_i32(s: &[i32]) -> i32x8 {
-    let mut a = [0; LANES];
-    a.copy_from_slice(&s[..LANES]);
-    i32x8::new(a)
+    lanes_from_bits(bits).cast_f32().blend(new, old)
 }
 
 #[cfg(test)]

@@ -57,8 +57,8 @@
 use super::counters::{ChartSamples, OrientedEdge, LANES};
 use crate::sampling::SamplePattern;
 use crate::scene::LightShape;
+use crate::simd::{f32x4, i32x4, i32x8};
 use std::f64::consts::FRAC_PI_2;
-use wide::{f32x4, i32x4, i32x8, CmpEq};
 
 /// Largest total size of one light's tables [`CoverageTables::new`]
 /// accepts: 512 MiB. Beyond it a resolution is a mistake, not a choice

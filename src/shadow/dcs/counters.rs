@@ -23,8 +23,7 @@
 //! caster faces, far below 2³¹ for any scene that fits in memory, so they
 //! never wrap.
 
-use bytemuck::cast;
-use wide::{f32x8, i32x8, CmpGe, CmpLt};
+use crate::simd::{f32x8, i32x8};
 
 /// Samples per SIMD step.
 pub const LANES: usize = 8;
@@ -160,7 +159,7 @@ pub fn add_covered(counters: &mut [i32], samples: &ChartSamples, edge: &Oriented
         let c_hi = hx * sy - hy * sx;
         let beyond = dx * (sy - ly) - dy * (sx - lx);
         let m = c_lo.cmp_ge(zero) & c_hi.cmp_lt(zero) & beyond.cmp_lt(zero);
-        let m: i32x8 = cast(m);
+        let m = m.cast_i32();
         let cur = i32x8::from(<[i32; LANES]>::try_from(&*c).expect("chunks_exact(LANES)"));
         let next = cur + (m & d);
         c.copy_from_slice(&next.to_array());

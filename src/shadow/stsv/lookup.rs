@@ -35,8 +35,8 @@ use super::STriangle;
 use crate::scene::{Texture, TextureData};
 use crate::shade::LightSample;
 use crate::shadow::kit::rays::END_SHORTEN;
+use crate::simd::f32x8;
 use glam::{Vec2, Vec3};
-use wide::{f32x8, CmpGe, CmpGt};
 
 /// Samples per SIMD step.
 const LANES: usize = 8;
@@ -178,7 +178,7 @@ impl SampleProjector {
             let inside = x.cmp_ge(zero) & y.cmp_ge(zero) & w.cmp_ge(zero) & z.cmp_gt(threshold);
             // Padding lanes past the last sample never count.
             let valid = p.n.saturating_sub(chunk * LANES).min(LANES);
-            let mut mask = inside.move_mask() as u32 & ((1u32 << valid) - 1);
+            let mut mask = inside.move_mask() & ((1u32 << valid) - 1);
             if mask == 0 {
                 continue;
             }
