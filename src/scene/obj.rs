@@ -7,7 +7,7 @@
 //! file and line. The scan also rewrites the few lines tobj would misread
 //! and blanks the ones we do not use, so tobj only ever sees valid input.
 
-use super::load::{Assets, TextureKind, DEFAULT_MATERIAL};
+use super::assets::{Assets, TextureKind, DEFAULT_MATERIAL};
 use super::Material;
 use crate::error::{Error, Result};
 use crate::geom::Mesh;
