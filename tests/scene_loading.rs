@@ -200,7 +200,7 @@ fn malformed_obj_lines() {
             3,
             "non-finite",
         ),
-        ("nan-normal", "vn 0 NaN 1\n", 1, "non-finite"),
+        ("malformed-normal", "vn 0 x 1\n", 1, "malformed number `x`"),
         ("zero-w", "v 1 2 3 0\n", 1, "zero w"),
         ("usemtl", "usemtl\n", 1, "without a name"),
     ];
