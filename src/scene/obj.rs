@@ -548,9 +548,8 @@ pub(super) fn load_obj(
         for mtl_path in mtllib_files(dir, name, path, *ln) {
             let result = read_text(&mtl_path, "MTL", path, *ln).and_then(|t| {
                 let (text, lines) = scan_mtl(&mtl_path, &t)?;
-                let parsed = tobj::load_mtl_buf(&mut text.as_bytes()).map_err(|e| {
-                    Error::file(&mtl_path, None, format!("MTL parse error: {e}"))
-                })?;
+                let parsed = tobj::load_mtl_buf(&mut text.as_bytes())
+                    .map_err(|e| Error::file(&mtl_path, None, format!("MTL parse error: {e}")))?;
                 Ok((parsed, lines))
             });
             match result {
