@@ -254,6 +254,7 @@ fn texture_paths_and_options_as_exporters_write_them() {
         "map_Kd -blendu off -blendv off -mm 0 1 -texres 512 -imfchan r -cc on Textures/Red Brick.png",
         "map_Kd C:\\Users\\artist\\Red Brick.png",
         "map_Kd -unknown 1 2 on textures/red brick.png",
+        "map_Kd ébauche/../Textures/Red Brick.png",
     ];
     // The bare-name fallback finds this copy next to the MTL.
     dir.write("Red Brick.png", png());

@@ -402,8 +402,11 @@ fn texture_spec(spec: &str) -> TextureSpec<'_> {
     let mut moves_uvs = false;
     let mut i = 0;
     while let Some(&(_, opt)) = words.get(i) {
-        let is_option = opt.len() > 1 && opt[1..].starts_with(|c: char| c.is_ascii_alphabetic());
-        if !opt.starts_with('-') || !is_option {
+        // `-` then a letter (`-0.5` or `-` alone would be a file name).
+        let is_option = opt
+            .strip_prefix('-')
+            .is_some_and(|rest| rest.starts_with(|c: char| c.is_ascii_alphabetic()));
+        if !is_option {
             break;
         }
         i += 1;
