@@ -243,7 +243,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 }
             }
             let scene = load_scene(&scene)?;
-            let progress = Progress::new(5, true);
+            let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
             let out = with_threads(threads, || render(&scene, &options, &progress))??;
             progress.finish();
             if timings || explain {

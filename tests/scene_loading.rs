@@ -200,7 +200,7 @@ fn malformed_obj_lines() {
             3,
             "non-finite",
         ),
-        ("nan-normal", "vn 0 NaN 1\n", 1, "non-finite"),
+        ("malformed-normal", "vn 0 x 1\n", 1, "malformed number `x`"),
         ("zero-w", "v 1 2 3 0\n", 1, "zero w"),
         ("usemtl", "usemtl\n", 1, "without a name"),
     ];
@@ -808,14 +808,15 @@ fn rect_light_with_texture() {
 
 // -------------------------------------------------- real models, scenes ----
 
-fn shared() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models")
+/// The third-party models shipped in the repository.
+fn models() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models")
 }
 
 #[test]
 fn stanford_bunny_loads() {
     let dir = Dir::new("bunny");
-    let obj = shared().join("stanford-bunny/stanford-bunny.obj");
+    let obj = models().join("stanford-bunny/stanford-bunny.obj");
     let s = dir
         .load(&format!("[[object]]\nobj = {:?}\n", obj.to_str().unwrap()))
         .unwrap();
@@ -828,7 +829,7 @@ fn stanford_bunny_loads() {
 #[test]
 fn crytek_sponza_subset_loads_with_alpha_masks() {
     let dir = Dir::new("sponza");
-    let obj = shared().join("crytek-sponza-alpha-subset/sponza_alpha_subset.obj");
+    let obj = models().join("crytek-sponza-alpha-subset/sponza_alpha_subset.obj");
     let s = dir
         .load(&format!("[[object]]\nobj = {:?}\n", obj.to_str().unwrap()))
         .unwrap();

@@ -14,4 +14,4 @@ pub use chart::{
 pub use diff::{diff_images, ChannelDiff, DiffOptions, DiffReport};
 pub use heatmap::{heatmap_colour, write_error_heatmap, HEATMAP_BACKGROUND, HEATMAP_NON_FINITE};
 pub use metrics::{error_metrics, ErrorAccumulator, ErrorMetrics, VISIBLE_ERROR};
-pub use progress::Progress;
+pub use progress::{estimate_render, format_duration, Progress, RenderCost, MANY_SAMPLES};

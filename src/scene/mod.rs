@@ -5,6 +5,7 @@
 //! in range and consistent (indices in bounds, lights with area, ...), so
 //! later stages never re-check user input.
 
+mod assets;
 mod load;
 mod obj;
 mod shapes;

@@ -6,8 +6,15 @@
 //! well-formed and finite, face indices in range, ...) and errors name the
 //! file and line. The scan also rewrites the few lines tobj would misread
 //! and blanks the ones we do not use, so tobj only ever sees valid input.
+//!
+//! Files as exporters write them load (docs/scene-format.md, "OBJ and MTL
+//! files in the wild"): a byte-order mark, zero or non-finite normals (the
+//! face's geometric normal stands in), `mtllib` names with spaces or
+//! several files, `\` separators and a letter case that differs from the
+//! file on disk, `map_*` options, `Tr` for `d`, and statements we do not
+//! use, which are skipped without a word.
 
-use super::load::{Assets, TextureKind, DEFAULT_MATERIAL};
+use super::assets::{Assets, TextureKind, DEFAULT_MATERIAL};
 use super::Material;
 use crate::error::{Error, Result};
 use crate::geom::Mesh;
@@ -20,6 +27,8 @@ use std::path::{Path, PathBuf};
 
 /// Reads a text file referenced from `from:line`. A missing or unreadable
 /// file is an error at the reference; invalid UTF-8 one in the file itself.
+/// A UTF-8 byte-order mark is dropped (it would glue itself to the first
+/// statement's keyword).
 fn read_text(path: &Path, what: &str, from: &Path, line: usize) -> Result<String> {
     let bytes = std::fs::read(path).map_err(|e| {
         Error::file(
@@ -28,11 +37,77 @@ fn read_text(path: &Path, what: &str, from: &Path, line: usize) -> Result<String
             format!("cannot read {what} `{}`: {e}", path.display()),
         )
     })?;
-    String::from_utf8(bytes).map_err(|e| {
+    let mut text = String::from_utf8(bytes).map_err(|e| {
         let bad = e.utf8_error().valid_up_to();
         let line = e.as_bytes()[..bad].iter().filter(|&&b| b == b'\n').count() + 1;
         Error::file(path, Some(line), "not valid UTF-8 text")
-    })
+    })?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
+}
+
+/// True for a normal that cannot be made unit length (zero, too small or
+/// too large for `f32`, or not finite).
+fn unusable_normal(n: Vec3) -> bool {
+    n.normalize_or_zero() == Vec3::ZERO
+}
+
+/// The entry of `dir` named `name`, ignoring letter case when no entry has
+/// that exact name; `None` when none or several match.
+fn entry_any_case(dir: &Path, name: &std::ffi::OsStr) -> Option<PathBuf> {
+    let exact = dir.join(name);
+    if exact.exists() {
+        return Some(exact);
+    }
+    let wanted = name.to_str()?.to_lowercase();
+    let mut found = std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_str().map(str::to_lowercase) == Some(wanted.clone()));
+    match (found.next(), found.next()) {
+        (Some(e), None) => Some(e.path()),
+        _ => None,
+    }
+}
+
+/// Finds a file an OBJ or MTL file in `dir` names, as exporters write
+/// names: `\` or `/` separators, relative to `dir` or absolute, each
+/// component matched exactly or else in any letter case. When the path
+/// does not resolve (say an absolute path on the exporter's machine), the
+/// file's bare name is looked up in `dir` the same way; that fallback is
+/// returned as `Err` so the caller can say so. `None`: not found at all.
+fn find_file(dir: &Path, name: &str) -> Option<std::result::Result<PathBuf, PathBuf>> {
+    use std::path::Component;
+    let name = name.replace('\\', "/");
+    let wanted = Path::new(&name);
+    let mut at = dir.to_path_buf();
+    let mut resolved = true;
+    for c in wanted.components() {
+        match c {
+            Component::RootDir | Component::Prefix(_) => at = PathBuf::from(c.as_os_str()),
+            Component::CurDir => {}
+            Component::ParentDir => at.push(".."),
+            Component::Normal(part) => match entry_any_case(&at, part) {
+                Some(next) => at = next,
+                None => {
+                    resolved = false;
+                    break;
+                }
+            },
+        }
+    }
+    if resolved && at.is_file() {
+        return Some(Ok(at));
+    }
+    let bare = wanted.file_name()?;
+    if wanted.components().count() > 1 {
+        if let Some(p) = entry_any_case(dir, bare).filter(|p| p.is_file()) {
+            return Some(Err(p));
+        }
+    }
+    None
 }
 
 /// Lines as tobj sees them (`BufRead::lines`: `\n` or `\r\n` ends a line),
@@ -92,11 +167,27 @@ fn numbers<'a>(
         .collect()
 }
 
-/// What the OBJ scan learned: the text to hand to tobj and the `mtllib`
-/// references in file order (tobj asks for them in that order).
+/// Parses every remaining word as a number, `inf` and `nan` included.
+fn any_numbers<'a>(
+    words: impl Iterator<Item = &'a str>,
+    err: impl Fn(String) -> Error,
+) -> Result<Vec<f32>> {
+    words
+        .map(|w| {
+            w.parse::<f32>()
+                .map_err(|_| err(format!("malformed number `{w}`")))
+        })
+        .collect()
+}
+
+/// What the OBJ scan learned: the text to hand to tobj, the `mtllib`
+/// references in file order (tobj asks for them in that order) and the
+/// unusable `vn` lines (rewritten to `vn 0 0 0` for tobj): how many, and
+/// the first one's line.
 struct ObjScan<'a> {
     text: Cow<'a, str>,
     mtllibs: Vec<(String, usize)>,
+    bad_normals: Option<(usize, usize)>,
 }
 
 /// Element kinds a face index can refer to, as named in messages.
@@ -104,10 +195,8 @@ const KINDS: [&str; 3] = ["vertices", "texture coordinates", "normals"];
 
 fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
     let mut counts = [0i64; 3];
-    // Largest absolute index per kind and its line: forward references are
-    // legal in tobj, so they are checked against the totals at the end.
-    let mut max_index = [(0i64, 0usize); 3];
     let mut mtllibs = Vec::new();
+    let mut bad_normals: Option<(usize, usize)> = None;
     let mut edits = Edits::default();
     for (ln, range, line) in lines(text) {
         let err = |msg: String| Error::file(path, Some(ln), msg);
@@ -116,7 +205,7 @@ fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
             continue;
         };
         match keyword {
-            "v" | "vt" | "vn" => {
+            "v" | "vt" => {
                 let nums = numbers(words, err)?;
                 let (kind, ok) = match keyword {
                     // x y z, x y z w (w ≠ 0: tobj divides by it), x y z r g b
@@ -124,13 +213,29 @@ fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
                         0,
                         matches!(nums.len(), 3 | 6) || (nums.len() == 4 && nums[3] != 0.0),
                     ),
-                    "vt" => (1, matches!(nums.len(), 2 | 3)),
-                    _ => (2, nums.len() == 3 && nums.iter().any(|&x| x != 0.0)),
+                    _ => (1, matches!(nums.len(), 2 | 3)),
                 };
                 if !ok {
-                    return Err(err(format!("malformed `{keyword}` line (wrong count of numbers, zero w or zero normal)")));
+                    return Err(err(format!(
+                        "malformed `{keyword}` line (wrong count of numbers or zero w)"
+                    )));
                 }
                 counts[kind] += 1;
+            }
+            "vn" => {
+                let nums = any_numbers(words, err)?;
+                let [x, y, z] = nums[..] else {
+                    return Err(err("malformed `vn` line (needs 3 numbers)".into()));
+                };
+                // Exporters write zero normals for degenerate corners: the
+                // corners using one get their face's normal (load_obj).
+                if unusable_normal(Vec3::new(x, y, z)) {
+                    bad_normals.get_or_insert((0, ln)).0 += 1;
+                    if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+                        edits.replace(range, "vn 0 0 0".into());
+                    }
+                }
+                counts[2] += 1;
             }
             "f" => {
                 let mut corners = 0;
@@ -158,8 +263,15 @@ fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
                                 "relative face index {x} out of range: only {} {} so far",
                                 counts[kind], KINDS[kind]
                             )));
-                        } else if x > max_index[kind].0 {
-                            max_index[kind] = (x, ln);
+                        } else if x > counts[kind] {
+                            // tobj resolves indices when it closes a group,
+                            // so a forward reference fails there without a
+                            // line, or not at all: refused here, at the face.
+                            return Err(err(format!(
+                                "face index {x} out of range: only {} {} before this line \
+                                 (elements must come before the faces that use them)",
+                                counts[kind], KINDS[kind]
+                            )));
                         }
                     }
                 }
@@ -168,6 +280,8 @@ fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
                 }
             }
             // tobj would triangulate polylines; they are not surfaces.
+            // (`p` points, `s` smoothing groups, `g`/`o` names, free-form
+            // statements: tobj skips or only names them.)
             "l" => edits.replace(range, String::new()),
             // tobj splits at the first space only: canonicalise.
             "mtllib" | "usemtl" => {
@@ -186,22 +300,10 @@ fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
             _ => {}
         }
     }
-    for kind in 0..3 {
-        let (x, ln) = max_index[kind];
-        if x > counts[kind] {
-            return Err(Error::file(
-                path,
-                Some(ln),
-                format!(
-                    "face index {x} out of range: the file has {} {}",
-                    counts[kind], KINDS[kind]
-                ),
-            ));
-        }
-    }
     Ok(ObjScan {
         text: edits.apply(text),
         mtllibs,
+        bad_normals,
     })
 }
 
@@ -257,6 +359,9 @@ fn scan_mtl<'a>(path: &Path, text: &'a str) -> Result<(Cow<'a, str>, Vec<MtlLine
                 if rest_after_keyword(line).is_empty() {
                     return Err(err(format!("`{keyword}` without a file name")));
                 }
+                if texture_spec(rest_after_keyword(line)).file.is_empty() {
+                    return Err(err(format!("`{keyword}` has options but no file name")));
+                }
                 if let Some(m) = materials.last_mut() {
                     *(if keyword == "map_Kd" {
                         &mut m.map_kd
@@ -272,15 +377,85 @@ fn scan_mtl<'a>(path: &Path, text: &'a str) -> Result<(Cow<'a, str>, Vec<MtlLine
     Ok((edits.apply(text), materials))
 }
 
-/// The file name of a `map_*` statement: options (`-bm 0.5 file.png`) are
-/// skipped by taking the last word, and Windows separators are accepted.
-fn texture_file(spec: &str) -> String {
-    let name = if spec.starts_with('-') {
-        spec.split_whitespace().last().unwrap_or(spec)
-    } else {
-        spec
-    };
-    name.replace('\\', "/")
+/// A `map_*` statement's argument: the file name after the options.
+struct TextureSpec<'a> {
+    /// The rest of the statement after the options (may contain spaces).
+    file: &'a str,
+    /// An `-o`, `-s` or `-t` option moves, scales or perturbs the uvs: we
+    /// do not apply it.
+    moves_uvs: bool,
+}
+
+/// Splits a `map_*` argument into options and file name. The options are
+/// the MTL format's (`-blendu`, `-blendv`, `-cc`, `-clamp`, `-bm`,
+/// `-boost`, `-texres`, `-imfchan`, `-type` with one value, `-mm` with two,
+/// `-o`, `-s`, `-t` with one to three numbers); an unknown `-word` takes the
+/// numbers and `on`/`off` after it. All are skipped: textures are sampled
+/// as they are.
+fn texture_spec(spec: &str) -> TextureSpec<'_> {
+    let words: Vec<(usize, &str)> = spec
+        .split_whitespace()
+        // Offsets of the words in `spec` (each is a subslice of it).
+        .map(|w| (w.as_ptr() as usize - spec.as_ptr() as usize, w))
+        .collect();
+    let number = |i: usize| words.get(i).and_then(|w| w.1.parse::<f32>().ok());
+    let mut moves_uvs = false;
+    let mut i = 0;
+    while let Some(&(_, opt)) = words.get(i) {
+        // `-` then a letter (`-0.5` or `-` alone would be a file name).
+        let is_option = opt
+            .strip_prefix('-')
+            .is_some_and(|rest| rest.starts_with(|c: char| c.is_ascii_alphabetic()));
+        if !is_option {
+            break;
+        }
+        i += 1;
+        match opt {
+            "-o" | "-s" | "-t" => {
+                let neutral = if opt == "-s" { 1.0 } else { 0.0 };
+                let start = i;
+                while i < start + 3 {
+                    let Some(x) = number(i) else { break };
+                    moves_uvs |= x != neutral;
+                    i += 1;
+                }
+            }
+            "-mm" => i += 2,
+            "-blendu" | "-blendv" | "-cc" | "-clamp" | "-bm" | "-boost" | "-texres"
+            | "-imfchan" | "-type" => i += 1,
+            _ => {
+                while words
+                    .get(i)
+                    .is_some_and(|w| w.1.parse::<f32>().is_ok() || matches!(w.1, "on" | "off"))
+                {
+                    i += 1;
+                }
+            }
+        }
+    }
+    TextureSpec {
+        file: words.get(i).map_or("", |&(at, _)| spec[at..].trim_end()),
+        moves_uvs,
+    }
+}
+
+/// Resolves a file named in `from` (an OBJ or MTL file in `dir`) with
+/// [`find_file`]; a bare-name fallback is reported, a miss leaves the path
+/// as written so that reading it fails with that name.
+fn resolve(dir: &Path, name: &str, what: &str, from: &Path, line: Option<usize>) -> PathBuf {
+    match find_file(dir, name) {
+        Some(Ok(p)) => p,
+        Some(Err(p)) => {
+            let at = line.map_or(String::new(), |l| format!(":{l}"));
+            eprintln!(
+                "warning: {}{at}: {what} `{name}` not found there; using `{}`",
+                from.display(),
+                p.display()
+            );
+            p
+        }
+        None => dir.join(name.replace('\\', "/")),
+    }
 }
 
 /// Converts one tobj material (already range-checked by the scan), loading
@@ -292,10 +467,19 @@ fn convert_material(
     assets: &mut Assets,
 ) -> Result<Material> {
     let dir = mtl_path.parent().unwrap_or(Path::new(""));
-    let mut texture = |spec: &Option<String>, kind, line| -> Result<Option<usize>> {
-        spec.as_deref()
-            .map(|s| assets.texture(&dir.join(texture_file(s)), kind, mtl_path, line))
-            .transpose()
+    let mut texture = |spec: &Option<String>, kind, line: Option<usize>| -> Result<Option<usize>> {
+        let Some(spec) = spec.as_deref().map(texture_spec) else {
+            return Ok(None);
+        };
+        if spec.moves_uvs {
+            let at = line.map_or(String::new(), |l| format!(":{l}"));
+            eprintln!(
+                "warning: {}{at}: texture options -o/-s/-t are not applied",
+                mtl_path.display()
+            );
+        }
+        let path = resolve(dir, spec.file, "texture", mtl_path, line);
+        assets.texture(&path, kind, mtl_path, line).map(Some)
     };
     let defaults = Material::default();
     let tr = m
@@ -315,6 +499,22 @@ fn convert_material(
             .unwrap_or(defaults.opacity),
         opacity_texture: texture(&m.dissolve_texture, TextureKind::Opacity, lines.map_d)?,
     })
+}
+
+/// The files of an `mtllib` statement at `obj:line`: its whole argument as
+/// one name (names with spaces), else each word when every one is a file
+/// (the format's list of names), else the whole name, which then fails to
+/// read with that name.
+fn mtllib_files(dir: &Path, name: &str, obj: &Path, line: usize) -> Vec<PathBuf> {
+    if find_file(dir, name).is_none() && name.contains(char::is_whitespace) {
+        let words: Vec<&str> = name.split_whitespace().collect();
+        if words.iter().all(|w| find_file(dir, w).is_some()) {
+            return (words.iter())
+                .map(|w| resolve(dir, w, "MTL file", obj, Some(line)))
+                .collect();
+        }
+    }
+    vec![resolve(dir, name, "MTL file", obj, Some(line))]
 }
 
 /// Loads an OBJ (and its MTL files) as one object-space mesh, all tobj
@@ -347,26 +547,38 @@ pub(super) fn load_obj(
         let (Some((name, ln)), None) = (scan.mtllibs.get(index), material_override) else {
             return Ok(Default::default());
         };
-        let mtl_path = dir.join(name);
-        let result = read_text(&mtl_path, "MTL", path, *ln).and_then(|t| {
-            let (text, lines) = scan_mtl(&mtl_path, &t)?;
-            let parsed = tobj::load_mtl_buf(&mut text.as_bytes())
-                .map_err(|e| Error::file(&mtl_path, None, format!("MTL parse error: {e}")))?;
-            Ok((parsed, lines))
-        });
-        match result {
-            Ok((parsed, materials)) => {
-                loaded.borrow_mut().push(LoadedMtl {
-                    path: mtl_path,
-                    materials,
-                });
-                Ok(parsed)
-            }
-            Err(e) => {
-                mtl_error.borrow_mut().get_or_insert(e);
-                Err(tobj::LoadError::OpenFileFailed)
+        let mut merged: Option<(Vec<tobj::Material>, _)> = None;
+        for mtl_path in mtllib_files(dir, name, path, *ln) {
+            let result = read_text(&mtl_path, "MTL", path, *ln).and_then(|t| {
+                let (text, lines) = scan_mtl(&mtl_path, &t)?;
+                let parsed = tobj::load_mtl_buf(&mut text.as_bytes())
+                    .map_err(|e| Error::file(&mtl_path, None, format!("MTL parse error: {e}")))?;
+                Ok((parsed, lines))
+            });
+            match result {
+                Ok(((mats, map), materials)) => {
+                    loaded.borrow_mut().push(LoadedMtl {
+                        path: mtl_path,
+                        materials,
+                    });
+                    // Several files on one line: one list, as tobj merges
+                    // the results of successive lines.
+                    match &mut merged {
+                        None => merged = Some((mats, map)),
+                        Some((all, all_map)) => {
+                            let offset = all.len();
+                            all.extend(mats);
+                            all_map.extend(map.into_iter().map(|(k, i)| (k, i + offset)));
+                        }
+                    }
+                }
+                Err(e) => {
+                    mtl_error.borrow_mut().get_or_insert(e);
+                    return Err(tobj::LoadError::OpenFileFailed);
+                }
             }
         }
+        Ok(merged.unwrap_or_default())
     };
     // Other fields exist with tobj's optional features (merging, reordering).
     #[allow(clippy::needless_update)]
@@ -466,5 +678,73 @@ pub(super) fn load_obj(
     if any_uvs || textured {
         mesh.uvs = Some(uvs);
     }
+    if let Some((count, line)) = scan.bad_normals {
+        let corners = replace_unusable_normals(&mut mesh);
+        if corners > 0 {
+            eprintln!(
+                "warning: {}:{line}: {count} zero or non-finite `vn` normal(s), the first \
+                 here; the {corners} triangle corner(s) using them take their face's \
+                 geometric normal",
+                path.display()
+            );
+        }
+    }
     Ok(mesh)
+}
+
+/// Gives every triangle corner whose vertex normal is unusable (zero or
+/// not finite) the triangle's geometric normal, splitting a vertex that
+/// triangles with different normals share; returns how many corners
+/// changed. Vertices no triangle uses get an arbitrary unit normal, so
+/// that every normal of the mesh stays finite through the transform.
+fn replace_unusable_normals(mesh: &mut Mesh) -> usize {
+    let Some(normals) = mesh.normals.as_mut() else {
+        return 0;
+    };
+    let bad: Vec<bool> = normals.iter().map(|&n| unusable_normal(n)).collect();
+    // The normal each bad vertex got from the first triangle using it.
+    let mut given: HashMap<u32, Vec3> = HashMap::new();
+    let mut corners = 0;
+    for tri in &mut mesh.triangles {
+        if !tri.iter().any(|&v| bad[v as usize]) {
+            continue;
+        }
+        // In f64, so that tiny triangles still get a direction; a
+        // degenerate one (dropped by the loader) gets any unit vector.
+        let [a, b, c] = tri.map(|v| mesh.positions[v as usize].as_dvec3());
+        let g = (b - a).cross(c - a).normalize_or_zero().as_vec3();
+        let g = if unusable_normal(g) { Vec3::Z } else { g };
+        for v in tri.iter_mut() {
+            if !bad[*v as usize] {
+                continue;
+            }
+            corners += 1;
+            match given.get(v) {
+                None => {
+                    normals[*v as usize] = g;
+                    given.insert(*v, g);
+                }
+                Some(&n) if n == g => {}
+                Some(_) => {
+                    // Another face already gave this vertex its normal: a
+                    // copy (out of u32 indices, the first face's normal).
+                    let i = *v as usize;
+                    if let Ok(copy) = u32::try_from(mesh.positions.len()) {
+                        mesh.positions.push(mesh.positions[i]);
+                        normals.push(g);
+                        if let Some(uvs) = mesh.uvs.as_mut() {
+                            uvs.push(uvs[i]);
+                        }
+                        *v = copy;
+                    }
+                }
+            }
+        }
+    }
+    for (n, &bad) in normals.iter_mut().zip(&bad) {
+        if bad && unusable_normal(*n) {
+            *n = Vec3::Z;
+        }
+    }
+    corners
 }

@@ -1,0 +1,92 @@
+//! Long work says how long: `--samples` far beyond a scene's needs is
+//! accepted and first prints the estimated time; with stderr not a
+//! terminal nothing else is drawn. (The bar itself, on a terminal, is
+//! seen with `script -qc "penumbra render ..." /dev/null`.)
+
+use penumbra::render::{render, RenderOptions, Technique};
+use penumbra::report::{estimate_render, Progress};
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+fn scene(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+}
+
+/// A million samples: accepted, and the estimate is the first thing on
+/// stderr, before any rendering (the process is stopped there).
+#[test]
+fn a_million_samples_prints_the_estimate_first() {
+    let out = std::env::temp_dir().join(format!("penumbra-progress-{}.png", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(["render", "--technique", "reference", "--samples", "1000000"])
+        .args(["--width", "16", "--height", "16", "-o"])
+        .arg(&out)
+        .arg(scene("quad.toml"))
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stderr.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(
+        first.starts_with("penumbra: --samples 1000000: estimated render time "),
+        "{first:?}"
+    );
+    assert!(!out.exists(), "stopped before writing");
+}
+
+/// Normal settings with stderr not a terminal: no probe, no estimate, no
+/// bar; stderr stays empty.
+#[test]
+fn silent_when_stderr_is_not_a_terminal() {
+    let out = std::env::temp_dir().join(format!("penumbra-progress-q-{}.png", std::process::id()));
+    let run = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args([
+            "render",
+            "--technique",
+            "dcs",
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "-o",
+        ])
+        .arg(&out)
+        .arg(scene("quad.toml"))
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_file(&out);
+    assert!(run.status.success());
+    assert_eq!(String::from_utf8_lossy(&run.stderr), "");
+}
+
+/// The estimate is of the right order: within a factor of 4 of the
+/// measured time of a render that takes a few seconds (spheres, the
+/// reference at 1024 samples).
+#[test]
+fn the_estimate_is_of_the_right_order() {
+    let scene = penumbra::scene::load_scene(&scene("spheres.toml")).unwrap();
+    let options = RenderOptions {
+        width: Some(64),
+        height: Some(64),
+        technique: Technique::Reference,
+        samples: 1024,
+        ..RenderOptions::default()
+    };
+    let expected = estimate_render(&scene, &options).unwrap().as_secs_f64();
+    let t = Instant::now();
+    render(&scene, &options, &Progress::hidden()).unwrap();
+    let took = t.elapsed().as_secs_f64();
+    assert!(
+        expected > took / 4.0 && expected < took * 4.0,
+        "estimated {expected:.2} s, took {took:.2} s"
+    );
+}
