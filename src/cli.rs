@@ -7,6 +7,7 @@ use crate::compare::{
 };
 use crate::error::{Error, Result};
 use crate::output::{check_output, write_stderr, write_stdout, OutputSet};
+use crate::raster::MAX_SIDE;
 use crate::render::{render, with_threads, Aov, RenderOptions, Technique};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
@@ -276,9 +277,10 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     format!("{samples} is outside 1..=1048576"),
                 ));
             }
+            // One limit for the CLI and scene files: the rasterizer's.
             for (name, v) in [("--width", width), ("--height", height)] {
-                if v == Some(0) {
-                    return Err(Error::param(name, "must be at least 1"));
+                if let Some(v) = v.filter(|v| !(1..=MAX_SIDE).contains(v)) {
+                    return Err(Error::param(name, format!("{v} is outside 1..={MAX_SIDE}")));
                 }
             }
             // Fail on a bad output path before the render, not after it.

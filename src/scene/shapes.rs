@@ -69,6 +69,12 @@ pub fn sphere(r: f32, segments: u32, rings: u32, material: u32) -> Mesh {
     mesh
 }
 
+/// The number of triangles [`sphere`] makes: one per segment in each polar
+/// ring, two per quad elsewhere.
+pub fn sphere_triangle_count(segments: u32, rings: u32) -> u64 {
+    2 * u64::from(segments) * u64::from(rings.saturating_sub(1))
+}
+
 /// One axis-aligned face: outward normal `n`, in-face "up" axis `t`, and
 /// the box half-extents. The in-face "right" axis `s = t × n` makes
 /// `s × t = n`, so corners in uv order (0,0), (1,0), (1,1), (0,1) run
