@@ -965,6 +965,16 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
         // toml gives a span for everything it can place; the rest is at the top.
         let line = e.span().map_or(1, |s| ctx.line(s.start));
         let mut message = e.message().trim().replace('\n', ": ");
+        if message.is_empty() {
+            // toml has no words for some syntax errors (a value missing at
+            // the end of the file); say where.
+            let column = e.span().map_or(1, |s| {
+                let start = ctx.line_starts[ctx.line(s.start) - 1];
+                text.get(start..s.start)
+                    .map_or(1, |t| t.chars().count() + 1)
+            });
+            message = format!("invalid TOML: a value is missing or malformed at column {column}");
+        }
         // A wrong value ("invalid length 5, expected an array of 3
         // numbers") does not say whose; the source line does.
         if message.starts_with("invalid ") {
