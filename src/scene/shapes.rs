@@ -132,3 +132,21 @@ pub fn quad(sx: f32, sz: f32, material: u32) -> Mesh {
     );
     mesh
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The loader's memory estimate counts what `sphere` generates.
+    #[test]
+    fn sphere_triangle_count_is_exact() {
+        for (segments, rings) in [(3, 2), (4, 3), (7, 5), (20, 20), (64, 2)] {
+            let mesh = sphere(1.0, segments, rings, 0);
+            assert_eq!(
+                sphere_triangle_count(segments, rings),
+                mesh.triangles.len() as u64,
+                "{segments} × {rings}"
+            );
+        }
+    }
+}
