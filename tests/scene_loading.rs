@@ -910,7 +910,7 @@ fn fixed_length_arrays_have_exactly_their_length() {
         // Camera keys: lines 2 (eye), 3 (target), 5 (up) of the file.
         for (key, line) in [("eye", 2), ("target", 3), ("up", 5)] {
             let dir = Dir::new(&format!("len-cam-{key}-{k}"));
-            let mut lines = vec![
+            let mut lines = [
                 "[camera]".to_string(),
                 "eye = [0, 2, 5]".into(),
                 "target = [0, 0, 0]".into(),
