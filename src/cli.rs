@@ -6,7 +6,8 @@ use crate::compare::{
     SceneComparison,
 };
 use crate::error::{Error, Result};
-use crate::output::{write_exr, write_png};
+use crate::output::{check_output, write_stderr, write_stdout, OutputSet};
+use crate::raster::MAX_SIDE;
 use crate::render::{render, with_threads, Aov, RenderOptions};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
@@ -237,10 +238,15 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     format!("{samples} is outside 1..=1048576"),
                 ));
             }
+            // One limit for the CLI and scene files: the rasterizer's.
             for (name, v) in [("--width", width), ("--height", height)] {
-                if v == Some(0) {
-                    return Err(Error::param(name, "must be at least 1"));
+                if let Some(v) = v.filter(|v| !(1..=MAX_SIDE).contains(v)) {
+                    return Err(Error::param(name, format!("{v} is outside 1..={MAX_SIDE}")));
                 }
+            }
+            // Fail on a bad output path before the render, not after it.
+            for path in std::iter::once(&output).chain(&exr) {
+                check_output(path)?;
             }
             let scene = load_scene(&scene)?;
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
@@ -248,30 +254,34 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             progress.finish();
             if timings || explain {
                 for p in &out.passes {
-                    eprintln!("{:>12.3} ms  {}", p.time.as_secs_f64() * 1e3, p.name);
+                    let ms = p.time.as_secs_f64() * 1e3;
+                    write_stderr(&format!("{ms:>12.3} ms  {}\n", p.name));
                 }
             }
             for w in &out.warnings {
-                eprintln!("penumbra: warning: {w}");
+                write_stderr(&format!("penumbra: warning: {w}\n"));
             }
             if explain {
-                eprintln!("buffers:");
+                write_stderr("buffers:\n");
                 for b in &out.buffers {
                     let size = if b.bytes == 0 {
                         "-".to_string()
                     } else {
                         format!("{:.2} MiB", b.bytes as f64 / (1u64 << 20) as f64)
                     };
-                    eprintln!("{size:>12}  {}: {}", b.name, b.detail);
+                    write_stderr(&format!("{size:>12}  {}: {}\n", b.name, b.detail));
                 }
                 for w in &out.warnings {
-                    eprintln!("{:>12}  note: {w}", "-");
+                    write_stderr(&format!("{:>12}  note: {w}\n", "-"));
                 }
             }
-            write_png(&output, out.width, out.height, &out.radiance)?;
+            // All outputs or none: both are staged, then moved into place.
+            let mut outputs = OutputSet::new();
+            outputs.png(&output, out.width, out.height, &out.radiance)?;
             if let Some(exr) = exr {
-                write_exr(&exr, out.width, out.height, &out.radiance, &out.layers)?;
+                outputs.exr(&exr, out.width, out.height, &out.radiance, &out.layers)?;
             }
+            outputs.commit()?;
             Ok(Outcome::Success)
         }
         Command::Compare {
@@ -310,6 +320,9 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     .collect::<Result<Vec<_>>>()?,
             };
             options.validate()?;
+            if let Some(report) = &report {
+                check_output(report)?;
+            }
             let loaded = scenes
                 .iter()
                 .map(|p| load_scene(p))
@@ -347,12 +360,12 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 write_markdown(&report, &linked(&base), &command)?;
             }
             for (r, dir) in &results {
-                eprintln!(
-                    "{}: {} runs; results in {}",
+                write_stderr(&format!(
+                    "{}: {} runs; results in {}\n",
                     r.scene,
                     r.runs.len(),
                     dir.display()
-                );
+                ));
             }
             Ok(Outcome::Success)
         }
@@ -392,9 +405,9 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             if json {
                 let text = serde_json::to_string_pretty(&report)
                     .map_err(|e| Error::param("--json", e.to_string()))?;
-                println!("{text}");
+                write_stdout(&format!("{text}\n"))?;
             } else {
-                print!("{}", report.to_text());
+                write_stdout(&report.to_text())?;
             }
             Ok(if report.passed() {
                 Outcome::Success
@@ -416,7 +429,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         }
         Command::Info { scene } => {
             let scene = load_scene(&scene)?;
-            print!("{}", describe(&scene));
+            write_stdout(&describe(&scene))?;
             Ok(Outcome::Success)
         }
     }
@@ -519,7 +532,7 @@ pub fn main_with_args() -> std::process::ExitCode {
         Ok(Outcome::Success) => std::process::ExitCode::SUCCESS,
         Ok(Outcome::ToleranceExceeded) => std::process::ExitCode::from(1),
         Err(e) => {
-            eprintln!("penumbra: error: {e}");
+            write_stderr(&format!("penumbra: error: {e}\n"));
             std::process::ExitCode::from(2)
         }
     }

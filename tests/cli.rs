@@ -205,3 +205,221 @@ fn unsupported_semi_opaque_casters_are_not_silent() {
     assert!(ok, "{stderr}");
     assert!(!stderr.contains("warning"), "{stderr}");
 }
+
+/// Runs penumbra with stdout a pipe whose reader is already gone, as in
+/// `penumbra diff a.png a.png --json | head -1` once `head` has exited.
+fn penumbra_into_closed_pipe(args: &[&str]) -> std::process::Output {
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    drop(reader);
+    Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(writer)
+        .output()
+        .expect("run penumbra")
+}
+
+/// Issue 19.3: printing to a closed pipe ends quietly with the command's
+/// own exit code (0 here; `diff` keeps 1 for a failed tolerance), not a
+/// panic (exit 101, "failed printing to stdout").
+#[test]
+fn printing_to_a_closed_pipe_ends_quietly() {
+    let dir = common::scratch_dir("cli-pipe");
+    let png = dir.join("a.png");
+    let p = png.to_str().unwrap();
+    let (ok, msg) = penumbra(&[
+        "render",
+        "scenes/quad.toml",
+        "-o",
+        p,
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(ok, "{msg}");
+    let shadowed = dir.join("b.png");
+    let q = shadowed.to_str().unwrap();
+    let (ok, msg) = penumbra(&[
+        "render",
+        "scenes/quad.toml",
+        "-o",
+        q,
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--technique",
+        "shadow-volumes",
+    ]);
+    assert!(ok, "{msg}");
+    for (args, code) in [
+        (vec!["diff", p, p, "--json"], 0),
+        (vec!["diff", p, p], 0),
+        (vec!["diff", p, q, "--max-abs", "0"], 1),
+        (vec!["info", "scenes/spheres.toml"], 0),
+    ] {
+        let out = penumbra_into_closed_pipe(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {stderr}");
+        assert!(
+            !stderr.contains("panicked") && !stderr.contains("Broken pipe"),
+            "{args:?}: {stderr}"
+        );
+    }
+}
+
+/// Issue 19.2: an output that cannot be written fails the run before the
+/// render, and no other output of the run is left behind.
+#[test]
+fn a_failed_output_leaves_no_other_output() {
+    let dir = common::scratch_dir("cli-all-or-none");
+    let png = dir.join("o.png");
+    let bad_exr = dir.join("missing-dir/x.exr");
+    let (ok, msg) = penumbra(&[
+        "render",
+        "scenes/quad.toml",
+        "-o",
+        png.to_str().unwrap(),
+        "--exr",
+        bad_exr.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(!ok);
+    assert!(
+        msg.contains("missing-dir") && msg.contains("does not exist"),
+        "{msg}"
+    );
+    assert!(!png.exists(), "o.png was written although the EXR failed");
+    // The same with an existing PNG: it keeps its old content.
+    std::fs::write(&png, b"old").unwrap();
+    let (ok, _) = penumbra(&[
+        "render",
+        "scenes/quad.toml",
+        "-o",
+        png.to_str().unwrap(),
+        "--exr",
+        dir.to_str().unwrap(), // a directory: refused
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(!ok);
+    assert_eq!(std::fs::read(&png).unwrap(), b"old");
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["o.png"], "temporary files left behind");
+}
+
+/// Issue 19.1 through the CLI: `-o /proc/version` says why it cannot be
+/// written instead of "No such file or directory"; `-o /dev/null` works
+/// and leaves the device alone.
+#[test]
+fn special_output_paths() {
+    let args = |o: &'static str| {
+        [
+            "render",
+            "scenes/quad.toml",
+            "-o",
+            o,
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ]
+    };
+    if Path::new("/proc/version").exists() {
+        let (ok, msg) = penumbra(&args("/proc/version"));
+        assert!(!ok);
+        assert!(
+            msg.contains("/proc/version") && !msg.contains("No such file"),
+            "{msg}"
+        );
+        assert!(msg.contains("does not accept new files"), "{msg}");
+    }
+    if Path::new("/dev/null").exists() {
+        let (ok, msg) = penumbra(&args("/dev/null"));
+        assert!(ok, "{msg}");
+        use std::os::unix::fs::FileTypeExt;
+        let ft = std::fs::metadata("/dev/null").unwrap().file_type();
+        assert!(ft.is_char_device(), "/dev/null was replaced");
+    }
+    if Path::new("/dev/full").exists() {
+        let (ok, msg) = penumbra(&args("/dev/full"));
+        assert!(!ok, "writing to /dev/full must fail");
+        assert!(msg.contains("/dev/full"), "{msg}");
+    }
+}
+
+/// Issue 19.10: one image-side limit, 16384, for `--width`/`--height` and
+/// scene files.
+#[test]
+fn one_image_size_limit() {
+    for flag in ["--width", "--height"] {
+        let (ok, msg) = penumbra(&[
+            "render",
+            "scenes/quad.toml",
+            "-o",
+            "/dev/null",
+            flag,
+            "16385",
+        ]);
+        assert!(!ok);
+        assert!(msg.contains(flag) && msg.contains("1..=16384"), "{msg}");
+    }
+    let dir = common::scratch_dir("cli-size-limit");
+    for (side, ok_expected) in [(16384, true), (16385, false)] {
+        let scene = dir.join(format!("s{side}.toml"));
+        std::fs::write(
+            &scene,
+            format!("[camera]\neye = [0, 1, 2]\ntarget = [0, 0, 0]\nfov_y = 40\nwidth = {side}\nheight = 1\n"),
+        )
+        .unwrap();
+        let (ok, msg) = penumbra(&["info", scene.to_str().unwrap()]);
+        assert_eq!(ok, ok_expected, "{side}: {msg}");
+        if !ok {
+            assert!(msg.contains(":5:") && msg.contains("1..=16384"), "{msg}");
+        }
+    }
+}
+
+/// Issue 19.7: a sphere at the documented maximum tessellation is
+/// estimated before it is generated: under a 4 GiB address-space limit it
+/// is a clear error at its line, at once, not an allocation abort.
+#[test]
+fn huge_sphere_is_refused_before_allocating() {
+    let dir = common::scratch_dir("cli-huge-sphere");
+    let scene = dir.join("big.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 2, 5]\ntarget = [0, 0, 0]\nfov_y = 45\n\
+         [[object]]\nshape = \"sphere\"\nsegments = 4096\nrings = 4096\n",
+    )
+    .unwrap();
+    let started = std::time::Instant::now();
+    let out = Command::new("/bin/sh")
+        .arg("-c")
+        .arg("ulimit -v 4194304 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_penumbra"))
+        .args(["render", scene.to_str().unwrap(), "-o", "/dev/null"])
+        .output()
+        .expect("run penumbra under ulimit");
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("big.toml:8:") && msg.contains("33546240 triangles"),
+        "{msg}"
+    );
+    assert!(msg.contains("GiB available"), "{msg}");
+    assert!(
+        started.elapsed().as_secs() < 10,
+        "refused only after {:?}",
+        started.elapsed()
+    );
+}

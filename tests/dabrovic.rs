@@ -10,7 +10,7 @@ use penumbra::report::Progress;
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
-use penumbra::shadow::reference::ShadowTracer;
+use penumbra::shadow::kit::rays::ShadowTracer;
 use penumbra::shadow::stsv::Filter;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -104,8 +104,14 @@ fn every_technique_renders() {
             width: Some(48),
             height: Some(32),
             technique,
-            silhouettes,
             samples: 16,
+            options: penumbra::shadow::TechniqueOptions {
+                dcs: penumbra::shadow::dcs::DcsOptions {
+                    silhouettes,
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
             ..RenderOptions::default()
         };
         let out = render(&scene, &options, &Progress::hidden())
@@ -116,16 +122,15 @@ fn every_technique_renders() {
         );
         out.radiance.iter().map(|c| f64::from(c.x)).sum::<f64>() / out.radiance.len() as f64
     };
-    let unshadowed = mean(Technique::None, SilhouetteMode::default());
+    let t = |name: &str| Technique::named(name).expect("registered");
+    let unshadowed = mean(t("none"), SilhouetteMode::default());
     assert!(unshadowed > 0.05, "unshadowed mean {unshadowed}");
-    for (technique, silhouettes) in [
-        (Technique::Reference, SilhouetteMode::default()),
-        (Technique::ShadowVolumes, SilhouetteMode::default()),
-        (Technique::Wedges, SilhouetteMode::default()),
-        (Technique::WedgeBlend, SilhouetteMode::default()),
-        (Technique::Dcs, SilhouetteMode::default()),
-        (Technique::Dcs, SilhouetteMode::WholeLight),
-    ] {
+    // Every registered technique, plus DCS's approximate mode.
+    let runs = Technique::all()
+        .filter(|x| x.name() != "none")
+        .map(|x| (x, SilhouetteMode::default()))
+        .chain([(t("dcs"), SilhouetteMode::Centre)]);
+    for (technique, silhouettes) in runs {
         let m = mean(technique, silhouettes);
         assert!(
             m > 0.01 && m < 0.9 * unshadowed,

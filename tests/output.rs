@@ -2,7 +2,10 @@
 //! errors that name the output path.
 
 use glam::Vec3;
-use penumbra::output::{read_image, srgb_encode_u8, write_atomically, write_exr, write_png, Layer};
+use penumbra::output::{
+    check_output, read_image, srgb_encode_u8, write_atomically, write_exr, write_png, Layer,
+    OutputSet,
+};
 use penumbra::Error;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -300,4 +303,186 @@ fn unwritable_paths_give_clear_errors() {
     assert!(e.to_string().contains("absent.exr"), "{e}");
     let e = read_image(&file).unwrap_err();
     assert!(e.to_string().contains("not a PNG or an OpenEXR"), "{e}");
+}
+
+/// A tiny valid image for the output tests.
+fn one_pixel() -> [Vec3; 1] {
+    [Vec3::new(0.25, 0.5, 1.0)]
+}
+
+fn is_png(path: &Path) -> bool {
+    fs::read(path).is_ok_and(|b| b.starts_with(b"\x89PNG"))
+}
+
+/// Issue 19.1: a symlink at the output path is followed: the file it
+/// points to is replaced (through a chain of links, and a dangling link's
+/// target is created), and the links stay links.
+#[cfg(unix)]
+#[test]
+fn symlinks_are_followed_to_their_target() {
+    use std::os::unix::fs::{symlink, PermissionsExt};
+    let dir = Scratch::new("symlink");
+    let real = dir.path("real.png");
+    fs::write(&real, b"old").unwrap();
+    fs::set_permissions(&real, fs::Permissions::from_mode(0o640)).unwrap();
+    symlink("real.png", dir.path("link.png")).unwrap();
+    symlink(dir.path("link.png"), dir.path("link2.png")).unwrap();
+    write_png(&dir.path("link2.png"), 1, 1, &one_pixel()).unwrap();
+    assert!(is_png(&real), "the link's target gets the image");
+    for link in ["link.png", "link2.png"] {
+        let m = fs::symlink_metadata(dir.path(link)).unwrap();
+        assert!(m.file_type().is_symlink(), "{link} is still a link");
+    }
+    let mode = fs::metadata(&real).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o640, "the replaced file keeps its permissions");
+    // A dangling link: its target is created, in the target's directory.
+    fs::create_dir(dir.path("sub")).unwrap();
+    symlink("sub/new.exr", dir.path("dangling.exr")).unwrap();
+    write_exr(&dir.path("dangling.exr"), 1, 1, &one_pixel(), &[]).unwrap();
+    assert_eq!(read_image(&dir.path("sub/new.exr")).unwrap().width, 1);
+    assert!(fs::symlink_metadata(dir.path("dangling.exr"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(
+        dir.listing(),
+        ["dangling.exr", "link.png", "link2.png", "real.png", "sub"],
+        "no temporary files left"
+    );
+    // A loop of links is an error, not a hang.
+    symlink("loop-b", dir.path("loop-a")).unwrap();
+    symlink("loop-a", dir.path("loop-b")).unwrap();
+    let e = write_png(&dir.path("loop-a"), 1, 1, &one_pixel()).unwrap_err();
+    assert!(e.to_string().contains("loop-a"), "{e}");
+}
+
+/// Issue 19.1: a FIFO is written in place (its reader gets the image) and
+/// stays a FIFO.
+#[cfg(unix)]
+#[test]
+fn fifo_is_written_in_place() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = Scratch::new("fifo");
+    let fifo = dir.path("pipe.png");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("mkfifo unavailable: skipped");
+        return;
+    }
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || fs::read(fifo).unwrap())
+    };
+    write_png(&fifo, 1, 1, &one_pixel()).unwrap();
+    let got = reader.join().unwrap();
+    assert!(
+        got.starts_with(b"\x89PNG"),
+        "the reader got {} bytes",
+        got.len()
+    );
+    assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    assert_eq!(dir.listing(), ["pipe.png"]);
+}
+
+/// Issue 19.1: character devices are written in place (`/dev/null`
+/// stays a device; `/dev/full` reports its error instead of being
+/// replaced by a regular file); sockets and directories are refused with
+/// their kind named; a file in a directory that accepts no new files
+/// (`/proc`) says so rather than "No such file or directory".
+#[cfg(unix)]
+#[test]
+fn special_files_are_never_replaced() {
+    use std::os::unix::fs::FileTypeExt;
+    if Path::new("/dev/null").exists() {
+        write_png(Path::new("/dev/null"), 1, 1, &one_pixel()).unwrap();
+        write_exr(Path::new("/dev/null"), 1, 1, &one_pixel(), &[]).unwrap();
+        assert!(fs::metadata("/dev/null")
+            .unwrap()
+            .file_type()
+            .is_char_device());
+    }
+    if Path::new("/dev/full").exists() {
+        let e = write_exr(Path::new("/dev/full"), 1, 1, &one_pixel(), &[]).unwrap_err();
+        assert!(e.to_string().contains("/dev/full"), "{e}");
+        assert!(fs::metadata("/dev/full")
+            .unwrap()
+            .file_type()
+            .is_char_device());
+    }
+    let dir = Scratch::new("special");
+    let socket = dir.path("sock.png");
+    let _listener = std::os::unix::net::UnixListener::bind(&socket).unwrap();
+    let e = write_png(&socket, 1, 1, &one_pixel()).unwrap_err();
+    assert!(e.to_string().contains("is a socket"), "{e}");
+    assert!(fs::symlink_metadata(&socket)
+        .unwrap()
+        .file_type()
+        .is_socket());
+    let e = write_png(&dir.0, 1, 1, &one_pixel()).unwrap_err();
+    assert!(e.to_string().contains("is a directory"), "{e}");
+    if Path::new("/proc/version").exists() {
+        let before = fs::read("/proc/version").unwrap();
+        let e = write_png(Path::new("/proc/version"), 1, 1, &one_pixel()).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("/proc/version"), "{msg}");
+        assert!(!msg.contains("No such file"), "{msg}");
+        assert!(msg.contains("does not accept new files"), "{msg}");
+        assert_eq!(fs::read("/proc/version").unwrap(), before);
+    }
+}
+
+/// Issue 19.2: an `OutputSet` moves its outputs into place only when all
+/// were written; a failed or abandoned set leaves every path as it was
+/// and no temporary file behind.
+#[test]
+fn output_set_commits_all_or_none() {
+    let dir = Scratch::new("set");
+    let png = dir.path("o.png");
+    let exr = dir.path("o.exr");
+
+    // The second output fails: the first is not written.
+    let mut set = OutputSet::new();
+    set.png(&png, 1, 1, &one_pixel()).unwrap();
+    let e = set
+        .exr(&dir.path("missing-dir/x.exr"), 1, 1, &one_pixel(), &[])
+        .unwrap_err();
+    assert!(e.to_string().contains("does not exist"), "{e}");
+    drop(set);
+    assert!(dir.listing().is_empty(), "{:?}", dir.listing());
+
+    // Existing outputs keep their content when a later one fails.
+    fs::write(&png, b"old").unwrap();
+    let mut set = OutputSet::new();
+    set.png(&png, 1, 1, &one_pixel()).unwrap();
+    let bad = vec![Layer {
+        name: "depth".into(),
+        channels: vec![("Z".into(), vec![0.0; 2])], // wrong length
+    }];
+    assert!(set.exr(&exr, 1, 1, &one_pixel(), &bad).is_err());
+    drop(set);
+    assert_eq!(fs::read(&png).unwrap(), b"old");
+    assert_eq!(dir.listing(), ["o.png"]);
+
+    // Staged but not committed: nothing visible yet; commit: both.
+    let mut set = OutputSet::new();
+    set.png(&png, 1, 1, &one_pixel()).unwrap();
+    set.exr(&exr, 1, 1, &one_pixel(), &[]).unwrap();
+    assert_eq!(fs::read(&png).unwrap(), b"old");
+    assert!(!exr.exists());
+    set.commit().unwrap();
+    assert!(is_png(&png));
+    assert_eq!(read_image(&exr).unwrap().channel("G").unwrap(), [0.5]);
+    assert_eq!(dir.listing(), ["o.exr", "o.png"]);
+
+    // The same file twice in one set is an error, not a silent overwrite.
+    let mut set = OutputSet::new();
+    set.png(&png, 1, 1, &one_pixel()).unwrap();
+    let e = set.exr(&png, 1, 1, &one_pixel(), &[]).unwrap_err();
+    assert!(e.to_string().contains("same file"), "{e}");
+
+    // check_output: what staging would refuse, without writing.
+    check_output(&dir.path("new.png")).unwrap();
+    assert!(check_output(&dir.path("missing-dir/new.png")).is_err());
+    assert!(check_output(&dir.0).is_err());
+    assert!(!dir.path("new.png").exists());
 }

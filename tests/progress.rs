@@ -77,7 +77,7 @@ fn the_estimate_is_of_the_right_order() {
     let options = RenderOptions {
         width: Some(64),
         height: Some(64),
-        technique: Technique::Reference,
+        technique: Technique::named("reference").unwrap(),
         samples: 1024,
         ..RenderOptions::default()
     };

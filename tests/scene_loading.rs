@@ -342,10 +342,12 @@ fn absurd_sizes_are_refused() {
         format!("[camera]\neye = [0, 2, 5]\ntarget = [0, 0, 0]\nfov_y = 45\nwidth = {w}\nheight = {h}\n")
     };
     for (w, h, line, needle, name) in [
-        ("70000", "16", 5, "outside 1..=65536", "huge-w"),
+        // One limit with `--width`/`--height`: the rasterizer's 16384.
+        ("70000", "16", 5, "outside 1..=16384", "huge-w"),
+        ("16385", "16", 5, "outside 1..=16384", "just-over-w"),
+        ("16", "16385", 6, "outside 1..=16384", "just-over-h"),
         ("0", "16", 5, "outside", "zero-w"),
         ("16", "-3", 6, "outside", "neg-h"),
-        ("60000", "60000", 6, "pixels", "huge-area"),
     ] {
         let dir = Dir::new(name);
         let path = dir.write("scene.toml", camera(w, h));
@@ -873,4 +875,194 @@ fn shipped_scenes_load() {
         let s = load_scene(&scenes.join(name)).unwrap();
         assert!(s.triangle_count() > 0 && !s.lights.is_empty(), "{name}");
     }
+}
+
+// ------------------------------------------------- hostile input (#19) ----
+
+/// Issue 19.4: every fixed-length array takes exactly its numbers: extra
+/// elements (strings included), missing ones and non-numbers are errors
+/// at the key's line that name the key.
+#[test]
+fn fixed_length_arrays_have_exactly_their_length() {
+    let light = |key: &str, value: &str| {
+        let base = [
+            ("center", "[0, 3, 0]"),
+            ("u", "[0.5, 0, 0]"),
+            ("v", "[0, 0, 0.5]"),
+            ("radiance", "[1, 1, 1]"),
+        ];
+        let mut s = String::from("[[light]]\ntype = \"rect\"\n");
+        for (k, v) in base {
+            let v = if k == key { value } else { v };
+            s.push_str(&format!("{k} = {v}\n"));
+        }
+        s
+    };
+    let bad = [
+        "[0.0, 5.0, 6.0, 99.0, \"x\"]",
+        "[1, 2, 3, 4]",
+        "[1, 2]",
+        "[]",
+        "[1, \"x\", 3]",
+        "[1, true, 3]",
+        "[1, [2], 3]",
+    ];
+    for (k, value) in bad.iter().enumerate() {
+        // Camera keys: lines 2 (eye), 3 (target), 5 (up) of the file.
+        for (key, line) in [("eye", 2), ("target", 3), ("up", 5)] {
+            let dir = Dir::new(&format!("len-cam-{key}-{k}"));
+            let mut lines = [
+                "[camera]".to_string(),
+                "eye = [0, 2, 5]".into(),
+                "target = [0, 0, 0]".into(),
+                "fov_y = 45".into(),
+                "up = [0, 1, 0]".into(),
+            ];
+            lines[line - 1] = format!("{key} = {value}");
+            let path = dir.write("scene.toml", lines.join("\n") + "\n");
+            assert_error(load_scene(&path), &path, line, &format!("`{key}`"));
+        }
+        // Light keys, lines 8.. of the body (after the 5-line camera).
+        for (key, line) in [("center", 8), ("u", 9), ("v", 10), ("radiance", 11)] {
+            assert_scene_error(
+                &format!("len-light-{key}-{k}"),
+                &light(key, value),
+                line,
+                &format!("`{key}`"),
+            );
+        }
+        for key in ["translate", "rotate", "scale"] {
+            let body = format!("[[object]]\nshape = \"box\"\n{key} = {value}\n");
+            assert_scene_error(&format!("len-obj-{key}-{k}"), &body, 8, &format!("`{key}`"));
+        }
+        for key in ["albedo", "specular"] {
+            let body = format!("[[object]]\nshape = \"box\"\nmaterial = {{ {key} = {value} }}\n");
+            assert_scene_error(&format!("len-mat-{key}-{k}"), &body, 8, &format!("`{key}`"));
+        }
+        for key in ["ambient", "background"] {
+            let body = format!("[scene]\n{key} = {value}\n");
+            assert_scene_error(
+                &format!("len-scene-{key}-{k}"),
+                &body,
+                7,
+                &format!("`{key}`"),
+            );
+        }
+    }
+    // The message says what was expected and what was found.
+    assert_scene_error(
+        "len-msg",
+        "[[object]]\nshape = \"box\"\ntranslate = [0.0, 5.0, 6.0, 99.0, \"x\"]\n",
+        8,
+        "invalid length 5, expected an array of 3 numbers",
+    );
+    assert_scene_error(
+        "len-msg-type",
+        "[[object]]\nshape = \"box\"\ntranslate = [0.0, \"x\", 6.0]\n",
+        8,
+        "expected a number",
+    );
+    // `size` (2 or 3 numbers by shape) and integers where numbers go.
+    assert_scene_error(
+        "len-size-type",
+        "[[object]]\nshape = \"box\"\nsize = [1, \"x\", 1]\n",
+        8,
+        "`size`",
+    );
+    let dir = Dir::new("len-ints");
+    let s = dir
+        .load("[[object]]\nshape = \"box\"\ntranslate = [1, -2, 3]\nscale = [1, 2, 3]\n")
+        .unwrap();
+    assert_eq!(s.objects.len(), 1);
+}
+
+/// Issue 19.6: values too large (or too small) for the supported range get
+/// a message that says so, at their line: not "parallel", "zero area",
+/// "must be finite" or "must not be zero".
+#[test]
+fn out_of_range_values_say_so() {
+    let cam = |eye: &str| format!("[camera]\neye = {eye}\ntarget = [0, 0, 0]\nfov_y = 45\n");
+    for (eye, needle) in [
+        ("[1e38, 5, 6]", "beyond the supported range"),
+        ("[3.5e38, 5, 6]", "out of range for f32 (max 3.4e38)"),
+        ("[-3.5e38, 5, 6]", "out of range for f32"),
+        ("[1.0000001e9, 5, 6]", "beyond the supported range"),
+    ] {
+        let dir = Dir::new("range-eye");
+        let path = dir.write("scene.toml", cam(eye));
+        assert_error(load_scene(&path), &path, 2, needle);
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(e.contains("`camera.eye`") && !e.contains("parallel"), "{e}");
+    }
+    // The edge of the range loads.
+    let dir = Dir::new("range-edge");
+    let path = dir.write("scene.toml", cam("[1e9, -1e9, 5]"));
+    load_scene(&path).unwrap();
+
+    let rect = |u: &str| {
+        format!("[[light]]\ntype = \"rect\"\ncenter = [0, 3, 0]\nu = {u}\nv = [0, 0, 1]\nradiance = 1\n")
+    };
+    assert_scene_error(
+        "range-u",
+        &rect("[1e38, 0, 0]"),
+        9,
+        "beyond the supported range",
+    );
+    assert_scene_error(
+        "range-u-tiny",
+        &rect("[1e-20, 0, 0]"),
+        9,
+        "below the supported range",
+    );
+    let dir = Dir::new("range-u-msg");
+    let e = dir.load(&rect("[1e38, 0, 0]")).unwrap_err().to_string();
+    assert!(!e.contains("zero area"), "{e}");
+    // Large but in range: a real light, not "zero area".
+    Dir::new("range-u-big").load(&rect("[1e9, 0, 0]")).unwrap();
+
+    let object = |extra: &str| format!("[[object]]\nshape = \"box\"\n{extra}\n");
+    for (extra, needle) in [
+        ("scale = 1e-20", "below the supported range"),
+        ("scale = [1, 1e-20, 1]", "below the supported range"),
+        ("scale = 3.5e38", "out of range for f32"),
+        ("scale = 0", "must not be zero"),
+        ("translate = [0, 1e38, 0]", "beyond the supported range"),
+        ("rotate = [0, 4e38, 0]", "out of range for f32"),
+        ("size = [1e-20, 1, 1]", "below the supported range"),
+        ("size = [3.5e38, 1, 1]", "out of range for f32"),
+    ] {
+        let dir = Dir::new("range-obj");
+        let r = dir.load(&object(extra));
+        assert_error(r, &dir.0.join("scene.toml"), 8, needle);
+        let e = dir.load(&object(extra)).unwrap_err().to_string();
+        assert!(e.contains("object[0]"), "{e}");
+    }
+    // Each value in range, the transformed box not: said at its line.
+    let dir = Dir::new("range-transformed");
+    let r = dir.load("[[object]]\nshape = \"box\"\nsize = [1e5, 1, 1]\nscale = 1e5\n");
+    assert_error(
+        r,
+        &dir.0.join("scene.toml"),
+        7,
+        "beyond the supported range",
+    );
+    // Sphere radius, sphere light radius, colours.
+    assert_scene_error(
+        "range-radius",
+        "[[object]]\nshape = \"sphere\"\nradius = 1e-20\n",
+        8,
+        "below the supported range",
+    );
+    assert_scene_error(
+        "range-light-radius",
+        "[[light]]\ntype = \"sphere\"\ncenter = [0, 3, 0]\nradius = 1e-20\nradiance = 1\n",
+        9,
+        "below the supported range",
+    );
+    assert_scene_error(
+        "range-radiance",
+        "[[light]]\ntype = \"sphere\"\ncenter = [0, 3, 0]\nradius = 1\nradiance = 1e38\n",
+        10,
+        "beyond the supported range",
+    );
 }

@@ -1,7 +1,7 @@
 //! OpenEXR: linear `f32` channels in one part, ZIP-compressed scan lines
 //! (lossless, so values read back bit-identical), row 0 at the top.
 
-use super::{check_size, write_atomically, Layer, LoadedImage};
+use super::{check_size, Layer, LoadedImage, OutputSet};
 use crate::error::{Error, Result};
 use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image, LayerAttributes, ReadChannels,
@@ -21,6 +21,20 @@ use std::path::Path;
 /// the top) and full names must be distinct and Latin-1 (an EXR limit);
 /// otherwise nothing is written and the error names `path`.
 pub fn write_exr(
+    path: &Path,
+    width: u32,
+    height: u32,
+    radiance: &[Vec3],
+    layers: &[Layer],
+) -> Result<()> {
+    let mut set = OutputSet::new();
+    stage_exr(&mut set, path, width, height, radiance, layers)?;
+    set.commit()
+}
+
+/// [`write_exr`] into `set`.
+pub(super) fn stage_exr(
+    set: &mut OutputSet,
     path: &Path,
     width: u32,
     height: u32,
@@ -74,7 +88,7 @@ pub fn write_exr(
         AnyChannels::sort(SmallVec::from_vec(list)),
     );
     let image = Image::from_layer(layer);
-    write_atomically(path, |tmp| {
+    set.stage(path, |tmp| {
         let file = File::create(tmp).map_err(|e| Error::io(tmp, e))?;
         image
             .write()

@@ -1,7 +1,7 @@
 //! PNG: radiance clamped to [0, 1], sRGB-encoded with the exact IEC
 //! 61966-2-1 curve, 8-bit RGB.
 
-use super::{check_size, write_atomically, LoadedImage};
+use super::{check_size, LoadedImage, OutputSet};
 use crate::error::{Error, Result};
 use glam::Vec3;
 use image::codecs::png::{PngDecoder, PngEncoder};
@@ -42,19 +42,45 @@ pub fn srgb_decode(encoded: f64) -> f64 {
 /// [`write_atomically`](super::write_atomically)). Values are clamped to
 /// [0, 1] and NaN becomes 0.
 pub fn write_png(path: &Path, width: u32, height: u32, radiance: &[Vec3]) -> Result<()> {
+    let mut set = OutputSet::new();
+    stage_png(&mut set, path, width, height, radiance)?;
+    set.commit()
+}
+
+/// [`write_png`] into `set`.
+pub(super) fn stage_png(
+    set: &mut OutputSet,
+    path: &Path,
+    width: u32,
+    height: u32,
+    radiance: &[Vec3],
+) -> Result<()> {
     check_size(path, width, height, radiance.len(), "radiance")?;
     let bytes: Vec<u8> = radiance
         .iter()
         .flat_map(|c| [c.x, c.y, c.z])
         .map(srgb_encode_u8)
         .collect();
-    write_rgb8(path, width, height, &bytes)
+    stage_rgb8(set, path, width, height, &bytes)
 }
 
 /// Writes 8-bit RGB `bytes` (`width × height × 3`, row 0 at the top) as a
 /// PNG at `path`, atomically. Shared by the image output and the report's
 /// charts and heat maps, so every PNG is encoded the same way.
 pub(crate) fn write_rgb8(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<()> {
+    let mut set = OutputSet::new();
+    stage_rgb8(&mut set, path, width, height, bytes)?;
+    set.commit()
+}
+
+/// [`write_rgb8`] into `set`.
+fn stage_rgb8(
+    set: &mut OutputSet,
+    path: &Path,
+    width: u32,
+    height: u32,
+    bytes: &[u8],
+) -> Result<()> {
     if !bytes.len().is_multiple_of(3) {
         return Err(Error::file(
             path,
@@ -63,7 +89,7 @@ pub(crate) fn write_rgb8(path: &Path, width: u32, height: u32, bytes: &[u8]) -> 
         ));
     }
     check_size(path, width, height, bytes.len() / 3, "RGB data")?;
-    write_atomically(path, |tmp| {
+    set.stage(path, |tmp| {
         let file = File::create(tmp).map_err(|e| Error::io(tmp, e))?;
         let mut out = BufWriter::new(file);
         PngEncoder::new(&mut out)

@@ -7,10 +7,13 @@
 //! and the line of the offending key.
 
 use super::assets::{Assets, TextureKind, DEFAULT_MATERIAL};
-use super::{shapes, Camera, Light, LightShape, Material, Object, Scene};
+use super::{
+    shapes, Camera, Light, LightShape, Material, Object, Scene, MAX_MAGNITUDE, MIN_MAGNITUDE,
+};
 use crate::error::{Error, Result};
 use crate::geom::Mesh;
-use glam::{Mat3, Vec3};
+use crate::raster::MAX_SIDE;
+use glam::{DVec3, Mat3, Vec3};
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 use std::fmt;
@@ -20,54 +23,118 @@ use toml::Spanned;
 
 /// Image size used when `[camera]` gives none.
 const DEFAULT_IMAGE_SIZE: u32 = 1024;
-/// Largest accepted image width or height.
-const MAX_IMAGE_SIDE: i64 = 65536;
-/// Largest accepted image area, in pixels.
-const MAX_IMAGE_PIXELS: i64 = 1 << 28;
+/// Largest accepted image width or height: the rasterizer's limit, the
+/// same one `--width`/`--height` have.
+const MAX_IMAGE_SIDE: i64 = MAX_SIDE as i64;
 /// Accepted sphere tessellations.
 const SEGMENTS: Range<i64> = 3..4097;
 const RINGS: Range<i64> = 2..4097;
 
 // ---------------------------------------------------------------- TOML ----
 
+/// Exactly three numbers (integers accepted), kept as TOML's `f64` so that
+/// range checks see the value as written, before any rounding to `f32`.
+#[derive(Debug, Clone, Copy)]
+struct Arr3([f64; 3]);
+
 /// A number (the same on all three components) or an array of three.
 #[derive(Debug, Clone, Copy)]
-struct Triple([f32; 3]);
+struct Triple([f64; 3]);
 
-impl<'de> Deserialize<'de> for Triple {
+/// One number of an array (integers accepted; anything else is a type
+/// error saying "a number").
+struct Num(f64);
+
+impl<'de> Deserialize<'de> for Num {
     fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
         struct V;
-        impl<'de> Visitor<'de> for V {
-            type Value = Triple;
+        impl Visitor<'_> for V {
+            type Value = Num;
             fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a number or an array of 3 numbers")
+                f.write_str("a number")
             }
-            fn visit_f64<E: de::Error>(self, x: f64) -> std::result::Result<Triple, E> {
-                Ok(Triple([x as f32; 3]))
+            fn visit_f64<E: de::Error>(self, x: f64) -> std::result::Result<Num, E> {
+                Ok(Num(x))
             }
-            fn visit_i64<E: de::Error>(self, x: i64) -> std::result::Result<Triple, E> {
-                Ok(Triple([x as f32; 3]))
+            fn visit_i64<E: de::Error>(self, x: i64) -> std::result::Result<Num, E> {
+                Ok(Num(x as f64))
             }
-            fn visit_u64<E: de::Error>(self, x: u64) -> std::result::Result<Triple, E> {
-                Ok(Triple([x as f32; 3]))
-            }
-            fn visit_seq<A: SeqAccess<'de>>(
-                self,
-                mut seq: A,
-            ) -> std::result::Result<Triple, A::Error> {
-                let mut out = [0.0; 3];
-                for (i, slot) in out.iter_mut().enumerate() {
-                    *slot = seq
-                        .next_element()?
-                        .ok_or_else(|| de::Error::invalid_length(i, &self))?;
-                }
-                if seq.next_element::<de::IgnoredAny>()?.is_some() {
-                    return Err(de::Error::invalid_length(4, &self));
-                }
-                Ok(Triple(out))
+            fn visit_u64<E: de::Error>(self, x: u64) -> std::result::Result<Num, E> {
+                Ok(Num(x as f64))
             }
         }
         d.deserialize_any(V)
+    }
+}
+
+/// The visitor of [`Arr3`] and [`Triple`]: an array of exactly three
+/// numbers, and for a triple also one number standing for all three.
+struct ThreeNumbers {
+    scalar_ok: bool,
+}
+
+impl ThreeNumbers {
+    fn scalar<E: de::Error>(
+        self,
+        x: f64,
+        what: de::Unexpected,
+    ) -> std::result::Result<[f64; 3], E> {
+        match self.scalar_ok {
+            true => Ok([x; 3]),
+            false => Err(de::Error::invalid_type(what, &self)),
+        }
+    }
+}
+
+impl<'de> Visitor<'de> for ThreeNumbers {
+    type Value = [f64; 3];
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        match self.scalar_ok {
+            true => f.write_str("a number or an array of 3 numbers"),
+            false => f.write_str("an array of 3 numbers"),
+        }
+    }
+    fn visit_f64<E: de::Error>(self, x: f64) -> std::result::Result<[f64; 3], E> {
+        self.scalar(x, de::Unexpected::Float(x))
+    }
+    fn visit_i64<E: de::Error>(self, x: i64) -> std::result::Result<[f64; 3], E> {
+        self.scalar(x as f64, de::Unexpected::Signed(x))
+    }
+    fn visit_u64<E: de::Error>(self, x: u64) -> std::result::Result<[f64; 3], E> {
+        self.scalar(x as f64, de::Unexpected::Unsigned(x))
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<[f64; 3], A::Error> {
+        let mut out = [0.0; 3];
+        for (i, slot) in out.iter_mut().enumerate() {
+            *slot = seq
+                .next_element::<Num>()?
+                .ok_or_else(|| de::Error::invalid_length(i, &self))?
+                .0;
+        }
+        // Extra elements (of any type) are an error too; count them for
+        // the message.
+        let mut len = 3;
+        while seq.next_element::<de::IgnoredAny>()?.is_some() {
+            len += 1;
+        }
+        match len {
+            3 => Ok(out),
+            _ => Err(de::Error::invalid_length(len, &self)),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Arr3 {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        d.deserialize_any(ThreeNumbers { scalar_ok: false })
+            .map(Arr3)
+    }
+}
+
+impl<'de> Deserialize<'de> for Triple {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        d.deserialize_any(ThreeNumbers { scalar_ok: true })
+            .map(Triple)
     }
 }
 
@@ -96,10 +163,10 @@ struct SceneSection {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraSection {
-    eye: Sp<[f32; 3]>,
-    target: Sp<[f32; 3]>,
-    up: Option<Sp<[f32; 3]>>,
-    fov_y: Sp<f32>,
+    eye: Sp<Arr3>,
+    target: Sp<Arr3>,
+    up: Option<Sp<Arr3>>,
+    fov_y: Sp<f64>,
     width: Option<Sp<i64>>,
     height: Option<Sp<i64>>,
 }
@@ -109,11 +176,11 @@ struct CameraSection {
 struct LightEntry {
     #[serde(rename = "type")]
     kind: Sp<String>,
-    center: Sp<[f32; 3]>,
+    center: Sp<Arr3>,
     radiance: Sp<Triple>,
-    u: Option<Sp<[f32; 3]>>,
-    v: Option<Sp<[f32; 3]>>,
-    radius: Option<Sp<f32>>,
+    u: Option<Sp<Arr3>>,
+    v: Option<Sp<Arr3>>,
+    radius: Option<Sp<f64>>,
     texture: Option<Sp<String>>,
     two_sided: Option<Sp<bool>>,
 }
@@ -124,12 +191,12 @@ struct ObjectEntry {
     name: Option<String>,
     obj: Option<Sp<String>>,
     shape: Option<Sp<String>>,
-    radius: Option<Sp<f32>>,
+    radius: Option<Sp<f64>>,
     segments: Option<Sp<i64>>,
     rings: Option<Sp<i64>>,
-    size: Option<Sp<Vec<f32>>>,
-    translate: Option<Sp<[f32; 3]>>,
-    rotate: Option<Sp<[f32; 3]>>,
+    size: Option<Sp<Vec<f64>>>,
+    translate: Option<Sp<Arr3>>,
+    rotate: Option<Sp<Arr3>>,
     scale: Option<Sp<Triple>>,
     material: Option<Sp<MaterialEntry>>,
     cast_shadows: Option<bool>,
@@ -142,8 +209,8 @@ struct MaterialEntry {
     albedo: Option<Sp<Triple>>,
     albedo_texture: Option<Sp<String>>,
     specular: Option<Sp<Triple>>,
-    shininess: Option<Sp<f32>>,
-    opacity: Option<Sp<f32>>,
+    shininess: Option<Sp<f64>>,
+    opacity: Option<Sp<f64>>,
     opacity_texture: Option<Sp<String>>,
 }
 
@@ -167,29 +234,65 @@ impl Ctx<'_> {
         Error::file(self.path, Some(self.line(span.start)), message)
     }
 
-    /// The numbers of a value, which must all be finite.
-    fn finite<const N: usize>(
+    /// The numbers of a value converted to `f32`: each must be finite,
+    /// within `f32` and of magnitude at most [`MAX_MAGNITUDE`] (the
+    /// supported range, documented in docs/scene-format.md).
+    fn checked<const N: usize>(
         &self,
         span: Range<usize>,
         key: &str,
-        xs: [f32; N],
+        xs: [f64; N],
     ) -> Result<[f32; N]> {
-        match xs.iter().all(|x| x.is_finite()) {
-            true => Ok(xs),
-            false => Err(self.err(span, format!("`{key}` must be finite"))),
+        for &x in &xs {
+            let why = if !x.is_finite() {
+                format!("`{key}` must be finite")
+            } else if x.abs() > f64::from(f32::MAX) {
+                format!(
+                    "`{key}`: {} is out of range for f32 (max 3.4e38); \
+                     the supported range is ±{MAX_MAGNITUDE:e}",
+                    show(x)
+                )
+            } else if x.abs() > MAX_MAGNITUDE {
+                format!(
+                    "`{key}`: {} is beyond the supported range of scene values, ±{MAX_MAGNITUDE:e}",
+                    show(x)
+                )
+            } else {
+                continue;
+            };
+            return Err(self.err(span, why));
         }
+        Ok(xs.map(|x| x as f32))
     }
 
-    fn vec3(&self, v: &Sp<[f32; 3]>, key: &str) -> Result<Vec3> {
-        self.finite(v.span(), key, *v.get_ref()).map(Vec3::from)
+    fn vec3(&self, v: &Sp<Arr3>, key: &str) -> Result<Vec3> {
+        self.checked(v.span(), key, v.get_ref().0).map(Vec3::from)
     }
 
     fn triple(&self, v: &Sp<Triple>, key: &str) -> Result<Vec3> {
-        self.finite(v.span(), key, v.get_ref().0).map(Vec3::from)
+        self.checked(v.span(), key, v.get_ref().0).map(Vec3::from)
     }
 
-    fn number(&self, v: &Sp<f32>, key: &str) -> Result<f32> {
-        self.finite(v.span(), key, [*v.get_ref()]).map(|[x]| x)
+    fn number(&self, v: &Sp<f64>, key: &str) -> Result<f32> {
+        self.checked(v.span(), key, [*v.get_ref()]).map(|[x]| x)
+    }
+
+    /// A length-like magnitude (`|x|` of a size, radius, half-edge or scale
+    /// factor, `what` naming it) that is not zero: it must be at least
+    /// [`MIN_MAGNITUDE`], so that products of lengths (areas, normals)
+    /// stay normal `f32` numbers.
+    fn not_tiny(&self, span: Range<usize>, key: &str, what: &str, x: f64) -> Result<()> {
+        match x == 0.0 || x.abs() >= MIN_MAGNITUDE {
+            true => Ok(()),
+            false => Err(self.err(
+                span,
+                format!(
+                    "`{key}`: {what} {} is below the supported range of lengths, \
+                     {MIN_MAGNITUDE:e} to {MAX_MAGNITUDE:e}",
+                    show(x)
+                ),
+            )),
+        }
     }
 
     /// A colour-like triple that must not be negative, or `default`.
@@ -239,6 +342,17 @@ impl Ctx<'_> {
     }
 }
 
+/// A number for a message: as written for ordinary magnitudes, in
+/// scientific notation for huge and tiny ones (`1e38`, not 39 digits).
+fn show(x: f64) -> String {
+    match x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+        true => format!("{x:e}"),
+        false => format!("{x}"),
+    }
+}
+
+// -------------------------------------------------------------- assets ----
+
 // ------------------------------------------------------------- builders ----
 
 fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
@@ -255,15 +369,18 @@ fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
             format!("`camera.fov_y` = {fov} must be in (0, 180) degrees"),
         ));
     }
-    let forward = target - eye;
-    if forward == Vec3::ZERO || !forward.is_finite() {
+    // In f64, as the view computes its basis: no overflow or underflow
+    // for any values in the supported range.
+    let forward = target.as_dvec3() - eye.as_dvec3();
+    if forward == DVec3::ZERO {
         return Err(ctx.err(
             c.target.span(),
             "`camera.target` must differ from `camera.eye`",
         ));
     }
     // Parallel (or zero) up leaves `right = normalize(forward × up)` undefined.
-    if forward.normalize().cross(up).length() <= 1e-6 * up.length() {
+    let up64 = up.as_dvec3();
+    if forward.normalize().cross(up64).length() <= 1e-6 * up64.length() {
         let span = c.up.as_ref().map_or(c.target.span(), Sp::span);
         return Err(ctx.err(
             span,
@@ -274,17 +391,6 @@ fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
     let default = i64::from(DEFAULT_IMAGE_SIZE);
     let width = ctx.int(&c.width, "camera.width", side.clone(), default)?;
     let height = ctx.int(&c.height, "camera.height", side, default)?;
-    if width * height > MAX_IMAGE_PIXELS {
-        let span = c
-            .height
-            .as_ref()
-            .or(c.width.as_ref())
-            .map_or(c.fov_y.span(), Sp::span);
-        return Err(ctx.err(
-            span,
-            format!("{width}×{height} is more than {MAX_IMAGE_PIXELS} pixels"),
-        ));
-    }
     Ok(Camera {
         eye,
         target,
@@ -342,9 +448,13 @@ fn light(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<LightEntry>) -> Re
                 return Err(ctx.err(entry.span(), "a rect light needs `u` and `v`"));
             };
             let (u, v) = (ctx.vec3(u_sp, &key("u"))?, ctx.vec3(v_sp, &key("v"))?);
+            let (u64, v64) = (u.as_dvec3(), v.as_dvec3());
+            ctx.not_tiny(u_sp.span(), &key("u"), "length", u64.length())?;
+            ctx.not_tiny(v_sp.span(), &key("v"), "length", v64.length())?;
             // Relative test (also true for a zero u or v): a sliver with
-            // |u × v| ≪ |u| |v| has no usable normal or area either.
-            if u.cross(v).length() <= 1e-6 * u.length() * v.length() {
+            // |u × v| ≪ |u| |v| has no usable normal or area either. In
+            // f64, so that no value in the supported range overflows.
+            if u64.cross(v64).length() <= 1e-6 * u64.length() * v64.length() {
                 let at = if u == Vec3::ZERO { u_sp } else { v_sp };
                 return Err(ctx.err(
                     at.span(),
@@ -372,6 +482,7 @@ fn light(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<LightEntry>) -> Re
             if radius <= 0.0 {
                 return Err(ctx.err(r.span(), "sphere light `radius` must be positive"));
             }
+            ctx.not_tiny(r.span(), &key("radius"), "radius", *r.get_ref())?;
             LightShape::Sphere { center, radius }
         }
         other => {
@@ -398,7 +509,7 @@ fn inline_material(
     let key = |k: &str| format!("object[{i}].material.{k}");
     let d = Material::default();
     let scalar =
-        |v: &Option<Sp<f32>>, k: &str, default: f32, ok: fn(f32) -> bool, range: &str| match v {
+        |v: &Option<Sp<f64>>, k: &str, default: f32, ok: fn(f32) -> bool, range: &str| match v {
             Some(v) => {
                 let x = ctx.number(v, &key(k))?;
                 match ok(x) {
@@ -448,8 +559,11 @@ fn transform(ctx: &Ctx, i: usize, o: &ObjectEntry) -> Result<Transform> {
     let scale = match &o.scale {
         Some(s) => {
             let v = ctx.triple(s, &key("scale"))?;
-            if v.x * v.y * v.z == 0.0 {
+            if v.cmpeq(Vec3::ZERO).any() {
                 return Err(ctx.err(s.span(), format!("`{}` must not be zero", key("scale"))));
+            }
+            for x in s.get_ref().0 {
+                ctx.not_tiny(s.span(), &key("scale"), "factor", x)?;
             }
             v
         }
@@ -488,6 +602,16 @@ fn place(
         if !p.is_finite() {
             return Err(too_big());
         }
+        if f64::from(p.abs().max_element()) > MAX_MAGNITUDE {
+            return Err(ctx.err(
+                span.clone(),
+                format!(
+                    "{what}: a vertex lands at {:?} after the transform, beyond the \
+                     supported range of coordinates, ±{MAX_MAGNITUDE:e}",
+                    p.to_array()
+                ),
+            ));
+        }
     }
     for n in mesh.normals.iter_mut().flatten() {
         *n = (t.normal * *n).normalize();
@@ -516,7 +640,15 @@ fn place(
     Ok(before - mesh.triangles.len())
 }
 
-fn object(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<ObjectEntry>) -> Result<Object> {
+/// Builds object `i`; `before` is the triangle count of the objects loaded
+/// before it (for the memory estimate of built-in shapes).
+fn object(
+    ctx: &Ctx,
+    assets: &mut Assets,
+    i: usize,
+    entry: &Sp<ObjectEntry>,
+    before: u64,
+) -> Result<Object> {
     let o = entry.get_ref();
     let key = |k: &str| format!("object[{i}].{k}");
     let material = match &o.material {
@@ -533,10 +665,10 @@ fn object(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<ObjectEntry>) -> 
         ("rings", span(&o.rings)),
         ("size", span(&o.size)),
     ];
-    let positive = |v: &Sp<f32>, k: &str| -> Result<f32> {
+    let positive = |v: &Sp<f64>, k: &str| -> Result<f32> {
         let x = ctx.number(v, &key(k))?;
         match x > 0.0 {
-            true => Ok(x),
+            true => ctx.not_tiny(v.span(), &key(k), k, *v.get_ref()).map(|()| x),
             false => Err(ctx.err(v.span(), format!("`{}` must be positive", key(k)))),
         }
     };
@@ -545,13 +677,19 @@ fn object(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<ObjectEntry>) -> 
         let Some(s) = &o.size else {
             return Ok(vec![1.0; n]);
         };
-        if s.get_ref().len() != n || !s.get_ref().iter().all(|&x| x.is_finite() && x > 0.0) {
+        if s.get_ref().len() != n || !s.get_ref().iter().all(|&x| x > 0.0) {
             return Err(ctx.err(
                 s.span(),
                 format!("`{}` must be {n} positive numbers", key("size")),
             ));
         }
-        Ok(s.get_ref().clone())
+        let mut out = Vec::with_capacity(n);
+        for &x in s.get_ref() {
+            let [x32] = ctx.checked(s.span(), &key("size"), [x])?;
+            ctx.not_tiny(s.span(), &key("size"), "size", x)?;
+            out.push(x32);
+        }
+        Ok(out)
     };
     let (mut mesh, origin, name) = match (&o.obj, &o.shape) {
         (Some(_), Some(shape)) => {
@@ -583,7 +721,21 @@ fn object(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<ObjectEntry>) -> 
                     let segments = ctx.int(&o.segments, &key("segments"), SEGMENTS, 20)?;
                     let rings = ctx.int(&o.rings, &key("rings"), RINGS, 20)?;
                     // In range by the checks above.
-                    shapes::sphere(r, segments as u32, rings as u32, m)
+                    let (segments, rings) = (segments as u32, rings as u32);
+                    let at = o
+                        .rings
+                        .as_ref()
+                        .or(o.segments.as_ref())
+                        .map_or(shape.span(), Sp::span);
+                    let triangles = shapes::sphere_triangle_count(segments, rings);
+                    check_geometry_memory(
+                        ctx,
+                        at,
+                        &format!("a sphere of {segments} segments × {rings} rings"),
+                        triangles,
+                        before,
+                    )?;
+                    shapes::sphere(r, segments, rings, m)
                 }
                 "box" => {
                     only(ctx, "boxes", &["size"], &present)?;
@@ -609,11 +761,11 @@ fn object(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<ObjectEntry>) -> 
     let name = o.name.clone().unwrap_or_else(|| format!("{name}#{i}"));
     let dropped = place(ctx, origin.span(), &name, &mut mesh, &transform)?;
     if dropped > 0 {
-        eprintln!(
-            "note: {}:{}: object `{name}`: dropped {dropped} degenerate triangle(s)",
+        crate::output::write_stderr(&format!(
+            "note: {}:{}: object `{name}`: dropped {dropped} degenerate triangle(s)\n",
             ctx.path.display(),
             ctx.line(origin.span().start)
-        );
+        ));
     }
     Ok(Object {
         name,
@@ -621,6 +773,93 @@ fn object(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<ObjectEntry>) -> 
         cast_shadows: o.cast_shadows.unwrap_or(true),
         receive_shadows: o.receive_shadows.unwrap_or(true),
     })
+}
+
+/// Bytes a triangle of a built-in shape costs from loading through the
+/// most demanding render, measured (`/usr/bin/time -v`) on a 1024 × 1024
+/// sphere at 16 × 16 pixels: about 60 at load (mesh and transform) and 490
+/// at the peak of a reference render (scene geometry, adjacency, BVH),
+/// rounded up.
+const BYTES_PER_TRIANGLE: u64 = 576;
+
+/// Refuses geometry that cannot fit in memory before generating it, as
+/// `render::check_memory` does for images: `what` (at `span`) adds
+/// `triangles` to the `before` of earlier objects.
+fn check_geometry_memory(
+    ctx: &Ctx,
+    span: Range<usize>,
+    what: &str,
+    triangles: u64,
+    before: u64,
+) -> Result<()> {
+    let need = (triangles + before).saturating_mul(BYTES_PER_TRIANGLE);
+    let Some(have) = memory_budget() else {
+        return Ok(());
+    };
+    if need <= have {
+        return Ok(());
+    }
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    let earlier = match before {
+        0 => String::new(),
+        n => format!(" (with the {n} of the objects before it)"),
+    };
+    Err(ctx.err(
+        span,
+        format!(
+            "{what} has {triangles} triangles; loading and rendering them{earlier} \
+             needs about {:.1} GiB, more than the {:.1} GiB available",
+            gib(need),
+            gib(have)
+        ),
+    ))
+}
+
+/// Memory this process can still allocate: the machine's available memory
+/// (`MemAvailable`) or, if lower, what an address-space limit (`ulimit
+/// -v`) leaves beside what is already mapped; `None` where neither is
+/// readable (not Linux).
+fn memory_budget() -> Option<u64> {
+    let field = |file: &str, name: &str| -> Option<u64> {
+        let text = std::fs::read_to_string(file).ok()?;
+        let line = text.lines().find(|l| l.starts_with(name))?;
+        line[name.len()..].split_whitespace().next()?.parse().ok()
+    };
+    let available = field("/proc/meminfo", "MemAvailable:").map(|kib| kib * 1024);
+    // "Max address space   <soft> <hard> bytes"; the soft limit applies.
+    let limit = field("/proc/self/limits", "Max address space");
+    let mapped = field("/proc/self/status", "VmSize:").map_or(0, |kib| kib * 1024);
+    let address_space = limit.map(|l| l.saturating_sub(mapped));
+    match (available, address_space) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// The key whose value contains byte `offset` of `text`: the word before
+/// the last `=` (outside strings) on that line before `offset`. Good for
+/// `key = value`, inline tables and arrays on one line; `None` elsewhere.
+fn key_of_value(text: &str, offset: usize) -> Option<&str> {
+    let offset = offset.min(text.len());
+    let start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
+    let prefix = text.get(start..offset)?;
+    let mut in_string = None;
+    let mut equals = None;
+    for (i, c) in prefix.char_indices() {
+        match (in_string, c) {
+            (None, '"' | '\'') => in_string = Some(c),
+            (Some(q), _) if c == q => in_string = None,
+            (None, '=') => equals = Some(i),
+            (None, '#') => return None,
+            _ => {}
+        }
+    }
+    let before = prefix[..equals?].trim_end();
+    let key_start = before
+        .rfind(|c: char| !(c.is_ascii_alphanumeric() || "_-.".contains(c)))
+        .map_or(0, |i| i + 1);
+    let key = &before[key_start..];
+    (!key.is_empty()).then_some(key)
 }
 
 /// Load and validate a scene file.
@@ -654,7 +893,25 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
     let file: SceneFile = toml::from_str(text).map_err(|e| {
         // toml gives a span for everything it can place; the rest is at the top.
         let line = e.span().map_or(1, |s| ctx.line(s.start));
-        Error::file(path, Some(line), e.message().trim().replace('\n', ": "))
+        let mut message = e.message().trim().replace('\n', ": ");
+        if message.is_empty() {
+            // toml has no words for some syntax errors (a value missing at
+            // the end of the file); say where.
+            let column = e.span().map_or(1, |s| {
+                let start = ctx.line_starts[ctx.line(s.start) - 1];
+                text.get(start..s.start)
+                    .map_or(1, |t| t.chars().count() + 1)
+            });
+            message = format!("invalid TOML: a value is missing or malformed at column {column}");
+        }
+        // A wrong value ("invalid length 5, expected an array of 3
+        // numbers") does not say whose; the source line does.
+        if message.starts_with("invalid ") {
+            if let Some(key) = e.span().and_then(|s| key_of_value(text, s.start)) {
+                message = format!("`{key}`: {message}");
+            }
+        }
+        Error::file(path, Some(line), message)
     })?;
 
     let section = &file.scene;
@@ -669,9 +926,13 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
     let lights = (file.light.iter().enumerate())
         .map(|(i, l)| light(&ctx, &mut assets, i, l))
         .collect::<Result<_>>()?;
-    let objects = (file.object.iter().enumerate())
-        .map(|(i, o)| object(&ctx, &mut assets, i, o))
-        .collect::<Result<_>>()?;
+    let mut objects: Vec<Object> = Vec::with_capacity(file.object.len());
+    let mut triangles = 0u64;
+    for (i, o) in file.object.iter().enumerate() {
+        let object = object(&ctx, &mut assets, i, o, triangles)?;
+        triangles += object.mesh.triangle_count() as u64;
+        objects.push(object);
+    }
     Ok(Scene {
         name,
         path: path.to_path_buf(),

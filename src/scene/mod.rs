@@ -18,6 +18,18 @@ use crate::geom::Mesh;
 use glam::Vec3;
 use std::path::PathBuf;
 
+/// Largest magnitude of any number in a scene file (coordinates, lengths,
+/// radiance, colours, angles, ...) and of any vertex after its object's
+/// transform. Within it, products of up to four coordinates (squared
+/// lengths, cross products, plane offsets) stay finite in `f32`; beyond it
+/// a scene is refused at load with a message that says so.
+pub const MAX_MAGNITUDE: f64 = 1e9;
+
+/// Smallest magnitude of a nonzero length (sphere and light radius, box and
+/// quad size, `|u|` and `|v|` of a rect light) or scale factor: products of
+/// up to four of them stay normal `f32` numbers.
+pub const MIN_MAGNITUDE: f64 = 1e-9;
+
 /// A loaded, validated scene.
 #[derive(Debug, Clone)]
 pub struct Scene {

@@ -69,6 +69,12 @@ pub fn sphere(r: f32, segments: u32, rings: u32, material: u32) -> Mesh {
     mesh
 }
 
+/// The number of triangles [`sphere`] makes: one per segment in each polar
+/// ring, two per quad elsewhere.
+pub fn sphere_triangle_count(segments: u32, rings: u32) -> u64 {
+    2 * u64::from(segments) * u64::from(rings.saturating_sub(1))
+}
+
 /// One axis-aligned face: outward normal `n`, in-face "up" axis `t`, and
 /// the box half-extents. The in-face "right" axis `s = t × n` makes
 /// `s × t = n`, so corners in uv order (0,0), (1,0), (1,1), (0,1) run
@@ -125,4 +131,22 @@ pub fn quad(sx: f32, sz: f32, material: u32) -> Mesh {
         material,
     );
     mesh
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The loader's memory estimate counts what `sphere` generates.
+    #[test]
+    fn sphere_triangle_count_is_exact() {
+        for (segments, rings) in [(3, 2), (4, 3), (7, 5), (20, 20), (64, 2)] {
+            let mesh = sphere(1.0, segments, rings, 0);
+            assert_eq!(
+                sphere_triangle_count(segments, rings),
+                mesh.triangles.len() as u64,
+                "{segments} × {rings}"
+            );
+        }
+    }
 }

@@ -110,6 +110,13 @@ pub struct DcsOptions {
     pub coverage: CoverageTest,
 }
 
+impl Default for DcsOptions {
+    /// The command line's defaults (exact: whole-light silhouettes).
+    fn default() -> Self {
+        crate::shadow::TechniqueOptions::default().dcs
+    }
+}
+
 /// Depth complexity sampling in the technique registry.
 pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     name: "dcs",

@@ -112,6 +112,13 @@ pub struct ShadowMapOptions {
     pub normal_offset: f64,
 }
 
+impl Default for ShadowMapOptions {
+    /// The command line's defaults.
+    fn default() -> Self {
+        crate::shadow::TechniqueOptions::default().shadow_map
+    }
+}
+
 impl ShadowMapOptions {
     fn validate(&self) -> Result<()> {
         for (name, v, max) in [

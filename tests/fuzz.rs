@@ -1,0 +1,1256 @@
+//! A fuzz harness on stable Rust: seeded mutations of the shipped scenes
+//! and of small OBJ, MTL and texture inputs, and random command lines for
+//! `render`, `diff` and `info`. Every case must end in one of two ways:
+//!
+//! - an error that names the file and line (scene, OBJ, MTL, texture
+//!   references) or the parameter (command line, render limits), or the
+//!   output or image path it is about, or
+//! - an image (rendered at 16 × 16 by a technique from the registry)
+//!   with no NaN in its radiance or in any layer,
+//!
+//! and never in a panic, a signal (abort, segfault) or a hang.
+//!
+//! `fuzz` runs the cases in a worker process (this test binary, test
+//! `fuzz_worker`) under a 4 GiB address-space limit (`ulimit -v`), so
+//! that a crash or a hang ends only the worker: the parent knows the case
+//! it was running, reports it and starts a new worker after it. Knobs
+//! (environment):
+//!
+//! - `PENUMBRA_FUZZ_CASES` (default 4000, about a minute on a loaded
+//!   two-core machine), `PENUMBRA_FUZZ_SEED` (run seed, default 1),
+//!   `PENUMBRA_FUZZ_TIMEOUT` (seconds per case, default 60);
+//! - `PENUMBRA_FUZZ_CASE_SEED=0x...` reruns one reported case in-process,
+//!   printing its inputs (kept in the printed directory) and its outcome.
+
+mod common;
+
+use clap::Parser;
+use common::Rng;
+use glam::Vec3;
+use penumbra::output::{read_image, write_exr, write_png, Layer};
+use penumbra::render::{render, Aov, RenderOptions};
+use penumbra::report::Progress;
+use penumbra::sampling::SamplePattern;
+use penumbra::scene::load_scene;
+use penumbra::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
+use penumbra::shadow::stsv::Filter;
+use penumbra::Error;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+const DEFAULT_CASES: u64 = 4000;
+const DEFAULT_TIMEOUT_S: u64 = 60;
+/// The worker's address-space limit, KiB (4 GiB).
+const ADDRESS_SPACE_KIB: u64 = 4 << 20;
+
+fn env_u64(name: &str) -> Option<u64> {
+    let v = std::env::var(name).ok()?;
+    let v = v.trim();
+    match v.strip_prefix("0x") {
+        Some(hex) => u64::from_str_radix(hex, 16).ok(),
+        None => v.parse().ok(),
+    }
+}
+
+/// The seed of case `index` of a run: a SplitMix64 step, so that nearby
+/// indices give unrelated cases.
+fn case_seed(run_seed: u64, index: u64) -> u64 {
+    Rng(run_seed ^ index.wrapping_mul(0xd1b5_4a32_d192_ed03)).next_u64()
+}
+
+// ------------------------------------------------------------ inputs ----
+
+fn manifest() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The shipped scenes' text with relative file references made absolute,
+/// so that a mutated copy in a scratch directory still finds its models.
+fn shipped_scenes() -> &'static [(String, String)] {
+    static SCENES: OnceLock<Vec<(String, String)>> = OnceLock::new();
+    SCENES.get_or_init(|| {
+        let dir = manifest().join("scenes");
+        let mut names: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .expect("scenes/")
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .collect();
+        names.sort();
+        assert!(names.len() >= 5, "the shipped scenes are the corpus");
+        names
+            .iter()
+            .map(|p| {
+                let text = std::fs::read_to_string(p).unwrap();
+                let name = p.file_stem().unwrap().to_string_lossy().into_owned();
+                (name, absolute_references(&text, &dir))
+            })
+            .collect()
+    })
+}
+
+/// `obj = "../x.obj"` → `obj = "/abs/scenes/../x.obj"` (textures too,
+/// except the shipped `fence-opacity.png`, which each case copies).
+fn absolute_references(text: &str, dir: &Path) -> String {
+    let mut out = String::new();
+    for line in text.lines() {
+        let trimmed = line.trim_start();
+        let is_ref = trimmed.starts_with("obj ") || trimmed.starts_with("obj=");
+        match (is_ref, line.find('"'), line.rfind('"')) {
+            (true, Some(a), Some(b)) if b > a => {
+                let file = &line[a + 1..b];
+                let abs = dir.join(file);
+                let _ = writeln!(out, "{}\"{}\"{}", &line[..a], abs.display(), &line[b + 1..]);
+            }
+            _ => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    out
+}
+
+/// A small scene using every kind of input: the small OBJ (with its MTL
+/// and textures), a textured rect light, a sphere light, built-in shapes
+/// with inline materials and an opacity texture.
+const SMALL_SCENE: &str = r#"[scene]
+name = "small"
+ambient = [0.02, 0.03, 0.04]
+background = 0.1
+
+[camera]
+eye = [0.5, 2.0, 4.0]
+target = [0.0, 0.3, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 50.0
+width = 32
+height = 24
+
+[[light]]
+type = "rect"
+center = [0.5, 3.0, 0.5]
+u = [0.4, 0.0, 0.0]
+v = [0.0, 0.0, 0.3]
+radiance = [6.0, 5.0, 4.0]
+texture = "tex.png"
+two_sided = true
+
+[[light]]
+type = "sphere"
+center = [-1.5, 2.5, 1.0]
+radius = 0.25
+radiance = 3.0
+
+[[object]]
+name = "ground"
+shape = "quad"
+size = [6.0, 6.0]
+material = { albedo = [0.7, 0.7, 0.7], specular = 0.1, shininess = 30.0 }
+
+[[object]]
+obj = "model.obj"
+scale = 0.8
+rotate = [0.0, 30.0, 0.0]
+translate = [0.2, 0.1, 0.0]
+
+[[object]]
+shape = "sphere"
+radius = 0.3
+segments = 12
+rings = 8
+translate = [-0.8, 0.5, 0.3]
+material = { albedo_texture = "tex.tga", opacity = 0.6 }
+
+[[object]]
+shape = "box"
+size = [0.4, 0.6, 0.2]
+translate = [0.9, 0.5, -0.6]
+scale = [1.0, -1.0, 1.0]
+material = { opacity_texture = "opacity.png" }
+cast_shadows = true
+receive_shadows = false
+"#;
+
+/// A tetrahedron with positions, uvs and normals, two groups, three
+/// materials, relative indices, a quad and a 4-component vertex.
+const SMALL_OBJ: &str = "# small model\n\
+mtllib model.mtl\n\
+o tetra\n\
+v 0 0 0\n\
+v 1 0 0\n\
+v 0 1 0\n\
+v 0 0 1 1\n\
+v 0.5 0.5 0.5\n\
+vt 0 0\n\
+vt 1 0\n\
+vt 0 1\n\
+vn 0 0 -1\n\
+vn 0 -1 0\n\
+vn -1 0 0\n\
+vn 0.577 0.577 0.577\n\
+usemtl red\n\
+f 1/1/1 3/3/1 2/2/1\n\
+f 1/1/2 2/2/2 4/3/2\n\
+usemtl fence\n\
+f 1/1/3 4/2/3 3/3/3\n\
+g top\n\
+usemtl glass\n\
+f 2/1/4 3/2/4 4/3/4\n\
+f -2/-1/-1 -3/-2/-1 -4/-3/-1\n\
+f 1/1/1 2/2/1 5/3/1 3/3/1\n";
+
+const SMALL_MTL: &str = "newmtl red\n\
+Kd 0.8 0.1 0.1\n\
+Ks 0.2 0.2 0.2\n\
+Ns 20\n\
+newmtl fence\n\
+Kd 0.5\n\
+map_Kd tex.png\n\
+map_d -bm 1 opacity.png\n\
+newmtl glass\n\
+Kd 0.9 0.9 1\n\
+Tr 0.4\n\
+illum 2\n";
+
+/// The small binary inputs: (file name, bytes).
+fn small_files() -> &'static [(&'static str, Vec<u8>)] {
+    static FILES: OnceLock<Vec<(&'static str, Vec<u8>)>> = OnceLock::new();
+    FILES.get_or_init(|| {
+        let png = |rgba: bool| {
+            let mut bytes = Vec::new();
+            let (w, h) = (4u32, 3u32);
+            let px: Vec<u8> = (0..w * h)
+                .flat_map(|k| {
+                    let v = (k * 37 % 256) as u8;
+                    if rgba {
+                        vec![v, 255 - v, 128, if k % 2 == 0 { 255 } else { 0 }]
+                    } else {
+                        vec![v, 255 - v, v / 2]
+                    }
+                })
+                .collect();
+            let color = if rgba {
+                image::ExtendedColorType::Rgba8
+            } else {
+                image::ExtendedColorType::Rgb8
+            };
+            image::ImageEncoder::write_image(
+                image::codecs::png::PngEncoder::new(&mut bytes),
+                &px,
+                w,
+                h,
+                color,
+            )
+            .unwrap();
+            bytes
+        };
+        // An uncompressed 3 × 2 24-bit TGA, written by hand.
+        let mut tga = vec![0u8, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3, 0, 2, 0, 24, 0];
+        tga.extend((0..18).map(|k| (k * 14) as u8));
+        let fence = std::fs::read(manifest().join("scenes/fence-opacity.png")).unwrap();
+        vec![
+            ("tex.png", png(false)),
+            ("opacity.png", png(true)),
+            ("tex.tga", tga),
+            ("fence-opacity.png", fence),
+            ("model.obj", SMALL_OBJ.as_bytes().to_vec()),
+            ("model.mtl", SMALL_MTL.as_bytes().to_vec()),
+        ]
+    })
+}
+
+// ---------------------------------------------------------- mutations ----
+
+/// Numbers and tokens at the edges of what the loaders accept.
+const EXTREMES: &[&str] = &[
+    "0",
+    "-0",
+    "0.0",
+    "-1",
+    "1",
+    "2",
+    "3",
+    "0.5",
+    "1e38",
+    "-1e38",
+    "3.5e38",
+    "-3.5e38",
+    "3.4028235e38",
+    "1e308",
+    "1e-20",
+    "1e-45",
+    "1e-320",
+    "1e9",
+    "1.000001e9",
+    "-1e9",
+    "1e-9",
+    "9.9e-10",
+    "1e18",
+    "1e30",
+    "nan",
+    "-nan",
+    "inf",
+    "-inf",
+    "+inf",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "18446744073709551616",
+    "4294967296",
+    "4096",
+    "4097",
+    "16384",
+    "16385",
+    "65536",
+    "179.99999",
+    "180",
+    "1e-30",
+    "0x10",
+    "1_000",
+    "\"x\"",
+    "\"\"",
+    "[]",
+    "[1, 2, 3, 4]",
+    "[1, \"x\", 3]",
+    "[[1, 2, 3]]",
+    "true",
+    "{}",
+    "{ albedo = 2 }",
+];
+
+/// Keys (with a plausible value) a mutation may insert.
+const KEYS: &[&str] = &[
+    "segments = 4096",
+    "rings = 4096",
+    "radius = 1e-12",
+    "two_sided = true",
+    "texture = \"tex.png\"",
+    "texture = \"missing.png\"",
+    "texture = \".\"",
+    "obj = \"model.obj\"",
+    "obj = \"tex.png\"",
+    "shape = \"sphere\"",
+    "shape = \"box\"",
+    "size = [1e-12, 1, 1]",
+    "scale = -1",
+    "scale = [1, 0, 1]",
+    "rotate = [1e9, 0, 0]",
+    "u = [0, 0, 0]",
+    "v = [1, 0, 0]",
+    "up = [0, 0, 0]",
+    "type = \"sphere\"",
+    "type = \"rect\"",
+    "material = { opacity_texture = \"fence-opacity.png\" }",
+    "material = { albedo_texture = \"opacity.png\", opacity = 0 }",
+    "[[object]]",
+    "[[light]]",
+    "[camera]",
+    "[scene]",
+];
+
+/// Words an OBJ or MTL mutation may insert.
+const OBJ_LINES: &[&str] = &[
+    "v 1e38 1e38 1e38",
+    "v 1 2",
+    "v 1 2 3 0",
+    "vt 0.5",
+    "vn 0 0 0",
+    "f 1 2",
+    "f 1//2 2//2 3//2",
+    "f 0 1 2",
+    "f -100 1 2",
+    "f 1/1 2/2/2 3",
+    "f 99999999999 1 2",
+    "usemtl",
+    "usemtl nothere",
+    "mtllib missing.mtl",
+    "mtllib",
+    "l 1 2 3",
+    "p 1",
+    "g",
+    "s off",
+    "newmtl",
+    "newmtl red",
+    "Kd 1 2",
+    "Kd -1 0 0",
+    "Ks nan 0 0",
+    "Ns -5",
+    "d 2",
+    "Tr -0.5",
+    "map_Kd",
+    "map_Kd missing.png",
+    "map_d model.obj",
+    "map_Kd -o 1 1 1 tex.tga",
+    "\u{feff}v 0 0 0",
+    "v 0.5 0.5 0.5 0.9 0.1 0.1",
+];
+
+/// Applies 1 to 4 random text mutations to `text`.
+fn mutate_text(rng: &mut Rng, text: &str, inserts: &[&str], log: &mut String) -> Vec<u8> {
+    let mut bytes = text.as_bytes().to_vec();
+    for _ in 0..rng.range(1, 4) {
+        let op = rng.range(0, 8);
+        let _ = write!(log, "op{op} ");
+        bytes = match op {
+            0 => flip_bytes(rng, bytes),
+            1 | 2 => substitute_number(rng, bytes),
+            3 => truncate(rng, bytes),
+            4 => edit_lines(rng, bytes, |rng, lines| {
+                // Duplicate a run of 1..=8 lines.
+                let (at, n) = pick_run(rng, lines.len(), 8);
+                let run: Vec<String> = lines[at..at + n].to_vec();
+                let to = rng.range(0, lines.len() as i64) as usize;
+                lines.splice(to..to, run);
+            }),
+            5 => edit_lines(rng, bytes, |rng, lines| {
+                let (at, n) = pick_run(rng, lines.len(), 3);
+                lines.drain(at..at + n);
+            }),
+            6 => edit_lines(rng, bytes, |rng, lines| swap_keys(rng, lines)),
+            _ => edit_lines(rng, bytes, |rng, lines| {
+                let line = inserts[rng.range(0, inserts.len() as i64 - 1) as usize];
+                let to = rng.range(0, lines.len() as i64) as usize;
+                lines.insert(to, line.to_string());
+            }),
+        };
+    }
+    bytes
+}
+
+fn pick_run(rng: &mut Rng, len: usize, max: usize) -> (usize, usize) {
+    if len == 0 {
+        return (0, 0);
+    }
+    let at = rng.range(0, len as i64 - 1) as usize;
+    let n = rng.range(1, max.min(len - at) as i64) as usize;
+    (at, n)
+}
+
+fn flip_bytes(rng: &mut Rng, mut bytes: Vec<u8>) -> Vec<u8> {
+    if bytes.is_empty() {
+        return bytes;
+    }
+    for _ in 0..rng.range(1, 4) {
+        let i = rng.range(0, bytes.len() as i64 - 1) as usize;
+        bytes[i] = match rng.range(0, 3) {
+            0 => bytes[i] ^ (1 << rng.range(0, 7)),
+            1 => b"=[]{}\",.#\n-+e0\\'"[rng.range(0, 15) as usize],
+            2 => rng.next_u64() as u8,
+            _ => 0xff,
+        };
+    }
+    bytes
+}
+
+fn truncate(rng: &mut Rng, mut bytes: Vec<u8>) -> Vec<u8> {
+    let at = rng.range(0, bytes.len() as i64) as usize;
+    bytes.truncate(at);
+    bytes
+}
+
+/// Replaces one numeric token (or a whole value after `=`) by an extreme.
+fn substitute_number(rng: &mut Rng, bytes: Vec<u8>) -> Vec<u8> {
+    let text = String::from_utf8_lossy(&bytes).into_owned();
+    let mut tokens = Vec::new();
+    let b = text.as_bytes();
+    let mut i = 0;
+    while i < b.len() {
+        let starts = b[i].is_ascii_digit()
+            || ((b[i] == b'-' || b[i] == b'.') && b.get(i + 1).is_some_and(u8::is_ascii_digit));
+        if starts && (i == 0 || !b[i - 1].is_ascii_alphanumeric()) {
+            let j = (i + 1..b.len())
+                .find(|&j| !(b[j].is_ascii_digit() || b"._eE+-".contains(&b[j])))
+                .unwrap_or(b.len());
+            tokens.push(i..j);
+            i = j;
+        } else {
+            i += 1;
+        }
+    }
+    if tokens.is_empty() {
+        return bytes;
+    }
+    let t = tokens[rng.range(0, tokens.len() as i64 - 1) as usize].clone();
+    let with = EXTREMES[rng.range(0, EXTREMES.len() as i64 - 1) as usize];
+    let mut out = text[..t.start].to_string();
+    out.push_str(with);
+    out.push_str(&text[t.end..]);
+    out.into_bytes()
+}
+
+/// Swaps the keys (or, for lines without `=`, the lines) of two lines.
+fn swap_keys(rng: &mut Rng, lines: &mut [String]) {
+    if lines.len() < 2 {
+        return;
+    }
+    let a = rng.range(0, lines.len() as i64 - 1) as usize;
+    let b = rng.range(0, lines.len() as i64 - 1) as usize;
+    match (lines[a].split_once('='), lines[b].split_once('=')) {
+        (Some((ka, va)), Some((kb, vb))) => {
+            let (na, nb) = (format!("{kb}={va}"), format!("{ka}={vb}"));
+            lines[a] = na;
+            lines[b] = nb;
+        }
+        _ => lines.swap(a, b),
+    }
+}
+
+fn edit_lines(
+    rng: &mut Rng,
+    bytes: Vec<u8>,
+    edit: impl FnOnce(&mut Rng, &mut Vec<String>),
+) -> Vec<u8> {
+    let text = String::from_utf8_lossy(&bytes).into_owned();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    edit(rng, &mut lines);
+    let mut out = lines.join("\n");
+    out.push('\n');
+    out.into_bytes()
+}
+
+/// Byte-level mutations of an image file, including its size fields.
+fn mutate_image(rng: &mut Rng, mut bytes: Vec<u8>, log: &mut String) -> Vec<u8> {
+    let op = rng.range(0, 4);
+    let _ = write!(log, "img-op{op} ");
+    match op {
+        0 => flip_bytes(rng, bytes),
+        1 => truncate(rng, bytes),
+        2 => {
+            // PNG IHDR width/height at 16..24, TGA width/height at 12..16.
+            let sizes: [u32; 6] = [0, 1, 65535, 1 << 16, 0x7fff_ffff, u32::MAX];
+            let v = sizes[rng.range(0, 5) as usize];
+            if bytes.starts_with(b"\x89PNG") && bytes.len() >= 24 {
+                let at = 16 + 4 * rng.range(0, 1) as usize;
+                bytes[at..at + 4].copy_from_slice(&v.to_be_bytes());
+            } else if bytes.len() >= 16 {
+                let at = 12 + 2 * rng.range(0, 1) as usize;
+                bytes[at..at + 2].copy_from_slice(&(v as u16).to_le_bytes());
+            }
+            bytes
+        }
+        3 => {
+            // Duplicate a chunk of bytes somewhere.
+            if bytes.is_empty() {
+                return bytes;
+            }
+            let a = rng.range(0, bytes.len() as i64 - 1) as usize;
+            let n = rng.range(1, 64.min((bytes.len() - a) as i64)) as usize;
+            let chunk = bytes[a..a + n].to_vec();
+            let to = rng.range(0, bytes.len() as i64) as usize;
+            bytes.splice(to..to, chunk);
+            bytes
+        }
+        _ => Vec::new(),
+    }
+}
+
+// ------------------------------------------------------------- cases ----
+
+/// How a case ended, for the summary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Outcome {
+    Rendered,
+    FileError,
+    ParameterError,
+    PathError,
+    CliUsage,
+    Printed,
+}
+
+const OUTCOMES: [Outcome; 6] = [
+    Outcome::Rendered,
+    Outcome::FileError,
+    Outcome::ParameterError,
+    Outcome::PathError,
+    Outcome::CliUsage,
+    Outcome::Printed,
+];
+
+/// One case's inputs, for reproduction and failure messages.
+struct Case {
+    dir: PathBuf,
+    log: String,
+}
+
+impl Case {
+    fn write(&self, name: &str, bytes: &[u8]) -> PathBuf {
+        let path = self.dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+}
+
+/// Runs case `seed` in `dir` (emptied first). `Err` is a finding.
+fn run_case(seed: u64, dir: &Path) -> Result<Outcome, String> {
+    let _ = std::fs::remove_dir_all(dir);
+    std::fs::create_dir_all(dir).unwrap();
+    let mut rng = Rng(seed);
+    let mut case = Case {
+        dir: dir.to_path_buf(),
+        log: String::new(),
+    };
+    for (name, bytes) in small_files() {
+        case.write(name, bytes);
+    }
+    let kind = rng.range(0, 99);
+    let result = match kind {
+        0..=44 => scene_case(&mut rng, &mut case),
+        45..=59 => model_case(&mut rng, &mut case, "model.obj", SMALL_OBJ),
+        60..=67 => model_case(&mut rng, &mut case, "model.mtl", SMALL_MTL),
+        68..=75 => texture_case(&mut rng, &mut case),
+        76..=91 => render_cli_case(&mut rng, &mut case),
+        _ => print_cli_case(&mut rng, &mut case),
+    };
+    result.map_err(|e| format!("{e}\n  inputs: {}\n  in {}", case.log, dir.display()))
+}
+
+/// A shipped scene (its big models mostly swapped for the small OBJ, to
+/// keep cases fast) or the small scene, mutated.
+fn scene_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let scenes = shipped_scenes();
+    let pick = rng.range(0, scenes.len() as i64) as usize;
+    let (name, mut text) = match scenes.get(pick) {
+        Some((n, t)) => (n.as_str(), t.clone()),
+        None => ("small", SMALL_SCENE.to_string()),
+    };
+    if text.contains(".obj\"") && rng.range(0, 19) != 0 {
+        text = text
+            .lines()
+            .map(|l| match l.trim_start().starts_with("obj") {
+                true => "obj = \"model.obj\"".to_string(),
+                false => l.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+    }
+    let _ = write!(case.log, "scene {name}: ");
+    let bytes = mutate_text(rng, &text, KEYS, &mut case.log);
+    let path = case.write("scene.toml", &bytes);
+    load_and_render(rng, case, &path)
+}
+
+/// The small scene with its OBJ or MTL mutated.
+fn model_case(rng: &mut Rng, case: &mut Case, file: &str, base: &str) -> Result<Outcome, String> {
+    let _ = write!(case.log, "{file}: ");
+    let bytes = mutate_text(rng, base, OBJ_LINES, &mut case.log);
+    case.write(file, &bytes);
+    let path = case.write("scene.toml", SMALL_SCENE.as_bytes());
+    load_and_render(rng, case, &path)
+}
+
+/// The small scene (or fence.toml) with one of its textures mutated.
+fn texture_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let files = small_files();
+    let k = rng.range(0, 3) as usize;
+    let (name, bytes) = &files[k];
+    let _ = write!(case.log, "{name}: ");
+    let mutated = mutate_image(rng, bytes.clone(), &mut case.log);
+    case.write(name, &mutated);
+    let scene = match *name {
+        "fence-opacity.png" => {
+            &shipped_scenes()
+                .iter()
+                .find(|(n, _)| n == "fence")
+                .expect("fence.toml")
+                .1
+        }
+        _ => SMALL_SCENE,
+    };
+    let path = case.write("scene.toml", scene.as_bytes());
+    load_and_render(rng, case, &path)
+}
+
+/// A scene load error must name the file and line (or the parameter).
+fn check_load_error(e: &Error) -> Result<Outcome, String> {
+    match e {
+        Error::File {
+            path,
+            line: Some(_),
+            message,
+        } if !path.as_os_str().is_empty() && !message.is_empty() => Ok(Outcome::FileError),
+        Error::Parameter { name, message } if !name.is_empty() && !message.is_empty() => {
+            Ok(Outcome::ParameterError)
+        }
+        other => Err(format!("load error without a file and line: {other:?}")),
+    }
+}
+
+fn any_nan(values: &[f32]) -> bool {
+    values.iter().any(|v| v.is_nan())
+}
+
+/// Loads `path` and renders it at 16 × 16 with random options.
+fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcome, String> {
+    let scene = match load_scene(path) {
+        Ok(s) => s,
+        Err(e) => return check_load_error(&e),
+    };
+    let names = penumbra::shadow::registry::names();
+    let technique = names[rng.range(0, names.len() as i64 - 1) as usize];
+    let patterns = [
+        "stratified",
+        "correlated",
+        "rotated",
+        "poisson",
+        "sobol",
+        "interleaved:3",
+    ];
+    let options = RenderOptions {
+        width: Some(16),
+        height: Some(16),
+        aovs: Aov::ALL.to_vec(),
+        technique: technique.parse().unwrap(),
+        samples: [1, 2, 4, 9, 16][rng.range(0, 4) as usize],
+        seed: rng.next_u64(),
+        pattern: SamplePattern::parse(patterns[rng.range(0, 5) as usize]).unwrap(),
+        options: penumbra::shadow::TechniqueOptions {
+            shadow_volumes: penumbra::shadow::shadow_volumes::ShadowVolumeOptions {
+                zpass: rng.range(0, 1) == 1,
+            },
+            dcs: penumbra::shadow::dcs::DcsOptions {
+                silhouettes: [SilhouetteMode::Centre, SilhouetteMode::WholeLight]
+                    [rng.range(0, 1) as usize],
+                mode: [DcsMode::Vcoef, DcsMode::Direct][rng.range(0, 1) as usize],
+                transmittance: [TransmittanceMode::Exact, TransmittanceMode::Summed]
+                    [rng.range(0, 1) as usize],
+                coverage: [CoverageTest::Exact, CoverageTest::BitField][rng.range(0, 1) as usize],
+            },
+            stsv: penumbra::shadow::stsv::StsvOptions {
+                opacity_filter: [Filter::Nearest, Filter::Bilinear][rng.range(0, 1) as usize],
+            },
+            shadow_map: penumbra::shadow::shadow_map::ShadowMapOptions {
+                map_size: [1, 16, 64][rng.range(0, 2) as usize],
+                pcf: ["1", "2x2", "3x3", "poisson:8"][rng.range(0, 3) as usize]
+                    .parse()
+                    .unwrap(),
+                ..Default::default()
+            },
+        },
+    };
+    let _ = write!(case.log, "| render {options:?}");
+    match render(&scene, &options, &Progress::new(5, false)) {
+        Ok(out) => {
+            let radiance: Vec<f32> = out.radiance.iter().flat_map(|c| c.to_array()).collect();
+            if any_nan(&radiance) {
+                return Err(format!("{technique}: NaN in the radiance"));
+            }
+            for layer in &out.layers {
+                for (name, values) in &layer.channels {
+                    if any_nan(values) {
+                        return Err(format!("{technique}: NaN in layer {}.{name}", layer.name));
+                    }
+                }
+            }
+            Ok(Outcome::Rendered)
+        }
+        Err(e @ Error::Parameter { .. }) => check_load_error(&e),
+        Err(e) => Err(format!(
+            "{technique}: render error without a parameter: {e:?}"
+        )),
+    }
+}
+
+/// Picks one of `values`.
+fn one<'a>(rng: &mut Rng, values: &[&'a str]) -> &'a str {
+    values[rng.range(0, values.len() as i64 - 1) as usize]
+}
+
+/// Runs a command line in-process (the library's parsing path), checking
+/// how it ends; `paths` are the paths an I/O error may name.
+fn run_cli(args: &[String], paths: &[PathBuf], case: &mut Case) -> Result<Outcome, String> {
+    let _ = write!(case.log, "args {args:?}");
+    let cli = match penumbra::cli::Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            return match e.kind() {
+                clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion => {
+                    Ok(Outcome::Printed)
+                }
+                _ if e.to_string().contains('-') => Ok(Outcome::CliUsage),
+                _ => Err(format!("usage error naming no parameter: {e}")),
+            }
+        }
+    };
+    match penumbra::cli::run(cli) {
+        Ok(_) => Ok(Outcome::Printed),
+        Err(e) => match &e {
+            Error::Io { path, .. }
+            | Error::File {
+                path, line: None, ..
+            } if paths.iter().any(|p| p == path) => Ok(Outcome::PathError),
+            _ => check_load_error(&e),
+        },
+    }
+}
+
+/// `render` with random parameters (valid, invalid and extreme) on a
+/// valid scene; the EXR output is checked for NaN.
+fn render_cli_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let scene = match rng.range(0, 2) {
+        0 => case.write("scene.toml", SMALL_SCENE.as_bytes()),
+        _ => {
+            let scenes = shipped_scenes();
+            let (_, text) = scenes
+                .iter()
+                .filter(|(n, _)| n != "bunny" && n != "sponza-plants")
+                .nth(rng.range(0, 3) as usize)
+                .unwrap();
+            case.write("scene.toml", text.as_bytes())
+        }
+    };
+    let png = case.dir.join("out.png");
+    let exr = case.dir.join("out.exr");
+    let mut paths = vec![scene.clone(), png.clone(), exr.clone()];
+    let mut args: Vec<String> = ["penumbra", "render"].map(String::from).to_vec();
+    args.push(scene.display().to_string());
+    // Output paths: mostly plain, sometimes odd.
+    let odd = [
+        case.dir.display().to_string(),
+        case.dir.join("missing/x.png").display().to_string(),
+        "/dev/null".to_string(),
+        String::new(),
+        exr.display().to_string(),
+    ];
+    let out = match rng.range(0, 9) {
+        k @ 0..=4 => odd[k as usize].clone(),
+        _ => png.display().to_string(),
+    };
+    paths.extend(odd.iter().map(PathBuf::from));
+    args.extend(["-o".into(), out]);
+    let with_exr = rng.range(0, 3) != 0;
+    if with_exr {
+        args.extend(["--exr".into(), exr.display().to_string()]);
+    }
+    // Sizes: at most one side large, so that a valid case stays small.
+    let sides = [
+        "16",
+        "1",
+        "2",
+        "17",
+        "0",
+        "-1",
+        "16385",
+        "65536",
+        "4294967296",
+        "x",
+        "",
+    ];
+    let big = ["16384", "4096"];
+    let (w, h) = match rng.range(0, 3) {
+        0 => (one(rng, &sides).to_string(), "16".to_string()),
+        1 => ("16".to_string(), one(rng, &sides).to_string()),
+        2 => (one(rng, &big).to_string(), "1".to_string()),
+        _ => ("16".to_string(), "16".to_string()),
+    };
+    args.extend(["--width".into(), w, "--height".into(), h]);
+    let options: [(&str, &[&str]); 13] = [
+        (
+            "--technique",
+            &[
+                "none",
+                "reference",
+                "shadow-volumes",
+                "wedges",
+                "wedge-blend",
+                "dcs",
+                "DCS",
+                "",
+                "ray",
+            ],
+        ),
+        (
+            "--samples",
+            &[
+                "1",
+                "2",
+                "3",
+                "7",
+                "64",
+                "0",
+                "1048577",
+                "-1",
+                "x",
+                "4294967296",
+            ],
+        ),
+        ("--seed", &["0", "18446744073709551615", "-1", "1e3"]),
+        ("--threads", &["1", "2", "3", "0", "1025", "-1", "x"]),
+        (
+            "--silhouettes",
+            &["centre", "center", "light", "whole-light", "edge", ""],
+        ),
+        ("--dcs-mode", &["vcoef", "direct", "both"]),
+        ("--transmittance", &["exact", "summed", "none"]),
+        ("--coverage", &["exact", "bitfield", "bits"]),
+        ("--opacity-filter", &["nearest", "bilinear", "cubic"]),
+        (
+            "--pattern",
+            &[
+                "stratified",
+                "correlated",
+                "rotated",
+                "poisson",
+                "sobol",
+                "02",
+                "interleaved",
+                "interleaved:2",
+                "interleaved16",
+                "interleaved:1",
+                "interleaved:17",
+                "interleaved:",
+                "halton",
+            ],
+        ),
+        (
+            "--aov",
+            &[
+                "depth",
+                "position,normal,albedo,mask,vcoef",
+                "vcoef",
+                "colour",
+                "",
+                "depth,depth",
+            ],
+        ),
+        ("--zpass", &[]),
+        ("--timings", &[]),
+    ];
+    for (name, values) in options {
+        if rng.range(0, 2) == 0 {
+            args.push(name.to_string());
+            if !values.is_empty() {
+                args.push(one(rng, values).to_string());
+            }
+        }
+    }
+    if rng.range(0, 9) == 0 {
+        args.push(one(rng, &["--explain", "--bogus", "extra", "--width"]).to_string());
+    }
+    paths.push(case.dir.join("missing"));
+    let outcome = run_cli(&args, &paths, case)?;
+    if outcome == Outcome::Printed && with_exr && exr.exists() {
+        let img = read_image(&exr).map_err(|e| format!("written EXR unreadable: {e}"))?;
+        for (name, values) in &img.channels {
+            if any_nan(values) {
+                return Err(format!("NaN in EXR channel {name}"));
+            }
+        }
+        return Ok(Outcome::Rendered);
+    }
+    Ok(outcome)
+}
+
+/// `diff` with random channels, masks and tolerances on small (and
+/// sometimes mutated) images, or `info` on a mutated scene.
+fn print_cli_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    if rng.range(0, 3) == 0 {
+        let bytes = mutate_text(rng, SMALL_SCENE, KEYS, &mut case.log);
+        let scene = case.write("scene.toml", &bytes);
+        let args = [
+            "penumbra".into(),
+            "info".into(),
+            scene.display().to_string(),
+        ];
+        return run_cli(&args, &[], case);
+    }
+    let (w, h) = (5u32, 4u32);
+    let n = (w * h) as usize;
+    let radiance: Vec<Vec3> = (0..n).map(|k| Vec3::splat(k as f32 / n as f32)).collect();
+    let a = case.dir.join("a.png");
+    let b = case.dir.join("b.exr");
+    write_png(&a, w, h, &radiance).unwrap();
+    let layers = [
+        Layer {
+            name: "mask".into(),
+            channels: vec![("Y".into(), (0..n).map(|k| (k % 2) as f32).collect())],
+        },
+        Layer {
+            name: "depth".into(),
+            channels: vec![("Z".into(), (0..n).map(|k| k as f32).collect())],
+        },
+    ];
+    write_exr(&b, w, h, &radiance, &layers).unwrap();
+    let mut images = vec![a.clone(), b.clone()];
+    if rng.range(0, 2) == 0 {
+        let which = images[rng.range(0, 1) as usize].clone();
+        let bytes = mutate_image(rng, std::fs::read(&which).unwrap(), &mut case.log);
+        let c = case.write("c.img", &bytes);
+        images.push(c);
+    }
+    images.push(case.dir.join("missing.png"));
+    images.push(case.dir.clone());
+    let pick = |rng: &mut Rng, images: &[PathBuf]| {
+        let k = match rng.range(0, 9) {
+            0..=5 => rng.range(0, 1) as usize,
+            _ => rng.range(0, images.len() as i64 - 1) as usize,
+        };
+        images[k].display().to_string()
+    };
+    let mut args: Vec<String> = vec!["penumbra".into(), "diff".into()];
+    args.push(pick(rng, &images));
+    args.push(pick(rng, &images));
+    let options: [(&str, &[&str]); 7] = [
+        (
+            "--channels-a",
+            &["R", "R,G,B", "mask.Y", "depth.Z,R", "X", "", ",", "R,R"],
+        ),
+        ("--channels-b", &["R", "G,B", "A", "depth.Z", "Y,Y,Y,Y"]),
+        ("--mask-channel", &["mask.Y", "Y", "R", "nothere", ""]),
+        ("--max-abs", &["0", "0.5", "-1", "nan", "inf", "1e308", "x"]),
+        ("--rmse", &["0", "1e-9", "-0", "NaN", "-inf"]),
+        ("--mask", &[]),
+        ("--json", &[]),
+    ];
+    for (name, values) in options {
+        if rng.range(0, 2) == 0 {
+            args.push(name.to_string());
+            match name {
+                "--mask" => args.push(pick(rng, &images)),
+                _ if !values.is_empty() => args.push(one(rng, values).to_string()),
+                _ => {}
+            }
+        }
+    }
+    run_cli(&args, &images, case)
+}
+
+// ------------------------------------------------------------ driver ----
+
+/// The worker side: runs cases `FROM..TO` of run `SEED`, appending
+/// `start <index>` to the progress file before each and a line per
+/// finding to the findings file; a final `done <counts>` line ends it.
+#[test]
+#[ignore = "the worker process of `fuzz`, which starts it"]
+fn fuzz_worker() {
+    let Ok(dir) = std::env::var("PENUMBRA_FUZZ_WORKER") else {
+        // Run by hand (`--ignored`): nothing to do; `fuzz` is the test.
+        eprintln!("fuzz_worker runs only as the worker process of `fuzz`");
+        return;
+    };
+    let dir = PathBuf::from(dir);
+    let from = env_u64("PENUMBRA_FUZZ_FROM").unwrap();
+    let to = env_u64("PENUMBRA_FUZZ_TO").unwrap();
+    let run_seed = env_u64("PENUMBRA_FUZZ_SEED").unwrap();
+    let append = |name: &str, line: &str| {
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(dir.join(name))
+            .unwrap();
+        f.write_all(line.as_bytes()).unwrap();
+        f.flush().unwrap();
+    };
+    // Panics are findings, reported with their case; keep their default
+    // message (on the worker's stderr log) short.
+    std::panic::set_hook(Box::new(|info| {
+        eprintln!("panic: {info}");
+    }));
+    let mut counts = [0u64; OUTCOMES.len()];
+    let work = dir.join("case");
+    for index in from..to {
+        append("progress", &format!("start {index}\n"));
+        let seed = case_seed(run_seed, index);
+        let result = catch_unwind(AssertUnwindSafe(|| run_case(seed, &work)));
+        let finding = match result {
+            Ok(Ok(outcome)) => {
+                counts[OUTCOMES.iter().position(|o| *o == outcome).unwrap()] += 1;
+                None
+            }
+            Ok(Err(e)) => Some(e),
+            Err(panic) => {
+                let msg = panic
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default();
+                Some(format!("panic: {msg}"))
+            }
+        };
+        if let Some(f) = finding {
+            let one_line = f.replace('\n', " | ");
+            append(
+                "findings",
+                &format!("case {index} seed {seed:#x}: {one_line}\n"),
+            );
+        }
+    }
+    let counts: Vec<String> = counts.iter().map(u64::to_string).collect();
+    append("progress", &format!("done {}\n", counts.join(" ")));
+}
+
+/// Runs one case in-process and prints everything about it.
+fn rerun(seed: u64) {
+    let dir = common::scratch_dir(&format!("fuzz-case-{seed:x}"));
+    let result = run_case(seed, &dir.join("case"));
+    println!("case seed {seed:#x}: {result:?}");
+    println!("inputs kept in {}", dir.join("case").display());
+    assert!(
+        result.is_ok(),
+        "case {seed:#x} fails: {}",
+        result.unwrap_err()
+    );
+}
+
+#[test]
+fn fuzz() {
+    if let Some(seed) = env_u64("PENUMBRA_FUZZ_CASE_SEED") {
+        return rerun(seed);
+    }
+    let cases = env_u64("PENUMBRA_FUZZ_CASES").unwrap_or(DEFAULT_CASES);
+    let run_seed = env_u64("PENUMBRA_FUZZ_SEED").unwrap_or(1);
+    let timeout =
+        Duration::from_secs(env_u64("PENUMBRA_FUZZ_TIMEOUT").unwrap_or(DEFAULT_TIMEOUT_S));
+    let dir = common::scratch_dir(&format!("fuzz-{run_seed}"));
+    let exe = std::env::current_exe().unwrap();
+    let started = Instant::now();
+    let mut findings: Vec<String> = Vec::new();
+    let mut counts = [0u64; OUTCOMES.len()];
+    let mut next = 0;
+    let mut workers = 0;
+    while next < cases {
+        workers += 1;
+        let _ = std::fs::remove_file(dir.join("progress"));
+        let log = dir.join(format!("worker-{workers}.log"));
+        let mut command = Command::new("/bin/sh");
+        command
+            .arg("-c")
+            .arg(format!(
+                "ulimit -v {ADDRESS_SPACE_KIB} && exec \"$0\" \"$@\""
+            ))
+            .arg(&exe)
+            .args([
+                "fuzz_worker",
+                "--exact",
+                "--ignored",
+                "--nocapture",
+                "--test-threads=1",
+            ])
+            .env("PENUMBRA_FUZZ_WORKER", &dir)
+            .env("PENUMBRA_FUZZ_FROM", next.to_string())
+            .env("PENUMBRA_FUZZ_TO", cases.to_string())
+            .env("PENUMBRA_FUZZ_SEED", run_seed.to_string())
+            .env("RAYON_NUM_THREADS", "1")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap());
+        let mut child = command.spawn().expect("start the fuzz worker");
+        let mut last = (String::new(), Instant::now());
+        let status = loop {
+            std::thread::sleep(Duration::from_millis(20));
+            if let Some(status) = child.try_wait().unwrap() {
+                break Some(status);
+            }
+            let progress = std::fs::read_to_string(dir.join("progress")).unwrap_or_default();
+            let line = progress.lines().last().unwrap_or("").to_string();
+            if line != last.0 {
+                last = (line, Instant::now());
+            } else if last.1.elapsed() > timeout {
+                let _ = child.kill();
+                let _ = child.wait();
+                break None;
+            }
+        };
+        let progress = std::fs::read_to_string(dir.join("progress")).unwrap_or_default();
+        let line = progress.lines().last().unwrap_or("");
+        if let Some(done) = line.strip_prefix("done ") {
+            for (c, n) in counts.iter_mut().zip(done.split(' ')) {
+                *c += n.parse::<u64>().unwrap();
+            }
+            break;
+        }
+        // The worker died (or hung) in the case it last started.
+        let Some(index) = line
+            .strip_prefix("start ")
+            .and_then(|i| i.parse::<u64>().ok())
+        else {
+            let tail = std::fs::read_to_string(&log).unwrap_or_default();
+            panic!("fuzz worker ended before its first case ({status:?}): {tail}");
+        };
+        let seed = case_seed(run_seed, index);
+        let how = match status {
+            None => format!("hang: no progress for {} s (killed)", timeout.as_secs()),
+            Some(s) => {
+                let log_text = std::fs::read_to_string(&log).unwrap_or_default();
+                let tail: String = log_text
+                    .chars()
+                    .rev()
+                    .take(600)
+                    .collect::<Vec<_>>()
+                    .into_iter()
+                    .rev()
+                    .collect();
+                format!(
+                    "worker died: {s}; stderr ends: {}",
+                    tail.replace('\n', " | ")
+                )
+            }
+        };
+        findings.push(format!("case {index} seed {seed:#x}: {how}"));
+        // Case counts of a dead worker are lost; its findings are kept.
+        next = index + 1;
+    }
+    findings.extend(
+        std::fs::read_to_string(dir.join("findings"))
+            .unwrap_or_default()
+            .lines()
+            .map(str::to_string),
+    );
+    let summary: Vec<String> = OUTCOMES
+        .iter()
+        .zip(counts)
+        .map(|(o, n)| format!("{o:?} {n}"))
+        .collect();
+    println!(
+        "fuzz: {cases} cases, run seed {run_seed}, {workers} worker(s), {:.1} s: {}; {} finding(s)",
+        started.elapsed().as_secs_f64(),
+        summary.join(", "),
+        findings.len()
+    );
+    for f in &findings {
+        println!("  {f}");
+    }
+    assert!(
+        findings.is_empty(),
+        "{} finding(s); rerun one with PENUMBRA_FUZZ_CASE_SEED=<seed> cargo test --release \
+         --test fuzz -- fuzz --nocapture:\n{}",
+        findings.len(),
+        findings.join("\n")
+    );
+    // The harness must exercise both ends: inputs refused and images made.
+    if cases >= 500 {
+        assert!(
+            counts[0] > cases / 20,
+            "too few cases rendered: {summary:?}"
+        );
+        assert!(counts[1] > cases / 20, "too few file errors: {summary:?}");
+    }
+}
+
+/// The unmutated inputs all load and render: otherwise the mutations
+/// would only ever test the error paths.
+#[test]
+fn fuzz_corpus_is_valid() {
+    let dir = common::scratch_dir("fuzz-corpus");
+    let case = Case {
+        dir: dir.clone(),
+        log: String::new(),
+    };
+    for (name, bytes) in small_files() {
+        case.write(name, bytes);
+    }
+    let mut texts: Vec<(String, String)> = shipped_scenes().to_vec();
+    texts.push(("small".into(), SMALL_SCENE.into()));
+    for (name, text) in &texts {
+        let path = case.write("scene.toml", text.as_bytes());
+        let scene = load_scene(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(scene.triangle_count() > 0, "{name}");
+    }
+    let small = load_scene(&dir.join("scene.toml")).unwrap();
+    assert_eq!(small.lights.len(), 2);
+    assert!(small.textures.len() >= 3, "textures of the small scene");
+    assert!(small.materials.len() >= 5, "MTL and inline materials");
+}
