@@ -24,9 +24,10 @@ use crate::error::{Error, Result};
 use crate::gbuffer::GSample;
 use crate::sampling::{PatternSampler, SamplePattern};
 use crate::shade::LightSample;
+use crate::shadow::kit::timing::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use crate::shadow::{PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
-use std::time::{Duration, Instant};
+use crate::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
+use std::time::Duration;
 
 /// The reference technique: `samples` light samples per pixel and light,
 /// keyed by `seed`, laid out by `pattern`.
@@ -126,28 +127,19 @@ impl Reference {
             ));
         }
         let mut stats = ReferenceStats::default();
-        let start = Instant::now();
-        let tracer = ctx.cache.tracer();
-        stats.bvh_time = start.elapsed();
         let mut out = ShadowOutput::default();
+        let t = PassTimer::start("reference bvh");
+        let tracer = ctx.cache.tracer();
+        stats.bvh_time = t.finish(&mut out.passes);
         for k in 0..ctx.scene.lights.len() {
-            let start = Instant::now();
+            let t = PassTimer::start(format!("reference light {k}"));
             let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
             let (term, rays) = tracer.trace_light_with(ctx, k, &pattern);
-            stats.light_times.push(start.elapsed());
+            // The ray count in the name gives rays/s with the time.
+            let time = t.finish_with(&mut out.passes, format!("{rays} rays"));
+            stats.light_times.push(time);
             stats.light_rays.push(rays);
             out.lights.push(term);
-        }
-        out.passes.push(PassTiming {
-            name: "reference bvh".into(),
-            time: stats.bvh_time,
-        });
-        for (k, (&time, &rays)) in stats.light_times.iter().zip(&stats.light_rays).enumerate() {
-            out.passes.push(PassTiming {
-                // The ray count in the name gives rays/s with the time.
-                name: format!("reference light {k} ({rays} rays)"),
-                time,
-            });
         }
         Ok((out, stats))
     }
