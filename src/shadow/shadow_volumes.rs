@@ -79,7 +79,7 @@ impl ShadowTechnique for ShadowVolumes {
         };
         for (k, light) in ctx.scene.lights.iter().enumerate() {
             let volume = timed(&mut out.passes, format!("volume build light {k}"), || {
-                build_volume(&adj, ctx.view, light_point(&light.shape))
+                build_volume(adj, ctx.view, light_point(&light.shape))
             });
             let counts = timed(&mut out.passes, format!("stencil light {k}"), || {
                 stencil_counts(&mut framebuffer, &volume, self.zpass)

@@ -266,7 +266,7 @@ pub fn light_start<'a>(
     let point = light_point(&light.shape);
     let adj = ctx.cache.casters();
     let t = PassTimer::start(format!("shadow volumes light {k}"));
-    let volume = build_volume(&adj, ctx.view, point);
+    let volume = build_volume(adj, ctx.view, point);
     let mut framebuffer = ctx.depth.clone();
     let counts = stencil_counts(&mut framebuffer, &volume, false)?;
     t.finish(passes);

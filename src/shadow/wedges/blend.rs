@@ -278,17 +278,17 @@ impl ShadowTechnique for WedgeBlending {
             let point = light_point(&light.shape);
             let t = PassTimer::start(format!("volumes light {k}"));
             let adj = ctx.cache.casters();
-            let lit = faces_point(&adj, point);
-            let volume = build_volume(&adj, ctx.view, point);
-            let (component, count) = components(&adj);
+            let lit = faces_point(adj, point);
+            let volume = build_volume(adj, ctx.view, point);
+            let (component, count) = components(adj);
             let n = adj.positions.len() as u32;
             let mut tris: Vec<Vec<[u32; 3]>> = vec![Vec::new(); count];
             for slot in 0..adj.face_vertices.len() {
-                cap_triangles(&adj, &lit, slot, n, &mut tris[component[slot] as usize]);
+                cap_triangles(adj, &lit, slot, n, &mut tris[component[slot] as usize]);
             }
             let mut quads: Vec<Vec<[u32; 3]>> = vec![Vec::new(); count];
             for e in &adj.edges {
-                if let Some(q) = side_quad(&adj, &lit, e) {
+                if let Some(q) = side_quad(adj, &lit, e) {
                     let c = component[e.uses[0].slot as usize] as usize;
                     let [a, b, m] = q;
                     for _ in 0..m {

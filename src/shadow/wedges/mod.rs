@@ -179,9 +179,9 @@ pub fn wedge_light(
     } = light_start(ctx, k, passes)?;
 
     let t = PassTimer::start(format!("wedge build light {k}"));
-    let lit = faces_point(&adj, point);
+    let lit = faces_point(adj, point);
     let mut wedges = Wedges::default();
-    for [a, b, m] in silhouette_quads(&adj, &lit) {
+    for [a, b, m] in silhouette_quads(adj, &lit) {
         let quad = SilhouetteQuad {
             q0: adj.positions[a as usize],
             q1: adj.positions[b as usize],
