@@ -10,7 +10,8 @@
 //! non-opaque casters, a second BVH gives every crossing and the
 //! transmittance `T = Π (1 − opacity)`. The outputs are
 //! `Vcoef = (1/N) Σ V·T` and the radiance estimate
-//! [`PreparedLight::direct_from_samples`] with the same per-sample `V·T`.
+//! [`PreparedLight::direct_from_samples`](crate::shade::PreparedLight::direct_from_samples)
+//! with the same per-sample `V·T`.
 //!
 //! **Shadow-ray offset** (the oracle's rule): origin
 //! `o = p + ε_p n_g` with `n_g` the G-buffer's geometric normal (facing the
@@ -155,16 +156,18 @@ impl ShadowTechnique for Reference {
     }
 }
 
-/// [`ShadowTracer::hard_visibility`]); builds the BVHs first.
 /// Hard-shadow visibility from light `light`'s centre per pixel (see
+/// [`ShadowTracer::hard_visibility`](crate::shadow::kit::rays::ShadowTracer::hard_visibility));
+/// builds the BVHs first.
 pub fn hard_visibility(ctx: &ShadowContext, light: usize) -> Vec<f32> {
     ctx.cache.tracer().hard_visibility(ctx.gbuffer, light)
 }
 
 /// Per-sample `V·T` of the reference at pixel `pixel` for `samples`,
-/// written to `out` (see [`ShadowTracer::sample_visibility`]); builds the
-/// BVHs first, so checks of many pixels should build one
-/// [`ShadowTracer`] instead. A pixel outside the G-buffer gives 0.
+/// written to `out` (see
+/// [`ShadowTracer::sample_visibility`](crate::shadow::kit::rays::ShadowTracer::sample_visibility));
+/// builds the BVHs first, so checks of many pixels should build one
+/// [`ShadowTracer`](crate::shadow::kit::rays::ShadowTracer) instead. A pixel outside the G-buffer gives 0.
 pub fn sample_visibility(
     ctx: &ShadowContext,
     pixel: (u32, u32),

@@ -24,6 +24,10 @@
 //! 4. **Shading**: Vcoef `= 1 − (1/N) Σ sat(D_i)` (eq. 4.1), or the
 //!    direct light integrated per sample with `H(D_i)` as visibility
 //!    (eq. 4.6), with the same estimator as the reference.
+//!
+//! This file holds the technique, its options and the per-light
+//! orchestration; the passes themselves are in `passes.rs`, one
+//! receiver's counting in `receiver.rs`.
 
 pub mod bitfield;
 pub mod chart;
@@ -248,7 +252,7 @@ pub struct DcsLightReport {
 
 impl DepthComplexitySampling {
     /// Runs light `k`: its term, AOV channels and report, pass by pass
-    /// ([`passes`]).
+    /// (`passes.rs`).
     fn light(
         &self,
         ctx: &ShadowContext,
