@@ -10,7 +10,8 @@
 //! non-opaque casters, a second BVH gives every crossing and the
 //! transmittance `T = Π (1 − opacity)`. The outputs are
 //! `Vcoef = (1/N) Σ V·T` and the radiance estimate
-//! [`PreparedLight::direct_from_samples`] with the same per-sample `V·T`.
+//! [`PreparedLight::direct_from_samples`](crate::shade::PreparedLight::direct_from_samples)
+//! with the same per-sample `V·T`.
 //!
 //! **Shadow-ray offset** (the oracle's rule): origin
 //! `o = p + ε_p n_g` with `n_g` the G-buffer's geometric normal (facing the
@@ -24,9 +25,10 @@ use crate::error::{Error, Result};
 use crate::gbuffer::GSample;
 use crate::sampling::{PatternSampler, SamplePattern};
 use crate::shade::LightSample;
+use crate::shadow::kit::timing::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use crate::shadow::{PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
-use std::time::{Duration, Instant};
+use crate::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
+use std::time::Duration;
 
 /// The reference technique: `samples` light samples per pixel and light,
 /// keyed by `seed`, laid out by `pattern`.
@@ -126,28 +128,19 @@ impl Reference {
             ));
         }
         let mut stats = ReferenceStats::default();
-        let start = Instant::now();
-        let tracer = ctx.cache.tracer();
-        stats.bvh_time = start.elapsed();
         let mut out = ShadowOutput::default();
+        let t = PassTimer::start("reference bvh");
+        let tracer = ctx.cache.tracer();
+        stats.bvh_time = t.finish(&mut out.passes);
         for k in 0..ctx.scene.lights.len() {
-            let start = Instant::now();
+            let t = PassTimer::start(format!("reference light {k}"));
             let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
             let (term, rays) = tracer.trace_light_with(ctx, k, &pattern);
-            stats.light_times.push(start.elapsed());
+            // The ray count in the name gives rays/s with the time.
+            let time = t.finish_with(&mut out.passes, format!("{rays} rays"));
+            stats.light_times.push(time);
             stats.light_rays.push(rays);
             out.lights.push(term);
-        }
-        out.passes.push(PassTiming {
-            name: "reference bvh".into(),
-            time: stats.bvh_time,
-        });
-        for (k, (&time, &rays)) in stats.light_times.iter().zip(&stats.light_rays).enumerate() {
-            out.passes.push(PassTiming {
-                // The ray count in the name gives rays/s with the time.
-                name: format!("reference light {k} ({rays} rays)"),
-                time,
-            });
         }
         Ok((out, stats))
     }
@@ -163,16 +156,18 @@ impl ShadowTechnique for Reference {
     }
 }
 
-/// [`ShadowTracer::hard_visibility`]); builds the BVHs first.
 /// Hard-shadow visibility from light `light`'s centre per pixel (see
+/// [`ShadowTracer::hard_visibility`](crate::shadow::kit::rays::ShadowTracer::hard_visibility));
+/// builds the BVHs first.
 pub fn hard_visibility(ctx: &ShadowContext, light: usize) -> Vec<f32> {
     ctx.cache.tracer().hard_visibility(ctx.gbuffer, light)
 }
 
 /// Per-sample `V·T` of the reference at pixel `pixel` for `samples`,
-/// written to `out` (see [`ShadowTracer::sample_visibility`]); builds the
-/// BVHs first, so checks of many pixels should build one
-/// [`ShadowTracer`] instead. A pixel outside the G-buffer gives 0.
+/// written to `out` (see
+/// [`ShadowTracer::sample_visibility`](crate::shadow::kit::rays::ShadowTracer::sample_visibility));
+/// builds the BVHs first, so checks of many pixels should build one
+/// [`ShadowTracer`](crate::shadow::kit::rays::ShadowTracer) instead. A pixel outside the G-buffer gives 0.
 pub fn sample_visibility(
     ctx: &ShadowContext,
     pixel: (u32, u32),

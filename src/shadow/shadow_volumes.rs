@@ -11,12 +11,12 @@
 //! (s = ±1 the face's facing). The stencil then counts occluding layers;
 //! zero means lit either way.
 
+use super::kit::timing::timed;
 use super::kit::volumes::{build_volume, light_point, stencil_counts};
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
+use super::{LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::output::Layer;
-use std::time::Instant;
 
 /// Hard shadow volumes' command-line options.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::Args)]
@@ -71,30 +71,19 @@ impl ShadowTechnique for ShadowVolumes {
 
     fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
         let mut out = ShadowOutput::default();
-        let t = Instant::now();
-        let adj = ctx.cache.casters();
-        out.passes.push(PassTiming {
-            name: "adjacency".into(),
-            time: t.elapsed(),
-        });
+        let adj = timed(&mut out.passes, "adjacency", || ctx.cache.casters());
         let mut framebuffer = ctx.depth.clone();
         let mut stencil_layer = Layer {
             name: "stencil".into(),
             channels: Vec::new(),
         };
         for (k, light) in ctx.scene.lights.iter().enumerate() {
-            let t = Instant::now();
-            let volume = build_volume(&adj, ctx.view, light_point(&light.shape));
-            out.passes.push(PassTiming {
-                name: format!("volume build light {k}"),
-                time: t.elapsed(),
+            let volume = timed(&mut out.passes, format!("volume build light {k}"), || {
+                build_volume(adj, ctx.view, light_point(&light.shape))
             });
-            let t = Instant::now();
-            let counts = stencil_counts(&mut framebuffer, &volume, self.zpass)?;
-            out.passes.push(PassTiming {
-                name: format!("stencil light {k}"),
-                time: t.elapsed(),
-            });
+            let counts = timed(&mut out.passes, format!("stencil light {k}"), || {
+                stencil_counts(&mut framebuffer, &volume, self.zpass)
+            })?;
             let vcoef = counts
                 .iter()
                 .enumerate()

@@ -1,20 +1,24 @@
 //! Half-wedge membership, shared by every wedge-based pass (penumbra
 //! wedges, blending, DCS, STSV): the per-light start (casters, hard
 //! shadow volume counts from the centre), the light's bound, the raster
-//! state and draw of both wedge sets, and the tile-local face count that
-//! tells which receivers lie inside each half.
+//! state and draw of both wedge sets, the tile-local face count that
+//! tells which receivers lie inside each half, and the one fragment stage
+//! ([`GroupedMembership`]) that counts it and hands every finished half to
+//! a technique's [`HalfSink`].
 
 use crate::error::Result;
 use crate::raster::{
-    draw, CompareFunc, CullMode, FragmentBatch, FragmentStage, RasterState, TILE_PIXELS, TILE_SIZE,
+    draw, ClipVertex, CompareFunc, CullMode, FragmentBatch, FragmentStage, Framebuffer,
+    RasterState, TILE_PIXELS, TILE_SIZE,
 };
 use crate::scene::LightShape;
 use crate::shadow::kit::light_frame::RectFrame;
+use crate::shadow::kit::tiles::local_xy;
+use crate::shadow::kit::timing::PassTimer;
 use crate::shadow::kit::volumes::{build_volume, light_point, stencil_counts, ShadowVolume};
 use crate::shadow::kit::wedge_geometry::{LightBound, WedgePrimitive, WedgeSet, Wedges};
 use crate::shadow::{PassTiming, ShadowContext};
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// Marks "no half-wedge yet" in a tile.
 pub const NONE: u32 = u32::MAX;
@@ -63,8 +67,7 @@ impl HalfWedgeMembership {
         } else {
             -entering
         } * prim.flip as i32;
-        let lx = batch.local % TILE_SIZE;
-        let ly = batch.local / TILE_SIZE;
+        let (lx, ly) = local_xy(batch.local);
         let mut lo = usize::MAX;
         let mut hi = 0;
         for k in batch.lanes() {
@@ -115,32 +118,121 @@ pub fn wedge_state(zpass: bool) -> RasterState {
     }
 }
 
+/// What a grouped-membership pass does with each finished half: penumbra
+/// wedges integrate the edge over the light, DCS records (pixel, edge)
+/// pairs, STSV tests the receivers against the S-triangle's planes.
+pub trait HalfSink: Sync {
+    /// The pass's own per-tile state (besides the membership counts).
+    type Tile: Send;
+    /// What [`HalfSink::inside`] needs of the finished half, looked up once
+    /// per half and tile.
+    type Half;
+
+    /// Looks up the finished half `half` (its primitives' `half` index).
+    fn half(&self, half: u32) -> Self::Half;
+
+    /// Called for every local pixel of `tile` inside `half`, in
+    /// row-major order.
+    fn inside(&self, half: &Self::Half, tile: &mut Self::Tile, local: usize);
+}
+
+/// One tile of a grouped-membership pass: the half being counted and the
+/// sink's own state.
+pub struct MembershipTile<T> {
+    /// The current half's face counts.
+    pub membership: HalfWedgeMembership,
+    /// The sink's state.
+    pub data: T,
+}
+
+impl<T> MembershipTile<T> {
+    /// No half yet, around `data`.
+    pub fn new(data: T) -> Self {
+        MembershipTile {
+            membership: HalfWedgeMembership::new(),
+            data,
+        }
+    }
+}
+
+/// The one grouped-membership fragment stage: counts each half's faces
+/// per pixel ([`HalfWedgeMembership`]) and, when a tile's next half
+/// starts, hands the previous one's inside pixels to `sink`.
+pub struct GroupedMembership<'a, H> {
+    /// The half of every triangle drawn.
+    pub primitives: &'a [WedgePrimitive],
+    /// The set is counted z-pass (faces in front of the receiver).
+    pub zpass: bool,
+    /// What is done with a finished half.
+    pub sink: H,
+}
+
+impl<H: HalfSink> GroupedMembership<'_, H> {
+    /// Finishes `tile`'s current half, if any: the draw's last half in
+    /// each tile is only finished here.
+    pub fn flush(&self, tile: &mut MembershipTile<H::Tile>) {
+        let Some(current) = tile.membership.current() else {
+            return;
+        };
+        let half = self.sink.half(current);
+        let MembershipTile { membership, data } = tile;
+        membership.drain(|i| self.sink.inside(&half, data, i));
+    }
+}
+
+impl<H: HalfSink> FragmentStage<0> for GroupedMembership<'_, H> {
+    type Target = MembershipTile<H::Tile>;
+
+    fn shade(&self, batch: &FragmentBatch<0>, tile: &mut Self::Target) {
+        let prim = self.primitives[batch.primitive as usize];
+        if tile.membership.current() != Some(prim.half) {
+            self.flush(tile);
+        }
+        tile.membership.count(batch, prim, self.zpass);
+    }
+}
+
+/// Draws `triangles` (each half's contiguous) with `stage` into `tiles`,
+/// then finishes every tile's last half.
+pub fn draw_grouped<H: HalfSink>(
+    framebuffer: &mut Framebuffer,
+    tiles: &mut [MembershipTile<H::Tile>],
+    vertices: &[ClipVertex<0>],
+    triangles: &[[u32; 3]],
+    stage: &GroupedMembership<H>,
+) -> Result<()> {
+    draw(
+        framebuffer,
+        tiles,
+        &wedge_state(stage.zpass),
+        vertices,
+        triangles,
+        stage,
+    )?;
+    tiles.par_iter_mut().for_each(|t| stage.flush(t));
+    Ok(())
+}
+
 /// Draws both sets of `wedges` (z-fail halves, then z-pass halves) into
-/// `tiles` with the stage `stage_for(set, zpass)` builds, and after each
-/// set calls `flush` on every tile so its last half is finished. Penumbra
+/// `tiles`, each with the sink `sink_for(set, zpass)` builds. Penumbra
 /// wedges, blending and depth complexity sampling all count membership
 /// this way; only what they do with a finished half differs.
-pub fn draw_wedges<'w, S: FragmentStage<0>>(
-    framebuffer: &mut crate::raster::Framebuffer,
-    tiles: &mut [S::Target],
+pub fn draw_wedges<'w, H: HalfSink>(
+    framebuffer: &mut Framebuffer,
+    tiles: &mut [MembershipTile<H::Tile>],
     wedges: &'w Wedges,
-    stage_for: impl Fn(&'w WedgeSet, bool) -> S,
-    flush: impl Fn(&S, &mut S::Target) + Sync,
+    sink_for: impl Fn(&'w WedgeSet, bool) -> H,
 ) -> Result<()> {
     for (set, zpass) in [(&wedges.zfail, false), (&wedges.zpass, true)] {
         if set.triangles.is_empty() {
             continue;
         }
-        let stage = stage_for(set, zpass);
-        draw(
-            framebuffer,
-            tiles,
-            &wedge_state(zpass),
-            &set.vertices,
-            &set.triangles,
-            &stage,
-        )?;
-        tiles.par_iter_mut().for_each(|t| flush(&stage, t));
+        let stage = GroupedMembership {
+            primitives: &set.primitives,
+            zpass,
+            sink: sink_for(set, zpass),
+        };
+        draw_grouped(framebuffer, tiles, &set.vertices, &set.triangles, &stage)?;
     }
     Ok(())
 }
@@ -173,14 +265,11 @@ pub fn light_start<'a>(
     let light = &ctx.scene.lights[k];
     let point = light_point(&light.shape);
     let adj = ctx.cache.casters();
-    let t = Instant::now();
-    let volume = build_volume(&adj, ctx.view, point);
+    let t = PassTimer::start(format!("shadow volumes light {k}"));
+    let volume = build_volume(adj, ctx.view, point);
     let mut framebuffer = ctx.depth.clone();
     let counts = stencil_counts(&mut framebuffer, &volume, false)?;
-    passes.push(PassTiming {
-        name: format!("shadow volumes light {k}"),
-        time: t.elapsed(),
-    });
+    t.finish(passes);
     Ok(LightStart {
         adj,
         bound: light_bound(&light.shape),

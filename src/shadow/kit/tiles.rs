@@ -3,6 +3,13 @@
 
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
 
+/// Tile-local coordinates `(x, y)` of local pixel `local` (row-major,
+/// [`TILE_SIZE`] per row).
+#[inline]
+pub fn local_xy(local: usize) -> (usize, usize) {
+    (local % TILE_SIZE, local / TILE_SIZE)
+}
+
 /// Maps a tile's local pixel indices to image pixels.
 pub trait TilePixels {
     /// Image coordinates `(x, y)` of local pixel `local` of `tile`, which
@@ -22,10 +29,8 @@ impl TilePixels for TileGrid {
     #[inline]
     fn tile_pixel_xy(&self, tile: usize, local: usize) -> (usize, usize) {
         let (ox, oy) = self.tile_origin(tile);
-        (
-            ox as usize + local % TILE_SIZE,
-            oy as usize + local / TILE_SIZE,
-        )
+        let (x, y) = local_xy(local);
+        (ox as usize + x, oy as usize + y)
     }
 
     #[inline]

@@ -1,7 +1,7 @@
 //! Which receivers lie in which S-triangle's volume: every STSV of one
 //! light rasterized through the pipeline against the scene depth, with
-//! z-fail membership counting per volume ([`HalfWedgeMembership`], as the
-//! wedge passes count half-wedges), then the exact plane test (§5.1.3) on
+//! z-fail membership counting per volume (the kit's [`GroupedMembership`],
+//! as the wedge passes count half-wedges), then the exact plane test (§5.1.3) on
 //! the receiver's shadow-ray origin, which drops the volume's margin and
 //! every other conservative extra.
 
@@ -9,13 +9,15 @@ use super::volume::{build_volumes, Stsv, VolumeParams};
 use super::{STriangles, ShadowOrigin};
 use crate::error::{Error, Result};
 use crate::gbuffer::GBuffer;
-use crate::raster::{draw, ClipVertex, FragmentBatch, FragmentStage, TileGrid, TILE_SIZE};
+use crate::raster::{ClipVertex, TileGrid};
 use crate::scene::Scene;
-use crate::shadow::kit::membership::{light_bound, wedge_state, HalfWedgeMembership};
+use crate::shadow::kit::membership::{
+    draw_grouped, light_bound, GroupedMembership, HalfSink, MembershipTile,
+};
+use crate::shadow::kit::tiles::TilePixels;
 use crate::shadow::kit::wedge_geometry::WedgePrimitive;
 use crate::shadow::ShadowContext;
 use crate::view::View;
-use rayon::prelude::*;
 
 /// One light's `(pixel, S-triangle)` membership, per tile.
 #[derive(Debug, Clone)]
@@ -65,13 +67,8 @@ impl StsvMembership {
             .iter()
             .enumerate()
             .flat_map(move |(tile, entries)| {
-                let (ox, oy) = self.grid.tile_origin(tile);
                 entries.iter().map(move |&e| {
-                    let local = (e >> 32) as usize;
-                    let (x, y) = (
-                        ox as usize + local % TILE_SIZE,
-                        oy as usize + local / TILE_SIZE,
-                    );
+                    let (x, y) = self.grid.tile_pixel_xy(tile, (e >> 32) as usize);
                     (y * width + x, e as u32)
                 })
             })
@@ -88,76 +85,57 @@ impl StsvMembership {
     }
 }
 
-/// One tile's state of the pass.
-struct MembershipTile {
-    origin: (i32, i32),
-    membership: HalfWedgeMembership,
+/// One tile's state of the pass (besides its membership counts).
+struct PairTile {
+    tile: usize,
     entries: Vec<u64>,
     raster_pairs: usize,
 }
 
-/// The fragment stage: counts a volume's faces behind each receiver;
-/// when the next volume starts, tests the receivers inside exactly.
-struct Stage<'a> {
-    primitives: &'a [WedgePrimitive],
+/// What the pass does with a finished volume: tests the receivers inside
+/// exactly.
+struct VolumeSink<'a> {
     volumes: &'a [Stsv],
+    grid: TileGrid,
     gbuffer: &'a GBuffer,
     scene: &'a Scene,
     origin: ShadowOrigin,
     tolerance: f64,
 }
 
-impl Stage<'_> {
-    fn flush(&self, tile: &mut MembershipTile) {
-        let Some(v) = tile.membership.current() else {
+impl<'a> HalfSink for VolumeSink<'a> {
+    type Tile = PairTile;
+    type Half = &'a Stsv;
+
+    fn half(&self, v: u32) -> &'a Stsv {
+        &self.volumes[v as usize]
+    }
+
+    fn inside(&self, volume: &&'a Stsv, tile: &mut PairTile, i: usize) {
+        tile.raster_pairs += 1;
+        // Fragments never lie beyond the image (the rasterizer's scissor).
+        let Some(global) = self.grid.tile_pixel(tile.tile, i) else {
             return;
         };
-        let volume = &self.volumes[v as usize];
-        let width = self.gbuffer.width as usize;
-        let MembershipTile {
-            origin,
-            membership,
-            entries,
-            raster_pairs,
-        } = tile;
-        membership.drain(|i| {
-            *raster_pairs += 1;
-            let (x, y) = (
-                origin.0 as usize + i % TILE_SIZE,
-                origin.1 as usize + i / TILE_SIZE,
-            );
-            let global = y * width + x;
-            if !self.gbuffer.is_surface(global) {
-                return;
-            }
-            let g = self.gbuffer.sample(global);
-            let receives = self
-                .scene
-                .objects
-                .get(g.object as usize)
-                .is_none_or(|o| o.receive_shadows);
-            let o = self.origin.of(g.position, g.geo_normal).as_dvec3();
-            if receives && volume.contains(o, self.tolerance) {
-                entries.push((i as u64) << 32 | u64::from(volume.s_triangle));
-            }
-        });
-    }
-}
-
-impl FragmentStage<0> for Stage<'_> {
-    type Target = MembershipTile;
-
-    fn shade(&self, batch: &FragmentBatch<0>, tile: &mut MembershipTile) {
-        let prim = self.primitives[batch.primitive as usize];
-        if tile.membership.current() != Some(prim.half) {
-            self.flush(tile);
+        if !self.gbuffer.is_surface(global) {
+            return;
         }
-        tile.membership.count(batch, prim, false);
+        let g = self.gbuffer.sample(global);
+        let receives = self
+            .scene
+            .objects
+            .get(g.object as usize)
+            .is_none_or(|o| o.receive_shadows);
+        let o = self.origin.of(g.position, g.geo_normal).as_dvec3();
+        if receives && volume.contains(o, self.tolerance) {
+            tile.entries
+                .push((i as u64) << 32 | u64::from(volume.s_triangle));
+        }
     }
 }
 
 /// The volumes' triangles in clip space, volume after volume (a volume's
-/// triangles contiguous, as [`HalfWedgeMembership`] needs), each tagged
+/// triangles contiguous, as [`GroupedMembership`] needs), each tagged
 /// with its volume.
 pub fn raster_mesh(
     view: &View,
@@ -207,39 +185,36 @@ pub fn membership(
     let params = VolumeParams::new(ctx.scene, ctx.geometry, ctx.view);
     let volumes = build_volumes(stris, &light_bound(&light.shape), &params);
     let (vertices, triangles, primitives) = raster_mesh(ctx.view, &volumes);
-    let mut tiles: Vec<MembershipTile> = (0..grid.tile_count())
-        .map(|t| MembershipTile {
-            origin: grid.tile_origin(t),
-            membership: HalfWedgeMembership::new(),
-            entries: Vec::new(),
-            raster_pairs: 0,
+    let mut tiles: Vec<MembershipTile<PairTile>> = (0..grid.tile_count())
+        .map(|tile| {
+            MembershipTile::new(PairTile {
+                tile,
+                entries: Vec::new(),
+                raster_pairs: 0,
+            })
         })
         .collect();
-    let stage = Stage {
+    let stage = GroupedMembership {
         primitives: &primitives,
-        volumes: &volumes,
-        gbuffer: ctx.gbuffer,
-        scene: ctx.scene,
-        origin: ShadowOrigin::new(ctx.scene, ctx.geometry),
-        tolerance: params.tolerance,
+        zpass: false,
+        sink: VolumeSink {
+            volumes: &volumes,
+            grid,
+            gbuffer: ctx.gbuffer,
+            scene: ctx.scene,
+            origin: ShadowOrigin::new(ctx.scene, ctx.geometry),
+            tolerance: params.tolerance,
+        },
     };
     if !triangles.is_empty() {
         // The depth buffer is only read (no depth or stencil writes).
         let mut framebuffer = ctx.depth.clone();
-        draw(
-            &mut framebuffer,
-            &mut tiles,
-            &wedge_state(false),
-            &vertices,
-            &triangles,
-            &stage,
-        )?;
-        tiles.par_iter_mut().for_each(|t| stage.flush(t));
+        draw_grouped(&mut framebuffer, &mut tiles, &vertices, &triangles, &stage)?;
     }
     let mut out = StsvMembership::empty(grid);
     out.volumes = volumes.len();
     out.triangles = triangles.len();
-    for (slot, mut t) in out.tiles.iter_mut().zip(tiles) {
+    for (slot, MembershipTile { data: mut t, .. }) in out.tiles.iter_mut().zip(tiles) {
         t.entries.sort_unstable();
         t.entries.dedup();
         out.raster_pairs += t.raster_pairs;

@@ -15,13 +15,13 @@
 
 use super::{membership, Filter, STriangles, SamplePositions, ShadowOrigin};
 use crate::error::{Error, Result};
-use crate::raster::TILE_SIZE;
 use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::shade::gather::{gather_filter, GatherParams};
 use crate::shade::LightSample;
+use crate::shadow::kit::tiles::TilePixels;
+use crate::shadow::kit::timing::{timed, PassTimer};
 use crate::shadow::{BufferNote, PassTiming, ShadowContext};
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// How the S-triangles' occlusion samples a light: the render's sample
 /// count, seed and pattern (the reference's, so the two agree sample by
@@ -86,18 +86,19 @@ pub fn stsv_occlusion(
             "soft textured shadow volumes need at least 1 light sample",
         ));
     }
-    let t = Instant::now();
-    let member = membership(ctx, light, s_triangles)?;
-    passes.push(PassTiming {
-        name: format!("soft textured shadow volumes light {light}"),
-        time: t.elapsed(),
-    });
+    let member = timed(
+        passes,
+        format!("soft textured shadow volumes light {light}"),
+        || membership(ctx, light, s_triangles),
+    )?;
     // `membership` has checked that the light exists.
     let Some(l) = ctx.scene.lights.get(light) else {
         return Ok(None);
     };
 
-    let t = Instant::now();
+    let t = PassTimer::start(format!(
+        "soft textured shadow volume look-ups light {light}"
+    ));
     let sampler = LightSampler::new(l);
     let pattern = PatternSampler::new(sampling.pattern, sampling.samples, sampling.seed, light);
     let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
@@ -120,7 +121,6 @@ pub fn stsv_occlusion(
         .par_iter()
         .enumerate()
         .map_init(Scratch::default, |scratch, (tile, entries)| {
-            let (ox, oy) = grid.tile_origin(tile);
             let mut out = Vec::new();
             let mut e = 0;
             while e < entries.len() {
@@ -129,10 +129,7 @@ pub fn stsv_occlusion(
                 while e < entries.len() && (entries[e] >> 32) as usize == local {
                     e += 1;
                 }
-                let (x, y) = (
-                    ox as usize + local % TILE_SIZE,
-                    oy as usize + local / TILE_SIZE,
-                );
+                let (x, y) = grid.tile_pixel_xy(tile, local);
                 if x >= width || y >= height {
                     continue;
                 }
@@ -191,15 +188,12 @@ pub fn stsv_occlusion(
         occluded[i] = f;
         receivers += 1;
     }
-    passes.push(PassTiming {
-        name: format!("soft textured shadow volume look-ups light {light}"),
-        time: t.elapsed(),
-    });
+    t.finish(passes);
     if let SamplePattern::Interleaved { n } = sampling.pattern {
         // Neighbours used different sample sets: gather them back, as
         // depth complexity sampling does, not across depth or normal
         // discontinuities.
-        let t = Instant::now();
+        let t = PassTimer::start(format!("soft textured shadow volume gather light {light}"));
         let guide = |i: usize| {
             let g = ctx.gbuffer.sample(i);
             g.is_surface().then_some((g.depth, g.normal))
@@ -212,10 +206,7 @@ pub fn stsv_occlusion(
             &guide,
             GatherParams::default(),
         );
-        passes.push(PassTiming {
-            name: format!("soft textured shadow volume gather light {light}"),
-            time: t.elapsed(),
-        });
+        t.finish(passes);
     }
     Ok(Some(StsvOcclusion {
         occluded,

@@ -33,23 +33,24 @@
 //! - Rect lights only (the quarters are the light's own); sphere lights
 //!   are refused with a clear error.
 
-use super::{WedgeStage, WedgeTile};
+use super::{WedgeSink, WedgeTile};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
 use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
 use crate::shadow::kit::light_frame::{projected_edge, EdgeRegion, Polygon, RectFrame};
-use crate::shadow::kit::membership::{draw_wedges, light_bound};
+use crate::shadow::kit::membership::{draw_wedges, light_bound, MembershipTile};
+use crate::shadow::kit::tiles::{local_xy, TilePixels};
+use crate::shadow::kit::timing::PassTimer;
 use crate::shadow::kit::volumes::{
     build_volume, cap_triangles, light_point, side_quad, stencil_counts_of,
 };
 use crate::shadow::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
 use crate::shadow::registry::OPAQUE_ONLY;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use crate::shadow::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
+use crate::shadow::{LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::DVec3;
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// The four quarters of the light square, split at the centre.
 pub const QUARTERS: [[f64; 4]; 4] = [
@@ -275,19 +276,19 @@ impl ShadowTechnique for WedgeBlending {
                 ));
             };
             let point = light_point(&light.shape);
-            let t = Instant::now();
+            let t = PassTimer::start(format!("volumes light {k}"));
             let adj = ctx.cache.casters();
-            let lit = faces_point(&adj, point);
-            let volume = build_volume(&adj, ctx.view, point);
-            let (component, count) = components(&adj);
+            let lit = faces_point(adj, point);
+            let volume = build_volume(adj, ctx.view, point);
+            let (component, count) = components(adj);
             let n = adj.positions.len() as u32;
             let mut tris: Vec<Vec<[u32; 3]>> = vec![Vec::new(); count];
             for slot in 0..adj.face_vertices.len() {
-                cap_triangles(&adj, &lit, slot, n, &mut tris[component[slot] as usize]);
+                cap_triangles(adj, &lit, slot, n, &mut tris[component[slot] as usize]);
             }
             let mut quads: Vec<Vec<[u32; 3]>> = vec![Vec::new(); count];
             for e in &adj.edges {
-                if let Some(q) = side_quad(&adj, &lit, e) {
+                if let Some(q) = side_quad(adj, &lit, e) {
                     let c = component[e.uses[0].slot as usize] as usize;
                     let [a, b, m] = q;
                     for _ in 0..m {
@@ -297,21 +298,18 @@ impl ShadowTechnique for WedgeBlending {
                     quads[c].push(q);
                 }
             }
-            out.passes.push(PassTiming {
-                name: format!("volumes light {k} ({count} silhouettes)"),
-                time: t.elapsed(),
-            });
+            t.finish_with(&mut out.passes, format!("{count} silhouettes"));
 
-            let t = Instant::now();
+            let t = PassTimer::start(format!("wedge blending light {k}"));
             let mut framebuffer = ctx.depth.clone();
             let grid: TileGrid = framebuffer.grid();
             let width = grid.width as usize;
             let height = grid.height as usize;
-            let mut tiles: Vec<WedgeTile> = (0..grid.tile_count())
+            let mut tiles: Vec<MembershipTile<WedgeTile>> = (0..grid.tile_count())
                 .map(|tile| {
-                    let mut t = WedgeTile::new(grid.tile_origin(tile), std::iter::empty());
-                    t.parts = vec![[LightPart::default(); 4]; TILE_PIXELS];
-                    t.final_parts = vec![[LightPart::default(); 4]; TILE_PIXELS];
+                    let mut t = WedgeTile::new(tile, std::iter::empty());
+                    t.data.parts = vec![[LightPart::default(); 4]; TILE_PIXELS];
+                    t.data.final_parts = vec![[LightPart::default(); 4]; TILE_PIXELS];
                     t
                 })
                 .collect();
@@ -327,21 +325,17 @@ impl ShadowTechnique for WedgeBlending {
                     volume.eye_outside,
                 )?;
                 tiles.par_iter_mut().enumerate().for_each(|(tile, t)| {
-                    let (ox, oy) = grid.tile_origin(tile);
-                    for i in 0..TILE_PIXELS {
-                        let (x, y) = (ox as usize + i % TILE_SIZE, oy as usize + i / TILE_SIZE);
-                        if x >= width || y >= height {
-                            continue;
-                        }
-                        let w = counts[y * width + x];
+                    let t = &mut t.data;
+                    grid.for_each_tile_pixel(tile, |i, g| {
+                        let w = counts[g];
                         if w == 0 {
-                            continue;
+                            return;
                         }
                         for (part, quarter) in t.parts[i].iter_mut().zip(QUARTERS) {
                             part.occ = w as f32;
                             part.rect = if w > 0 { to_f32(quarter) } else { EMPTY };
                         }
-                        let (lx, ly) = (i % TILE_SIZE, i / TILE_SIZE);
+                        let (lx, ly) = local_xy(i);
                         let r = &mut t.parts_touched;
                         *r = [
                             r[0].min(lx),
@@ -349,7 +343,7 @@ impl ShadowTechnique for WedgeBlending {
                             r[2].max(lx + 1),
                             r[3].max(ly + 1),
                         ];
-                    }
+                    });
                 });
                 // Its wedges, outer halves first.
                 let mut wedges = Wedges::default();
@@ -365,22 +359,16 @@ impl ShadowTechnique for WedgeBlending {
                         }
                     }
                 }
-                draw_wedges(
-                    &mut framebuffer,
-                    &mut tiles,
-                    &wedges,
-                    |set, zpass| WedgeStage {
-                        gbuffer: ctx.gbuffer,
-                        primitives: &set.primitives,
-                        halves: &set.halves,
-                        light: bound,
-                        zpass,
-                        blend: true,
-                    },
-                    |stage, t| stage.flush(t),
-                )?;
+                draw_wedges(&mut framebuffer, &mut tiles, &wedges, |set, _| WedgeSink {
+                    gbuffer: ctx.gbuffer,
+                    grid,
+                    halves: &set.halves,
+                    light: bound,
+                    blend: true,
+                })?;
                 // Blend the silhouette into the V-buffer and clear it.
                 tiles.par_iter_mut().for_each(|t| {
+                    let t = &mut t.data;
                     let [x0, y0, x1, y1] = t.parts_touched;
                     for y in y0..y1 {
                         for x in x0..x1 {
@@ -395,23 +383,19 @@ impl ShadowTechnique for WedgeBlending {
                     t.parts_touched = [TILE_SIZE, TILE_SIZE, 0, 0];
                 });
             }
-            out.passes.push(PassTiming {
-                name: format!("wedge blending light {k}"),
-                time: t.elapsed(),
-            });
+            t.finish(&mut out.passes);
 
             let mut vcoef = vec![0.0f32; width * height];
             let mut halves_in = vec![0.0f32; width * height];
             for (tile, t) in tiles.iter().enumerate() {
-                let (ox, oy) = grid.tile_origin(tile);
-                for i in 0..TILE_PIXELS {
-                    let (x, y) = (ox as usize + i % TILE_SIZE, oy as usize + i / TILE_SIZE);
-                    if x < width && y < height && ctx.gbuffer.is_surface(y * width + x) {
+                let t = &t.data;
+                grid.for_each_tile_pixel(tile, |i, g| {
+                    if ctx.gbuffer.is_surface(g) {
                         let occ: f32 = t.final_parts[i].iter().map(|p| p.occ).sum::<f32>() / 4.0;
-                        vcoef[y * width + x] = 1.0 - occ.clamp(0.0, 1.0);
-                        halves_in[y * width + x] = t.halves_in[i] as f32;
+                        vcoef[g] = 1.0 - occ.clamp(0.0, 1.0);
+                        halves_in[g] = t.halves_in[i] as f32;
                     }
-                }
+                });
             }
             out.lights.push(LightTerm::Vcoef(vcoef));
             wlayer.channels.push((k.to_string(), halves_in));

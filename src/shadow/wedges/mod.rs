@@ -19,9 +19,11 @@
 pub mod blend;
 
 use super::kit::light_frame::{region_fraction, region_fraction_sphere};
-use super::kit::membership::{draw_wedges, light_start, HalfWedgeMembership, LightStart};
+use super::kit::membership::{draw_wedges, light_start, HalfSink, LightStart, MembershipTile};
+use super::kit::tiles::{local_xy, TilePixels};
+use super::kit::timing::PassTimer;
 use super::kit::volumes::silhouette_quads;
-use super::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, WedgePrimitive, Wedges};
+use super::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
 use super::registry::OPAQUE_ONLY;
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -29,8 +31,7 @@ use crate::error::Result;
 use crate::gbuffer::GBuffer;
 use crate::geom::silhouette::faces_point;
 use crate::output::Layer;
-use crate::raster::{FragmentBatch, FragmentStage, TileGrid, TILE_PIXELS, TILE_SIZE};
-use std::time::Instant;
+use crate::raster::{TileGrid, TILE_PIXELS, TILE_SIZE};
 
 /// The penumbra-wedge technique. S-triangles (opacity-textured casters)
 /// are shadowed by the soft-textured-shadow-volume add-on the render
@@ -57,15 +58,14 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     build: |_| Box::new(PenumbraWedges),
 };
 
-/// One tile's state of the wedge pass.
+/// One tile's state of the wedge pass (besides its membership counts).
 ///
 /// Precisions: the membership count is an exact `i32`; the V-buffer is
 /// `f32` (values are a small integer plus fractions; f32 keeps 2⁻²⁴
 /// relative precision, far below a display's 2⁻⁸) accumulated in a fixed
 /// order, so results do not depend on threads.
 pub struct WedgeTile {
-    origin: (i32, i32),
-    membership: HalfWedgeMembership,
+    tile: usize,
     vbuffer: Vec<f32>,
     halves_in: Vec<u32>,
     /// Blending only: the current silhouette's per-light-part buffer.
@@ -77,101 +77,79 @@ pub struct WedgeTile {
 }
 
 impl WedgeTile {
-    fn new(origin: (i32, i32), start: impl Iterator<Item = f32>) -> Self {
+    /// Tile `tile` of the pass, its V-buffer starting at `start`.
+    fn new(tile: usize, start: impl Iterator<Item = f32>) -> MembershipTile<Self> {
         let mut vbuffer = vec![0.0; TILE_PIXELS];
         for (v, s) in vbuffer.iter_mut().zip(start) {
             *v = s;
         }
-        WedgeTile {
-            origin,
-            membership: HalfWedgeMembership::new(),
+        MembershipTile::new(WedgeTile {
+            tile,
             vbuffer,
             halves_in: vec![0; TILE_PIXELS],
             parts: Vec::new(),
             final_parts: Vec::new(),
             parts_touched: [TILE_SIZE, TILE_SIZE, 0, 0],
-        }
+        })
     }
 }
 
-/// The fragment stage: z-fail membership counting per half-wedge, then
-/// the edge integral for the pixels inside.
-struct WedgeStage<'a> {
+/// What the wedge pass does with a finished half-wedge: the edge
+/// integral for every receiver inside it.
+struct WedgeSink<'a> {
     gbuffer: &'a GBuffer,
-    primitives: &'a [WedgePrimitive],
+    grid: TileGrid,
     halves: &'a [HalfWedge],
     light: LightBound,
-    /// Faces in front of the receiver count (z-pass) instead of behind.
-    zpass: bool,
     /// Accumulate into the tile's per-light-part buffer (blending).
     blend: bool,
 }
 
-impl WedgeStage<'_> {
-    /// Integrates the tile's current half-wedge and clears its counts.
-    fn flush(&self, tile: &mut WedgeTile) {
-        let Some(current) = tile.membership.current() else {
-            return;
-        };
-        let half = self.halves[current as usize];
-        let width = self.gbuffer.width as usize;
+impl HalfSink for WedgeSink<'_> {
+    type Tile = WedgeTile;
+    /// The half and the sign of its contribution.
+    type Half = (HalfWedge, f64);
+
+    fn half(&self, half: u32) -> (HalfWedge, f64) {
+        let half = self.halves[half as usize];
         // Orientation of the light plane as seen from p decides which side
         // of the projected edge the centre is on for each half (see
         // `integrate`): outer halves see it on the unoccluded side.
-        let sign = if half.outer { 1.0 } else { -1.0 };
-        let WedgeTile {
-            origin,
-            membership,
-            vbuffer,
-            halves_in,
-            parts,
-            parts_touched,
-            ..
-        } = tile;
-        membership.drain(|i| {
-            let (x, y) = (i % TILE_SIZE, i / TILE_SIZE);
-            let gx = origin.0 as usize + x;
-            let gy = origin.1 as usize + y;
-            let i_global = gy * width + gx;
-            if !self.gbuffer.is_surface(i_global) {
-                return;
-            }
-            let g = self.gbuffer.sample(i_global);
-            let p = g.position.as_dvec3();
-            halves_in[i] += 1;
-            if self.blend {
-                if let LightBound::Rect(frame) = &self.light {
-                    let facing = (frame.center - p).dot(frame.normal);
-                    blend::accumulate(&mut parts[i], frame, p, &half, sign * facing.signum());
-                    let t = &mut *parts_touched;
-                    *t = [t[0].min(x), t[1].min(y), t[2].max(x + 1), t[3].max(y + 1)];
-                }
-                return;
-            }
-            let r = match &self.light {
-                LightBound::Rect(frame) => {
-                    let facing = (frame.center - p).dot(frame.normal);
-                    let c_side = sign * facing.signum();
-                    region_fraction(frame, p, half.q0, half.q1, c_side)
-                }
-                LightBound::Sphere { center, radius } => {
-                    region_fraction_sphere(*center, *radius, p, half.q0, half.q1)
-                }
-            };
-            vbuffer[i] += (sign * half.weight as f64 * r) as f32;
-        });
+        (half, if half.outer { 1.0 } else { -1.0 })
     }
-}
 
-impl FragmentStage<0> for WedgeStage<'_> {
-    type Target = WedgeTile;
-
-    fn shade(&self, batch: &FragmentBatch<0>, tile: &mut WedgeTile) {
-        let prim = self.primitives[batch.primitive as usize];
-        if tile.membership.current() != Some(prim.half) {
-            self.flush(tile);
+    fn inside(&self, &(half, sign): &(HalfWedge, f64), tile: &mut WedgeTile, i: usize) {
+        // Fragments never lie beyond the image (the rasterizer's scissor).
+        let Some(i_global) = self.grid.tile_pixel(tile.tile, i) else {
+            return;
+        };
+        if !self.gbuffer.is_surface(i_global) {
+            return;
         }
-        tile.membership.count(batch, prim, self.zpass);
+        let g = self.gbuffer.sample(i_global);
+        let p = g.position.as_dvec3();
+        tile.halves_in[i] += 1;
+        if self.blend {
+            if let LightBound::Rect(frame) = &self.light {
+                let facing = (frame.center - p).dot(frame.normal);
+                blend::accumulate(&mut tile.parts[i], frame, p, &half, sign * facing.signum());
+                let (x, y) = local_xy(i);
+                let t = &mut tile.parts_touched;
+                *t = [t[0].min(x), t[1].min(y), t[2].max(x + 1), t[3].max(y + 1)];
+            }
+            return;
+        }
+        let r = match &self.light {
+            LightBound::Rect(frame) => {
+                let facing = (frame.center - p).dot(frame.normal);
+                let c_side = sign * facing.signum();
+                region_fraction(frame, p, half.q0, half.q1, c_side)
+            }
+            LightBound::Sphere { center, radius } => {
+                region_fraction_sphere(*center, *radius, p, half.q0, half.q1)
+            }
+        };
+        tile.vbuffer[i] += (sign * half.weight as f64 * r) as f32;
     }
 }
 
@@ -200,10 +178,10 @@ pub fn wedge_light(
         ..
     } = light_start(ctx, k, passes)?;
 
-    let t = Instant::now();
-    let lit = faces_point(&adj, point);
+    let t = PassTimer::start(format!("wedge build light {k}"));
+    let lit = faces_point(adj, point);
     let mut wedges = Wedges::default();
-    for [a, b, m] in silhouette_quads(&adj, &lit) {
+    for [a, b, m] in silhouette_quads(adj, &lit) {
         let quad = SilhouetteQuad {
             q0: adj.positions[a as usize],
             q1: adj.positions[b as usize],
@@ -213,58 +191,33 @@ pub fn wedge_light(
             wedges.skipped += 1;
         }
     }
-    passes.push(PassTiming {
-        name: format!("wedge build light {k}"),
-        time: t.elapsed(),
-    });
+    t.finish(passes);
 
-    let t = Instant::now();
+    let t = PassTimer::start(format!("wedges light {k}"));
     let grid: TileGrid = framebuffer.grid();
-    let width = grid.width as usize;
-    let mut tiles: Vec<WedgeTile> = (0..grid.tile_count())
+    let mut tiles: Vec<MembershipTile<WedgeTile>> = (0..grid.tile_count())
         .map(|tile| {
-            let (ox, oy) = grid.tile_origin(tile);
-            let start = (0..TILE_PIXELS).map(|i| {
-                let (x, y) = (ox as usize + i % TILE_SIZE, oy as usize + i / TILE_SIZE);
-                if x < width && y < grid.height as usize {
-                    counts[y * width + x] as f32
-                } else {
-                    0.0
-                }
-            });
-            WedgeTile::new((ox, oy), start)
+            let start = (0..TILE_PIXELS)
+                .map(|i| grid.tile_pixel(tile, i).map_or(0.0, |g| counts[g] as f32));
+            WedgeTile::new(tile, start)
         })
         .collect();
-    draw_wedges(
-        &mut framebuffer,
-        &mut tiles,
-        &wedges,
-        |set, zpass| WedgeStage {
-            gbuffer: ctx.gbuffer,
-            primitives: &set.primitives,
-            halves: &set.halves,
-            light: bound,
-            zpass,
-            blend: false,
-        },
-        |stage, t| stage.flush(t),
-    )?;
-    passes.push(PassTiming {
-        name: format!("wedges light {k}"),
-        time: t.elapsed(),
-    });
+    draw_wedges(&mut framebuffer, &mut tiles, &wedges, |set, _| WedgeSink {
+        gbuffer: ctx.gbuffer,
+        grid,
+        halves: &set.halves,
+        light: bound,
+        blend: false,
+    })?;
+    t.finish(passes);
 
-    let mut vbuffer = vec![0.0f32; width * grid.height as usize];
+    let mut vbuffer = vec![0.0f32; grid.width as usize * grid.height as usize];
     let mut halves_in = vec![0u32; vbuffer.len()];
     for (tile, t) in tiles.iter().enumerate() {
-        let (ox, oy) = grid.tile_origin(tile);
-        for i in 0..TILE_PIXELS {
-            let (x, y) = (ox as usize + i % TILE_SIZE, oy as usize + i / TILE_SIZE);
-            if x < width && y < grid.height as usize {
-                vbuffer[y * width + x] = t.vbuffer[i];
-                halves_in[y * width + x] = t.halves_in[i];
-            }
-        }
+        grid.for_each_tile_pixel(tile, |i, g| {
+            vbuffer[g] = t.data.vbuffer[i];
+            halves_in[g] = t.data.halves_in[i];
+        });
     }
     Ok(WedgeLight {
         vbuffer,

@@ -1,0 +1,128 @@
+//! `compare`'s pictures: each run's image and Vcoef error heat maps, the
+//! error-vs-time chart points, their Pareto front and the charts.
+
+use super::reference::ReferenceImages;
+use super::run::RunResult;
+use crate::error::{Error, Result};
+use crate::output::write_png;
+use crate::render::RenderOutput;
+use crate::report::{pareto_front, write_error_heatmap, write_error_vs_time, ChartPoint};
+use std::path::Path;
+
+/// Errors at or above this show brightest in the Vcoef heat maps.
+pub const HEATMAP_SCALE: f32 = 0.25;
+
+/// A file-name-safe form of `s`.
+pub(super) fn slug(s: &str) -> String {
+    let mut out = String::new();
+    for c in s.chars() {
+        if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if !out.ends_with('-') {
+            out.push('-');
+        }
+    }
+    out.trim_matches('-').to_string()
+}
+
+/// Writes a run's radiance image (`images/{stem}.png`) and, per light
+/// with a Vcoef (`tests`), its error heat map against `reference`
+/// (`heatmaps/{stem}.vcoef{k}.png`); returns their paths relative to `out`.
+pub(super) fn write_run_images(
+    out: &Path,
+    stem: &str,
+    (width, height): (u32, u32),
+    rendered: &RenderOutput,
+    tests: &[Option<&[f32]>],
+    reference: &ReferenceImages,
+) -> Result<(Option<String>, Vec<String>)> {
+    let rel = format!("images/{stem}.png");
+    write_png(&out.join(&rel), width, height, &rendered.radiance)?;
+    let image = Some(rel);
+    let mut heatmaps = Vec::new();
+    let dir = out.join("heatmaps");
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    for (k, t) in tests.iter().enumerate() {
+        let Some(t) = t else { continue };
+        let err: Vec<f32> = t
+            .iter()
+            .zip(&reference.vcoef[k])
+            .map(|(a, b)| (a - b).abs())
+            .collect();
+        let rel = format!("heatmaps/{stem}.vcoef{k}.png");
+        write_error_heatmap(
+            &out.join(&rel),
+            width,
+            height,
+            &err,
+            &reference.surface,
+            HEATMAP_SCALE,
+        )?;
+        heatmaps.push(rel);
+    }
+    Ok((image, heatmaps))
+}
+
+/// The error-vs-time points of the runs with a Vcoef for every light, with
+/// their index in `runs`: the penumbra RMSE, or with `all` the RMSE over
+/// all shading points.
+fn chart_points(runs: &[RunResult], all: bool) -> Vec<(usize, ChartPoint)> {
+    runs.iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let m = r.vcoef_all_lights?;
+            Some((
+                i,
+                ChartPoint {
+                    technique: r.technique.clone(),
+                    label: r.setting.clone(),
+                    seconds: r.median_ms / 1e3,
+                    error: if all { m.all.rmse } else { m.penumbra.rmse },
+                },
+            ))
+        })
+        .collect()
+}
+
+/// Marks the runs on the Pareto front of (time, penumbra Vcoef RMSE) and
+/// writes the error-vs-time charts (penumbra, all shading points) into
+/// `out`, with the reference's noise floors `floor` (`(penumbra, all)`
+/// RMSE) drawn; returns their paths relative to `out`, `None` without a
+/// run to chart.
+pub(super) fn pareto_and_charts(
+    out: &Path,
+    scene_name: &str,
+    runs: &mut [RunResult],
+    (floor_penumbra, floor_all): (f64, f64),
+) -> Result<(Option<String>, Option<String>)> {
+    let penumbra_points = chart_points(runs, false);
+    let only: Vec<ChartPoint> = penumbra_points.iter().map(|(_, p)| p.clone()).collect();
+    for ((i, _), front) in penumbra_points.iter().zip(pareto_front(&only)) {
+        runs[*i].pareto = front;
+    }
+    if only.is_empty() {
+        return Ok((None, None));
+    }
+    write_error_vs_time(
+        &out.join("error_vs_time.png"),
+        &format!("{scene_name}: Vcoef error in the penumbra vs time"),
+        "Vcoef RMSE (penumbra)",
+        &only,
+        Some(floor_penumbra),
+    )?;
+    let all: Vec<ChartPoint> = chart_points(runs, true)
+        .into_iter()
+        .map(|(_, p)| p)
+        .collect();
+    write_error_vs_time(
+        &out.join("error_vs_time_all.png"),
+        &format!("{scene_name}: Vcoef error over all shading points vs time"),
+        "Vcoef RMSE (all shading points)",
+        &all,
+        Some(floor_all),
+    )?;
+    Ok((
+        Some("error_vs_time.png".to_string()),
+        Some("error_vs_time_all.png".to_string()),
+    ))
+}

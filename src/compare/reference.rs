@@ -1,0 +1,303 @@
+//! The reference every run is measured against: two independent
+//! half-sample references, computed once and kept in the disk cache
+//! ([`cache`](super::cache)); their mean as the reference images, half
+//! their difference as the reference's own error (its noise floor).
+
+use super::cache::{
+    self, CachedReference, ReferenceHalf, ReferenceKey, StableHasher, REFERENCE_VERSION,
+};
+use super::run::RegionMetrics;
+use super::settings::CompareOptions;
+use crate::error::{Error, Result};
+use crate::render::{render, Aov, RenderOptions, RenderOutput, Technique};
+use crate::report::{error_metrics, ErrorAccumulator, Progress};
+use crate::scene::Scene;
+use glam::Vec3;
+use serde::Serialize;
+use std::time::Instant;
+
+/// The reference's own error, estimated from its two halves.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct NoiseFloor {
+    /// Estimated RMSE of the reference over all shading points.
+    pub rmse_all: f64,
+    /// Estimated mean absolute error over all shading points.
+    pub mae_all: f64,
+    /// Estimated RMSE over the penumbra.
+    pub rmse_penumbra: f64,
+    /// Estimated mean absolute error over the penumbra.
+    pub mae_penumbra: f64,
+}
+
+impl NoiseFloor {
+    /// Half the error between the two halves (see the module docs).
+    fn from_halves(m: RegionMetrics) -> Self {
+        NoiseFloor {
+            rmse_all: m.all.rmse / 2.0,
+            mae_all: m.all.mean_abs / 2.0,
+            rmse_penumbra: m.penumbra.rmse / 2.0,
+            mae_penumbra: m.penumbra.mean_abs / 2.0,
+        }
+    }
+}
+
+/// The reference every run is measured against.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceSummary {
+    /// Samples per light (both halves together).
+    pub samples: u32,
+    /// Seeds of the halves.
+    pub seeds: [u64; 2],
+    /// Wall-clock seconds it took when computed.
+    pub seconds: f64,
+    /// Read from the cache instead of computed.
+    pub from_cache: bool,
+    /// The cache file.
+    pub cache_file: String,
+    /// Noise floor of Vcoef per light.
+    pub floor_vcoef: Vec<NoiseFloor>,
+    /// Noise floor of Vcoef over all lights.
+    pub floor_vcoef_all_lights: NoiseFloor,
+    /// Noise floor of radiance.
+    pub floor_radiance: NoiseFloor,
+}
+
+/// The reference's noise floors: Vcoef per light and over all lights,
+/// and radiance.
+pub(super) struct NoiseFloors {
+    /// Vcoef per light.
+    pub vcoef: Vec<NoiseFloor>,
+    /// Vcoef over all lights.
+    pub vcoef_all_lights: NoiseFloor,
+    /// Radiance.
+    pub radiance: NoiseFloor,
+}
+
+impl NoiseFloors {
+    /// The floors of `cached`'s two halves over `reference`'s regions.
+    pub fn new(cached: &CachedReference, reference: &ReferenceImages) -> Self {
+        let halves = &cached.halves;
+        let vcoef: Vec<NoiseFloor> = (0..reference.vcoef.len())
+            .map(|k| {
+                let m = RegionMetrics {
+                    all: error_metrics(&halves[0].vcoef[k], &halves[1].vcoef[k], |i| {
+                        reference.surface[i]
+                    }),
+                    penumbra: error_metrics(&halves[0].vcoef[k], &halves[1].vcoef[k], |i| {
+                        reference.penumbra[k][i]
+                    }),
+                };
+                NoiseFloor::from_halves(m)
+            })
+            .collect();
+        let half_a: Vec<Option<&[f32]>> =
+            halves[0].vcoef.iter().map(|v| Some(v.as_slice())).collect();
+        let vcoef_all_lights = reference
+            .vcoef_all_lights(&half_a, &halves[1].vcoef)
+            .map(NoiseFloor::from_halves)
+            .unwrap_or_default();
+        let radiance = NoiseFloor::from_halves(
+            reference.radiance_metrics(&halves[0].radiance, &halves[1].radiance),
+        );
+        NoiseFloors {
+            vcoef,
+            vcoef_all_lights,
+            radiance,
+        }
+    }
+}
+
+/// The reference images a comparison measures against.
+pub(super) struct ReferenceImages {
+    /// Per pixel: it sees a surface.
+    pub surface: Vec<bool>,
+    /// The halves' mean radiance.
+    pub radiance: Vec<Vec3>,
+    /// Per light: the halves' mean Vcoef.
+    pub vcoef: Vec<Vec<f32>>,
+    /// Per light: reference Vcoef strictly inside (0, 1).
+    pub penumbra: Vec<Vec<bool>>,
+    /// Some light in penumbra.
+    penumbra_any: Vec<bool>,
+}
+
+impl ReferenceImages {
+    /// The mean of `cached`'s halves and its penumbra regions.
+    pub fn new(cached: &CachedReference) -> Self {
+        let [a, b] = &cached.halves;
+        let surface: Vec<bool> = cached.mask.iter().map(|&m| m > 0.5).collect();
+        let radiance = a
+            .radiance
+            .iter()
+            .zip(&b.radiance)
+            .map(|(x, y)| (*x + *y) * 0.5)
+            .collect();
+        let vcoef: Vec<Vec<f32>> = a
+            .vcoef
+            .iter()
+            .zip(&b.vcoef)
+            .map(|(x, y)| x.iter().zip(y).map(|(p, q)| (p + q) * 0.5).collect())
+            .collect();
+        let penumbra: Vec<Vec<bool>> = vcoef
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .zip(&surface)
+                    .map(|(&v, &s)| s && v > 0.0 && v < 1.0)
+                    .collect()
+            })
+            .collect();
+        let penumbra_any = (0..surface.len())
+            .map(|i| penumbra.iter().any(|p| p[i]))
+            .collect();
+        ReferenceImages {
+            surface,
+            radiance,
+            vcoef,
+            penumbra,
+            penumbra_any,
+        }
+    }
+
+    /// Light `k`'s Vcoef error of `test`.
+    pub fn vcoef_metrics(&self, k: usize, test: &[f32]) -> RegionMetrics {
+        let (s, p) = (&self.surface, &self.penumbra[k]);
+        RegionMetrics {
+            all: error_metrics(test, &self.vcoef[k], |i| s[i]),
+            penumbra: error_metrics(test, &self.vcoef[k], |i| p[i]),
+        }
+    }
+
+    /// Vcoef error over every light's values together (`None` if some
+    /// light has no Vcoef).
+    pub fn vcoef_all_lights(
+        &self,
+        tests: &[Option<&[f32]>],
+        against: &[Vec<f32>],
+    ) -> Option<RegionMetrics> {
+        let mut all = ErrorAccumulator::default();
+        let mut pen = ErrorAccumulator::default();
+        for (k, test) in tests.iter().enumerate() {
+            let test = (*test)?;
+            for (i, (&t, &r)) in test.iter().zip(&against[k]).enumerate() {
+                if self.surface[i] {
+                    all.add(t as f64, r as f64);
+                }
+                if self.penumbra[k][i] {
+                    pen.add(t as f64, r as f64);
+                }
+            }
+        }
+        Some(RegionMetrics {
+            all: all.finish(),
+            penumbra: pen.finish(),
+        })
+    }
+
+    /// Radiance error of `test` against `against` over R, G and B.
+    pub fn radiance_metrics(&self, test: &[Vec3], against: &[Vec3]) -> RegionMetrics {
+        let mut all = ErrorAccumulator::default();
+        let mut pen = ErrorAccumulator::default();
+        for (i, (t, r)) in test.iter().zip(against).enumerate() {
+            for c in 0..3 {
+                if self.surface[i] {
+                    all.add(t[c] as f64, r[c] as f64);
+                }
+                if self.penumbra_any[i] {
+                    pen.add(t[c] as f64, r[c] as f64);
+                }
+            }
+        }
+        RegionMetrics {
+            all: all.finish(),
+            penumbra: pen.finish(),
+        }
+    }
+}
+
+/// The Vcoef of light `k` of a render, background pixels 0 (as in the
+/// `vcoef` AOV the cached references store).
+pub(super) fn vcoef_of(out: &RenderOutput, k: usize, surface: &[bool]) -> Option<Vec<f32>> {
+    let term = out.lights.get(k)?;
+    Some(
+        term.vcoef()
+            .iter()
+            .zip(surface)
+            .map(|(&v, &s)| if s { v } else { 0.0 })
+            .collect(),
+    )
+}
+
+/// Computes (or reads from the cache) the reference for `scene`.
+pub(super) fn reference(
+    scene: &Scene,
+    options: &CompareOptions,
+    progress: &Progress,
+) -> Result<(CachedReference, ReferenceKey, bool)> {
+    let view_options = RenderOptions {
+        width: options.width,
+        height: options.height,
+        ..RenderOptions::default()
+    };
+    let view = crate::render::view_for(scene, &view_options)?;
+    let mut h = StableHasher::default();
+    cache::hash_scene(&mut h, scene);
+    let key = ReferenceKey {
+        scene_hash: h.finish(),
+        width: view.width,
+        height: view.height,
+        samples: options.reference_samples,
+        seeds: options.reference_seeds(),
+        version: REFERENCE_VERSION,
+    };
+    if let Some(hit) = cache::load(&options.cache_dir, &key, scene.lights.len()) {
+        progress.step();
+        progress.step();
+        return Ok((hit, key, true));
+    }
+    let start = Instant::now();
+    let mut halves = Vec::new();
+    let mut mask = Vec::new();
+    for (i, &seed) in key.seeds.iter().enumerate() {
+        progress.stage(&format!("reference half {}/2", i + 1));
+        let out = render(
+            scene,
+            &RenderOptions {
+                aovs: vec![Aov::Mask],
+                technique: Technique::named("reference")?,
+                samples: options.reference_samples / 2,
+                seed,
+                ..view_options.clone()
+            },
+            &Progress::hidden(),
+        )?;
+        mask = out
+            .layers
+            .iter()
+            .find(|l| l.name == "mask")
+            .map(|l| l.channels[0].1.clone())
+            .unwrap_or_default();
+        let surface: Vec<bool> = mask.iter().map(|&m| m > 0.5).collect();
+        let vcoef = (0..scene.lights.len())
+            .map(|k| vcoef_of(&out, k, &surface).unwrap_or_default())
+            .collect();
+        halves.push(ReferenceHalf {
+            radiance: out.radiance,
+            vcoef,
+        });
+        progress.step();
+    }
+    let [a, b]: [ReferenceHalf; 2] = halves
+        .try_into()
+        .map_err(|_| Error::param("--reference-samples", "reference halves missing"))?;
+    let cached = CachedReference {
+        mask,
+        halves: [a, b],
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    if let Err(e) = cache::store(&options.cache_dir, &key, &cached) {
+        // A read-only cache costs time, not correctness.
+        eprintln!("penumbra: warning: reference not cached: {e}");
+    }
+    Ok((cached, key, false))
+}

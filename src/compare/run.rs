@@ -1,0 +1,219 @@
+//! Timing one quality setting (repeated renders, per-pass medians, a
+//! check that every run gave the same bits) and measuring it against the
+//! reference.
+
+use super::charts::{slug, write_run_images};
+use super::reference::{vcoef_of, ReferenceImages};
+use super::settings::CompareOptions;
+use crate::error::{Error, Result};
+use crate::render::{render, RenderOptions, RenderOutput};
+use crate::report::{ErrorMetrics, Progress};
+use crate::shadow::registry::QualitySetting;
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// Errors over all shading points and over the penumbra only.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct RegionMetrics {
+    /// Every shading point.
+    pub all: ErrorMetrics,
+    /// Points whose reference Vcoef is strictly between 0 and 1 (for
+    /// radiance: for some light).
+    pub penumbra: ErrorMetrics,
+}
+
+/// Median time of one pass over the repeats.
+#[derive(Debug, Clone, Serialize)]
+pub struct PassMedian {
+    /// Pass name.
+    pub name: String,
+    /// Median wall-clock milliseconds.
+    pub median_ms: f64,
+}
+
+/// One technique at one setting.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunResult {
+    /// Technique name.
+    pub technique: String,
+    /// Setting label.
+    pub setting: String,
+    /// Light samples, where the technique samples.
+    pub samples: Option<u32>,
+    /// Median wall-clock time of a whole render (scene loading excluded).
+    pub median_ms: f64,
+    /// Fastest run.
+    pub min_ms: f64,
+    /// Slowest run.
+    pub max_ms: f64,
+    /// Timed runs.
+    pub runs: u32,
+    /// Per-pass medians, in execution order.
+    pub passes: Vec<PassMedian>,
+    /// Vcoef error per light (`None` where the technique gives no Vcoef).
+    pub vcoef: Vec<Option<RegionMetrics>>,
+    /// Vcoef error over every light's values together.
+    pub vcoef_all_lights: Option<RegionMetrics>,
+    /// Radiance error over R, G and B values together.
+    pub radiance: RegionMetrics,
+    /// On the Pareto front of (time, penumbra Vcoef RMSE).
+    pub pareto: bool,
+    /// Radiance image, relative to the output directory.
+    pub image: Option<String>,
+    /// Vcoef heat maps per light, relative to the output directory.
+    pub heatmaps: Vec<String>,
+}
+
+impl RunResult {
+    /// Sum of the median times of passes whose name starts with `prefix`.
+    pub fn pass_ms(&self, pred: impl Fn(&str) -> bool) -> f64 {
+        self.passes
+            .iter()
+            .filter(|p| pred(&p.name))
+            .map(|p| p.median_ms)
+            .sum()
+    }
+}
+
+/// One setting's timed renders.
+pub(super) struct TimedRuns {
+    /// The first run's output (every run's is the same).
+    pub rendered: RenderOutput,
+    /// Each run's wall-clock milliseconds.
+    pub totals: Vec<f64>,
+    /// Per-pass medians, in execution order.
+    pub passes: Vec<PassMedian>,
+}
+
+/// Renders `setting` (`setting_options`) `repeat` times, timing each run
+/// and its passes; an error if two runs differ in any bit. `None` when
+/// there was no run.
+pub(super) fn time_setting(
+    scene: &crate::scene::Scene,
+    setting: &QualitySetting,
+    setting_options: &RenderOptions,
+    repeat: u32,
+    progress: &Progress,
+) -> Result<Option<TimedRuns>> {
+    let name = setting.curve.as_str();
+    let mut totals = Vec::new();
+    let mut pass_times: Vec<Vec<f64>> = Vec::new();
+    let mut pass_names: Vec<String> = Vec::new();
+    let mut first: Option<RenderOutput> = None;
+    for r in 0..repeat {
+        progress.stage(&format!(
+            "{name} {} (run {}/{})",
+            setting.label,
+            r + 1,
+            repeat
+        ));
+        let start = Instant::now();
+        let rendered = render(scene, setting_options, &Progress::hidden())?;
+        totals.push(start.elapsed().as_secs_f64() * 1e3);
+        if pass_names.is_empty() {
+            pass_names = rendered.passes.iter().map(|p| p.name.clone()).collect();
+            pass_times = vec![Vec::new(); pass_names.len()];
+        }
+        for (i, p) in rendered.passes.iter().enumerate().take(pass_names.len()) {
+            pass_times[i].push(p.time.as_secs_f64() * 1e3);
+        }
+        match &first {
+            None => first = Some(rendered),
+            Some(f) => {
+                // Free insurance: the renderer promises the same bits
+                // every run; a comparison built on anything else
+                // would be meaningless.
+                if f.radiance != rendered.radiance
+                    || f.layers != rendered.layers
+                    || f.lights != rendered.lights
+                {
+                    return Err(Error::param(
+                        "--technique",
+                        format!(
+                            "{name} ({}) gave different images in two runs of the same render",
+                            setting.label
+                        ),
+                    ));
+                }
+            }
+        }
+        progress.step();
+    }
+    let Some(rendered) = first else {
+        return Ok(None);
+    };
+    let passes = pass_names
+        .into_iter()
+        .zip(pass_times)
+        .map(|(name, t)| PassMedian {
+            name,
+            median_ms: median(t),
+        })
+        .collect();
+    Ok(Some(TimedRuns {
+        rendered,
+        totals,
+        passes,
+    }))
+}
+
+/// `setting`'s result from its timed `runs`: its errors against
+/// `reference` and, with `options.images`, its image and Vcoef heat maps
+/// written into `out`.
+pub(super) fn run_result(
+    setting: &QualitySetting,
+    runs: TimedRuns,
+    reference: &ReferenceImages,
+    options: &CompareOptions,
+    out: &Path,
+    (width, height): (u32, u32),
+) -> Result<RunResult> {
+    let name = setting.curve.as_str();
+    let TimedRuns {
+        rendered,
+        totals,
+        passes,
+    } = runs;
+    let owned: Vec<Option<Vec<f32>>> = (0..reference.vcoef.len())
+        .map(|k| vcoef_of(&rendered, k, &reference.surface))
+        .collect();
+    let tests: Vec<Option<&[f32]>> = owned.iter().map(|v| v.as_deref()).collect();
+    let vcoef: Vec<Option<RegionMetrics>> = tests
+        .iter()
+        .enumerate()
+        .map(|(k, t)| t.map(|t| reference.vcoef_metrics(k, t)))
+        .collect();
+    let (image, heatmaps) = if options.images {
+        let stem = slug(&format!("{name}-{}", setting.label));
+        write_run_images(out, &stem, (width, height), &rendered, &tests, reference)?
+    } else {
+        (None, Vec::new())
+    };
+    Ok(RunResult {
+        technique: name.to_string(),
+        setting: setting.label.clone(),
+        samples: setting.samples,
+        median_ms: median(totals.clone()),
+        min_ms: totals.iter().copied().fold(f64::INFINITY, f64::min),
+        max_ms: totals.iter().copied().fold(0.0, f64::max),
+        runs: options.repeat,
+        passes,
+        vcoef_all_lights: reference.vcoef_all_lights(&tests, &reference.vcoef),
+        vcoef,
+        radiance: reference.radiance_metrics(&rendered.radiance, &reference.radiance),
+        pareto: false,
+        image,
+        heatmaps,
+    })
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => 0.0,
+        _ if n % 2 == 1 => v[n / 2],
+        _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}

@@ -1,0 +1,149 @@
+//! What `compare` runs: its options and their validation, and the quality
+//! settings of each technique (from the technique registry).
+
+use crate::error::{Error, Result};
+use crate::render::{RenderOptions, Technique};
+use crate::sampling::SamplePattern;
+use crate::shadow::registry::{QualitySetting, Sweep};
+use crate::shadow::TechniqueOptions;
+use std::path::PathBuf;
+
+/// What `compare` runs.
+#[derive(Debug, Clone)]
+pub struct CompareOptions {
+    /// Techniques to measure, in order.
+    pub techniques: Vec<Technique>,
+    /// The techniques' options every quality setting starts from.
+    pub technique_options: TechniqueOptions,
+    /// Light-sample counts for techniques that sample.
+    pub samples: Vec<u32>,
+    /// Samples per light of the reference (even: two halves).
+    pub reference_samples: u32,
+    /// Timed runs per setting (the median is reported).
+    pub repeat: u32,
+    /// Image width override.
+    pub width: Option<u32>,
+    /// Image height override.
+    pub height: Option<u32>,
+    /// Seed of the techniques' samples (the reference derives its own).
+    pub seed: u64,
+    /// Where cached references live.
+    pub cache_dir: PathBuf,
+    /// Write per-run images and heat maps.
+    pub images: bool,
+    /// Sample patterns DCS is measured with (one curve each); the first
+    /// is also the reference's and whole-light silhouettes' pattern.
+    pub patterns: Vec<SamplePattern>,
+}
+
+impl CompareOptions {
+    /// Checks the options before any work starts.
+    pub fn validate(&self) -> Result<()> {
+        if self.techniques.is_empty() {
+            return Err(Error::param("--techniques", "name at least one technique"));
+        }
+        if self.samples.is_empty() {
+            return Err(Error::param("--samples", "give at least one sample count"));
+        }
+        if self.patterns.is_empty() {
+            return Err(Error::param(
+                "--patterns",
+                "give at least one sample pattern",
+            ));
+        }
+        if let Some(&s) = self.samples.iter().find(|&&s| s == 0 || s > 1 << 20) {
+            return Err(Error::param(
+                "--samples",
+                format!("{s} is outside 1..=1048576"),
+            ));
+        }
+        let m = self.reference_samples;
+        if m < 2 || !m.is_multiple_of(2) || m > 1 << 21 {
+            return Err(Error::param(
+                "--reference-samples",
+                format!("{m} must be even and in 2..=2097152 (the reference is two halves)"),
+            ));
+        }
+        if self.repeat == 0 || self.repeat > 1000 {
+            return Err(Error::param(
+                "--repeat",
+                format!("{} is outside 1..=1000", self.repeat),
+            ));
+        }
+        for (name, v) in [("--width", self.width), ("--height", self.height)] {
+            if v == Some(0) {
+                return Err(Error::param(name, "must be at least 1"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The two reference halves' seeds: distinct from each other and from
+    /// the techniques' seed, so no technique shares the reference's noise.
+    pub fn reference_seeds(&self) -> [u64; 2] {
+        [
+            splitmix(self.seed ^ 0x5245_4630),
+            splitmix(self.seed ^ 0x5245_4631),
+        ]
+    }
+}
+
+fn splitmix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// The quality settings `compare` runs for `technique`, from the
+/// registry, as render options on top of `base`.
+pub fn quality_settings(
+    technique: Technique,
+    samples: &[u32],
+    patterns: &[SamplePattern],
+    semi_opaque: bool,
+    base: &RenderOptions,
+) -> Vec<(QualitySetting, RenderOptions)> {
+    let sweep = Sweep {
+        samples,
+        patterns,
+        semi_opaque,
+        base: &base.options,
+    };
+    technique
+        .quality_settings(&sweep)
+        .into_iter()
+        .map(|q| {
+            let options = RenderOptions {
+                technique,
+                samples: q.samples.unwrap_or(base.samples),
+                pattern: q.pattern,
+                options: q.options.clone(),
+                ..base.clone()
+            };
+            (q, options)
+        })
+        .collect()
+}
+
+/// Progress steps `compare_scene` takes with `options`.
+pub fn progress_steps(options: &CompareOptions) -> u64 {
+    let settings: usize = options
+        .techniques
+        .iter()
+        .map(|&t| {
+            quality_settings(
+                t,
+                &options.samples,
+                &options.patterns,
+                true,
+                &RenderOptions {
+                    options: options.technique_options.clone(),
+                    ..RenderOptions::default()
+                },
+            )
+            .len()
+        })
+        .sum();
+    2 + settings as u64 * options.repeat as u64
+}

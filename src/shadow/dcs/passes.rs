@@ -1,0 +1,702 @@
+//! The passes of one light, in the order
+//! [`DepthComplexitySampling::light`](super::DepthComplexitySampling)
+//! runs them after the kit's per-light start (the opaque casters' shadow
+//! volume and stencil counts `D(O)`):
+//!
+//! 1. [`group_starts`]: one shadow volume and start count per semi-opaque
+//!    caster group.
+//! 2. [`recount_ties`]: start counts decided by a depth tie, recounted
+//!    exactly at the shadow-ray origin.
+//! 3. [`candidate_edges`] and [`build_wedges`]: every group's candidate
+//!    edges and their wedges (or, for an edge without a bounded wedge, its
+//!    screen rectangle and world region).
+//! 4. [`wedge_membership`]: the (pixel, edge) pairs inside a half-wedge.
+//! 5. [`s_triangle_membership`]: the (pixel, S-triangle) pairs inside a
+//!    soft textured shadow volume.
+//! 6. [`count_tiles`]: tile by tile, every receiver's counters and their
+//!    Vcoef or direct light ([`receiver`](super::receiver)).
+//! 7. [`assemble`] and, for interleaved sampling, [`gather`]: the images.
+
+use super::bitfield::{CoverageTables, TableResolution};
+use super::chart::ReceiverChart;
+use super::counters::ChartSamples;
+use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
+use super::receiver::{GroupPass, LightPass, PixelResult, Scratch};
+use super::region::RegionBound;
+use super::ties::{tied_pixels, ExactStart};
+use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
+use crate::error::{Error, Result};
+use crate::geom::silhouette::faces_point;
+use crate::geom::EdgeAdjacency;
+use crate::raster::{Framebuffer, TileGrid, TILE_PIXELS, TILE_SIZE};
+use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
+use crate::scene::{Light, LightShape};
+use crate::shade::gather::{gather_filter, GatherParams};
+use crate::shadow::kit::groups::Attenuation;
+use crate::shadow::kit::membership::{draw_wedges, HalfSink, LightStart, MembershipTile};
+use crate::shadow::kit::rays::scene_diagonal;
+use crate::shadow::kit::tiles::{local_xy, TilePixels};
+use crate::shadow::kit::timing::{timed, PassTimer};
+use crate::shadow::kit::volumes::{build_volume, stencil_counts, ShadowVolume};
+use crate::shadow::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
+use crate::shadow::stsv::{
+    membership as stsv_membership, STriangles, ShadowOrigin, StsvMembership,
+};
+use crate::shadow::{PassTiming, ShadowContext};
+use crate::view::View;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+/// One caster group's shadow-volume start for a light.
+pub(super) struct GroupStart<'a> {
+    /// What one layer of the group attenuates.
+    pub attenuation: Attenuation,
+    /// The group's casters.
+    pub adj: &'a EdgeAdjacency,
+    /// Stencil count `D(O)` (a layer count for semi-opaque groups) per
+    /// pixel.
+    pub counts: Vec<i32>,
+    /// The hard shadow volume the counts came from.
+    pub volume: ShadowVolume,
+}
+
+/// Every caster group's start for light `k`: the opaque group's from the
+/// kit's `start`, then one per semi-opaque opacity in `partial`, each
+/// with its own shadow volume and stencil counts (the stencil pass reuses
+/// the scene depth of the start's framebuffer, returned for the wedges).
+pub(super) fn group_starts<'a>(
+    ctx: &ShadowContext,
+    k: usize,
+    start: LightStart<'a>,
+    partial: &'a [(Attenuation, EdgeAdjacency)],
+    passes: &mut Vec<PassTiming>,
+) -> Result<(Vec<GroupStart<'a>>, Framebuffer)> {
+    let LightStart {
+        adj,
+        point,
+        counts,
+        mut framebuffer,
+        volume,
+        ..
+    } = start;
+    let t = PassTimer::start(format!("semi-opaque shadow volumes light {k}"));
+    let mut groups = vec![GroupStart {
+        attenuation: Attenuation::Opaque,
+        adj,
+        counts,
+        volume,
+    }];
+    for (attenuation, adj) in partial {
+        let volume = build_volume(adj, ctx.view, point);
+        let counts = stencil_counts(&mut framebuffer, &volume, false)?;
+        groups.push(GroupStart {
+            attenuation: *attenuation,
+            adj,
+            counts,
+            volume,
+        });
+    }
+    if groups.len() > 1 {
+        t.finish(passes);
+    }
+    Ok((groups, framebuffer))
+}
+
+/// Depth ties of the start counts ([`ties`](super::ties)), recounted in
+/// `groups` exactly at the shadow-ray origin by one ray to the centre
+/// `point`; per pixel, whether it was. Only in the exact mode
+/// (whole-light silhouettes), where per-sample counts are meant to equal
+/// ray casting; the fast centre mode keeps the thesis's approximations
+/// and the stencil's constant.
+pub(super) fn recount_ties(
+    ctx: &ShadowContext,
+    k: usize,
+    point: Vec3,
+    groups: &mut [GroupStart],
+    mode: SilhouetteMode,
+    passes: &mut Vec<PassTiming>,
+) -> Result<Vec<bool>> {
+    let t = PassTimer::start(format!("start-count ties light {k}"));
+    let mut tied = vec![false; ctx.gbuffer.len()];
+    if mode == SilhouetteMode::WholeLight {
+        for group in groups.iter() {
+            for (a, b) in
+                tied.iter_mut()
+                    .zip(tied_pixels(ctx.depth, &group.volume, &group.counts, true)?)
+            {
+                *a |= b;
+            }
+        }
+    }
+    let mut exact_start = vec![false; tied.len()];
+    let tied_surface: Vec<usize> = (0..tied.len())
+        .filter(|&i| tied[i] && ctx.gbuffer.is_surface(i))
+        .collect();
+    if !tied_surface.is_empty() {
+        let lits: Vec<Vec<bool>> = groups.iter().map(|g| faces_point(g.adj, point)).collect();
+        let sets: Vec<(&EdgeAdjacency, &[bool])> = groups
+            .iter()
+            .zip(&lits)
+            .map(|(g, lit)| (g.adj, lit.as_slice()))
+            .collect();
+        let exact = ExactStart::new(ctx.geometry, &sets);
+        let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
+        let n_groups = groups.len();
+        let fixes: Vec<(usize, Vec<i32>)> = tied_surface
+            .par_iter()
+            .map(|&i| {
+                let g = ctx.gbuffer.sample(i);
+                let mut counts = vec![0; n_groups];
+                exact.counts(origin.of(g.position, g.geo_normal), point, &mut counts);
+                (i, counts)
+            })
+            .collect();
+        for (i, counts) in fixes {
+            for (group, c) in groups.iter_mut().zip(counts) {
+                group.counts[i] = c;
+            }
+            exact_start[i] = true;
+        }
+    }
+    t.finish_with(passes, format!("{} receivers", tied_surface.len()));
+    Ok(exact_start)
+}
+
+/// Every group's candidate edges from `light` (centre `point`) in
+/// `dcs`'s [`SilhouetteMode`], with its start counts: the groups of the
+/// counter pass, their edges numbered globally, contiguous per group.
+pub(super) fn candidate_edges(
+    light: &Light,
+    point: Vec3,
+    dcs: &DepthComplexitySampling,
+    groups: Vec<GroupStart>,
+) -> Vec<GroupPass> {
+    let corners: Vec<Vec3>;
+    let shape = match light.shape {
+        LightShape::Rect { center, u, v, .. } => {
+            corners = vec![
+                center - u - v,
+                center + u - v,
+                center + u + v,
+                center - u + v,
+            ];
+            LightShapeForSilhouettes::Polygon(&corners)
+        }
+        LightShape::Sphere { center, radius } => LightShapeForSilhouettes::Sphere {
+            center: center.as_dvec3(),
+            radius: f64::from(radius),
+        },
+    };
+    let mut next_edge = 0u32;
+    groups
+        .into_iter()
+        .map(|group| {
+            let lit = faces_point(group.adj, point);
+            let candidates = CandidateEdges::build(group.adj, &lit, dcs.silhouettes, shape);
+            let first_edge = next_edge;
+            next_edge += candidates.edges.len() as u32;
+            GroupPass {
+                per_layer: dcs.transmittance.per_layer(group.attenuation),
+                candidates,
+                start: group.counts,
+                first_edge,
+            }
+        })
+        .collect()
+}
+
+/// An edge with no bounded wedge: its global id, the screen rectangle
+/// `[x0, y0, x1, y1)` and the world-space half-spaces holding every
+/// receiver it can affect.
+pub(super) struct UnboundedEdge {
+    id: u32,
+    rect: [usize; 4],
+    region: RegionBound,
+}
+
+/// One light's wedges over every group's candidate edges.
+pub(super) struct LightWedges {
+    /// Both wedge sets.
+    pub wedges: Wedges,
+    /// Global candidate edge of each z-fail half.
+    pub zfail_edge: Vec<u32>,
+    /// Global candidate edge of each z-pass half.
+    pub zpass_edge: Vec<u32>,
+    /// Edges without a bounded wedge, tested per receiver instead.
+    pub unbounded: Vec<UnboundedEdge>,
+}
+
+/// The wedge of every candidate edge of `groups` from the light `bound`
+/// (centre `point`), or, for an edge without a bounded wedge, its
+/// [`UnboundedEdge`].
+pub(super) fn build_wedges(
+    ctx: &ShadowContext,
+    bound: &LightBound,
+    point: Vec3,
+    groups: &[GroupPass],
+) -> LightWedges {
+    let mut wedges = Wedges::default();
+    let (mut zfail_edge, mut zpass_edge) = (Vec::new(), Vec::new());
+    let mut unbounded = Vec::new();
+    let corners = light_corners(bound);
+    // Receivers' positions round at f32 and move by the shadow-ray
+    // offset (≤ 1e-5 relative): a generous slack keeps the test
+    // conservative.
+    let slack = 1e-4 * scene_diagonal(ctx.scene, ctx.geometry);
+    for group in groups {
+        let candidates = &group.candidates;
+        for (id, e) in (group.first_edge..).zip(&candidates.edges) {
+            // The quad as the stencil pass drew it, or (no quad) any
+            // order.
+            let (q0, q1) = if e.quad_sign < 0 {
+                (e.v1, e.v0)
+            } else {
+                (e.v0, e.v1)
+            };
+            let quad = SilhouetteQuad {
+                q0: q0.as_vec3(),
+                q1: q1.as_vec3(),
+                weight: e.quad_weight,
+            };
+            // Edges that are no silhouette from the centre (whole-light
+            // mode) matter only where they are silhouettes from the
+            // receiver: a thin dihedral region inside their wedge. A
+            // world-space test finds those receivers far more cheaply
+            // than rasterizing a full wedge for each.
+            let dihedral = (e.quad_sign == 0).then(|| candidates.dihedral(e)).flatten();
+            if dihedral.is_some() || !wedges.add(ctx.view, bound, point, quad, None) {
+                let mut region = RegionBound::new(e.v0, e.v1, &corners, slack);
+                if let Some(faces) = dihedral {
+                    region = region.with_dihedral(faces, slack);
+                }
+                unbounded.push(UnboundedEdge {
+                    id,
+                    rect: fallback_rect(ctx.view, e, bound),
+                    region,
+                });
+                continue;
+            }
+            zfail_edge.resize(wedges.zfail.halves.len(), id);
+            zpass_edge.resize(wedges.zpass.halves.len(), id);
+        }
+    }
+    LightWedges {
+        wedges,
+        zfail_edge,
+        zpass_edge,
+        unbounded,
+    }
+}
+
+/// The screen rectangle `[x0, y0, x1, y1)` (pixels) holding every
+/// receiver from which edge `e` can be seen overlapping the light: such a
+/// receiver lies on a ray from a light point `x` through the edge, beyond
+/// it, i.e. in `conv({v0, v1}) + cone{v_i − x_j}` over the light's
+/// bounding corners `x_j` — a convex set whose image is the hull of its
+/// projected vertices (finite ones and vanishing points), when all are in
+/// front of the eye; otherwise the whole screen. Used for the few edges
+/// whose line pierces the light, where no bounded wedge exists.
+fn fallback_rect(view: &View, e: &CandidateEdge, light: &LightBound) -> [usize; 4] {
+    let whole = [0, 0, view.width as usize, view.height as usize];
+    let corners = light_corners(light);
+    let mut clip = vec![
+        view.clip_point(e.v0.as_vec3()),
+        view.clip_point(e.v1.as_vec3()),
+    ];
+    for q in [e.v0, e.v1] {
+        for x in &corners {
+            clip.push(view.clip_direction((q - *x).as_vec3()));
+        }
+    }
+    let (w, h) = (f64::from(view.width), f64::from(view.height));
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for c in clip {
+        if !(c.w > 1e-6 * c.truncate().length()) {
+            return whole;
+        }
+        let iw = 1.0 / f64::from(c.w);
+        let sx = (f64::from(c.x) * iw * 0.5 + 0.5) * w;
+        let sy = (0.5 - f64::from(c.y) * iw * 0.5) * h;
+        b = [b[0].min(sx), b[1].min(sy), b[2].max(sx), b[3].max(sy)];
+    }
+    // One pixel of slack covers the f32 clip coordinates' rounding.
+    let lo = |v: f64, max: f64| (v - 1.0).floor().clamp(0.0, max) as usize;
+    let hi = |v: f64, max: f64| (v + 2.0).floor().clamp(0.0, max) as usize;
+    [lo(b[0], w), lo(b[1], h), hi(b[2], w), hi(b[3], h)]
+}
+
+/// Corners of a convex polytope holding the light: the rect's own, or a
+/// sphere's bounding cube.
+fn light_corners(light: &LightBound) -> Vec<DVec3> {
+    match light {
+        LightBound::Rect(frame) => frame.corners().to_vec(),
+        LightBound::Sphere { center, radius } => (0..8)
+            .map(|k| {
+                let s = |b: usize| if k >> b & 1 == 1 { *radius } else { -*radius };
+                *center + DVec3::new(s(0), s(1), s(2))
+            })
+            .collect(),
+    }
+}
+
+/// One tile of the membership pass: its (pixel, edge) pairs
+/// `local << 33 | edge << 1 | outer`, so that sorting groups them by
+/// pixel.
+pub(super) type PairTile = MembershipTile<Vec<u64>>;
+
+/// What the membership pass does with a finished half-wedge: records its
+/// (pixel, edge) pairs.
+struct PairSink<'a> {
+    halves: &'a [HalfWedge],
+    /// Candidate edge of each half.
+    half_edge: &'a [u32],
+}
+
+impl HalfSink for PairSink<'_> {
+    type Tile = Vec<u64>;
+    /// The half's tag `edge << 1 | outer`.
+    type Half = u64;
+
+    fn half(&self, h: u32) -> u64 {
+        u64::from(self.half_edge[h as usize]) << 1 | u64::from(self.halves[h as usize].outer)
+    }
+
+    fn inside(&self, &tag: &u64, entries: &mut Vec<u64>, local: usize) {
+        entries.push((local as u64) << 33 | tag);
+    }
+}
+
+/// Which pixels each half-wedge of `w` holds, per tile of `framebuffer`
+/// (the scene depth).
+pub(super) fn wedge_membership(
+    framebuffer: &mut Framebuffer,
+    w: &LightWedges,
+) -> Result<Vec<PairTile>> {
+    let grid = framebuffer.grid();
+    let mut tiles: Vec<PairTile> = (0..grid.tile_count())
+        .map(|_| MembershipTile::new(Vec::new()))
+        .collect();
+    draw_wedges(framebuffer, &mut tiles, &w.wedges, |set, zpass| PairSink {
+        halves: &set.halves,
+        half_edge: if zpass { &w.zpass_edge } else { &w.zfail_edge },
+    })?;
+    Ok(tiles)
+}
+
+/// Soft textured shadow volumes: which receivers lie in which of
+/// `s_triangles`' volumes from light `k`; `None` (and no pass) when the
+/// scene has no S-triangle.
+pub(super) fn s_triangle_membership(
+    ctx: &ShadowContext,
+    k: usize,
+    s_triangles: &STriangles,
+    passes: &mut Vec<PassTiming>,
+) -> Result<Option<StsvMembership>> {
+    if s_triangles.is_empty() {
+        return Ok(None);
+    }
+    let name = format!("soft textured shadow volumes light {k}");
+    timed(passes, name, || stsv_membership(ctx, k, s_triangles)).map(Some)
+}
+
+/// The bit-field tables of light `k` (none with the exact test): one per
+/// sample set, built from the chart of a pixel that uses it.
+pub(super) fn coverage_tables(
+    dcs: &DepthComplexitySampling,
+    ctx: &ShadowContext,
+    k: usize,
+    bound: &LightBound,
+) -> Result<Vec<CoverageTables>> {
+    if dcs.coverage == CoverageTest::Exact {
+        return Ok(Vec::new());
+    }
+    let light = &ctx.scene.lights[k];
+    let bad = |e: String| Error::param("--coverage", e);
+    let sets = CoverageTables::applicable(dcs.pattern, &light.shape).map_err(bad)?;
+    let sampler = LightSampler::new(light);
+    let pattern = PatternSampler::new(dcs.pattern, dcs.samples, dcs.seed, k);
+    let n = match dcs.pattern {
+        SamplePattern::Interleaved { n } => n.max(1),
+        _ => 1,
+    };
+    let mut samples = Vec::new();
+    let mut chart = ChartSamples::default();
+    (0..sets)
+        .map(|set| {
+            let pixel = (set % n, set / n);
+            // Rect lights: the chart does not depend on the receiver.
+            let p = DVec3::ZERO;
+            sampler.samples_with(&pattern, p.as_vec3(), pixel, &mut samples);
+            let frame = ReceiverChart::new(bound, p).ok_or_else(|| bad("no chart".into()))?;
+            chart.set(samples.iter().map(|s| frame.point(s.x.as_dvec3())));
+            CoverageTables::from_chart(&chart, TableResolution::default()).map_err(bad)
+        })
+        .collect()
+}
+
+/// One tile's results of the counter pass.
+pub(super) struct TileResult {
+    /// Per local pixel.
+    pixels: Vec<PixelResult>,
+    /// (pixel, edge) pairs the membership pass recorded.
+    pairs: usize,
+    /// Receivers that needed per-sample counters.
+    sampled: usize,
+    /// (pixel, unbounded edge) pairs.
+    unbounded: usize,
+}
+
+/// Side of the blocks whose receivers' bounding box narrows a tile's
+/// unbounded edges first.
+const OUTER: usize = 16;
+/// Side of the blocks whose edge lists the pixels test.
+const INNER: usize = 4;
+/// Inner blocks per tile row.
+const PER_ROW: usize = TILE_SIZE / INNER;
+
+/// Every receiver's results, tile by tile in parallel: its (pixel, edge)
+/// pairs from `tiles` (taken), the `unbounded` edges that may apply and
+/// its (pixel, S-triangle) pairs from `stsv`, counted by `pass`.
+pub(super) fn count_tiles(
+    pass: &LightPass,
+    grid: TileGrid,
+    tiles: &mut [PairTile],
+    unbounded: &[UnboundedEdge],
+    stsv: Option<&StsvMembership>,
+) -> Vec<TileResult> {
+    tiles
+        .par_iter_mut()
+        .enumerate()
+        .map_init(Scratch::default, |scratch, (tile, t)| {
+            let entries = std::mem::take(&mut t.data);
+            let stsv_entries: &[u64] = stsv.map_or(&[], |m| &m.tiles[tile]);
+            tile_counters(pass, grid, tile, entries, unbounded, stsv_entries, scratch)
+        })
+        .collect()
+}
+
+/// The unbounded edges that may apply to receivers of `tile`, and per
+/// inner block (row-major, [`PER_ROW`] per row) the indices into them of
+/// those that may apply to its receivers: receivers' bounding boxes,
+/// tile, then 16² and 4² blocks, against each edge's screen rectangle and
+/// world-space region, so that per pixel only the edges of its 4² block
+/// are tested.
+fn unbounded_near<'u>(
+    ctx: &ShadowContext,
+    grid: TileGrid,
+    tile: usize,
+    unbounded: &'u [UnboundedEdge],
+) -> (Vec<&'u UnboundedEdge>, Vec<Vec<u32>>) {
+    let (width, height) = (grid.width as usize, grid.height as usize);
+    let (ox, oy) = grid.tile_origin(tile);
+    let (ox, oy) = (ox as usize, oy as usize);
+    let (tx1, ty1) = (ox + TILE_SIZE, oy + TILE_SIZE);
+    let mut near: Vec<&UnboundedEdge> = unbounded
+        .iter()
+        .filter(|u| {
+            let r = u.rect;
+            r[0] < tx1 && r[2] > ox && r[1] < ty1 && r[3] > oy
+        })
+        .collect();
+    let bbox = |x0: usize, y0: usize, size: usize| {
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for y in y0..(y0 + size).min(height) {
+            for x in x0..(x0 + size).min(width) {
+                let i = y * width + x;
+                if ctx.gbuffer.is_surface(i) {
+                    let q = ctx.gbuffer.sample(i).position.as_dvec3();
+                    (lo, hi) = (lo.min(q), hi.max(q));
+                }
+            }
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    };
+    let keeps = |u: &UnboundedEdge, x0: usize, y0: usize, size: usize, b: (DVec3, DVec3)| {
+        let r = u.rect;
+        r[0] < x0 + size
+            && r[2] > x0
+            && r[1] < y0 + size
+            && r[3] > y0
+            && !u.region.excludes_box(b.0, b.1)
+    };
+    let mut block_edges: Vec<Vec<u32>> = vec![Vec::new(); PER_ROW * PER_ROW];
+    if !near.is_empty() {
+        match bbox(ox, oy, TILE_SIZE) {
+            Some(b) => near.retain(|u| !u.region.excludes_box(b.0, b.1)),
+            None => near.clear(),
+        }
+    }
+    if near.is_empty() {
+        return (near, block_edges);
+    }
+    for by in 0..TILE_SIZE / OUTER {
+        for bx in 0..TILE_SIZE / OUTER {
+            let (x0, y0) = (ox + bx * OUTER, oy + by * OUTER);
+            let Some(b) = bbox(x0, y0, OUTER) else {
+                continue;
+            };
+            let outer: Vec<u32> = (0..near.len() as u32)
+                .filter(|&k| keeps(near[k as usize], x0, y0, OUTER, b))
+                .collect();
+            if outer.is_empty() {
+                continue;
+            }
+            for sy in 0..OUTER / INNER {
+                for sx in 0..OUTER / INNER {
+                    let (x1, y1) = (x0 + sx * INNER, y0 + sy * INNER);
+                    let Some(b) = bbox(x1, y1, INNER) else {
+                        continue;
+                    };
+                    let cell = (y1 - oy) / INNER * PER_ROW + (x1 - ox) / INNER;
+                    block_edges[cell] = outer
+                        .iter()
+                        .copied()
+                        .filter(|&k| keeps(near[k as usize], x1, y1, INNER, b))
+                        .collect();
+                }
+            }
+        }
+    }
+    (near, block_edges)
+}
+
+/// One tile's receivers: each surface pixel's sorted (pixel, edge) pairs
+/// of `entries`, the unbounded edges whose region holds it and its
+/// S-triangles of `stsv_entries` (sorted by local pixel), counted by
+/// `pass`.
+fn tile_counters(
+    pass: &LightPass,
+    grid: TileGrid,
+    tile: usize,
+    mut entries: Vec<u64>,
+    unbounded: &[UnboundedEdge],
+    stsv_entries: &[u64],
+    scratch: &mut Scratch,
+) -> TileResult {
+    let gbuffer = pass.ctx.gbuffer;
+    let (width, height) = (grid.width as usize, grid.height as usize);
+    let pairs = entries.len();
+    entries.sort_unstable();
+    entries.dedup();
+    let mut out = vec![PixelResult::default(); TILE_PIXELS];
+    let mut sampled = 0;
+    let mut unbounded_pairs = 0;
+    let mut e = 0;
+    let (near, block_edges) = unbounded_near(pass.ctx, grid, tile, unbounded);
+    let mut extra = Vec::new();
+    let (mut si, mut here) = (0, Vec::new());
+    for (local, r) in out.iter_mut().enumerate() {
+        let (x, y) = grid.tile_pixel_xy(tile, local);
+        here.clear();
+        while si < stsv_entries.len() && (stsv_entries[si] >> 32) as usize == local {
+            here.push(stsv_entries[si] as u32);
+            si += 1;
+        }
+        let first = e;
+        while e < entries.len() && (entries[e] >> 33) as usize == local {
+            e += 1;
+        }
+        if x >= width || y >= height {
+            continue;
+        }
+        let i = y * width + x;
+        if !gbuffer.is_surface(i) {
+            continue;
+        }
+        let tags = &mut entries[first..e];
+        for tag in tags.iter_mut() {
+            *tag &= (1 << 33) - 1;
+        }
+        extra.clear();
+        let (lx, ly) = local_xy(local);
+        let cell = ly / INNER * PER_ROW + lx / INNER;
+        if !block_edges[cell].is_empty() {
+            let q = gbuffer.sample(i).position.as_dvec3();
+            extra.extend(
+                block_edges[cell]
+                    .iter()
+                    .map(|&k| near[k as usize])
+                    .filter(|u| {
+                        let r = u.rect;
+                        x >= r[0]
+                            && x < r[2]
+                            && y >= r[1]
+                            && y < r[3]
+                            && !u.region.excludes_point(q)
+                    })
+                    .map(|u| u.id),
+            );
+        }
+        sampled += usize::from(!tags.is_empty() || !extra.is_empty() || !here.is_empty());
+        unbounded_pairs += extra.len();
+        *r = pass.pixel(i, tags, &extra, &here, scratch);
+    }
+    TileResult {
+        pixels: out,
+        pairs,
+        sampled,
+        unbounded: unbounded_pairs,
+    }
+}
+
+/// One light's images from its tiles' `results`: Vcoef, the radiance
+/// (empty unless `with_radiance`) and the AOVs (max and mean depth
+/// complexity, edges per pixel); the tiles' pair and receiver counts go
+/// into `report`.
+pub(super) fn assemble(
+    grid: TileGrid,
+    results: Vec<TileResult>,
+    with_radiance: bool,
+    report: &mut DcsLightReport,
+) -> (Vec<f32>, Vec<Vec3>, [Vec<f32>; 3]) {
+    let n = grid.width as usize * grid.height as usize;
+    let mut vcoef = vec![0.0f32; n];
+    let mut radiance = vec![Vec3::ZERO; if with_radiance { n } else { 0 }];
+    let mut aovs = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    for (tile, result) in results.into_iter().enumerate() {
+        report.unbounded_pairs += result.unbounded;
+        report.pairs += result.pairs;
+        report.sampled_pixels += result.sampled;
+        grid.for_each_tile_pixel(tile, |local, i| {
+            let r = &result.pixels[local];
+            vcoef[i] = r.vcoef;
+            if let Some(d) = radiance.get_mut(i) {
+                *d = r.radiance;
+            }
+            aovs[0][i] = r.max_dc;
+            aovs[1][i] = r.mean_dc;
+            aovs[2][i] = r.edges;
+        });
+    }
+    (vcoef, radiance, aovs)
+}
+
+/// Interleaved sampling (`n` × `n` sample sets): neighbours used
+/// different sample sets; gathers them back, not across depth or normal
+/// discontinuities.
+pub(super) fn gather(
+    ctx: &ShadowContext,
+    grid: TileGrid,
+    n: u32,
+    vcoef: Vec<f32>,
+    radiance: Vec<Vec3>,
+) -> (Vec<f32>, Vec<Vec3>) {
+    let guide = |i: usize| {
+        let g = ctx.gbuffer.sample(i);
+        g.is_surface().then_some((g.depth, g.normal))
+    };
+    let params = GatherParams::default();
+    let (w, h) = (grid.width, grid.height);
+    let vcoef = gather_filter(&vcoef, w, h, n, &guide, params);
+    let radiance = if radiance.is_empty() {
+        radiance
+    } else {
+        gather_filter(&radiance, w, h, n, &guide, params)
+    };
+    (vcoef, radiance)
+}

@@ -1,0 +1,444 @@
+//! One receiver's depth complexity: its counters `D` per light sample,
+//! set to the start count `D(O)` and moved by every recorded edge's signed
+//! change over the samples it covers ([`counters`](super::counters)), its
+//! semi-opaque groups' layer counts and S-triangles' opacities turned
+//! into transmittance, and from them its Vcoef or direct light.
+
+use super::bitfield::CoverageTables;
+use super::chart::ReceiverChart;
+use super::counters::{add_covered, ChartSamples, OrientedEdge};
+use super::edges::{side_of, CandidateEdges};
+use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
+use crate::sampling::{LightSampler, PatternSampler};
+use crate::shade::{surface_point, LightSample, PreparedLight};
+use crate::shadow::kit::groups::Attenuation;
+use crate::shadow::kit::rays::EPS_POSITION;
+use crate::shadow::kit::wedge_geometry::LightBound;
+use crate::shadow::stsv::{STriangles, SamplePositions};
+use crate::shadow::ShadowContext;
+use glam::{DVec3, Vec3};
+
+/// One pixel's results.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct PixelResult {
+    pub(super) vcoef: f32,
+    pub(super) radiance: Vec3,
+    pub(super) max_dc: f32,
+    pub(super) mean_dc: f32,
+    pub(super) edges: f32,
+}
+
+/// Per-worker buffers of the counter pass.
+#[derive(Default)]
+pub(super) struct Scratch {
+    samples: Vec<LightSample>,
+    chart: ChartSamples,
+    /// The opaque group's counters `D`.
+    counters: Vec<i32>,
+    /// One semi-opaque group's layer counts (reused per group).
+    layers: Vec<i32>,
+    /// Per sample: accumulated optical depth (or summed opacity) of the
+    /// semi-opaque groups; empty when the scene has none.
+    attenuation: Vec<f64>,
+    /// Per sample: transmittance from `attenuation`.
+    transmittance: Vec<f64>,
+    /// Sample positions laid out for the S-triangle look-ups.
+    positions: SamplePositions,
+    /// One S-triangle's opacity per sample.
+    opacities: Vec<f32>,
+    /// Per recorded edge of the group being counted: the centre's side of
+    /// the plane through the receiver and the edge.
+    sides: Vec<i8>,
+    visibility: Vec<f32>,
+}
+
+/// One caster group's state for a light: its candidate edges, its
+/// shadow-volume start `D(O)` (or layer count at the centre) per pixel,
+/// and where its edges sit in the light's global edge numbering.
+pub(super) struct GroupPass {
+    /// What one layer adds to the per-sample accumulator.
+    pub(super) per_layer: f64,
+    pub(super) candidates: CandidateEdges,
+    pub(super) start: Vec<i32>,
+    /// Global id of the group's first edge (ids are contiguous).
+    pub(super) first_edge: u32,
+}
+
+impl GroupPass {
+    fn end_edge(&self) -> u32 {
+        self.first_edge + self.candidates.edges.len() as u32
+    }
+}
+
+/// Everything the counter pass of one light reads.
+pub(super) struct LightPass<'a, 'c> {
+    pub(super) ctx: &'a ShadowContext<'c>,
+    pub(super) technique: &'a DepthComplexitySampling,
+    pub(super) bound: LightBound,
+    pub(super) centre: DVec3,
+    pub(super) sampler: LightSampler,
+    pub(super) pattern: PatternSampler,
+    pub(super) prepared: PreparedLight<'a>,
+    /// The opaque group first, then one group per semi-opaque opacity.
+    pub(super) groups: &'a [GroupPass],
+    /// Bit-field tables (one per interleaved set) when the option is on.
+    pub(super) tables: &'a [CoverageTables],
+    /// The scene's S-triangles, when it has any.
+    pub(super) s_triangles: Option<&'a STriangles>,
+    /// Per pixel: the start counts were recounted at the shadow-ray
+    /// origin (a depth tie), so no quad correction applies.
+    pub(super) exact_start: &'a [bool],
+    /// `EPS_SCENE ×` the scene's diagonal.
+    pub(super) eps_scene: f64,
+    /// Called with every surface pixel's samples and counters.
+    pub(super) inspect: Option<&'a CounterInspector<'a>>,
+}
+
+/// One receiver's per-sample state, as [`CounterInspector`]s see it.
+#[derive(Debug, Clone, Copy)]
+pub struct InspectedPixel<'a> {
+    /// The light samples.
+    pub samples: &'a [LightSample],
+    /// The opaque depth complexity `D` per sample.
+    pub counters: &'a [i32],
+    /// The semi-opaque casters' transmittance per sample (empty when the
+    /// scene has no semi-opaque caster).
+    pub transmittance: &'a [f64],
+}
+
+/// A visitor of per-pixel state: `(pixel index, state)`.
+pub type CounterInspector<'a> = dyn Fn(usize, &InspectedPixel) + Sync + 'a;
+
+impl LightPass<'_, '_> {
+    /// Transmittance of the semi-opaque groups at pixel `i` when every
+    /// sample sees their start counts (no wedge of theirs holds `i`).
+    fn constant_transmittance(&self, i: usize) -> f64 {
+        let acc: f64 = self.groups[1..]
+            .iter()
+            .map(|g| f64::from(g.start[i].max(0)) * g.per_layer)
+            .sum();
+        self.technique.transmittance.transmittance(acc)
+    }
+
+    /// The results of global pixel `i` with its recorded `(edge, outer)`
+    /// pairs (sorted, no duplicates) and the unbounded edges `extra`
+    /// (sorted) that apply to it; edge ids are global over the groups.
+    pub(super) fn pixel(
+        &self,
+        i: usize,
+        tags: &[u64],
+        extra: &[u32],
+        s_triangles: &[u32],
+        scratch: &mut Scratch,
+    ) -> PixelResult {
+        let gbuffer = self.ctx.gbuffer;
+        let d0 = self.groups[0].start[i];
+        let g = gbuffer.sample(i);
+        let eye = self.ctx.view.eye.as_vec3();
+        let direct = self.technique.mode == DcsMode::Direct;
+        let sp = || surface_point(self.ctx.scene, &g, eye);
+        if tags.is_empty() && extra.is_empty() && s_triangles.is_empty() && self.inspect.is_none() {
+            // Outside every wedge: D = D(O) and the layer counts are the
+            // start counts for every sample.
+            let t = if d0 <= 0 {
+                self.constant_transmittance(i)
+            } else {
+                0.0
+            };
+            let needs_radiance = direct || self.prepared.is_textured();
+            return PixelResult {
+                vcoef: t as f32,
+                radiance: if needs_radiance && t > 0.0 {
+                    self.prepared.unshadowed_direct(&sp()) * t as f32
+                } else {
+                    Vec3::ZERO
+                },
+                max_dc: d0.max(0) as f32,
+                mean_dc: d0.max(0) as f32,
+                edges: 0.0,
+            };
+        }
+        let width = gbuffer.width as usize;
+        let pixel = ((i % width) as u32, (i / width) as u32);
+        // Rect lights: the chart is the light's own `(2s − 1, 1 − 2t)`,
+        // straight from the unit points; the world points are made only
+        // when something reads them (the direct estimator, the texture,
+        // an inspector). Sphere lights chart the world points.
+        let rect = matches!(self.bound, LightBound::Rect(_));
+        if !rect
+            || direct
+            || self.prepared.is_textured()
+            || self.inspect.is_some()
+            || !s_triangles.is_empty()
+        {
+            self.sampler
+                .samples_with(&self.pattern, g.position, pixel, &mut scratch.samples);
+        } else {
+            scratch.samples.clear();
+        }
+        // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
+        // rounds it): receivers on an occluder's own surface then see its
+        // edges from the same side of its faces as the reference's rays.
+        let eps = self
+            .eps_scene
+            .max(EPS_POSITION * f64::from(g.position.abs().max_element()));
+        let p = (g.position.as_dvec3() + g.geo_normal.as_dvec3() * eps)
+            .as_vec3()
+            .as_dvec3();
+        let chart = match ReceiverChart::new(&self.bound, p) {
+            Some(c) if rect || !scratch.samples.is_empty() => c,
+            // Inside a sphere light: no defined Vcoef (as the reference).
+            _ => {
+                return PixelResult {
+                    vcoef: 1.0,
+                    edges: tags.len() as f32,
+                    ..PixelResult::default()
+                }
+            }
+        };
+        if rect {
+            scratch.chart.clear();
+            self.pattern
+                .pixel_points(pixel)
+                .for_each(self.pattern.len(), |(s, t)| {
+                    scratch.chart.push([2.0 * s - 1.0, 1.0 - 2.0 * t])
+                });
+            scratch.chart.finish();
+        } else {
+            scratch
+                .chart
+                .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
+        }
+        let count = scratch.chart.len();
+        let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
+        scratch.attenuation.clear();
+        if semi_opaque {
+            scratch.attenuation.resize(count, 0.0);
+        }
+        // Tags and extras are sorted by global edge id, and each group's
+        // ids are contiguous: split them group by group.
+        let (mut ti, mut xi) = (0, 0);
+        for (k, group) in self.groups.iter().enumerate() {
+            let end = group.end_edge();
+            let t_end = ti + tags[ti..].partition_point(|&t| ((t >> 1) as u32) < end);
+            let x_end = xi + extra[xi..].partition_point(|&e| e < end);
+            let (group_tags, group_extra) = (&tags[ti..t_end], &extra[xi..x_end]);
+            (ti, xi) = (t_end, x_end);
+            if k == 0 {
+                self.count_group(group, i, p, &chart, group_tags, group_extra, scratch, false);
+                continue;
+            }
+            if group_tags.is_empty() && group_extra.is_empty() {
+                let layers = group.start[i];
+                if layers > 0 {
+                    let add = f64::from(layers) * group.per_layer;
+                    scratch.attenuation.iter_mut().for_each(|a| *a += add);
+                }
+                continue;
+            }
+            self.count_group(group, i, p, &chart, group_tags, group_extra, scratch, true);
+            let Scratch {
+                layers,
+                attenuation,
+                ..
+            } = scratch;
+            for (a, &n) in attenuation.iter_mut().zip(&layers[..count]) {
+                // Counts are exact; a negative one is a tie at an edge
+                // and means no layer.
+                if n > 0 {
+                    *a += f64::from(n) * group.per_layer;
+                }
+            }
+        }
+        let mode = self.technique.transmittance;
+        if let (Some(stris), false) = (self.s_triangles, s_triangles.is_empty()) {
+            // Soft textured shadow volumes (§5.2): per sample, the
+            // opacity of each S-triangle the receiver's volume test
+            // passed; a fully opaque texel is one more occluder in `D`, a
+            // partial one a layer of transmittance.
+            let Scratch {
+                samples,
+                positions,
+                opacities,
+                counters,
+                attenuation,
+                ..
+            } = scratch;
+            positions.set(samples);
+            opacities.resize(count, 0.0);
+            let origin = p.as_vec3();
+            for &s in s_triangles {
+                stris.sample_opacities_in(
+                    self.ctx.scene,
+                    s as usize,
+                    origin,
+                    positions,
+                    self.technique.opacity_filter,
+                    opacities,
+                );
+                for (k, &a) in opacities.iter().enumerate() {
+                    if a >= 1.0 {
+                        counters[k] += 1;
+                    } else if a > 0.0 {
+                        attenuation[k] += mode.per_layer(Attenuation::partial(f64::from(a)));
+                    }
+                }
+            }
+        }
+        scratch.transmittance.clear();
+        scratch
+            .transmittance
+            .extend(scratch.attenuation.iter().map(|&a| mode.transmittance(a)));
+        let counters = &scratch.counters[..count];
+        if let Some(inspect) = self.inspect {
+            inspect(
+                i,
+                &InspectedPixel {
+                    samples: &scratch.samples,
+                    counters,
+                    transmittance: &scratch.transmittance,
+                },
+            );
+        }
+        scratch.visibility.clear();
+        scratch
+            .visibility
+            .extend(counters.iter().map(|&c| if c <= 0 { 1.0 } else { 0.0 }));
+        if semi_opaque {
+            for (v, &t) in scratch.visibility.iter_mut().zip(&scratch.transmittance) {
+                *v *= t as f32;
+            }
+        }
+        let visible: f32 = scratch.visibility.iter().sum();
+        let radiance = if direct {
+            self.prepared
+                .direct_from_samples(&sp(), &scratch.samples, &scratch.visibility)
+        } else if self.prepared.is_textured() {
+            // Eq. 4.2: each sample's visibility weighted by its emitted
+            // radiance, per channel, normalised so that a fully visible
+            // light gives the unshadowed light exactly.
+            let (mut seen, mut all) = (Vec3::ZERO, Vec3::ZERO);
+            for (s, &v) in scratch.samples.iter().zip(&scratch.visibility) {
+                let le = self.prepared.sample_radiance(s);
+                seen += le * v;
+                all += le;
+            }
+            let plain = visible / count as f32;
+            let weighted = Vec3::select(all.cmpgt(Vec3::ZERO), seen / all, Vec3::splat(plain));
+            self.prepared.unshadowed_direct(&sp()) * weighted
+        } else {
+            Vec3::ZERO
+        };
+        let max_dc = counters.iter().copied().max().unwrap_or(0).max(0);
+        let sum_dc: i64 = counters.iter().map(|&c| i64::from(c.max(0))).sum();
+        PixelResult {
+            vcoef: visible / count as f32,
+            radiance,
+            max_dc: max_dc as f32,
+            mean_dc: (sum_dc as f64 / count as f64) as f32,
+            edges: tags.len() as f32,
+        }
+    }
+
+    /// Counts one group at receiver `p'` (`p`) of pixel `i` into
+    /// `scratch.counters` (opaque) or `scratch.layers` (semi-opaque):
+    /// the start count, moved across the quads that pass between the
+    /// raster's receiver and `p'`, plus every edge's signed change over
+    /// the samples it covers.
+    #[allow(clippy::too_many_arguments)]
+    fn count_group(
+        &self,
+        group: &GroupPass,
+        i: usize,
+        p: DVec3,
+        chart: &ReceiverChart,
+        tags: &[u64],
+        extra: &[u32],
+        scratch: &mut Scratch,
+        layers: bool,
+    ) {
+        let edges = &group.candidates.edges;
+        let local = |global: u32| (global - group.first_edge) as usize;
+        // The stencil decided `D(O)` at the raster's receiver `p`; the
+        // counters follow the shadow-ray origin `p'`. Where a quad's
+        // plane passes between them (a receiver on the occluder, at its
+        // terminator) move the constant across that quad: +m entering the
+        // volume, −m leaving it.
+        // Each tag's side is computed once, here, and reused below.
+        let mut d0 = group.start[i];
+        scratch.sides.clear();
+        for &t in tags {
+            let e = &edges[local((t >> 1) as u32)];
+            let geometric = side_of(p, e.v0, e.v1, self.centre);
+            scratch.sides.push(geometric as i8);
+            if e.quad_sign == 0 || self.exact_start[i] {
+                continue;
+            }
+            let outer = t & 1 == 1;
+            let raster = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
+            if geometric != 0 && geometric != raster {
+                let m = e.quad_weight as i32;
+                d0 += if outer { m } else { -m };
+            }
+        }
+        let Scratch {
+            chart: samples,
+            counters,
+            layers: layer_counts,
+            sides,
+            ..
+        } = scratch;
+        let counters = if layers { layer_counts } else { counters };
+        let table = match self.tables {
+            [] => None,
+            [one] => Some(one),
+            many => {
+                let width = self.ctx.gbuffer.width as usize;
+                let pixel = ((i % width) as u32, (i / width) as u32);
+                let set = self.pattern.interleaved_set(pixel).unwrap_or(0) as usize;
+                many.get(set)
+            }
+        };
+        counters.clear();
+        counters.resize(samples.padded(), d0);
+        let from_wedges = tags
+            .iter()
+            .zip(sides.iter())
+            .map(|(&t, &side)| ((t >> 1) as u32, Some(side)));
+        for (id, side) in from_wedges.chain(extra.iter().map(|&id| (id, None))) {
+            let e = &edges[local(id)];
+            let side = match side {
+                Some(side) => i32::from(side),
+                None => side_of(p, e.v0, e.v1, self.centre),
+            };
+            if side == 0 {
+                continue;
+            }
+            // Whole-light silhouettes: the exact change (see `edges`).
+            // Centre silhouettes: the thesis's rule, ±m by the half the
+            // receiver is in (outer adds), whether or not the edge is a
+            // silhouette from p — the exact rule would drop those edges
+            // and miss the ones that are silhouettes from p only, which
+            // on tessellated curved occluders leaves almost hard shadows.
+            let mu = match self.technique.silhouettes {
+                SilhouetteMode::WholeLight => group.candidates.multiplicity_from(e, p),
+                SilhouetteMode::Centre if e.quad_sign != 0 => {
+                    e.quad_weight as i32 * i32::from(e.quad_sign)
+                }
+                SilhouetteMode::Centre => group.candidates.multiplicity_from(e, p),
+            };
+            if mu == 0 {
+                continue;
+            }
+            let Some((a, b)) = chart.edge(e.v0, e.v1) else {
+                continue;
+            };
+            if let Some(oriented) = OrientedEdge::new(a, b) {
+                match table {
+                    Some(t) => t.add_covered(counters, &oriented, side * mu),
+                    None => add_covered(counters, samples, &oriented, side * mu),
+                }
+            }
+        }
+    }
+}
