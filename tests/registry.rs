@@ -47,6 +47,20 @@ fn the_docs_table_is_the_registry_table() {
 }
 
 #[test]
+fn the_readme_table_is_the_registry_table() {
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md"))
+        .expect("README.md");
+    let begin = "<!-- techniques:begin -->\n";
+    let a = readme.find(begin).expect("begin marker") + begin.len();
+    let b = readme.find("<!-- techniques:end -->").expect("end marker");
+    assert_eq!(
+        &readme[a..b],
+        markdown_table("docs/algorithms/"),
+        "regenerate with `penumbra techniques --markdown` (links under docs/)"
+    );
+}
+
+#[test]
 fn the_default_is_exact_dcs_and_equals_the_command_line_defaults() {
     let options = RenderOptions::default();
     assert_eq!(options.technique.name(), DEFAULT_TECHNIQUE);
