@@ -41,7 +41,7 @@ pub mod ties;
 use super::kit::groups::Attenuation;
 pub use super::kit::groups::TransmittanceMode;
 use super::kit::membership::light_start;
-use super::kit::rays::{scene_diagonal, EPS_SCENE};
+use super::kit::rays::ShadowOrigin;
 use super::kit::timing::{timed, PassTimer};
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use super::stsv::{Filter, STriangles};
@@ -299,7 +299,7 @@ impl DepthComplexitySampling {
             tables: &tables,
             s_triangles: (!s_triangles.is_empty()).then_some(s_triangles),
             exact_start: &exact_start,
-            eps_scene: EPS_SCENE * scene_diagonal(ctx.scene, ctx.geometry),
+            origin: ShadowOrigin::new(ctx.scene, ctx.geometry),
             inspect,
         };
         let results = count_tiles(&pass, grid, &mut tiles, &wedges.unbounded, stsv.as_ref());

@@ -12,7 +12,7 @@ use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::sampling::{LightSampler, PatternSampler};
 use crate::shade::{surface_point, LightSample, PreparedLight};
 use crate::shadow::kit::groups::Attenuation;
-use crate::shadow::kit::rays::EPS_POSITION;
+use crate::shadow::kit::rays::ShadowOrigin;
 use crate::shadow::kit::wedge_geometry::LightBound;
 use crate::shadow::stsv::{STriangles, SamplePositions};
 use crate::shadow::ShadowContext;
@@ -88,8 +88,8 @@ pub(super) struct LightPass<'a, 'c> {
     /// Per pixel: the start counts were recounted at the shadow-ray
     /// origin (a depth tie), so no quad correction applies.
     pub(super) exact_start: &'a [bool],
-    /// `EPS_SCENE ×` the scene's diagonal.
-    pub(super) eps_scene: f64,
+    /// The shadow-ray origin rule (the reference's).
+    pub(super) origin: ShadowOrigin,
     /// Called with every surface pixel's samples and counters.
     pub(super) inspect: Option<&'a CounterInspector<'a>>,
 }
@@ -179,12 +179,7 @@ impl LightPass<'_, '_> {
         // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
         // rounds it): receivers on an occluder's own surface then see its
         // edges from the same side of its faces as the reference's rays.
-        let eps = self
-            .eps_scene
-            .max(EPS_POSITION * f64::from(g.position.abs().max_element()));
-        let p = (g.position.as_dvec3() + g.geo_normal.as_dvec3() * eps)
-            .as_vec3()
-            .as_dvec3();
+        let p = self.origin.of(g.position, g.geo_normal).as_dvec3();
         let chart = match ReceiverChart::new(&self.bound, p) {
             Some(c) if rect || !scratch.samples.is_empty() => c,
             // Inside a sphere light: no defined Vcoef (as the reference).

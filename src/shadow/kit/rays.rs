@@ -33,6 +33,38 @@ pub const END_SHORTEN: f64 = 1e-6;
 /// a segment through an edge shared by two triangles cross one surface.
 pub const MERGE_SCENE: f64 = 1e-6;
 
+/// The reference's shadow-ray origin rule without building its BVHs:
+/// `o = p + ε_p n_g`, `ε_p = max(EPS_SCENE × D, EPS_POSITION × max_i |p_i|)`
+/// (see the module doc): the one copy of the rule, used by
+/// [`ShadowTracer::shadow_origin`], soft textured shadow volumes and DCS.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadowOrigin {
+    eps_scene: f64,
+}
+
+impl ShadowOrigin {
+    /// The rule for a scene.
+    pub fn new(scene: &Scene, geometry: &SceneGeometry) -> Self {
+        ShadowOrigin {
+            eps_scene: EPS_SCENE * scene_diagonal(scene, geometry),
+        }
+    }
+
+    /// The origin for receiver `p` with geometric normal `ng` (facing the
+    /// viewer).
+    #[inline]
+    pub fn of(&self, p: Vec3, ng: Vec3) -> Vec3 {
+        (p.as_dvec3() + ng.as_dvec3() * self.epsilon(p)).as_vec3()
+    }
+
+    /// The offset `ε_p = max(EPS_SCENE × D, EPS_POSITION × max_i |p_i|)`.
+    #[inline]
+    pub fn epsilon(&self, p: Vec3) -> f64 {
+        self.eps_scene
+            .max(EPS_POSITION * f64::from(p.abs().max_element()))
+    }
+}
+
 /// Diagonal of the bounding box of all triangles and lights (rect corners,
 /// sphere bounds): the scale of the shadow-ray offset. 0 for an empty
 /// scene.
@@ -76,8 +108,8 @@ pub struct ShadowTracer<'a> {
     geometry: &'a SceneGeometry,
     opaque: Bvh,
     translucent: Bvh,
-    /// `EPS_SCENE × D`.
-    eps_scene: f64,
+    /// The shadow-ray origin rule.
+    origin: ShadowOrigin,
     /// `MERGE_SCENE × D`.
     merge: f64,
 }
@@ -110,7 +142,7 @@ impl<'a> ShadowTracer<'a> {
             geometry,
             opaque,
             translucent,
-            eps_scene: EPS_SCENE * d,
+            origin: ShadowOrigin::new(scene, geometry),
             merge: MERGE_SCENE * d,
         }
     }
@@ -127,14 +159,13 @@ impl<'a> ShadowTracer<'a> {
 
     /// The shadow-ray offset at `p`: `max(1e-6 × D, 1e-5 × max_i |p_i|)`.
     pub fn epsilon(&self, p: Vec3) -> f64 {
-        self.eps_scene
-            .max(EPS_POSITION * f64::from(p.abs().max_element()))
+        self.origin.epsilon(p)
     }
 
     /// The shadow-ray origin for receiver `p` with geometric normal `ng`
     /// (facing the viewer): `p + ε_p n_g`.
     pub fn shadow_origin(&self, p: Vec3, ng: Vec3) -> Vec3 {
-        (p.as_dvec3() + ng.as_dvec3() * self.epsilon(p)).as_vec3()
+        self.origin.of(p, ng)
     }
 
     /// Transmittance `Π (1 − opacity)` of the non-opaque casters crossed

@@ -43,6 +43,7 @@ pub use volume::{build_volumes, stsv_planes, HalfSpace, Stsv, VolumeParams};
 use crate::geom::{SceneGeometry, TriangleFrame};
 use crate::scene::Scene;
 use crate::shade::LightSample;
+pub use crate::shadow::kit::rays::ShadowOrigin;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
 /// One S-triangle: a shadow caster with an opacity texture.
@@ -251,36 +252,6 @@ fn mesh_uvs(scene: &Scene, geometry: &SceneGeometry, t: u32) -> Option<[DVec2; 3
         uvs.get(*j as usize)?.as_dvec2(),
         uvs.get(*k as usize)?.as_dvec2(),
     ])
-}
-
-/// The reference's shadow-ray origin rule without building its BVHs:
-/// `o = p + ε_p n_g`, `ε_p = max(EPS_SCENE × D, EPS_POSITION × max_i |p_i|)`
-/// (see [`crate::shadow::reference`]); bit-identical to
-/// [`crate::shadow::kit::rays::ShadowTracer::shadow_origin`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ShadowOrigin {
-    eps_scene: f64,
-}
-
-impl ShadowOrigin {
-    /// The rule for a scene.
-    pub fn new(scene: &Scene, geometry: &SceneGeometry) -> Self {
-        use crate::shadow::kit::rays::{scene_diagonal, EPS_SCENE};
-        ShadowOrigin {
-            eps_scene: EPS_SCENE * scene_diagonal(scene, geometry),
-        }
-    }
-
-    /// The origin for receiver `p` with geometric normal `ng` (facing the
-    /// viewer).
-    #[inline]
-    pub fn of(&self, p: Vec3, ng: Vec3) -> Vec3 {
-        use crate::shadow::kit::rays::EPS_POSITION;
-        let eps = self
-            .eps_scene
-            .max(EPS_POSITION * f64::from(p.abs().max_element()));
-        (p.as_dvec3() + ng.as_dvec3() * eps).as_vec3()
-    }
 }
 
 /// An S-triangle for unit tests: `corners`, uvs (0,0), (1,0), (0,1),
