@@ -202,6 +202,24 @@ fn grouping_smoothing_lines_and_points_are_skipped() {
     assert_eq!(tris[1], [Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]);
 }
 
+/// Vertex colours on some vertices only (as some scanners write them): the
+/// colours are dropped, the positions kept exactly as written.
+#[test]
+fn vertex_colours_on_some_vertices_only() {
+    let dir = Dir::new("colours");
+    dir.write(
+        "m.obj",
+        "v 0 0 0 1 0 0\nv 1 0 0\nv 0 1 0 0.5 0.5 0.5\nv 1.1 1.3 0\nf 1 2 3\nf 2 4 3\n",
+    );
+    let s = dir.load("m.obj").expect("mixed vertex colours load");
+    let mesh = &s.objects[0].mesh;
+    assert_eq!(mesh.triangles.len(), 2);
+    let mut xs: Vec<Vec3> = (0..2).flat_map(|t| mesh.corners(t)).collect();
+    xs.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    xs.dedup();
+    assert_eq!(xs, [Vec3::ZERO, Vec3::Y, Vec3::X, Vec3::new(1.1, 1.3, 0.0)]);
+}
+
 /// `mtllib` with a file name containing spaces, a list of two files, and
 /// names whose case differs from the files on disk.
 #[test]

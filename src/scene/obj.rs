@@ -220,6 +220,13 @@ fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
                         "malformed `{keyword}` line (wrong count of numbers or zero w)"
                     )));
                 }
+                if kind == 0 && nums.len() == 6 {
+                    // Vertex colours are not used, and tobj fails (with no
+                    // line) on a file where only some vertices have them:
+                    // keep the position, as written.
+                    let xyz: Vec<&str> = line.split_whitespace().skip(1).take(3).collect();
+                    edits.replace(range, format!("v {}", xyz.join(" ")));
+                }
                 counts[kind] += 1;
             }
             "vn" => {
