@@ -194,7 +194,6 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
                     ..Default::default()
                 },
                 aovs: vec![penumbra::render::Aov::Vcoef],
-                ..RenderOptions::default()
             };
             render(&scene, &options, &Progress::new(5, false)).expect("render")
         };
