@@ -4,8 +4,8 @@
     scripts/pass-times.py BASE_BIN NEW_BIN [--runs N] [--] RENDER_ARGS...
 
 Runs `render RENDER_ARGS --timings` with each binary alternately N times
-(default 5), and prints each pass's median time for both and their ratio
-(new / base), plus the whole render's. Alternating the two keeps machine
+(default 5), and prints each pass's median time for both, the ratio of the
+medians and of the minima (new / base), plus the whole render's. Alternating the two keeps machine
 noise (other load, frequency changes) from favouring either.
 """
 import re
@@ -50,15 +50,17 @@ def main():
         samples["new"].append(run(new, args))
     names = list(samples["new"][0].keys())
     print(f"render {' '.join(args)}: median of {runs} alternating runs")
-    print(f"| pass | base ms | new ms | new / base |\n|---|--:|--:|--:|")
+    print("| pass | base ms | new ms | new / base | min new / min base |\n|---|--:|--:|--:|--:|")
     for n in names:
         b = [s.get(n) for s in samples["base"] if n in s]
         w = [s[n] for s in samples["new"]]
         if not b:
-            print(f"| {n} | — | {statistics.median(w):.1f} | — |")
+            print(f"| {n} | — | {statistics.median(w):.1f} | — | — |")
             continue
         mb, mw = statistics.median(b), statistics.median(w)
-        print(f"| {n} | {mb:.1f} | {mw:.1f} | {mw / mb if mb else float('nan'):.2f} |")
+        ratio = mw / mb if mb else float("nan")
+        low = min(w) / min(b) if min(b) else float("nan")
+        print(f"| {n} | {mb:.1f} | {mw:.1f} | {ratio:.2f} | {low:.2f} |")
 
 
 if __name__ == "__main__":
