@@ -12,6 +12,7 @@ use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::sampling::SamplePattern;
 use crate::scene::Scene;
+use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::BuildParams;
 use crate::shadow::{
     run_technique, BufferNote, LightTerm, PassTiming, ShadowCache, ShadowContext, TechniqueOptions,
@@ -20,7 +21,6 @@ use crate::shadow::{
 use crate::view::{near_for_bounds, View};
 use glam::Vec3;
 use std::str::FromStr;
-use std::time::Instant;
 
 /// An output layer besides radiance.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -207,23 +207,21 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
     let view = view_for(scene, options)?;
     check_memory(scene, options, &view)?;
     let mut passes = Vec::new();
-    let timed = |name: &str, passes: &mut Vec<PassTiming>, start: Instant| {
-        passes.push(PassTiming {
-            name: name.to_string(),
-            time: start.elapsed(),
-        });
+    // Each top-level pass is one progress step.
+    let timed = |t: PassTimer, passes: &mut Vec<PassTiming>| {
+        t.finish(passes);
         progress.step();
     };
 
     progress.stage("geometry");
-    let t = Instant::now();
+    let t = PassTimer::start("geometry");
     let geometry = SceneGeometry::new(scene);
-    timed("geometry", &mut passes, t);
+    timed(t, &mut passes);
 
     progress.stage("g-buffer");
-    let t = Instant::now();
+    let t = PassTimer::start("gbuffer");
     let (gbuffer, depth, gbuffer_stats) = gbuffer_pass(scene, &geometry, &view)?;
-    timed("gbuffer", &mut passes, t);
+    timed(t, &mut passes);
 
     progress.stage("shadows");
     let cache = ShadowCache::new(scene, &geometry);
@@ -240,9 +238,9 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
     progress.step();
 
     progress.stage("shading");
-    let t = Instant::now();
+    let t = PassTimer::start("shading");
     let radiance = shade(scene, &view, &gbuffer, &shadows.lights);
-    timed("shading", &mut passes, t);
+    timed(t, &mut passes);
 
     let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs);
     layers.extend(shadows.layers);
