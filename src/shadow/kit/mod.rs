@@ -8,6 +8,8 @@
 //! - [`wedge_geometry`]: the light's bound, penumbra wedges and their halves.
 //! - [`membership`]: half-wedge membership and the per-light start.
 //! - [`light_view`]: views from a point on a light and caster depth maps.
+//! - [`shadow_maps`]: what the shadow-map techniques share: receiver
+//!   projection with depth bias, the hard test, PCF.
 //! - [`light_frame`]: the rect light's frame, projections into it,
 //!   clipping to it and region integrals.
 //! - [`groups`]: semi-opaque caster groups and transmittance.
@@ -20,6 +22,7 @@ pub mod light_frame;
 pub mod light_view;
 pub mod membership;
 pub mod rays;
+pub mod shadow_maps;
 pub mod tiles;
 pub mod timing;
 pub mod volumes;

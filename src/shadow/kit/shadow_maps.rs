@@ -1,0 +1,294 @@
+//! Shared machinery of the shadow-map techniques (hard maps, PCSS,
+//! multi-map, adaptive maps, soft shadow maps): the opaque-caster filter,
+//! the view a map is rendered through, the receiver's projection with its
+//! depth bias, the hard depth test and percentage-closer filters.
+//!
+//! Receivers are the G-buffer's exact points, so the "reprojection" of a
+//! classic shadow map is a projection of each receiver into the light view,
+//! not a second camera pass. Maps hold linear f32 depth along the light
+//! view's axis ([`DepthMap`]); a receiver at depth `d` is lit by a tap when
+//! `d − bias ≤ stored`, with
+//!
+//! - a constant bias relative to the depth (`--depth-bias`, a fraction of
+//!   `d`: f32 depth has constant relative precision, so an absolute bias
+//!   would be too large near the light and too small far away);
+//! - a slope-scaled bias (`--slope-bias`, in texels): the depth change
+//!   across one texel on the receiver's plane, `texel · tan θ` with `θ` the
+//!   angle between the geometric normal and the direction to the light;
+//! - a normal offset (`--normal-offset`, in texels): the receiver moved
+//!   along its geometric normal by that many texel footprints before it is
+//!   projected.
+
+use crate::error::{Error, Result};
+use crate::gbuffer::GSample;
+use crate::geom::SceneGeometry;
+use crate::scene::{Light, LightShape, Scene};
+use crate::shadow::kit::light_view::{depth_map, Bounds, DepthMap, LightView};
+use crate::view::View;
+use glam::{DVec2, Vec3};
+use std::fmt;
+use std::str::FromStr;
+
+/// Largest map side `--map-size` accepts (the light view's own limit).
+pub const MAX_MAP_SIZE: u32 = 16384;
+
+/// The percentage-closer filter of a map look-up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Pcf {
+    /// One tap: the texel holding the receiver's projection.
+    #[default]
+    Nearest,
+    /// The four nearest texels, weighted bilinearly.
+    Bilinear2x2,
+    /// A 3×3 box of texels around the nearest.
+    Box3x3,
+    /// `n` taps of a Poisson disk (radius 1.5 texels), rotated per pixel.
+    Poisson(u32),
+}
+
+impl FromStr for Pcf {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Pcf, String> {
+        match s.trim() {
+            "1" | "none" => Ok(Pcf::Nearest),
+            "2x2" => Ok(Pcf::Bilinear2x2),
+            "3x3" => Ok(Pcf::Box3x3),
+            other => {
+                let n = other
+                    .strip_prefix("poisson:")
+                    .and_then(|n| n.parse::<u32>().ok())
+                    .ok_or_else(|| {
+                        format!("unknown filter `{other}` (known: 1, 2x2, 3x3, poisson:N)")
+                    })?;
+                if n == 0 || n > 256 {
+                    return Err(format!("poisson:{n}: N must be in 1..=256"));
+                }
+                Ok(Pcf::Poisson(n))
+            }
+        }
+    }
+}
+
+impl fmt::Display for Pcf {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Pcf::Nearest => f.write_str("1"),
+            Pcf::Bilinear2x2 => f.write_str("2x2"),
+            Pcf::Box3x3 => f.write_str("3x3"),
+            Pcf::Poisson(n) => write!(f, "poisson:{n}"),
+        }
+    }
+}
+
+/// The three depth biases, as the options give them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthBias {
+    /// Constant bias, a fraction of the receiver's depth.
+    pub constant: f64,
+    /// Slope-scaled bias, in texels.
+    pub slope: f64,
+    /// Normal offset, in texels.
+    pub normal_offset: f64,
+}
+
+impl DepthBias {
+    /// Refuses negative or absurd values, naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v, max) in [
+            ("--depth-bias", self.constant, 1.0),
+            ("--slope-bias", self.slope, 1e3),
+            ("--normal-offset", self.normal_offset, 1e3),
+        ] {
+            if !(v >= 0.0 && v <= max) {
+                return Err(Error::param(name, format!("{v} is outside 0..={max}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether triangle `t` is in the maps: an opaque caster (casters of
+/// constant opacity below 1 are not; S-triangles are, as opaque, and the
+/// soft-textured-shadow-volume add-on handles their texture).
+pub fn opaque_caster<'a>(
+    scene: &'a Scene,
+    geometry: &'a SceneGeometry,
+) -> impl Fn(u32) -> bool + Sync + 'a {
+    move |t: u32| {
+        let object = &scene.objects[geometry.triangle_object[t as usize] as usize];
+        let material = &scene.materials[geometry.triangle_material[t as usize] as usize];
+        object.cast_shadows && material.is_opaque()
+    }
+}
+
+/// The point a light's single map is rendered from: a rect light's centre;
+/// for a sphere light the point of its surface facing the casters' bounds.
+pub fn centre_point(light: &Light, casters: Bounds) -> Vec3 {
+    match light.shape {
+        LightShape::Rect { center, .. } => center,
+        LightShape::Sphere { center, radius } => {
+            let target = 0.5 * (casters.0 + casters.1);
+            let d = (target - center).normalize_or(Vec3::NEG_Y);
+            center + d * radius
+        }
+    }
+}
+
+/// The light view from `point` (on the light) fitted to the casters the
+/// receivers can see, `size` texels; `Ok(None)` when nothing of the casters
+/// is in front of the point.
+pub fn light_view_at(
+    light: &Light,
+    point: Vec3,
+    casters: Bounds,
+    receivers: Bounds,
+    size: (u32, u32),
+) -> Result<Option<LightView>> {
+    match light.shape {
+        LightShape::Rect { .. } => {
+            LightView::from_rect_light(light, point, casters, receivers, size)
+        }
+        LightShape::Sphere { .. } => {
+            LightView::from_sphere_light(light, point, casters, receivers, size)
+        }
+    }
+}
+
+/// The opaque casters' depth map from `view` (see [`DepthMap`]).
+pub fn opaque_depth_map(scene: &Scene, geometry: &SceneGeometry, view: &View) -> Result<DepthMap> {
+    depth_map(geometry, opaque_caster(scene, geometry), view)
+}
+
+/// A receiver projected into a map's view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapReceiver {
+    /// Its position in texels (continuous; texel `(x, y)` covers
+    /// `[x, x+1) × [y, y+1)`).
+    pub uv: DVec2,
+    /// Its depth along the view's axis after the normal offset, before the
+    /// bias.
+    pub depth: f64,
+    /// The depth it is compared with: `depth − bias`.
+    pub test_depth: f64,
+    /// World size of one texel at its depth.
+    pub texel: f64,
+}
+
+/// Projects receiver `g` into `view` with the biases applied; `None` when
+/// it is behind the view's eye or outside its window (the light's
+/// hemisphere from that point does not reach it: unlit by that point).
+pub fn project_receiver(g: &GSample, view: &View, bias: &DepthBias) -> Option<MapReceiver> {
+    let p = g.position.as_dvec3();
+    let n = g.geo_normal.as_dvec3();
+    let to_light = (view.eye - p).normalize_or_zero();
+    let d0 = view.depth_of(p);
+    if !(d0 > 0.0) {
+        return None;
+    }
+    let texel = d0 * (view.window.right - view.window.left) / f64::from(view.width);
+    let p = p + n * (bias.normal_offset * texel);
+    let uv = view.pixel_of(p)?;
+    let depth = view.depth_of(p);
+    let cos = n.dot(to_light).abs().clamp(1e-3, 1.0);
+    let tan = (1.0 - cos * cos).sqrt() / cos;
+    let b = bias.constant * depth + bias.slope * texel * tan.min(10.0);
+    Some(MapReceiver {
+        uv,
+        depth,
+        test_depth: depth - b,
+        texel,
+    })
+}
+
+/// The hard depth test of one texel: 1 lit, 0 shadowed. Outside the map is
+/// lit: the frustum holds every caster, so nothing there occludes.
+#[inline]
+pub fn hard_test(map: &DepthMap, x: i64, y: i64, test_depth: f64) -> f32 {
+    if x < 0 || y < 0 || x >= i64::from(map.width) || y >= i64::from(map.height) {
+        return 1.0;
+    }
+    if test_depth as f32 <= map.get(x as u32, y as u32) {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// The per-pixel rotation angle of Poisson taps, from the seeded per-pixel
+/// key of light `light` at pixel `(x, y)`.
+pub fn pixel_rotation(seed: u64, light: usize, x: u32, y: u32) -> f64 {
+    let key = crate::sampling::pixel_key(seed, light, (x, y));
+    (key >> 11) as f64 / (1u64 << 53) as f64 * std::f64::consts::TAU
+}
+
+/// Percentage-closer filtered visibility of `r` in `map`, in [0, 1].
+/// `taps` are the Poisson disk's (in texels, [`poisson_disk`]) when `pcf`
+/// is [`Pcf::Poisson`]; `rotation` rotates them.
+pub fn pcf_visibility(
+    map: &DepthMap,
+    r: &MapReceiver,
+    pcf: Pcf,
+    taps: &[DVec2],
+    rotation: f64,
+) -> f32 {
+    let (uv, d) = (r.uv, r.test_depth);
+    let (fx, fy) = (uv.x.floor() as i64, uv.y.floor() as i64);
+    match pcf {
+        Pcf::Nearest => hard_test(map, fx, fy, d),
+        Pcf::Box3x3 => {
+            let mut sum = 0.0;
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    sum += hard_test(map, fx + dx, fy + dy, d);
+                }
+            }
+            sum / 9.0
+        }
+        Pcf::Bilinear2x2 => {
+            let (sx, sy) = (uv.x - 0.5, uv.y - 0.5);
+            let (x0, y0) = (sx.floor(), sy.floor());
+            let (tx, ty) = ((sx - x0) as f32, (sy - y0) as f32);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let top = hard_test(map, x0, y0, d) * (1.0 - tx) + hard_test(map, x0 + 1, y0, d) * tx;
+            let bottom =
+                hard_test(map, x0, y0 + 1, d) * (1.0 - tx) + hard_test(map, x0 + 1, y0 + 1, d) * tx;
+            top * (1.0 - ty) + bottom * ty
+        }
+        Pcf::Poisson(_) => {
+            let (s, c) = rotation.sin_cos();
+            let mut sum = 0.0;
+            for t in taps {
+                let q = DVec2::new(c * t.x - s * t.y, s * t.x + c * t.y);
+                let (x, y) = ((uv.x + q.x).floor(), (uv.y + q.y).floor());
+                sum += hard_test(map, x as i64, y as i64, d);
+            }
+            sum / taps.len() as f32
+        }
+    }
+}
+
+/// `n` Poisson-disk taps in a disk of `radius`: dart throwing with a fixed
+/// seed, the same disk for every pixel (callers rotate it per pixel).
+pub fn poisson_disk(n: u32, radius: f64) -> Vec<DVec2> {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64 ^ u64::from(n);
+    let mut next = || {
+        state = crate::sampling::mix64(state.wrapping_add(0x9e37_79b9_7f4a_7c15));
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let min_dist = radius * (0.75 / f64::from(n)).sqrt();
+    let mut taps: Vec<DVec2> = Vec::new();
+    let mut tries = 0;
+    while taps.len() < n as usize {
+        let p = DVec2::new(next() * 2.0 - 1.0, next() * 2.0 - 1.0) * radius;
+        tries += 1;
+        if p.length() > radius {
+            continue;
+        }
+        // Give up on the spacing after many tries: N taps are promised.
+        if tries < 10_000 && taps.iter().any(|q| q.distance(p) < min_dist) {
+            continue;
+        }
+        taps.push(p);
+    }
+    taps
+}
