@@ -4,7 +4,8 @@
 
 mod common;
 
-use penumbra::render::{render, RenderOptions};
+use penumbra::geom::SceneGeometry;
+use penumbra::render::{render, view_for, RenderOptions};
 use penumbra::report::Progress;
 use penumbra::shadow::registry::{
     check_scene, markdown_table, names, Support, TermKind, Warning, DEFAULT_TECHNIQUE,
@@ -144,9 +145,11 @@ translate = [0.0, 1.0, 0.0]
         &[],
     );
     let defaults = TechniqueOptions::default();
+    let sphere_geometry = SceneGeometry::new(&sphere);
+    let sphere_view = view_for(&sphere, &RenderOptions::default()).unwrap();
     for t in Technique::all() {
         let caps = t.capabilities(&defaults);
-        let checked = check_scene(t, &defaults, &sphere);
+        let checked = check_scene(t, &defaults, &sphere, &sphere_geometry, &sphere_view);
         match caps.sphere_lights {
             Support::Refused { param, .. } => {
                 let e = checked.expect_err("refused").to_string();
@@ -169,7 +172,8 @@ translate = [0.0, 1.0, 0.0]
     let mut bitfield = TechniqueOptions::default();
     bitfield.dcs.coverage = penumbra::shadow::dcs::CoverageTest::BitField;
     let dcs = Technique::named("dcs").unwrap();
-    let e = check_scene(dcs, &bitfield, &sphere).expect_err("refused");
+    let e =
+        check_scene(dcs, &bitfield, &sphere, &sphere_geometry, &sphere_view).expect_err("refused");
     assert!(e.to_string().contains("--coverage"), "{e}");
     assert!(!dcs.capabilities(&bitfield).exact);
 }
@@ -177,9 +181,11 @@ translate = [0.0, 1.0, 0.0]
 #[test]
 fn semi_opaque_casters_warn_with_techniques_that_ignore_them() {
     let scene = common::shipped("tinted.toml");
+    let geometry = SceneGeometry::new(&scene);
+    let view = view_for(&scene, &RenderOptions::default()).unwrap();
     let defaults = TechniqueOptions::default();
     for t in Technique::all() {
-        let warnings = check_scene(t, &defaults, &scene).expect("accepted");
+        let warnings = check_scene(t, &defaults, &scene, &geometry, &view).expect("accepted");
         match t.capabilities(&defaults).semi_opaque {
             Support::Ignored(_) => assert!(
                 matches!(warnings.as_slice(), [Warning::Ignored { technique, .. }] if *technique == t.name()),

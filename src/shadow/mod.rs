@@ -139,6 +139,7 @@ pub static UNSHADOWED: registry::TechniqueInfo = registry::TechniqueInfo {
         rect_lights: registry::Support::Yes,
         sphere_lights: registry::Support::Yes,
         textured_lights: registry::Support::Yes,
+        enclosed_lights: registry::Support::Yes,
         semi_opaque: registry::Support::Yes,
         s_triangles: registry::Support::Yes,
         output: registry::TermKind::Vcoef,
@@ -176,7 +177,8 @@ pub fn run_technique(
     params: &registry::BuildParams,
     ctx: &ShadowContext,
 ) -> Result<ShadowOutput> {
-    let warnings = registry::check_scene(technique, params.options, ctx.scene)?;
+    let warnings =
+        registry::check_scene(technique, params.options, ctx.scene, ctx.geometry, ctx.view)?;
     let built = technique.build(params);
     let mut out = built.compute(ctx)?;
     if technique.capabilities(params.options).s_triangles == registry::Support::StsvAddOn {

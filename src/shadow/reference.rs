@@ -100,6 +100,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
+        enclosed_lights: Support::Yes,
         semi_opaque: Support::Yes,
         s_triangles: Support::Yes,
         output: TermKind::Radiance,

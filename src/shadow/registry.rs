@@ -14,8 +14,10 @@ use super::shadow_volumes::ShadowVolumeOptions;
 use super::stsv::StsvOptions;
 use super::ShadowTechnique;
 use crate::error::{Error, Result};
+use crate::geom::SceneGeometry;
 use crate::sampling::SamplePattern;
 use crate::scene::{LightShape, Scene};
+use crate::view::View;
 use std::fmt;
 
 /// Every technique, in the order `penumbra techniques` and the docs list
@@ -108,6 +110,21 @@ pub const OPAQUE_ONLY: Support = Support::Ignored(
      here (use dcs or reference)",
 );
 
+/// What the silhouette-based techniques say of a light inside a closed
+/// caster.
+pub const SILHOUETTES_MISS_ENCLOSURE: Support = Support::Refused {
+    param: "--technique",
+    why: "from inside a closed caster its edges are no silhouettes, so the shadow it casts on \
+          everything outside it would be lost (use reference)",
+};
+
+/// What the shadow-map techniques say of a light inside a closed caster.
+pub const MAPS_MISS_ENCLOSURE: Support = Support::Refused {
+    param: "--technique",
+    why: "a map from a point inside a closed caster cannot hold the casters all around it, so \
+          the shadow it casts on everything outside it would be lost (use reference)",
+};
+
 /// What a technique returns per light.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TermKind {
@@ -126,6 +143,9 @@ pub struct Capabilities {
     pub sphere_lights: Support,
     /// Lights with a radiance texture.
     pub textured_lights: Support,
+    /// Lights inside (or touching) a closed caster
+    /// ([`crate::shadow::kit::enclosure`]).
+    pub enclosed_lights: Support,
     /// Casters of constant opacity below 1.
     pub semi_opaque: Support,
     /// Casters with an opacity texture (S-triangles).
@@ -327,6 +347,8 @@ pub enum SceneContent {
     SemiOpaqueCasters,
     /// Casters with an opacity texture.
     STriangles,
+    /// A light inside or touching a closed caster.
+    EnclosedLight,
 }
 
 impl SceneContent {
@@ -338,6 +360,7 @@ impl SceneContent {
             SceneContent::TexturedLight => "textured lights",
             SceneContent::SemiOpaqueCasters => "semi-opaque casters",
             SceneContent::STriangles => "opacity-textured casters (S-triangles)",
+            SceneContent::EnclosedLight => "a light inside or touching a closed caster",
         }
     }
 }
@@ -405,6 +428,8 @@ pub fn check_scene(
     technique: Technique,
     options: &TechniqueOptions,
     scene: &Scene,
+    geometry: &SceneGeometry,
+    view: &View,
 ) -> Result<Vec<Warning>> {
     let caps = technique.capabilities(options);
     let mut present = Vec::new();
@@ -422,6 +447,16 @@ pub fn check_scene(
     }
     if has_s_triangles(scene) {
         present.push((SceneContent::STriangles, caps.s_triangles));
+    }
+    // Only computed when it would change the answer.
+    let mut enclosed = String::new();
+    if caps.enclosed_lights != Support::Yes {
+        if let Some(e) =
+            crate::shadow::kit::enclosure::enclosed_lights(scene, geometry, view.eye).first()
+        {
+            enclosed = format!(" (light {} is in `{}`)", e.light, e.object);
+            present.push((SceneContent::EnclosedLight, caps.enclosed_lights));
+        }
     }
     let mut warnings = Vec::new();
     for (content, support) in present {
@@ -441,9 +476,14 @@ pub fn check_scene(
                 return Err(Error::param(
                     param,
                     format!(
-                        "`{}` cannot render {}: {why}",
+                        "`{}` cannot render {}{}: {why}",
                         technique.name(),
-                        content.describe()
+                        content.describe(),
+                        if content == SceneContent::EnclosedLight {
+                            enclosed.as_str()
+                        } else {
+                            ""
+                        }
                     ),
                 ))
             }

@@ -15,7 +15,7 @@ use super::kit::timing::timed;
 use super::kit::volumes::{build_volume, light_point, stencil_counts};
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use super::{LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::output::Layer;
 
 /// Hard shadow volumes' command-line options.
@@ -36,6 +36,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
+        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
         semi_opaque: super::registry::OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
@@ -81,6 +82,19 @@ impl ShadowTechnique for ShadowVolumes {
             let volume = timed(&mut out.passes, format!("volume build light {k}"), || {
                 build_volume(adj, ctx.view, light_point(&light.shape))
             });
+            if self.zpass && !volume.eye_outside {
+                // Z-pass counts wrongly wherever a volume reaches the eye
+                // or the near plane; rather than a silently wrong image,
+                // say so (z-fail, the default, is exact there).
+                return Err(Error::param(
+                    "--zpass",
+                    format!(
+                        "the eye may be inside the shadow volume of light {k} (or a volume \
+                         reaches the near plane), where z-pass counts wrongly; use z-fail, \
+                         the default"
+                    ),
+                ));
+            }
             let counts = timed(&mut out.passes, format!("stencil light {k}"), || {
                 stencil_counts(&mut framebuffer, &volume, self.zpass)
             })?;

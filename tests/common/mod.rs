@@ -41,7 +41,10 @@ pub fn scene_in_scratch(name: &str, toml: &str, files: &[(&str, &[u8])]) -> penu
     }
     let path = dir.join("scene.toml");
     std::fs::write(&path, toml).expect("write scene");
-    penumbra::scene::load_scene(&path).expect("test scene loads")
+    let scene = penumbra::scene::load_scene(&path).expect("test scene loads");
+    // Everything is in memory now: leave nothing behind in the temp dir.
+    let _ = std::fs::remove_dir_all(&dir);
+    scene
 }
 
 /// Loads a scene shipped in `scenes/`.

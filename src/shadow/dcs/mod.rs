@@ -128,6 +128,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             },
         },
         textured_lights: Support::Yes,
+        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
         semi_opaque: Support::Yes,
         s_triangles: Support::Yes,
         output: match o.dcs.mode {

@@ -12,11 +12,13 @@
 //!   projection with depth bias, the hard test, PCF.
 //! - [`light_frame`]: the rect light's frame, projections into it,
 //!   clipping to it and region integrals.
+//! - [`enclosure`]: lights inside closed casters.
 //! - [`groups`]: semi-opaque caster groups and transmittance.
 //! - [`timing`]: pass timing.
 //! - [`tiles`]: tile-local to image pixel mapping.
 
 pub mod cache;
+pub mod enclosure;
 pub mod groups;
 pub mod light_frame;
 pub mod light_view;

@@ -201,6 +201,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             why: "blending splits rect lights into quarters (use wedges or reference)",
         },
         textured_lights: Support::Yes,
+        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
         semi_opaque: OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,

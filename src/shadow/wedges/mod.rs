@@ -49,6 +49,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
+        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
         semi_opaque: OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
