@@ -442,17 +442,27 @@ pub fn describe(scene: &Scene) -> String {
         s.push_str(&l);
         s.push('\n');
     };
+    // World positions: the scene's local positions plus its origin (zero
+    // unless the scene was moved next to the origin on loading).
+    let origin = scene.origin;
+    let world = |p: glam::Vec3| -> String {
+        if origin == glam::DVec3::ZERO {
+            format!("{:?}", p.to_array())
+        } else {
+            format!("{:?}", (p.as_dvec3() + origin).to_array())
+        }
+    };
     line(format!(
         "scene      {} ({})",
         scene.name,
         scene.path.display()
     ));
     line(format!(
-        "camera     {}x{}, fov_y {}°, eye {:?}",
+        "camera     {}x{}, fov_y {}°, eye {}",
         scene.camera.width,
         scene.camera.height,
         scene.camera.fov_y_degrees,
-        scene.camera.eye.to_array()
+        world(scene.camera.eye)
     ));
     line(format!("objects    {}", scene.objects.len()));
     line(format!("triangles  {}", scene.triangle_count()));
@@ -465,11 +475,7 @@ pub fn describe(scene: &Scene) -> String {
             .sum::<usize>()
     ));
     match scene.bounds() {
-        Some((lo, hi)) => line(format!(
-            "bounds     {:?} .. {:?}",
-            lo.to_array(),
-            hi.to_array()
-        )),
+        Some((lo, hi)) => line(format!("bounds     {} .. {}", world(lo), world(hi))),
         None => line("bounds     (empty)".into()),
     }
     line(format!("materials  {}", scene.materials.len()));
@@ -501,14 +507,14 @@ pub fn describe(scene: &Scene) -> String {
                 v,
                 two_sided,
             } => format!(
-                "rect centre {:?} u {:?} v {:?}{}",
-                center.to_array(),
+                "rect centre {} u {:?} v {:?}{}",
+                world(center),
                 u.to_array(),
                 v.to_array(),
                 if two_sided { " two-sided" } else { "" }
             ),
             LightShape::Sphere { center, radius } => {
-                format!("sphere centre {:?} radius {}", center.to_array(), radius)
+                format!("sphere centre {} radius {}", world(center), radius)
             }
         };
         line(format!(

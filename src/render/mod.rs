@@ -242,7 +242,7 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
     let radiance = shade(scene, &view, &gbuffer, &shadows.lights);
     timed(t, &mut passes);
 
-    let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs);
+    let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs, scene.origin);
     layers.extend(shadows.layers);
     let pixels = u64::from(view.width) * u64::from(view.height);
     let mut buffers = vec![
@@ -272,8 +272,14 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
 }
 
 /// Builds the requested standard AOV layers. Background pixels hold 0 in
-/// every layer (`mask.Y` tells them apart).
-pub fn aov_layers(gbuffer: &GBuffer, terms: &[LightTerm], aovs: &[Aov]) -> Vec<Layer> {
+/// every layer (`mask.Y` tells them apart). Positions are world positions:
+/// `origin` (the scene's [`Scene::origin`]) is added back.
+pub fn aov_layers(
+    gbuffer: &GBuffer,
+    terms: &[LightTerm],
+    aovs: &[Aov],
+    origin: glam::DVec3,
+) -> Vec<Layer> {
     let channel = |name: &str, f: &dyn Fn(&crate::gbuffer::GSample) -> f32| {
         (
             name.to_string(),
@@ -288,9 +294,9 @@ pub fn aov_layers(gbuffer: &GBuffer, terms: &[LightTerm], aovs: &[Aov]) -> Vec<L
         let channels = match aov {
             Aov::Depth => vec![channel("Z", &|g| g.depth)],
             Aov::Position => vec![
-                channel("X", &|g| g.position.x),
-                channel("Y", &|g| g.position.y),
-                channel("Z", &|g| g.position.z),
+                channel("X", &|g| (f64::from(g.position.x) + origin.x) as f32),
+                channel("Y", &|g| (f64::from(g.position.y) + origin.y) as f32),
+                channel("Z", &|g| (f64::from(g.position.z) + origin.z) as f32),
             ],
             Aov::Normal => vec![
                 channel("X", &|g| g.normal.x),

@@ -648,6 +648,7 @@ fn object(
     i: usize,
     entry: &Sp<ObjectEntry>,
     before: u64,
+    origin: glam::DVec3,
 ) -> Result<Object> {
     let o = entry.get_ref();
     let key = |k: &str| format!("object[{i}].{k}");
@@ -658,7 +659,10 @@ fn object(
         }
         None => None,
     };
-    let transform = transform(ctx, i, o)?;
+    let mut transform = transform(ctx, i, o)?;
+    // Into the scene's local frame before the mesh is placed, so that a
+    // built-in shape far from the origin rounds as it would at the origin.
+    transform.translate = super::frame::shift(transform.translate, origin);
     let present = [
         ("radius", span(&o.radius)),
         ("segments", span(&o.segments)),
@@ -921,19 +925,30 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
     });
     let ambient = ctx.color(section.ambient.as_ref(), "scene.ambient", Vec3::ZERO)?;
     let background = ctx.color(section.background.as_ref(), "scene.background", Vec3::ZERO)?;
-    let camera = camera(&ctx, &file.camera)?;
+    let mut camera = camera(&ctx, &file.camera)?;
     let mut assets = Assets::new();
-    let lights = (file.light.iter().enumerate())
+    let mut lights: Vec<Light> = (file.light.iter().enumerate())
         .map(|(i, l)| light(&ctx, &mut assets, i, l))
         .collect::<Result<_>>()?;
+    // The local frame from what is placed in the file (see
+    // `super::frame`); what OBJ vertices add is caught after placing.
+    let mut placed: Vec<Vec3> = Vec::new();
+    for (i, o) in file.object.iter().enumerate() {
+        placed.push(match &o.get_ref().translate {
+            Some(t) => ctx.vec3(t, &format!("object[{i}].translate"))?,
+            None => Vec3::ZERO,
+        });
+    }
+    let origin = super::frame::local_origin(&camera, &lights, &placed);
+    super::frame::shift_camera_and_lights(&mut camera, &mut lights, origin);
     let mut objects: Vec<Object> = Vec::with_capacity(file.object.len());
     let mut triangles = 0u64;
     for (i, o) in file.object.iter().enumerate() {
-        let object = object(&ctx, &mut assets, i, o, triangles)?;
+        let object = object(&ctx, &mut assets, i, o, triangles, origin)?;
         triangles += object.mesh.triangle_count() as u64;
         objects.push(object);
     }
-    Ok(Scene {
+    let mut scene = Scene {
         name,
         path: path.to_path_buf(),
         ambient,
@@ -943,5 +958,8 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
         objects,
         materials: assets.materials,
         textures: assets.textures,
-    })
+        origin,
+    };
+    super::frame::recentre(&mut scene);
+    Ok(scene)
 }

@@ -6,6 +6,7 @@
 //! later stages never re-check user input.
 
 mod assets;
+pub mod frame;
 mod load;
 mod obj;
 mod shapes;
@@ -51,6 +52,10 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// All textures; materials and lights refer to them by index.
     pub textures: Vec<Texture>,
+    /// World position of this scene's local origin: every position here
+    /// (vertices, lights, camera) is relative to it. Zero unless the scene
+    /// sits far from the world origin ([`frame`]).
+    pub origin: glam::DVec3,
 }
 
 impl Scene {
