@@ -33,11 +33,12 @@ use crate::error::{Error, Result};
 use crate::scene::{Light, LightShape};
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds, DepthMap};
 use crate::shadow::kit::shadow_maps::{
-    centre_point, hard_test, light_view_at, opaque_depth_map, pixel_rotation, poisson_disk,
-    project_receiver, MapReceiver,
+    centre_point, hard_test, opaque_depth_map, pixel_rotation, poisson_disk, project_receiver,
+    MapReceiver,
 };
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::shadow_map::fit::tight_light_view;
 use crate::shadow::shadow_map::ShadowMapOptions;
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::View;
@@ -308,7 +309,9 @@ impl ShadowTechnique for Pcss {
         for (k, light) in ctx.scene.lights.iter().enumerate() {
             let t = PassTimer::start(format!("pcss map light {k}"));
             let point = centre_point(light, casters);
-            let Some(lv) = light_view_at(light, point, casters, receivers, (size, size))? else {
+            let Some(lv) =
+                tight_light_view(ctx.scene, light, point, casters, receivers, (size, size))?
+            else {
                 out.lights.push(LightTerm::Vcoef(vec![1.0; n]));
                 t.finish(&mut out.passes);
                 continue;
