@@ -161,7 +161,6 @@ fn object(shape: &str, size: &str, at: [f64; 3]) -> String {
     format!("[[object]]\nshape = \"{shape}\"\nsize = {size}\ntranslate = {at:?}\n")
 }
 
-const EYE: [f64; 6] = [0.0, 5.0, 6.0, 0.0, 0.0, 0.0];
 /// Close to a unit box on the ground: its umbra band (0.13 wide for a
 /// light of half-size 0.1 at y = 4) is a few pixels wide.
 const CLOSE: [f64; 6] = [0.0, 2.5, 3.0, 0.0, 0.0, 0.0];
