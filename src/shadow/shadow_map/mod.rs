@@ -37,14 +37,16 @@ pub struct ShadowMapOptions {
     /// Shadow maps: percentage-closer filter, 1 | 2x2 | 3x3 | poisson:N.
     #[arg(long, default_value = "1")]
     pub pcf: Pcf,
-    /// Shadow maps: constant depth bias, a fraction of the receiver's depth.
+    /// Shadow maps: constant depth bias, a fraction of the receiver's depth
+    /// (defaults of the three biases: the bias study in
+    /// docs/algorithms/shadow-maps.md).
     #[arg(long, default_value_t = 1e-4)]
     pub depth_bias: f64,
     /// Shadow maps: slope-scaled depth bias, in texels.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 0.0)]
     pub slope_bias: f64,
     /// Shadow maps: normal offset of the receiver, in texels.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 0.5)]
     pub normal_offset: f64,
 }
 
