@@ -18,6 +18,7 @@ settings=(
   "shadow-map|--technique shadow-map"
   "shadow-map 3x3|--technique shadow-map --pcf 3x3"
   "pcss 16/16|--technique pcss"
+  "pcss 16/16 flat receiver|--technique pcss --pcss-flat-receiver"
   "pcss 64/64|--technique pcss --pcss-blocker-samples 64 --pcss-filter-samples 64"
   "pcss box 32²/32²|--technique pcss --pcss-kernel box --pcss-blocker-samples 1024 --pcss-filter-samples 1024"
 )
@@ -42,7 +43,7 @@ for scene in ${SCENES:-quad spheres bunny sponza-plants dabrovic}; do
     median=$(printf '%s\n' "${times[@]}" | sort -g | sed -n 2p)
     read -r rmse mae < <("$p" diff "$out/t.exr" "$ref" --channels-a vcoef.0 --channels-b vcoef.0 \
       --mask "$ref" --json | python3 -c \
-      'import json,sys; m=json.load(sys.stdin)["overall"]; print(f"{m["rmse"]:.4f} {m["mean_abs"]:.4f}")')
+      'import json,sys; m=json.load(sys.stdin)["overall"]; print("%.4f %.4f" % (m["rmse"], m["mean_abs"]))')
     echo "| $scene | $name | $rmse | $mae | $median |"
   done
 done

@@ -736,6 +736,7 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
                     penumbra::shadow::pcss::PcssKernel::Poisson,
                     penumbra::shadow::pcss::PcssKernel::Box,
                 ][rng.range(0, 1) as usize],
+                pcss_flat_receiver: rng.range(0, 1) == 1,
             },
         },
     };

@@ -73,6 +73,10 @@ pub struct PcssOptions {
     /// grid over the light's rectangle).
     #[arg(long, value_enum, default_value_t = PcssKernel::Poisson)]
     pub pcss_kernel: PcssKernel,
+    /// PCSS: compare every tap with the receiver's own depth instead of
+    /// its plane's depth at the tap (no receiver-plane depth bias).
+    #[arg(long)]
+    pub pcss_flat_receiver: bool,
 }
 
 impl Default for PcssOptions {
@@ -218,6 +222,80 @@ impl LightSetup {
     }
 }
 
+/// The receiver's plane seen from the map's eye (NVIDIA's receiver-plane
+/// depth bias, exact instead of a depth gradient): the depth along the
+/// map's axis where the ray through map position `q` (texels) meets the
+/// plane through the (normal-offset) receiver point with its geometric
+/// normal, minus the receiver's own bias. Taps compare against it, so a
+/// receiver's own tilted surface around it is not taken for a blocker.
+#[derive(Clone, Copy)]
+struct ReceiverPlane {
+    /// `n · (p − eye)`.
+    k: f64,
+    /// `n` in the map's frame (right, up, forward).
+    n: [f64; 3],
+    /// Window left / top and tangent units per texel along x and y.
+    origin: DVec2,
+    per_texel: DVec2,
+    /// `depth − test_depth` of the receiver.
+    bias: f64,
+    /// The receiver's depth, where the plane gives no depth.
+    flat: f64,
+    /// The receiver's map position, depth and texel footprint.
+    uv: DVec2,
+    depth: f64,
+    texel: f64,
+}
+
+/// Largest depth change per unit of lateral distance the receiver's
+/// plane is extrapolated with (the slope-scaled bias's `tan θ` cap).
+const MAX_PLANE_SLOPE: f64 = 10.0;
+
+impl ReceiverPlane {
+    fn new(g: &crate::gbuffer::GSample, view: &View, r: &MapReceiver, normal_offset: f64) -> Self {
+        let p = g.position.as_dvec3();
+        let n = g.geo_normal.as_dvec3();
+        // As `project_receiver` moves the receiver: `normal_offset` texels
+        // of the footprint at its depth before the offset.
+        let texel0 =
+            view.depth_of(p) * (view.window.right - view.window.left) / f64::from(view.width);
+        let p = p + n * (normal_offset * texel0);
+        let w = &view.window;
+        ReceiverPlane {
+            k: n.dot(p - view.eye),
+            n: [n.dot(view.right), n.dot(view.up), n.dot(view.forward)],
+            origin: DVec2::new(w.left, w.top),
+            per_texel: DVec2::new(
+                (w.right - w.left) / f64::from(view.width),
+                (w.top - w.bottom) / f64::from(view.height),
+            ),
+            bias: r.depth - r.test_depth,
+            flat: r.test_depth,
+            uv: r.uv,
+            depth: r.depth,
+            texel: r.texel,
+        }
+    }
+
+    /// The biased depth the receiver's plane has at map position `q`.
+    #[inline]
+    fn test_depth(&self, q: DVec2) -> f64 {
+        let x = self.origin.x + q.x * self.per_texel.x;
+        let y = self.origin.y - q.y * self.per_texel.y;
+        let z = self.k / (self.n[2] + x * self.n[0] + y * self.n[1]);
+        // Edge-on or behind the eye at that tap: no plane depth there.
+        if !(z > 0.0 && z.is_finite()) {
+            return self.flat;
+        }
+        // The slope capped as the slope-scaled bias caps it (tan θ ≤ 10):
+        // a near-grazing plane extrapolated over a wide kernel would put
+        // its depth far behind any surface.
+        let reach = MAX_PLANE_SLOPE * (q - self.uv).length() * self.texel;
+        let z = z.clamp(self.depth - reach, self.depth + reach);
+        z - self.bias
+    }
+}
+
 /// PCSS visibility of receiver `r` in `map`, in [0, 1]: blocker search
 /// with `search` taps, penumbra estimate, filter with `filter` taps, both
 /// rotated by `rotation` (unit taps; see [`unit_taps`]).
@@ -228,6 +306,7 @@ fn pcss_visibility(
     search: &[DVec2],
     filter: &[DVec2],
     rotation: Option<(f64, f64)>,
+    plane: Option<&ReceiverPlane>,
 ) -> f32 {
     let zr = r.depth;
     let zs = setup.search_plane;
@@ -256,7 +335,8 @@ fn pcss_visibility(
             continue;
         }
         let d = map.get(x as u32, y as u32);
-        if !(r.test_depth as f32 <= d) {
+        let test = plane.map_or(r.test_depth, |p| p.test_depth(q));
+        if !(test as f32 <= d) {
             sum += f64::from(d);
             count += 1;
         }
@@ -272,7 +352,8 @@ fn pcss_visibility(
     let mut lit = 0.0f32;
     for t in filter {
         let q = place(t, filter_radius);
-        lit += hard_test(map, q.x.floor() as i64, q.y.floor() as i64, r.test_depth);
+        let test = plane.map_or(r.test_depth, |p| p.test_depth(q));
+        lit += hard_test(map, q.x.floor() as i64, q.y.floor() as i64, test);
     }
     lit / filter.len() as f32
 }
@@ -301,6 +382,7 @@ impl ShadowTechnique for Pcss {
             return Ok(out);
         };
         let kernel = self.options.pcss_kernel;
+        let receiver_plane = !self.options.pcss_flat_receiver;
         let search = unit_taps(kernel, self.options.pcss_blocker_samples);
         let filter = unit_taps(kernel, self.options.pcss_filter_samples);
         let width = ctx.gbuffer.width as usize;
@@ -345,7 +427,17 @@ impl ShadowTechnique for Pcss {
                             }
                             PcssKernel::Box => None,
                         };
-                        *v = pcss_visibility(&map, &setup, &r, &search, &filter, rotation);
+                        let plane = receiver_plane
+                            .then(|| ReceiverPlane::new(&g, &view, &r, bias.normal_offset));
+                        *v = pcss_visibility(
+                            &map,
+                            &setup,
+                            &r,
+                            &search,
+                            &filter,
+                            rotation,
+                            plane.as_ref(),
+                        );
                     }
                 });
             t.finish(&mut out.passes);
