@@ -729,6 +729,15 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
                     .unwrap(),
                 ..Default::default()
             },
+            pcss: penumbra::shadow::pcss::PcssOptions {
+                pcss_blocker_samples: [1, 4, 16][rng.range(0, 2) as usize],
+                pcss_filter_samples: [1, 4, 16][rng.range(0, 2) as usize],
+                pcss_kernel: [
+                    penumbra::shadow::pcss::PcssKernel::Poisson,
+                    penumbra::shadow::pcss::PcssKernel::Box,
+                ][rng.range(0, 1) as usize],
+                pcss_flat_receiver: rng.range(0, 1) == 1,
+            },
         },
     };
     let _ = write!(case.log, "| render {options:?}");

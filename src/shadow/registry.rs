@@ -9,6 +9,7 @@
 //! (see docs/architecture.md, "How to add a technique").
 
 use super::dcs::DcsOptions;
+use super::pcss::PcssOptions;
 use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
 use super::stsv::StsvOptions;
@@ -30,6 +31,7 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::wedges::blend::TECHNIQUE,
     &super::dcs::TECHNIQUE,
     &super::shadow_map::TECHNIQUE,
+    &super::pcss::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -49,6 +51,9 @@ pub struct TechniqueOptions {
     /// Shadow maps.
     #[command(flatten)]
     pub shadow_map: ShadowMapOptions,
+    /// Percentage-closer soft shadows (with the shadow-map options).
+    #[command(flatten)]
+    pub pcss: PcssOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]
