@@ -8,6 +8,7 @@
 //! options of its own, one flattened field in [`TechniqueOptions`]
 //! (see docs/architecture.md, "How to add a technique").
 
+use super::adaptive_maps::AdaptiveMapsOptions;
 use super::dcs::DcsOptions;
 use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
@@ -28,6 +29,8 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::wedges::blend::TECHNIQUE,
     &super::dcs::TECHNIQUE,
     &super::shadow_map::TECHNIQUE,
+    &super::multi_map::TECHNIQUE,
+    &super::adaptive_maps::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -47,6 +50,10 @@ pub struct TechniqueOptions {
     /// Shadow maps.
     #[command(flatten)]
     pub shadow_map: ShadowMapOptions,
+    /// Adaptive light-source sampling (the map options are the shadow
+    /// maps').
+    #[command(flatten)]
+    pub adaptive_maps: AdaptiveMapsOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]
