@@ -15,14 +15,17 @@
 //!    are more than a texel apart there (banding). A quad with more failing
 //!    receivers than `--adaptive-threshold` splits into four; the new
 //!    corners get maps. Quads at `--max-depth` are not tested.
-//! 2. **Beyond the paper: the centre probe** (on by default,
-//!    `--adaptive-no-centre` turns it off). An occluder whose shadows from
+//! 2. **Beyond the paper: the centre probe** (on by default for quads of
+//!    depth below `--adaptive-centre-depth`, 2; 0 turns it off). An occluder whose shadows from
 //!    all four corners miss every receiver (small, close to the light) or
 //!    fall between receivers leaves every count at 0 or 4: nothing fails,
-//!    the quad never splits and its shadow is lost. The probe renders one
-//!    more map at the quad's centre; a receiver whose four corners agree
-//!    but whose centre test differs fails as well. The centre is a corner
-//!    of the children, so when the quad splits the map is not wasted.
+//!    the quad never splits and its shadow is lost. A quad the corners do
+//!    not split gets one more map at its centre; a receiver whose four
+//!    corners agree but whose centre test differs fails as well. The
+//!    centre is a corner of the children, so when the quad splits the map
+//!    is kept; the probe is limited to shallow quads (at most 1 + 4 maps
+//!    at the default) because a probe that does not split is a map the
+//!    estimate does not use.
 //! 3. **Estimate** (§3.4.1): every corner of a leaf quad is a sample point
 //!    with weight `ω = 1/(2^d + 1)²` (eq. 3), `d` the depth of the deepest
 //!    leaf it is a corner of (all points at depth `d`: the `(2^d + 1)²` grid
@@ -45,7 +48,7 @@ use crate::error::{Error, Result};
 use crate::sampling::grid_coordinate;
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
 use crate::shadow::kit::many_maps::{
-    active_receivers, point_on_light, quantize, resolve, MapSetup, QSCALE,
+    active_receivers, point_on_light, quantize, resolve, MapSetup, RenderedMap, QSCALE,
 };
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
@@ -74,10 +77,12 @@ pub struct AdaptiveMapsOptions {
     /// image's (§3.3.2: smaller → fewer maps, banding).
     #[arg(long, default_value_t = 1.0)]
     pub comparison_scale: f64,
-    /// Adaptive maps: turn off the centre probe (the fix for occluders
-    /// whose shadows fall between all four corner maps).
-    #[arg(long)]
-    pub adaptive_no_centre: bool,
+    /// Adaptive maps: quads shallower than this get a centre probe when
+    /// their corners alone do not split them (the fix for occluders whose
+    /// shadows fall between all four corner maps); 0 turns it off (the
+    /// paper).
+    #[arg(long, default_value_t = 2)]
+    pub adaptive_centre_depth: u32,
     /// Adaptive maps: split every quad down to --max-depth (the regular
     /// (2^D+1)² grid through the adaptive machinery; for tests).
     #[arg(long)]
@@ -333,23 +338,31 @@ impl AdaptiveMaps {
             return Ok((vec![0.0; n], report, 0, 0));
         }
         let mut peak = 0u64;
-        let mut track = |m: &Option<crate::shadow::kit::many_maps::RenderedMap>| {
+        let mut track = |m: &Option<RenderedMap>| {
             if let Some(m) = m {
                 peak = peak.max(m.map.memory_bytes());
             }
         };
 
-        // The comparison target: texel (ci, cj) reads pixel (px(ci), py(cj)).
+        // The comparison target: texel (ci, cj) reads the nearest pixel.
         let cw = ((width as f64 * o.comparison_scale).round() as usize).clamp(1, width.max(1));
         let ch = ((height as f64 * o.comparison_scale).round() as usize).clamp(1, height.max(1));
-        let px = |ci: usize| (((ci as f64 + 0.5) * width as f64 / cw as f64) as usize).min(width - 1);
-        let py =
-            |cj: usize| (((cj as f64 + 0.5) * height as f64 / ch as f64) as usize).min(height - 1);
         let mut compared = vec![false; n];
-        for cj in 0..ch {
-            for ci in 0..cw {
-                let i = py(cj) * width + px(ci);
-                compared[i] = active[i];
+        {
+            let grid = Comparison {
+                words: 0,
+                corners: &[],
+                compared: &[],
+                cw,
+                ch,
+                width,
+                height,
+            };
+            for cj in 0..ch {
+                for ci in 0..cw {
+                    let i = grid.pixel(ci, cj);
+                    compared[i] = active[i];
+                }
             }
         }
 
@@ -362,20 +375,18 @@ impl AdaptiveMaps {
         };
         let mut bits = vec![0u64; if testing { n * words } else { 0 }];
         let mut cached = vec![false; (gd * gd) as usize];
-        let bit = |bits: &[u64], pixel: usize, d: usize| -> u32 {
-            ((bits[pixel * words + d / 64] >> (d % 64)) & 1) as u32
-        };
 
         let mut leaves: Vec<Quad> = Vec::new();
-        if o.adaptive_split_all || dmax == 0 {
-            // Every point at depth D: no tests.
-        } else {
+        // Finest-grid points whose centre-probe map was rendered but not
+        // kept (last tested level: they are depth-D points).
+        let mut probed = vec![false; (g * g) as usize];
+        if testing {
             let mut level = vec![Quad {
                 depth: 0,
                 i: 0,
                 j: 0,
             }];
-            let mut probe_fail = vec![0u8; n];
+            let mut probe_lit = vec![0u8; n];
             for d in 0..dmax {
                 if level.is_empty() {
                     break;
@@ -391,33 +402,12 @@ impl AdaptiveMaps {
                         }
                     }
                 }
-                // Centre probes that are on the decision grid are cached
-                // like corners (they are the children's corners).
-                let on_grid_probes = !o.adaptive_no_centre && d + 1 < dmax;
-                if on_grid_probes {
-                    for q in &level {
-                        let (i, j) = (q.i + s / 2, q.j + s / 2);
-                        let di = dec(i, j).expect("centres above depth D − 1 are on the grid");
-                        if !cached[di] {
-                            need.insert((j, i));
-                        }
-                    }
-                }
                 for &(j, i) in &need {
                     let di = dec(i, j).expect("on the grid");
                     let map = setup.render(point(i, j))?;
                     track(&map);
-                    if need_is_probe(&level, s, i, j) {
-                        report.probe_maps += 1;
-                    } else {
-                        report.test_maps += 1;
-                    }
-                    let (w, b) = (di / 64, 1u64 << (di % 64));
-                    setup.consume(map.as_ref(), Pcf::Nearest, &active, &mut bits, words, |v, slot| {
-                        if v >= 0.5 {
-                            slot[w] |= b;
-                        }
-                    });
+                    report.test_maps += 1;
+                    set_bits(setup, map.as_ref(), &active, &mut bits, words, di);
                     cached[di] = true;
                 }
                 let mut next = Vec::new();
@@ -426,93 +416,58 @@ impl AdaptiveMaps {
                         .iter()
                         .map(|&(i, j)| dec(i, j).expect("on the grid"))
                         .collect();
-                    let count = |pixel: usize| -> u32 {
-                        4 - c.iter().map(|&di| bit(&bits, pixel, di)).sum::<u32>()
+                    let grid = Comparison {
+                        words,
+                        corners: &c,
+                        compared: &compared,
+                        cw,
+                        ch,
+                        width,
+                        height,
                     };
-                    // The centre probe: cached, or rendered now (last
-                    // tested level: its centre is a depth-D point).
-                    let mut probe: Option<usize> = None;
-                    if !o.adaptive_no_centre {
+                    let penumbra_fails = grid.penumbra_fails(&bits);
+                    let mut split = penumbra_fails > o.adaptive_threshold;
+                    // The centre probe, only where the corners alone keep
+                    // the quad whole: on the decision grid it is kept (a
+                    // corner of the children), on the last tested level it
+                    // is a depth-D point read once.
+                    if !split && d < o.adaptive_centre_depth {
                         let (i, j) = (q.i + s / 2, q.j + s / 2);
-                        if on_grid_probes {
-                            probe = dec(i, j);
-                        } else {
-                            let map = setup.render(point(i, j))?;
-                            track(&map);
-                            report.probe_maps += 1;
-                            probe_fail.fill(0);
-                            setup.consume(
-                                map.as_ref(),
-                                Pcf::Nearest,
-                                &compared,
-                                &mut probe_fail,
-                                1,
-                                |v, slot| slot[0] = (v >= 0.5) as u8 + 1,
-                            );
-                        }
-                    }
-                    let penumbra_fails: u64 = (0..ch)
-                        .into_par_iter()
-                        .map(|cj| {
-                            let mut fails = 0u64;
-                            for ci in 0..cw {
-                                let p = py(cj) * width + px(ci);
-                                if !compared[p] {
-                                    continue;
+                        let probe_fails = match dec(i, j) {
+                            Some(di) => {
+                                if !cached[di] {
+                                    let map = setup.render(point(i, j))?;
+                                    track(&map);
+                                    report.probe_maps += 1;
+                                    set_bits(setup, map.as_ref(), &active, &mut bits, words, di);
+                                    cached[di] = true;
                                 }
-                                let cnt = count(p);
-                                if cnt == 0 || cnt == 4 {
-                                    continue;
-                                }
-                                let mut differs = false;
-                                'ring: for dj in -1i64..=1 {
-                                    for di in -1i64..=1 {
-                                        let (ni, nj) = (ci as i64 + di, cj as i64 + dj);
-                                        if (di == 0 && dj == 0)
-                                            || ni < 0
-                                            || nj < 0
-                                            || ni >= cw as i64
-                                            || nj >= ch as i64
-                                        {
-                                            continue;
-                                        }
-                                        let np = py(nj as usize) * width + px(ni as usize);
-                                        if compared[np] && count(np) != cnt {
-                                            differs = true;
-                                            break 'ring;
-                                        }
-                                    }
-                                }
-                                fails += u64::from(!differs);
+                                grid.probe_fails(&bits, |p| grid.bit(&bits, p, di) == 1)
                             }
-                            fails
-                        })
-                        .sum();
-                    let probe_fails: u64 = if o.adaptive_no_centre {
-                        0
-                    } else {
-                        (0..n)
-                            .into_par_iter()
-                            .filter(|&p| compared[p])
-                            .map(|p| {
-                                let cnt = count(p);
-                                if cnt != 0 && cnt != 4 {
-                                    return 0;
-                                }
-                                let corners_lit = cnt == 0;
-                                let centre_lit = match probe {
-                                    Some(di) => bit(&bits, p, di) == 1,
-                                    None => probe_fail[p] == 2,
-                                };
-                                u64::from(corners_lit != centre_lit)
-                            })
-                            .sum()
-                    };
-                    if penumbra_fails + probe_fails > o.adaptive_threshold {
-                        report.splits += 1;
-                        if penumbra_fails <= o.adaptive_threshold {
+                            None => {
+                                let map = setup.render(point(i, j))?;
+                                track(&map);
+                                report.probe_maps += 1;
+                                probed[(i + j * g) as usize] = true;
+                                probe_lit.fill(0);
+                                setup.consume(
+                                    map.as_ref(),
+                                    Pcf::Nearest,
+                                    &compared,
+                                    &mut probe_lit,
+                                    1,
+                                    |v, slot| slot[0] = u8::from(v >= 0.5),
+                                );
+                                grid.probe_fails(&bits, |p| probe_lit[p] == 1)
+                            }
+                        };
+                        if penumbra_fails + probe_fails > o.adaptive_threshold {
+                            split = true;
                             report.probe_splits += 1;
                         }
+                    }
+                    if split {
+                        report.splits += 1;
                         let h = s / 2;
                         for (di, dj) in [(0, 0), (h, 0), (0, h), (h, h)] {
                             next.push(Quad {
@@ -570,8 +525,7 @@ impl AdaptiveMaps {
                         report.rendered += 1;
                         // A tested map (PCF), or a last-level centre probe
                         // that became a corner: rendered before.
-                        let probed = !o.adaptive_no_centre && testing && i % 2 == 1 && j % 2 == 1;
-                        if cached_bits.is_some() || probed {
+                        if cached_bits.is_some() || probed[(i + j * g) as usize] {
                             report.rerendered += 1;
                         }
                     }
@@ -582,7 +536,7 @@ impl AdaptiveMaps {
             acc.par_iter_mut().enumerate().for_each(|(p, a)| {
                 if active[p] {
                     for &(di, w) in &from_bits {
-                        *a += w * QSCALE * u64::from(bit(&bits, p, di));
+                        *a += w * QSCALE * ((bits[p * words + di / 64] >> (di % 64)) & 1);
                     }
                 }
             });
@@ -603,11 +557,123 @@ fn corners(q: &Quad, s: u32) -> [(u32, u32); 4] {
     ]
 }
 
-/// Whether `(i, j)` is the centre of a quad of `level` (side `s`) and not
-/// one of its corners: a probe rather than a corner map.
-fn need_is_probe(level: &[Quad], s: u32, i: u32, j: u32) -> bool {
-    let corner = level.iter().any(|q| corners(q, s).contains(&(i, j)));
-    !corner && level.iter().any(|q| (q.i + s / 2, q.j + s / 2) == (i, j))
+/// Sets bit `di` of every active receiver the map lights (hard test).
+fn set_bits(
+    setup: &MapSetup,
+    map: Option<&RenderedMap>,
+    active: &[bool],
+    bits: &mut [u64],
+    words: usize,
+    di: usize,
+) {
+    let (w, b) = (di / 64, 1u64 << (di % 64));
+    setup.consume(map, Pcf::Nearest, active, bits, words, |v, slot| {
+        if v >= 0.5 {
+            slot[w] |= b;
+        }
+    });
+}
+
+/// One quad's view of the comparison target: per texel the receiver's
+/// count of shadowing corners, from the decision bits.
+#[derive(Clone, Copy)]
+struct Comparison<'a> {
+    words: usize,
+    corners: &'a [usize],
+    compared: &'a [bool],
+    cw: usize,
+    ch: usize,
+    width: usize,
+    height: usize,
+}
+
+impl Comparison<'_> {
+    /// Bit `di` of receiver `p` (1: lit from that point).
+    #[inline]
+    fn bit(&self, bits: &[u64], p: usize, di: usize) -> u32 {
+        ((bits[p * self.words + di / 64] >> (di % 64)) & 1) as u32
+    }
+
+    /// How many of the quad's corners shadow receiver `p` (0–4).
+    #[inline]
+    fn count(&self, bits: &[u64], p: usize) -> u32 {
+        4 - self.corners.iter().map(|&di| self.bit(bits, p, di)).sum::<u32>()
+    }
+
+    /// The pixel comparison texel `(ci, cj)` reads (nearest).
+    #[inline]
+    fn pixel(&self, ci: usize, cj: usize) -> usize {
+        let x = (((ci as f64 + 0.5) * self.width as f64 / self.cw as f64) as usize)
+            .min(self.width - 1);
+        let y = (((cj as f64 + 0.5) * self.height as f64 / self.ch as f64) as usize)
+            .min(self.height - 1);
+        y * self.width + x
+    }
+
+    /// Penumbra texels (count 1–3) whose 1-ring holds no different count
+    /// (§3.3.3); neighbours that are not receivers of the light are not
+    /// looked at.
+    fn penumbra_fails(&self, bits: &[u64]) -> u64 {
+        (0..self.ch)
+            .into_par_iter()
+            .map(|cj| {
+                let mut fails = 0u64;
+                for ci in 0..self.cw {
+                    let p = self.pixel(ci, cj);
+                    if !self.compared[p] {
+                        continue;
+                    }
+                    let cnt = self.count(bits, p);
+                    if cnt == 0 || cnt == 4 {
+                        continue;
+                    }
+                    let mut differs = false;
+                    'ring: for dj in -1i64..=1 {
+                        for di in -1i64..=1 {
+                            let (ni, nj) = (ci as i64 + di, cj as i64 + dj);
+                            if (di == 0 && dj == 0)
+                                || ni < 0
+                                || nj < 0
+                                || ni >= self.cw as i64
+                                || nj >= self.ch as i64
+                            {
+                                continue;
+                            }
+                            let np = self.pixel(ni as usize, nj as usize);
+                            if self.compared[np] && self.count(bits, np) != cnt {
+                                differs = true;
+                                break 'ring;
+                            }
+                        }
+                    }
+                    fails += u64::from(!differs);
+                }
+                fails
+            })
+            .sum()
+    }
+
+    /// Texels whose four corners agree (count 0 or 4) but whose centre
+    /// test (`centre_lit`) differs: the centre probe's failures.
+    fn probe_fails(&self, bits: &[u64], centre_lit: impl Fn(usize) -> bool + Sync) -> u64 {
+        (0..self.ch)
+            .into_par_iter()
+            .map(|cj| {
+                let mut fails = 0u64;
+                for ci in 0..self.cw {
+                    let p = self.pixel(ci, cj);
+                    if !self.compared[p] {
+                        continue;
+                    }
+                    let cnt = self.count(bits, p);
+                    if cnt == 0 || cnt == 4 {
+                        fails += u64::from((cnt == 0) != centre_lit(p));
+                    }
+                }
+                fails
+            })
+            .sum()
+    }
 }
 
 impl ShadowTechnique for AdaptiveMaps {
