@@ -90,7 +90,10 @@ fn lit_and_umbra_receivers_of_the_17x17_result_are_kept() {
                 umbra += usize::from(*y == 0.0);
             }
         }
-        assert!(lit > 500 && umbra > 100, "{scene}: {lit} lit, {umbra} umbra");
+        assert!(
+            lit > 500 && umbra > 100,
+            "{scene}: {lit} lit, {umbra} umbra"
+        );
         let maps = rendered(&adaptive);
         assert!(maps < 289, "{scene}: {maps} maps");
         println!("{scene}: {maps} maps");
@@ -102,7 +105,10 @@ fn lit_and_umbra_receivers_of_the_17x17_result_are_kept() {
 fn thin_error(out: &RenderOutput, reference: &RenderOutput) -> f64 {
     let (a, r) = (out.lights[0].vcoef(), reference.lights[0].vcoef());
     let keep: Vec<usize> = (0..r.len()).filter(|&i| r[i] > 0.0).collect();
-    keep.iter().map(|&i| f64::from((a[i] - r[i]).abs())).sum::<f64>() / keep.len() as f64
+    keep.iter()
+        .map(|&i| f64::from((a[i] - r[i]).abs()))
+        .sum::<f64>()
+        / keep.len() as f64
 }
 
 /// The plate near the light: every corner's shadow misses the ground, so
@@ -123,7 +129,10 @@ fn the_centre_probe_finds_the_occluder_the_corners_miss() {
         o.options.adaptive_maps.adaptive_centre_depth = 0;
     });
     let fixed = run(&s, "adaptive-maps", 48, |_| {});
-    let (e_paper, e_fixed) = (thin_error(&paper, &reference), thin_error(&fixed, &reference));
+    let (e_paper, e_fixed) = (
+        thin_error(&paper, &reference),
+        thin_error(&fixed, &reference),
+    );
     println!(
         "paper: {} maps, error {e_paper:.4}; probe: {} maps, error {e_fixed:.4}",
         rendered(&paper),

@@ -41,7 +41,11 @@ fn errors(a: &[f32], b: &[f32], keep: &[bool]) -> (f64, f64, usize) {
         far += usize::from(d > 0.1);
         count += 1;
     }
-    (sum / count.max(1) as f64, far as f64 / count.max(1) as f64, count)
+    (
+        sum / count.max(1) as f64,
+        far as f64 / count.max(1) as f64,
+        count,
+    )
 }
 
 /// Lit receivers facing up (normal.y > 0.5): the ground and the tops of
@@ -55,7 +59,12 @@ fn lit_receivers(scene: &Scene, size: u32) -> Vec<bool> {
         .iter()
         .find(|l| l.name == "normal")
         .expect("normal layer");
-    let ny = &normal.channels.iter().find(|c| c.0 == "Y").expect("normal.Y").1;
+    let ny = &normal
+        .channels
+        .iter()
+        .find(|c| c.0 == "Y")
+        .expect("normal.Y")
+        .1;
     out.radiance
         .iter()
         .zip(ny)
@@ -85,11 +94,7 @@ fn converges_to_the_reference_at_the_same_points() {
         };
         let maps = run(&s, "multi-map", 96, set);
         let reference = run(&s, "reference", 96, set);
-        let (mean, far, count) = errors(
-            maps.lights[0].vcoef(),
-            reference.lights[0].vcoef(),
-            &keep,
-        );
+        let (mean, far, count) = errors(maps.lights[0].vcoef(), reference.lights[0].vcoef(), &keep);
         println!("{scene} {n} {pattern}: mean {mean:.5}, > 0.1: {far:.4} of {count}");
         assert!(count > 1000, "{scene}: {count} receivers");
         assert!(mean < 0.02, "{scene} {n} {pattern}: mean {mean}");
@@ -119,11 +124,18 @@ fn a_tiny_light_gives_the_hard_shadow_map() {
     let (a, b) = (many.lights[0].vcoef(), hard.lights[0].vcoef());
     let shadowed = b.iter().filter(|&&v| v < 0.5).count();
     assert!(shadowed > 300, "the test needs a shadow: {shadowed}");
-    let differ = a.iter().zip(b).filter(|(x, y)| (**x - **y).abs() > 0.5).count();
+    let differ = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| (**x - **y).abs() > 0.5)
+        .count();
     // Only receivers on the outline may flip (perimeter ~80 pixels).
     assert!(differ <= 20, "{differ} receivers differ");
     let soft = a.iter().filter(|v| **v > 0.01 && **v < 0.99).count();
-    assert!(soft <= 80, "{soft} receivers in a penumbra of a point light");
+    assert!(
+        soft <= 80,
+        "{soft} receivers in a penumbra of a point light"
+    );
 }
 
 #[test]

@@ -67,9 +67,9 @@ use crate::shade::LightSample;
 mod patterns;
 
 pub use patterns::{
-    grid_coordinate, max_packing_distance, poisson_dart_budget, poisson_dart_throwing, poisson_relative_radius,
-    poisson_target_distance, sobol02, toroidal_distance2, PatternSampler, PoissonSet,
-    SamplePattern, DEFAULT_INTERLEAVE, POISSON_MAX_LEVELS, POISSON_MIN_RELATIVE_RADIUS,
+    grid_coordinate, max_packing_distance, poisson_dart_budget, poisson_dart_throwing,
+    poisson_relative_radius, poisson_target_distance, sobol02, toroidal_distance2, PatternSampler,
+    PoissonSet, SamplePattern, DEFAULT_INTERLEAVE, POISSON_MAX_LEVELS, POISSON_MIN_RELATIVE_RADIUS,
     POISSON_RESTARTS, POISSON_SHRINK, POISSON_THESIS_DISTANCES,
 };
 

@@ -371,7 +371,7 @@ impl AdaptiveMaps {
         let gd = if testing { side / 2 + 1 } else { 0 };
         let words = ((gd * gd) as usize).div_ceil(64);
         let dec = |i: u32, j: u32| -> Option<usize> {
-            (testing && i % 2 == 0 && j % 2 == 0).then(|| (i / 2 + (j / 2) * gd) as usize)
+            (testing && i.is_multiple_of(2) && j.is_multiple_of(2)).then(|| (i / 2 + (j / 2) * gd) as usize)
         };
         let mut bits = vec![0u64; if testing { n * words } else { 0 }];
         let mut cached = vec![false; (gd * gd) as usize];
@@ -597,14 +597,18 @@ impl Comparison<'_> {
     /// How many of the quad's corners shadow receiver `p` (0–4).
     #[inline]
     fn count(&self, bits: &[u64], p: usize) -> u32 {
-        4 - self.corners.iter().map(|&di| self.bit(bits, p, di)).sum::<u32>()
+        4 - self
+            .corners
+            .iter()
+            .map(|&di| self.bit(bits, p, di))
+            .sum::<u32>()
     }
 
     /// The pixel comparison texel `(ci, cj)` reads (nearest).
     #[inline]
     fn pixel(&self, ci: usize, cj: usize) -> usize {
-        let x = (((ci as f64 + 0.5) * self.width as f64 / self.cw as f64) as usize)
-            .min(self.width - 1);
+        let x =
+            (((ci as f64 + 0.5) * self.width as f64 / self.cw as f64) as usize).min(self.width - 1);
         let y = (((cj as f64 + 0.5) * self.height as f64 / self.ch as f64) as usize)
             .min(self.height - 1);
         y * self.width + x

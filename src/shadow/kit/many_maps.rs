@@ -210,9 +210,9 @@ impl MapSetup<'_, '_> {
                                 None => 0.0,
                                 Some(r) => {
                                     let rotation = match pcf {
-                                        Pcf::Poisson(_) => {
-                                            pixel_rotation(self.seed, self.light, x as u32, y as u32)
-                                        }
+                                        Pcf::Poisson(_) => pixel_rotation(
+                                            self.seed, self.light, x as u32, y as u32,
+                                        ),
                                         _ => 0.0,
                                     };
                                     pcf_visibility(&m.map, &r, pcf, &self.taps, rotation)
