@@ -48,7 +48,7 @@ use crate::error::{Error, Result};
 use crate::sampling::grid_coordinate;
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
 use crate::shadow::kit::many_maps::{
-    active_receivers, point_on_light, quantize, resolve, MapSetup, RenderedMap, QSCALE,
+    active_receivers, point_on_light, receiver_points, quantize, resolve, MapSetup, RenderedMap, QSCALE,
 };
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
@@ -240,6 +240,7 @@ impl AdaptiveMaps {
             return Ok((out, reports));
         };
         let mut cache_bytes = 0u64;
+        let points = receiver_points(ctx.gbuffer);
         for (k, _) in ctx.scene.lights.iter().enumerate() {
             let t = PassTimer::start(format!("adaptive maps light {k}"));
             let setup = MapSetup {
@@ -254,6 +255,7 @@ impl AdaptiveMaps {
                     Pcf::Poisson(m) => poisson_disk(m, 1.5),
                     _ => Vec::new(),
                 },
+                points: &points,
             };
             let (vcoef, report, peak, cache) = self.light(&setup)?;
             cache_bytes = cache_bytes.max(cache);

@@ -12,7 +12,7 @@
 //! split everywhere and the 17 × 17 multi-map).
 
 use crate::error::Result;
-use crate::gbuffer::GBuffer;
+use crate::gbuffer::{GBuffer, GSample};
 use crate::scene::{Light, LightShape, Scene};
 use crate::shadow::kit::light_view::{Bounds, DepthMap};
 use crate::shadow::kit::shadow_maps::{
@@ -139,6 +139,9 @@ pub struct MapSetup<'a, 'b> {
     pub seed: u64,
     /// Poisson taps, when a filter needs them.
     pub taps: Vec<DVec2>,
+    /// Per pixel the receiver's position and geometric normal, expanded
+    /// from the G-buffer once rather than once per map.
+    pub points: &'a [(Vec3, Vec3)],
 }
 
 /// One rendered map and its view; `None`: nothing of the casters is in
@@ -148,6 +151,17 @@ pub struct RenderedMap {
     pub view: View,
     /// Linear depth of the opaque casters.
     pub map: DepthMap,
+}
+
+/// Per pixel `(position, geometric normal)`, what a map look-up reads.
+pub fn receiver_points(gbuffer: &GBuffer) -> Vec<(Vec3, Vec3)> {
+    (0..gbuffer.len())
+        .into_par_iter()
+        .map(|i| {
+            let g = gbuffer.sample(i);
+            (g.position, g.geo_normal)
+        })
+        .collect()
 }
 
 impl MapSetup<'_, '_> {
@@ -205,7 +219,12 @@ impl MapSetup<'_, '_> {
                     let v = match map {
                         None => 1.0,
                         Some(m) => {
-                            let g = gb.sample(i);
+                            let (position, geo_normal) = self.points[i];
+                            let g = GSample {
+                                position,
+                                geo_normal,
+                                ..GSample::BACKGROUND
+                            };
                             match project_receiver(&g, &m.view, &self.bias) {
                                 None => 0.0,
                                 Some(r) => {

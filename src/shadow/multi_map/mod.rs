@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::sampling::{PatternSampler, SamplePattern};
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
 use crate::shadow::kit::many_maps::{
-    active_receivers, point_on_light, quantize, resolve, MapSetup,
+    active_receivers, point_on_light, receiver_points, quantize, resolve, MapSetup,
 };
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
@@ -123,6 +123,7 @@ impl ShadowTechnique for MultiMap {
         let pcf = self.options.pcf;
         let size = self.options.map_size;
         let mut peak_map = 0u64;
+        let receivers_at = receiver_points(ctx.gbuffer);
         for (k, light) in ctx.scene.lights.iter().enumerate() {
             let t = PassTimer::start(format!("multi-map light {k}"));
             let active = active_receivers(ctx.gbuffer, light);
@@ -144,6 +145,7 @@ impl ShadowTechnique for MultiMap {
                     Pcf::Poisson(m) => poisson_disk(m, 1.5),
                     _ => Vec::new(),
                 },
+                points: &receivers_at,
             };
             let mut acc = vec![0u64; n];
             let mut rendered = 0u32;
