@@ -48,7 +48,8 @@ use crate::error::{Error, Result};
 use crate::sampling::grid_coordinate;
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
 use crate::shadow::kit::many_maps::{
-    active_receivers, point_on_light, receiver_points, quantize, resolve, MapSetup, RenderedMap, QSCALE,
+    active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup, RenderedMap,
+    QSCALE,
 };
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
@@ -373,7 +374,8 @@ impl AdaptiveMaps {
         let gd = if testing { side / 2 + 1 } else { 0 };
         let words = ((gd * gd) as usize).div_ceil(64);
         let dec = |i: u32, j: u32| -> Option<usize> {
-            (testing && i.is_multiple_of(2) && j.is_multiple_of(2)).then(|| (i / 2 + (j / 2) * gd) as usize)
+            (testing && i.is_multiple_of(2) && j.is_multiple_of(2))
+                .then(|| (i / 2 + (j / 2) * gd) as usize)
         };
         let mut bits = vec![0u64; if testing { n * words } else { 0 }];
         let mut cached = vec![false; (gd * gd) as usize];

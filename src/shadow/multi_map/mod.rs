@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::sampling::{PatternSampler, SamplePattern};
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
 use crate::shadow::kit::many_maps::{
-    active_receivers, point_on_light, receiver_points, quantize, resolve, MapSetup,
+    active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup,
 };
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
