@@ -100,7 +100,7 @@ def main():
                                       ["--adaptive-centre-depth", "0"]),
                                      ("adaptive-maps, ½ target + 3×3 PCF",
                                       ["--comparison-scale", "0.5", "--pcf", "3x3"])]):
-                    t, maps = render(args, scene, "adaptive-maps", extra, out("adaptive%d" % k))
+                    t, maps = render(args, scene, "adaptive-maps", grid + extra, out("adaptive%d" % k))
                     rows.append((label, t, maps, out("adaptive%d" % k)))
                 for label, t, maps, exr in rows:
                     print("| %s | %s | %s | %s | %s | %.0f | %.4f | %.4f |" % (
