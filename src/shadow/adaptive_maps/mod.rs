@@ -302,6 +302,13 @@ impl AdaptiveMaps {
             bytes: cache_bytes,
         });
         out.buffers.push(BufferNote {
+            name: "receiver points".into(),
+            detail: "f32 position and geometric normal per pixel, expanded from the G-buffer \
+                     once for every map's look-up"
+                .into(),
+            bytes: n as u64 * 24,
+        });
+        out.buffers.push(BufferNote {
             name: "map accumulators".into(),
             detail: format!(
                 "u64 per receiver: Σ ω · round(visibility · {QSCALE}) with integer weights \

@@ -177,6 +177,13 @@ impl ShadowTechnique for MultiMap {
             out.lights.push(LightTerm::Vcoef(vcoef));
         }
         out.buffers.push(BufferNote {
+            name: "receiver points".into(),
+            detail: "f32 position and geometric normal per pixel, expanded from the G-buffer \
+                     once for every map's look-up"
+                .into(),
+            bytes: n as u64 * 24,
+        });
+        out.buffers.push(BufferNote {
             name: "map accumulators".into(),
             detail: format!(
                 "u64 per receiver: Σ round(visibility · {}) over the maps (exact, order-free); \
