@@ -722,6 +722,13 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
             stsv: penumbra::shadow::stsv::StsvOptions {
                 opacity_filter: [Filter::Nearest, Filter::Bilinear][rng.range(0, 1) as usize],
             },
+            adaptive_maps: penumbra::shadow::adaptive_maps::AdaptiveMapsOptions {
+                adaptive_threshold: [0, 3][rng.range(0, 1) as usize],
+                max_depth: rng.range(0, 2) as u32,
+                comparison_scale: [1.0, 0.5, 0.01][rng.range(0, 2) as usize],
+                adaptive_centre_depth: rng.range(0, 2) as u32,
+                adaptive_split_all: rng.range(0, 3) == 0,
+            },
             shadow_map: penumbra::shadow::shadow_map::ShadowMapOptions {
                 map_size: [1, 16, 64][rng.range(0, 2) as usize],
                 pcf: ["1", "2x2", "3x3", "poisson:8"][rng.range(0, 3) as usize]

@@ -51,6 +51,7 @@
 //! | `poisson` | one Poisson-disk set (dart throwing on the torus) | Cranley–Patterson rotation |
 //! | `sobol` | first `N` points of the Sobol' (0,2)-sequence | random digital shift (XOR per pixel) |
 //! | `interleaved:n` | `n²` jittered grids, one per `(x mod n, y mod n)` | the pixel's place in the `n × n` tile |
+//! | `grid` | the regular `a × b` grid including the light's edges (17 × 17 for 289) | nothing: every pixel shares it |
 //!
 //! For the depth-complexity technique, [`LightSampler::chart_points`] gives
 //! each sample's coordinates in a planar chart of the light (rect: the
@@ -66,9 +67,9 @@ use crate::shade::LightSample;
 mod patterns;
 
 pub use patterns::{
-    max_packing_distance, poisson_dart_budget, poisson_dart_throwing, poisson_relative_radius,
-    poisson_target_distance, sobol02, toroidal_distance2, PatternSampler, PoissonSet,
-    SamplePattern, DEFAULT_INTERLEAVE, POISSON_MAX_LEVELS, POISSON_MIN_RELATIVE_RADIUS,
+    grid_coordinate, max_packing_distance, poisson_dart_budget, poisson_dart_throwing,
+    poisson_relative_radius, poisson_target_distance, sobol02, toroidal_distance2, PatternSampler,
+    PoissonSet, SamplePattern, DEFAULT_INTERLEAVE, POISSON_MAX_LEVELS, POISSON_MIN_RELATIVE_RADIUS,
     POISSON_RESTARTS, POISSON_SHRINK, POISSON_THESIS_DISTANCES,
 };
 

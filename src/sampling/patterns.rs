@@ -1,4 +1,5 @@
-//! Selectable sample patterns on the unit square `[0, 1)²`.
+//! Selectable sample patterns on the unit square `[0, 1)²` (`[0, 1]²` for
+//! [`SamplePattern::Grid`], whose points include the square's edges).
 //!
 //! A [`SamplePattern`] says how the `N` unit points of one light at one
 //! pixel are laid out and how they change from pixel to pixel; a
@@ -61,6 +62,14 @@ pub enum SamplePattern {
         /// Tile side (2 ≤ n ≤ 16 when parsed).
         n: u32,
     },
+    /// The regular `a × b` grid ([`Strata`]'s shape) including the light's
+    /// edges, shared by every pixel: point `k` in column `i = k mod a`,
+    /// row `j = k div a` is `(i / (a − 1), j / (b − 1))`, `0.5` along an
+    /// axis with a single point. For `N = (2^d + 1)²` this is the ground
+    /// truth of Schwärzler et al. 2012 (289 = 17 × 17, `d = 4`), the grid
+    /// their adaptive subdivision reaches at depth `d`. No jitter, no
+    /// decorrelation: the points are exactly representable (`i / 2^d`).
+    Grid,
 }
 
 /// The tile side of `interleaved` without a number.
@@ -76,10 +85,11 @@ impl SamplePattern {
         "poisson",
         "sobol",
         "interleaved",
+        "grid",
     ];
 
     /// Parses a pattern name: `stratified`, `correlated`, `rotated`,
-    /// `poisson`, `sobol` (or `02`, `sobol02`), `interleaved` (4 × 4),
+    /// `poisson`, `sobol` (or `02`, `sobol02`), `grid`, `interleaved` (4 × 4),
     /// `interleavedN` or `interleaved:N` with `2 ≤ N ≤ 16`. Case and
     /// surrounding blanks are ignored. The error lists the valid names.
     pub fn parse(name: &str) -> Result<SamplePattern, String> {
@@ -87,8 +97,8 @@ impl SamplePattern {
         let err = || {
             format!(
                 "unknown sample pattern `{}`: expected one of stratified, correlated, \
-                 rotated, poisson, sobol (or 02), interleaved (4×4), interleavedN or \
-                 interleaved:N with N in 2..=16",
+                 rotated, poisson, sobol (or 02), grid, interleaved (4×4), interleavedN \
+                 or interleaved:N with N in 2..=16",
                 name.trim()
             )
         };
@@ -98,6 +108,7 @@ impl SamplePattern {
             "rotated" => SamplePattern::Rotated,
             "poisson" => SamplePattern::Poisson,
             "sobol" | "02" | "sobol02" => SamplePattern::Sobol02,
+            "grid" => SamplePattern::Grid,
             "interleaved" => SamplePattern::Interleaved {
                 n: DEFAULT_INTERLEAVE,
             },
@@ -117,7 +128,7 @@ impl SamplePattern {
 
     /// The canonical name, which [`SamplePattern::parse`] maps back to
     /// `self`: `stratified`, `correlated`, `rotated`, `poisson`, `sobol`,
-    /// `interleaved:N`.
+    /// `interleaved:N`, `grid`.
     pub fn name(&self) -> String {
         match self {
             SamplePattern::Stratified => "stratified".into(),
@@ -126,14 +137,16 @@ impl SamplePattern {
             SamplePattern::Poisson => "poisson".into(),
             SamplePattern::Sobol02 => "sobol".into(),
             SamplePattern::Interleaved { n } => format!("interleaved:{n}"),
+            SamplePattern::Grid => "grid".into(),
         }
     }
 
     /// Whether neighbouring pixels get different point sets (every pattern
-    /// but [`Correlated`](SamplePattern::Correlated); interleaved sets
-    /// repeat every `n` pixels).
+    /// but [`Correlated`](SamplePattern::Correlated) and
+    /// [`Grid`](SamplePattern::Grid); interleaved sets repeat every `n`
+    /// pixels).
     pub fn is_decorrelated(&self) -> bool {
-        !matches!(self, SamplePattern::Correlated)
+        !matches!(self, SamplePattern::Correlated | SamplePattern::Grid)
     }
 }
 
@@ -455,6 +468,20 @@ pub fn poisson_dart_throwing(n: u32, seed: u64, light_index: usize) -> PoissonSe
     unreachable!("at distance 0 every dart is accepted within the budget")
 }
 
+// ------------------------------------------------------------ grid
+
+/// Coordinate `i` of `m` grid points on `[0, 1]` including both ends:
+/// `i / (m − 1)`, or `0.5` when `m ≤ 1`. One IEEE division of two small
+/// integers: `i / 2^d` exactly when `m = 2^d + 1`.
+#[inline]
+pub fn grid_coordinate(i: u32, m: u32) -> f64 {
+    if m <= 1 {
+        0.5
+    } else {
+        f64::from(i) / f64::from(m - 1)
+    }
+}
+
 // ------------------------------------------------------------ sampler
 
 /// One pixel's view of a [`PatternSampler`]: what point `k` needs.
@@ -478,6 +505,8 @@ pub(crate) enum PixelPoints<'a> {
         base: &'a [(u32, u32)],
         shift: (u32, u32),
     },
+    /// The regular grid including the edges (grid).
+    Grid { strata: Strata },
 }
 
 impl PixelPoints<'_> {
@@ -521,6 +550,10 @@ impl PixelPoints<'_> {
                     f64::from(x ^ shift.0) * INV_2_32,
                     f64::from(y ^ shift.1) * INV_2_32,
                 )
+            }
+            PixelPoints::Grid { strata } => {
+                let (i, j) = strata.cell(k);
+                (grid_coordinate(i, strata.a), grid_coordinate(j, strata.b))
             }
         }
     }
@@ -647,6 +680,7 @@ impl PatternSampler {
                 base: self.poisson.as_ref().map_or(&[], |p| &p.points),
                 shift: shift(TAG_POISSON_SHIFT),
             },
+            SamplePattern::Grid => PixelPoints::Grid { strata },
             SamplePattern::Sobol02 => {
                 let key = pixel_tag_key(seed, light, pixel, TAG_DIGITAL_SHIFT);
                 PixelPoints::Digital {
@@ -741,6 +775,26 @@ mod tests {
         assert_eq!(pts[3], (3 << 30, h >> 1));
     }
 
+    /// 289 grid points are the 17 × 17 grid `i / 16` with both edges, the
+    /// same for every pixel; one point is the centre.
+    #[test]
+    fn grid_includes_the_edges() {
+        let g = PatternSampler::new(SamplePattern::Grid, 289, 3, 0);
+        let mut a = Vec::new();
+        let mut b = Vec::new();
+        g.unit_points((0, 0), &mut a);
+        g.unit_points((91, 7), &mut b);
+        assert_eq!(a, b);
+        assert_eq!(a[0], (0.0, 0.0));
+        assert_eq!(a[16], (1.0, 0.0));
+        assert_eq!(a[288], (1.0, 1.0));
+        assert_eq!(a[17 * 3 + 5], (5.0 / 16.0, 3.0 / 16.0));
+        let one = PatternSampler::new(SamplePattern::Grid, 1, 3, 0);
+        assert_eq!(one.point((0, 0), 0), (0.5, 0.5));
+        assert_eq!(SamplePattern::parse("grid"), Ok(SamplePattern::Grid));
+        assert!(!SamplePattern::Grid.is_decorrelated());
+    }
+
     #[test]
     fn wrap_add_stays_in_the_unit_interval() {
         let below_one = 1.0 - f64::EPSILON / 2.0;
@@ -764,6 +818,7 @@ mod for_each_tests {
             "poisson",
             "sobol",
             "interleaved:3",
+            "grid",
         ] {
             let pattern = SamplePattern::parse(pattern).unwrap();
             for n in [1, 7, 16, 64, 100] {

@@ -57,7 +57,12 @@ impl Extent {
         for l in lights {
             match l.shape {
                 LightShape::Rect { center, u, v, .. } => {
-                    for p in [center + u + v, center + u - v, center - u + v, center - u - v] {
+                    for p in [
+                        center + u + v,
+                        center + u - v,
+                        center - u + v,
+                        center - u - v,
+                    ] {
                         self.grow(p);
                     }
                 }

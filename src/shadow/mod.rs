@@ -6,8 +6,10 @@
 //! it) or the shadowed direct radiance it integrated itself per light
 //! sample. It may add AOV layers of its own and reports its passes' times.
 
+pub mod adaptive_maps;
 pub mod dcs;
 pub mod kit;
+pub mod multi_map;
 pub mod pcss;
 pub mod reference;
 pub mod registry;

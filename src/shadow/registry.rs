@@ -8,6 +8,7 @@
 //! options of its own, one flattened field in [`TechniqueOptions`]
 //! (see docs/architecture.md, "How to add a technique").
 
+use super::adaptive_maps::AdaptiveMapsOptions;
 use super::dcs::DcsOptions;
 use super::pcss::PcssOptions;
 use super::shadow_map::ShadowMapOptions;
@@ -32,6 +33,8 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::dcs::TECHNIQUE,
     &super::shadow_map::TECHNIQUE,
     &super::pcss::TECHNIQUE,
+    &super::multi_map::TECHNIQUE,
+    &super::adaptive_maps::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -54,6 +57,10 @@ pub struct TechniqueOptions {
     /// Percentage-closer soft shadows (with the shadow-map options).
     #[command(flatten)]
     pub pcss: PcssOptions,
+    /// Adaptive light-source sampling (the map options are the shadow
+    /// maps').
+    #[command(flatten)]
+    pub adaptive_maps: AdaptiveMapsOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]

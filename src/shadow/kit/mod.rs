@@ -10,6 +10,9 @@
 //! - [`light_view`]: views from a point on a light and caster depth maps.
 //! - [`shadow_maps`]: what the shadow-map techniques share: receiver
 //!   projection with depth bias, the hard test, PCF.
+//! - [`many_maps`]: what the many-map techniques share: points on the
+//!   light, receivers facing it, one map consumed by every receiver, exact
+//!   integer accumulation.
 //! - [`light_frame`]: the rect light's frame, projections into it,
 //!   clipping to it and region integrals.
 //! - [`enclosure`]: lights inside closed casters.
@@ -22,6 +25,7 @@ pub mod enclosure;
 pub mod groups;
 pub mod light_frame;
 pub mod light_view;
+pub mod many_maps;
 pub mod membership;
 pub mod rays;
 pub mod shadow_maps;

@@ -1,0 +1,97 @@
+//! Shadow maps rendered per second (the depth pass of the opaque casters
+//! through a light view, `kit::shadow_maps::opaque_depth_map`) at 512² and
+//! 1024² on `scenes/spheres.toml` (61,562 triangles) and
+//! `scenes/bunny.toml`, from the light's centre; and the whole multi-map
+//! technique with 64 maps on spheres at 512² (image and maps), the
+//! configuration of `../shared/peers/glsv`'s 64-pass accumulation
+//! (docs/performance.md).
+//!
+//! Run: `cargo bench --bench shadow_maps`. Criterion reports elements/s =
+//! maps per second (maps per second × 64 for the multi-map group).
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use penumbra::gbuffer::gbuffer_pass;
+use penumbra::geom::SceneGeometry;
+use penumbra::render::{view_for, RenderOptions};
+use penumbra::scene::{load_scene, Scene};
+use penumbra::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+use penumbra::shadow::kit::shadow_maps::{centre_point, light_view_at, opaque_depth_map};
+use penumbra::shadow::multi_map::MultiMap;
+use penumbra::shadow::{ShadowContext, ShadowTechnique, TechniqueOptions};
+use std::path::Path;
+
+fn scene(name: &str) -> Scene {
+    load_scene(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes")
+            .join(name),
+    )
+    .expect("shipped scene loads")
+}
+
+fn maps_per_second(c: &mut Criterion) {
+    let mut group = c.benchmark_group("shadow_maps");
+    group.sample_size(20);
+    for name in ["spheres.toml", "bunny.toml"] {
+        let scene = scene(name);
+        let geometry = SceneGeometry::new(&scene);
+        let casters = caster_bounds(&scene).expect("casters");
+        let receivers = receiver_bounds(&scene).expect("receivers");
+        let light = &scene.lights[0];
+        for size in [512u32, 1024] {
+            let lv = light_view_at(
+                light,
+                centre_point(light, casters),
+                casters,
+                receivers,
+                (size, size),
+            )
+            .expect("view")
+            .expect("casters in front");
+            group.throughput(Throughput::Elements(1));
+            group.bench_function(format!("{name}_{size}"), |b| {
+                b.iter(|| opaque_depth_map(&scene, &geometry, &lv.view).expect("map"))
+            });
+        }
+    }
+    group.finish();
+}
+
+fn multi_map_64(c: &mut Criterion) {
+    let scene = scene("spheres.toml");
+    let options = RenderOptions {
+        width: Some(512),
+        height: Some(512),
+        ..RenderOptions::default()
+    };
+    let view = view_for(&scene, &options).expect("view");
+    let geometry = SceneGeometry::new(&scene);
+    let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
+    let cache = penumbra::shadow::ShadowCache::new(&scene, &geometry);
+    let ctx = ShadowContext {
+        scene: &scene,
+        geometry: &geometry,
+        view: &view,
+        gbuffer: &gbuffer,
+        depth: &depth,
+        cache: &cache,
+    };
+    let mut maps = TechniqueOptions::default().shadow_map;
+    maps.map_size = 512;
+    let technique = MultiMap {
+        maps: 64,
+        pattern: penumbra::sampling::SamplePattern::Stratified,
+        seed: 0,
+        options: maps,
+    };
+    let mut group = c.benchmark_group("multi_map_spheres_512");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(64));
+    group.bench_function("64_maps", |b| {
+        b.iter(|| technique.compute(&ctx).expect("multi-map"))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, maps_per_second, multi_map_64);
+criterion_main!(benches);

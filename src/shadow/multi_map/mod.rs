@@ -1,0 +1,203 @@
+//! Many hard shadow maps per light, accumulated (Heckbert and Herf 1997;
+//! the brute-force baseline of Schwärzler et al. 2012, §3.2): `--samples N`
+//! points on the light, one hard map from each, and each receiver's Vcoef
+//! the mean of its `N` map look-ups (eq. 2, as visibility `1 − ψ̂`).
+//!
+//! The points are the sampling module's: `--pattern`'s unit points of
+//! pixel `(0, 0)`, used for every receiver (a map is one point for the
+//! whole image). For `correlated` and `grid` (the regular grid including
+//! the edges, Schwärzler's 17 × 17 ground truth at 289) these are exactly
+//! the points the reference traces at every pixel; for the per-pixel
+//! patterns they are one set of that layout. Rect lights map them as the
+//! sampling module does; sphere lights get the receiver-independent
+//! stand-in of [`point_on_light`] (stated in the docs).
+//!
+//! Maps are rendered and consumed one at a time: per receiver one `u64`
+//! accumulator, whatever `N` ([`crate::shadow::kit::many_maps`]).
+//! Receivers facing away from the whole light get no look-ups (Vcoef 0),
+//! a light no receiver faces no maps.
+
+use crate::error::{Error, Result};
+use crate::sampling::{PatternSampler, SamplePattern};
+use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+use crate::shadow::kit::many_maps::{
+    active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup,
+};
+use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
+use crate::shadow::kit::PassTimer;
+use crate::shadow::registry::{Capabilities, QualitySetting, Support, TechniqueInfo, TermKind};
+use crate::shadow::shadow_map::ShadowMapOptions;
+use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
+
+/// Largest `--samples` multi-map accepts: the `u64` accumulators then hold
+/// `N · QSCALE` with room to spare, and 65536 full maps is hours of work.
+pub const MAX_MAPS: u32 = 65536;
+
+/// The multi-map technique.
+#[derive(Debug, Clone, Copy)]
+pub struct MultiMap {
+    /// Maps per light.
+    pub maps: u32,
+    /// Where on the light they are.
+    pub pattern: SamplePattern,
+    /// Seed of the pattern and of the Poisson-PCF rotation.
+    pub seed: u64,
+    /// Map size, filter and biases.
+    pub options: ShadowMapOptions,
+}
+
+/// Multi-map in the technique registry.
+pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
+    name: "multi-map",
+    summary: "--samples hard shadow maps per light from the pattern's points, averaged per receiver (the brute-force image-based soft shadow)",
+    module: "shadow/multi_map/",
+    page: Some("adaptive-light-sampling.md"),
+    capabilities: |_| Capabilities {
+        rect_lights: Support::Yes,
+        sphere_lights: Support::Yes,
+        textured_lights: Support::Ignored(
+            "every map has the same weight: the light's radiance texture does not weight \
+             the maps (the unshadowed light still uses it)",
+        ),
+        enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        semi_opaque: Support::Ignored(
+            "the depth maps hold opaque casters only; casters of constant opacity below 1 \
+             cast no shadow here (use dcs or reference)",
+        ),
+        s_triangles: Support::StsvAddOn,
+        output: TermKind::Vcoef,
+        exact: false,
+    },
+    quality_settings: |s| {
+        let size = s.base.shadow_map.map_size;
+        s.samples
+            .iter()
+            .map(|&n| QualitySetting {
+                curve: "multi-map".into(),
+                label: format!("{n} maps, {size}²"),
+                samples: Some(n),
+                pattern: s.first_pattern(),
+                options: s.base.clone(),
+            })
+            .collect()
+    },
+    build: |p| {
+        Box::new(MultiMap {
+            maps: p.samples,
+            pattern: p.pattern,
+            seed: p.seed,
+            options: p.options.shadow_map,
+        })
+    },
+};
+
+impl ShadowTechnique for MultiMap {
+    fn name(&self) -> &'static str {
+        "multi-map"
+    }
+
+    fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
+        if !(1..=MAX_MAPS).contains(&self.maps) {
+            return Err(Error::param(
+                "--samples",
+                format!(
+                    "multi-map renders one map per sample: {} is outside 1..={MAX_MAPS}",
+                    self.maps
+                ),
+            ));
+        }
+        let bias = self.options.bias();
+        bias.validate()?;
+        let mut out = ShadowOutput::default();
+        let n = ctx.gbuffer.len();
+        let (Some(casters), Some(receivers)) =
+            (caster_bounds(ctx.scene), receiver_bounds(ctx.scene))
+        else {
+            out.lights = ctx
+                .scene
+                .lights
+                .iter()
+                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
+                .collect();
+            return Ok(out);
+        };
+        let pcf = self.options.pcf;
+        let size = self.options.map_size;
+        let mut peak_map = 0u64;
+        let receivers_at = receiver_points(ctx.gbuffer);
+        for (k, light) in ctx.scene.lights.iter().enumerate() {
+            let t = PassTimer::start(format!("multi-map light {k}"));
+            let active = active_receivers(ctx.gbuffer, light);
+            let faced = active.iter().filter(|&&a| a).count();
+            let mut points = Vec::new();
+            if faced > 0 {
+                PatternSampler::new(self.pattern, self.maps, self.seed, k)
+                    .unit_points((0, 0), &mut points);
+            }
+            let setup = MapSetup {
+                ctx,
+                light: k,
+                casters,
+                receivers,
+                size,
+                bias,
+                seed: self.seed,
+                taps: match pcf {
+                    Pcf::Poisson(m) => poisson_disk(m, 1.5),
+                    _ => Vec::new(),
+                },
+                points: &receivers_at,
+            };
+            let mut acc = vec![0u64; n];
+            let mut rendered = 0u32;
+            for &st in &points {
+                let map = setup.render(point_on_light(light, st, casters))?;
+                if let Some(m) = &map {
+                    rendered += 1;
+                    peak_map = peak_map.max(m.map.memory_bytes());
+                }
+                setup.consume(map.as_ref(), pcf, &active, &mut acc, 1, |v, a| {
+                    a[0] += quantize(v);
+                });
+            }
+            let total = points.len() as u64;
+            let vcoef: Vec<f32> = acc.iter().map(|&a| resolve(a, total)).collect();
+            t.finish_with(&mut out.passes, format!("{rendered} maps"));
+            out.buffers.push(BufferNote {
+                name: "shadow maps".into(),
+                detail: format!(
+                    "{rendered} rendered for light {k} ({} points of pattern {}; {} of {n} \
+                     receivers face the light, the others get no look-up), one resident at a \
+                     time ({size}² f32 linear depth)",
+                    points.len(),
+                    self.pattern,
+                    faced
+                ),
+                bytes: peak_map,
+            });
+            out.lights.push(LightTerm::Vcoef(vcoef));
+        }
+        out.buffers.push(BufferNote {
+            name: "receiver points".into(),
+            detail: "f32 position and geometric normal per pixel, expanded from the G-buffer \
+                     once for every map's look-up"
+                .into(),
+            bytes: n as u64 * 24,
+        });
+        out.buffers.push(BufferNote {
+            name: "map accumulators".into(),
+            detail: format!(
+                "u64 per receiver: Σ round(visibility · {}) over the maps (exact, order-free); \
+                 one per light at a time",
+                crate::shadow::kit::many_maps::QSCALE
+            ),
+            bytes: n as u64 * 8,
+        });
+        out.buffers.push(BufferNote {
+            name: "receivers facing the light".into(),
+            detail: "one byte per pixel, per light at a time".into(),
+            bytes: n as u64,
+        });
+        Ok(out)
+    }
+}
