@@ -11,6 +11,7 @@ pub mod kit;
 pub mod reference;
 pub mod registry;
 pub mod shadow_map;
+pub mod soft_shadow_map;
 pub mod shadow_volumes;
 pub mod stsv;
 pub mod wedges;

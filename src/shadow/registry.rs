@@ -11,6 +11,7 @@
 use super::dcs::DcsOptions;
 use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
+use super::soft_shadow_map::SsmOptions;
 use super::stsv::StsvOptions;
 use super::ShadowTechnique;
 use crate::error::{Error, Result};
@@ -28,6 +29,7 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::wedges::blend::TECHNIQUE,
     &super::dcs::TECHNIQUE,
     &super::shadow_map::TECHNIQUE,
+    &super::soft_shadow_map::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -47,6 +49,9 @@ pub struct TechniqueOptions {
     /// Shadow maps.
     #[command(flatten)]
     pub shadow_map: ShadowMapOptions,
+    /// Soft shadow maps.
+    #[command(flatten)]
+    pub ssm: SsmOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]
