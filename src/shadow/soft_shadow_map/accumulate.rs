@@ -33,6 +33,8 @@ pub struct Patches {
     /// Per SSM row `r`, the patches of that row are
     /// `row_start[r]..row_start[r + 1]`.
     pub row_start: Vec<u32>,
+    /// Smallest patch depth (`+∞` when empty), set by [`Patches::finish`].
+    pub min_depth: f32,
 }
 
 impl Patches {
@@ -51,9 +53,9 @@ impl Patches {
         (self.len() * 12 + self.row_start.len() * 4) as u64
     }
 
-    /// Smallest patch depth (`+∞` when empty).
-    pub fn min_depth(&self) -> f32 {
-        self.depth.iter().copied().fold(f32::INFINITY, f32::min)
+    /// Sets the derived fields once the patches are in.
+    pub fn finish(&mut self) {
+        self.min_depth = self.depth.iter().copied().fold(f32::INFINITY, f32::min);
     }
 
     /// The patches of SSM row `r` with columns in `lo..=hi`, as an index

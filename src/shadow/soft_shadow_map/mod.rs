@@ -190,7 +190,7 @@ impl SsmLight {
         let prm = &self.params;
         let mut best = 0.0f32;
         for p in &self.passes {
-            let zmin = p.min_depth();
+            let zmin = p.min_depth;
             if !(zmin < test_depth) {
                 continue;
             }
@@ -543,6 +543,7 @@ fn patches(
             p.row_start[r] = p.row_start[r - 1];
         }
     }
+    p.finish();
     p
 }
 
