@@ -4,12 +4,12 @@
 
 mod common;
 
+use glam::DVec3;
 use penumbra::render::{render, RenderOptions};
 use penumbra::report::Progress;
 use penumbra::scene::Scene;
 use penumbra::shadow::soft_shadow_map::SsmLight;
 use penumbra::shadow::{Technique, TechniqueOptions};
-use glam::DVec3;
 
 fn vcoef(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> Vec<f32> {
     let mut options = RenderOptions {
@@ -64,7 +64,12 @@ fn a_gather_at_a_texel_centre_is_the_texel() {
                 }
                 let test = z - z * ssm.params.bias;
                 let g = ssm.gather((x as f64 + 0.5, y as f64 + 0.5), z, test);
-                assert_eq!(g.to_bits(), ssm.ssm[k].to_bits(), "{acc} texel ({x}, {y}): gather {g} vs {}", ssm.ssm[k]);
+                assert_eq!(
+                    g.to_bits(),
+                    ssm.ssm[k].to_bits(),
+                    "{acc} texel ({x}, {y}): gather {g} vs {}",
+                    ssm.ssm[k]
+                );
                 checked += (g > 0.0) as usize;
             }
         }
@@ -80,7 +85,10 @@ fn split_quad(name: &str, y: f32, h: f32) -> Scene {
         .unwrap()
         .replace("u = [0.5, 0.0, 0.0]", &format!("u = [{h}, 0.0, 0.0]"))
         .replace("v = [0.0, 0.0, 0.5]", &format!("v = [0.0, 0.0, {h}]"))
-        .replace("size = [6.0, 6.0]", "size = [6.0, 6.0]\ncast_shadows = false")
+        .replace(
+            "size = [6.0, 6.0]",
+            "size = [6.0, 6.0]\ncast_shadows = false",
+        )
         .replace(
             "translate = [0.0, 1.0, 0.0]",
             &format!("translate = [0.0, {y}, 0.0]\nreceive_shadows = false"),
@@ -134,7 +142,10 @@ fn an_aligned_planar_occluder_gives_the_closed_form_overlap() {
         // padding).
         assert_eq!(ssm.passes[0].len(), (size * size) as usize);
         let z_o = ssm.passes[0].depth[0] as f64;
-        assert!(ssm.passes[0].depth.iter().all(|&z| (z as f64 - 3.0).abs() < 1e-6));
+        assert!(ssm.passes[0]
+            .depth
+            .iter()
+            .all(|&z| (z as f64 - 3.0).abs() < 1e-6));
         let view = &ssm.view;
         let (ex, ey) = (ssm.margin.0 as f64, ssm.margin.1 as f64);
         let (dx, dy) = (
@@ -143,7 +154,8 @@ fn an_aligned_planar_occluder_gives_the_closed_form_overlap() {
         );
         let (l, r) = (view.window.left + ex * dx, view.window.right - ex * dx);
         let (b, t) = (view.window.bottom + ey * dy, view.window.top - ey * dy);
-        let corner = |x: f64, y: f64| view.eye + (view.forward + view.right * x + view.up * y) * z_o;
+        let corner =
+            |x: f64, y: f64| view.eye + (view.forward + view.right * x + view.up * y) * z_o;
         let window = [corner(l, b), corner(r, b), corner(r, t), corner(l, t)];
         let quad = [
             DVec3::new(-0.5, 1.0, -0.5),
@@ -164,8 +176,14 @@ fn an_aligned_planar_occluder_gives_the_closed_form_overlap() {
             }
         }
         assert!(penumbra > 50, "the test needs a penumbra: {penumbra}");
-        assert!(worst <= 1e-6, "{size}²: |SSM − closed form| up to {worst:e}");
-        assert!(worst_quad <= 1e-4, "{size}²: against the quad itself {worst_quad:e}");
+        assert!(
+            worst <= 1e-6,
+            "{size}²: |SSM − closed form| up to {worst:e}"
+        );
+        assert!(
+            worst_quad <= 1e-4,
+            "{size}²: against the quad itself {worst_quad:e}"
+        );
     }
 }
 
@@ -193,8 +211,15 @@ fn a_vanishing_light_converges_to_the_hard_shadow_map() {
             .zip(&hard)
             .filter(|(a, b)| (**a - **b).abs() > 0.5)
             .count();
-        assert!(differ <= 8, "{lookup}: {differ} pixels differ from the hard map");
-        let mean: f32 = soft.iter().zip(&hard).map(|(a, b)| (a - b).abs()).sum::<f32>()
+        assert!(
+            differ <= 8,
+            "{lookup}: {differ} pixels differ from the hard map"
+        );
+        let mean: f32 = soft
+            .iter()
+            .zip(&hard)
+            .map(|(a, b)| (a - b).abs())
+            .sum::<f32>()
             / soft.len() as f32;
         assert!(mean < 2e-3, "{lookup}: mean |Δ| {mean}");
     }
@@ -232,9 +257,18 @@ fn f16_fails_where_eq_4_says_and_batches_fix_it() {
     assert!((f32_small - 1.0).abs() < 1e-5 && (f32_large - 1.0).abs() < 1e-4);
     // Below eq. 4's threshold every add moves the sum, each off by at
     // most half an ulp (2^-12 below 1): a few percent, no stall.
-    assert!((f16_small - 1.0).abs() < 0.03, "f16 at n = {n_small}: {f16_small}");
-    assert!(f16_large < 0.6, "f16 at n = {n_large} should stall: {f16_large}");
-    assert!((batched_large - 1.0).abs() < 5e-3, "batched: {batched_large}");
+    assert!(
+        (f16_small - 1.0).abs() < 0.03,
+        "f16 at n = {n_small}: {f16_small}"
+    );
+    assert!(
+        f16_large < 0.6,
+        "f16 at n = {n_large} should stall: {f16_large}"
+    );
+    assert!(
+        (batched_large - 1.0).abs() < 5e-3,
+        "batched: {batched_large}"
+    );
 }
 
 /// An occluder touching the receiver (eq. 3's overlap bound diverges as
@@ -242,7 +276,10 @@ fn f16_fails_where_eq_4_says_and_batches_fix_it() {
 /// [0, 1], and the contact is in shadow.
 #[test]
 fn occluders_touching_the_receiver_or_the_light_give_no_nan() {
-    for (name, y) in [("ssm-touch-receiver", 0.0005f32), ("ssm-touch-light", 3.9995)] {
+    for (name, y) in [
+        ("ssm-touch-receiver", 0.0005f32),
+        ("ssm-touch-light", 3.9995),
+    ] {
         let scene = split_quad(name, y, 0.5);
         for acc in ["f32", "f16", "f16-batched"] {
             for passes in [1u8, 2] {
@@ -290,7 +327,10 @@ fn the_same_bits_for_any_thread_count() {
         };
         let one: Vec<u32> = run(1).iter().map(|v| v.to_bits()).collect();
         let two: Vec<u32> = run(2).iter().map(|v| v.to_bits()).collect();
-        assert!(one.iter().any(|&b| f32::from_bits(b) < 0.5), "{acc}: no shadow");
+        assert!(
+            one.iter().any(|&b| f32::from_bits(b) < 0.5),
+            "{acc}: no shadow"
+        );
         assert_eq!(one, two, "{acc}");
     }
 }
@@ -313,5 +353,8 @@ fn sphere_lights_are_refused() {
     };
     let e = render(&scene, &options, &Progress::hidden()).expect_err("refused");
     let msg = e.to_string();
-    assert!(msg.contains("--technique") && msg.contains("rectangle"), "{msg}");
+    assert!(
+        msg.contains("--technique") && msg.contains("rectangle"),
+        "{msg}"
+    );
 }

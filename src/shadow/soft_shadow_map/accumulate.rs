@@ -225,7 +225,10 @@ impl Bins {
                             let rx = reach(params.hx_texels, 1.0, z as f64, zt as f64);
                             let ry = reach(params.hy_texels, 1.0, z as f64, zt as f64);
                             let (kx0, ky0) = ((k * TILE) as i64, (j * TILE) as i64);
-                            if x + rx >= kx0 && x - rx < kx0 + t && y + ry >= ky0 && y - ry < ky0 + t
+                            if x + rx >= kx0
+                                && x - rx < kx0 + t
+                                && y + ry >= ky0
+                                && y - ry < ky0 + t
                             {
                                 out.push(((j * tx + k) as u32, i as u32));
                             }

@@ -278,13 +278,7 @@ impl SsmLight {
                 (weight > 0.0).then(|| sum / weight)
             }
         };
-        found.unwrap_or_else(|| {
-            self.gather(
-                (r.uv.x, r.uv.y),
-                r.depth as f32,
-                r.test_depth as f32,
-            )
-        })
+        found.unwrap_or_else(|| self.gather((r.uv.x, r.uv.y), r.depth as f32, r.test_depth as f32))
     }
 }
 
@@ -343,7 +337,10 @@ fn back_face_map(scene: &Scene, geometry: &SceneGeometry, view: &View) -> Result
     let mut depth = vec![f32::INFINITY; w * h];
     let tiles = fb.tiles_mut();
     for (t, tile) in tiles.iter().enumerate() {
-        let (x0, y0) = ((t % grid.tiles_x) * TILE_SIZE, (t / grid.tiles_x) * TILE_SIZE);
+        let (x0, y0) = (
+            (t % grid.tiles_x) * TILE_SIZE,
+            (t / grid.tiles_x) * TILE_SIZE,
+        );
         for r in 0..TILE_SIZE.min(h.saturating_sub(y0)) {
             for c in 0..TILE_SIZE.min(w - x0) {
                 let d = tile.depth[r * TILE_SIZE + c];
@@ -509,10 +506,16 @@ fn patches(
     sh: u32,
 ) -> Patches {
     let at = |m: &[f32], x: u32, y: u32| m[(y * w + x) as usize];
-    let mut p = Patches::default();
-    p.row_start = vec![0; sh as usize + 1];
+    let mut p = Patches {
+        row_start: vec![0; sh as usize + 1],
+        ..Patches::default()
+    };
     let empty = |x: i64, y: i64| {
-        x < 0 || y < 0 || x >= w as i64 || y >= h as i64 || !at(front, x as u32, y as u32).is_finite()
+        x < 0
+            || y < 0
+            || x >= w as i64
+            || y >= h as i64
+            || !at(front, x as u32, y as u32).is_finite()
     };
     for y in 0..h {
         for x in 0..w {
@@ -525,8 +528,10 @@ fn patches(
             p.depth.push(z);
             if let Some(b) = bottom {
                 let (xi, yi) = (x as i64, y as i64);
-                let outline =
-                    empty(xi - 1, yi) || empty(xi + 1, yi) || empty(xi, yi - 1) || empty(xi, yi + 1);
+                let outline = empty(xi - 1, yi)
+                    || empty(xi + 1, yi)
+                    || empty(xi, yi - 1)
+                    || empty(xi, yi + 1);
                 let zb = at(b, x, y);
                 if outline && zb.is_finite() && zb > z {
                     p.x.push(x + ex);
@@ -645,4 +650,3 @@ impl ShadowTechnique for SoftShadowMap {
         Ok(out)
     }
 }
-
