@@ -393,10 +393,16 @@ mod tests {
 
     #[test]
     fn f16_addition_rounds_like_the_hardware() {
-        // The paper's examples: 2048 + 1 = 2048 and 0.5 + 1/2049 = 0.5.
+        // 2048 + 1 = 2048 (the paper's example: a tie, to even).
         assert_eq!(add_f16(f16::from_f32(2048.0), 1.0).to_f32(), 2048.0);
-        assert_eq!(add_f16(f16::from_f32(0.5), 1.0 / 2049.0).to_f32(), 0.5);
-        // Just above half an ulp of 0.5 (2^-12) rounds up.
+        // The paper's 0.5 + 1/2049 = 0.5 holds only when rounding toward
+        // zero; IEEE round-to-nearest gives 0.5 + 2^-11 (0.99 ulp rounds
+        // up), and a sum stalls only below half an ulp.
+        assert_eq!(
+            add_f16(f16::from_f32(0.5), 1.0 / 2049.0).to_f32(),
+            0.5 + 1.0 / 2048.0
+        );
+        assert_eq!(add_f16(f16::from_f32(0.5), 1.0 / 4097.0).to_f32(), 0.5);
         let up = add_f16(f16::from_f32(0.5), 1.0 / 4000.0).to_f32();
         assert_eq!(up, 0.5 + 1.0 / 2048.0);
         assert_eq!(batch_size(100), 10);
