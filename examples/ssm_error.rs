@@ -99,8 +99,8 @@ fn main() {
     };
     let all = |r: &Run| vec![true; r.vcoef.len()];
     println!("## Map size and passes (f32, bilinear), {SIZE}² pixels, reference 1024 spp\n");
-    println!("| scene | map | passes | RMSE | MAE penumbra | paper metric | time (s) |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| scene | map | passes | RMSE | MAE penumbra | paper metric | RMSE ground | paper metric ground | time (s) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     let mut refs = Vec::new();
     for (name, scene) in &scenes {
         let reference = run(scene, "reference", |_| {});
@@ -111,8 +111,9 @@ fn main() {
                     o.options.ssm.ssm_passes = passes;
                 });
                 let (rmse, mae, paper) = metrics(&r.vcoef, &reference.vcoef, &all(&r));
+                let (rg, _, pg) = metrics(&r.vcoef, &reference.vcoef, &r.ground);
                 println!(
-                    "| {name} | {size} | {passes} | {rmse:.4} | {mae:.4} | {paper:.4} | {:.3} |",
+                    "| {name} | {size} | {passes} | {rmse:.4} | {mae:.4} | {paper:.4} | {rg:.4} | {pg:.4} | {:.3} |",
                     r.seconds
                 );
             }
@@ -121,8 +122,9 @@ fn main() {
             o.options.shadow_map.map_size = 1024
         });
         let (rmse, mae, paper) = metrics(&hard.vcoef, &reference.vcoef, &all(&hard));
+        let (rg, _, pg) = metrics(&hard.vcoef, &reference.vcoef, &hard.ground);
         println!(
-            "| {name} | shadow-map 1024 | — | {rmse:.4} | {mae:.4} | {paper:.4} | {:.3} |",
+            "| {name} | shadow-map 1024 | — | {rmse:.4} | {mae:.4} | {paper:.4} | {rg:.4} | {pg:.4} | {:.3} |",
             hard.seconds
         );
         refs.push(reference);

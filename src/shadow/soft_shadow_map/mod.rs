@@ -497,7 +497,8 @@ pub fn build_light(
 
 /// The micro-patches of an occluder map, in SSM texels (offset by the
 /// margin), in patch order; with `bottom`, a second patch at the back
-/// faces' depth under every outline texel (a 4-neighbour empty).
+/// faces' depth under every outline texel (a 4-neighbour empty or deeper
+/// than this texel's back face).
 fn patches(
     front: &[f32],
     bottom: Option<&[f32]>,
@@ -510,12 +511,10 @@ fn patches(
         row_start: vec![0; sh as usize + 1],
         ..Patches::default()
     };
-    let empty = |x: i64, y: i64| {
-        x < 0
-            || y < 0
-            || x >= w as i64
-            || y >= h as i64
-            || !at(front, x as u32, y as u32).is_finite()
+    // A neighbour beyond this texel's back face (or empty) exposes the
+    // occluder's side there: the texel is on the outline.
+    let beyond = |x: i64, y: i64, zb: f32| {
+        x < 0 || y < 0 || x >= w as i64 || y >= h as i64 || !(at(front, x as u32, y as u32) <= zb)
     };
     for y in 0..h {
         for x in 0..w {
@@ -528,11 +527,11 @@ fn patches(
             p.depth.push(z);
             if let Some(b) = bottom {
                 let (xi, yi) = (x as i64, y as i64);
-                let outline = empty(xi - 1, yi)
-                    || empty(xi + 1, yi)
-                    || empty(xi, yi - 1)
-                    || empty(xi, yi + 1);
                 let zb = at(b, x, y);
+                let outline = beyond(xi - 1, yi, zb)
+                    || beyond(xi + 1, yi, zb)
+                    || beyond(xi, yi - 1, zb)
+                    || beyond(xi, yi + 1, zb);
                 if outline && zb.is_finite() && zb > z {
                     p.x.push(x + ex);
                     p.y.push(y + ey);
