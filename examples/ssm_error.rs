@@ -88,6 +88,9 @@ fn metrics(a: &[f32], r: &[f32], keep: &[bool]) -> (f64, f64, f64) {
 
 fn main() {
     let quick = std::env::args().any(|a| a == "quick");
+    if std::env::args().any(|a| a == "height") {
+        return height();
+    }
     let scenes: Vec<(&str, Scene)> = ["quad.toml", "spheres.toml", "bunny.toml"]
         .iter()
         .map(|n| (*n, scene_from(n, |s| s)))
@@ -214,6 +217,10 @@ fn main() {
             }
         }
     }
+    height();
+}
+
+fn height() {
     println!("\n## Occluder height (quad, split flags, 256² map; light at 4)\n");
     println!("| occluder height | RMSE | MAE penumbra | paper metric | time (s) |");
     println!("|---|---|---|---|---|");

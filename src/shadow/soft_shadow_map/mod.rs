@@ -370,7 +370,12 @@ pub fn build_light(
         unreachable!("rect_half_sizes refuses other shapes");
     };
     let s = map.map_size;
-    let Some(first) = LightView::from_rect_light(light, center, casters, receivers, (s, s))? else {
+    // The kit fits the window to the casters the receivers' cone (from the
+    // centre) holds: right for a point light, but from the rest of an area
+    // light casters outside that cone shadow receivers too. Fit to the
+    // casters' whole projection instead (receivers ∪ casters).
+    let fit_to = (receivers.0.min(casters.0), receivers.1.max(casters.1));
+    let Some(first) = LightView::from_rect_light(light, center, casters, fit_to, (s, s))? else {
         return Ok(None);
     };
     // Texels similar to the light (§3.2): Δx / Δy = hx / hy.
@@ -382,7 +387,7 @@ pub fn build_light(
     } else {
         (((s as f64 * ratio).round() as u32).clamp(1, s), s)
     };
-    let Some(lv) = LightView::from_rect_light(light, center, casters, receivers, size)? else {
+    let Some(lv) = LightView::from_rect_light(light, center, casters, fit_to, size)? else {
         return Ok(None);
     };
     let view = lv.view;
