@@ -33,6 +33,7 @@ use penumbra::report::Progress;
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::load_scene;
 use penumbra::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
+use penumbra::shadow::soft_shadow_map::{Accumulate, Lookup};
 use penumbra::shadow::stsv::Filter;
 use penumbra::Error;
 use std::fmt::Write as _;
@@ -744,6 +745,13 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
                     penumbra::shadow::pcss::PcssKernel::Box,
                 ][rng.range(0, 1) as usize],
                 pcss_flat_receiver: rng.range(0, 1) == 1,
+            },
+            ssm: penumbra::shadow::soft_shadow_map::SsmOptions {
+                ssm_passes: [1, 2][rng.range(0, 1) as usize],
+                ssm_bottom_patches: rng.range(0, 1) == 1,
+                ssm_accumulate: [Accumulate::F32, Accumulate::F16, Accumulate::F16Batched]
+                    [rng.range(0, 2) as usize],
+                ssm_lookup: [Lookup::Nearest, Lookup::Bilinear][rng.range(0, 1) as usize],
             },
         },
     };

@@ -15,6 +15,7 @@ pub mod reference;
 pub mod registry;
 pub mod shadow_map;
 pub mod shadow_volumes;
+pub mod soft_shadow_map;
 pub mod stsv;
 pub mod wedges;
 

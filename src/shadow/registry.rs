@@ -13,6 +13,7 @@ use super::dcs::DcsOptions;
 use super::pcss::PcssOptions;
 use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
+use super::soft_shadow_map::SsmOptions;
 use super::stsv::StsvOptions;
 use super::ShadowTechnique;
 use crate::error::{Error, Result};
@@ -35,6 +36,7 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::pcss::TECHNIQUE,
     &super::multi_map::TECHNIQUE,
     &super::adaptive_maps::TECHNIQUE,
+    &super::soft_shadow_map::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -61,6 +63,9 @@ pub struct TechniqueOptions {
     /// maps').
     #[command(flatten)]
     pub adaptive_maps: AdaptiveMapsOptions,
+    /// Soft shadow maps.
+    #[command(flatten)]
+    pub ssm: SsmOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]
