@@ -8,6 +8,7 @@
 
 pub mod dcs;
 pub mod kit;
+pub mod penumbra_casting;
 pub mod reference;
 pub mod registry;
 pub mod shadow_map;

@@ -9,6 +9,7 @@
 //! (see docs/architecture.md, "How to add a technique").
 
 use super::dcs::DcsOptions;
+use super::penumbra_casting::PenumbraCastingOptions;
 use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
 use super::stsv::StsvOptions;
@@ -28,6 +29,7 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::wedges::blend::TECHNIQUE,
     &super::dcs::TECHNIQUE,
     &super::shadow_map::TECHNIQUE,
+    &super::penumbra_casting::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -47,6 +49,9 @@ pub struct TechniqueOptions {
     /// Shadow maps.
     #[command(flatten)]
     pub shadow_map: ShadowMapOptions,
+    /// Hierarchical penumbra casting.
+    #[command(flatten)]
+    pub penumbra_casting: PenumbraCastingOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]

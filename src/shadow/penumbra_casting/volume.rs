@@ -1,0 +1,336 @@
+//! Penumbra volumes from separating planes (§3.2), hard shadow volumes
+//! per light sample (4 planes), box-vs-volume and point-in-volume tests.
+//!
+//! Everything is in `f64`, relative to the light's centre (differences
+//! of `f32` inputs, exact). Penumbra-volume planes are unit-normalised so
+//! a point's value is a distance, and a point counts as inside when its
+//! value is `≥ −slack` (`slack` far above the planes' rounding, far below
+//! the tie distance): the culling is conservative with respect to the
+//! exact per-sample test, so the basic and every optimised traversal
+//! find the same blocked relations. The value of a plane is evaluated as
+//! `((nx x + ny y) + nz z) + d` everywhere: each rounding is monotonic in
+//! each coordinate, so a box whose "negative" corner is inside holds only
+//! inside points (the active-plane-set rule gives the point test's
+//! answer, bit for bit).
+
+use super::samples::LightBox;
+use glam::DVec3;
+
+/// Most planes kept per penumbra volume (a `u32` active set); further
+/// separating planes are dropped, which only loosens the volume.
+pub const MAX_PLANES: usize = 32;
+
+/// A plane `n·x + d`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Plane {
+    /// Normal.
+    pub n: [f64; 3],
+    /// Offset.
+    pub d: f64,
+}
+
+impl Plane {
+    /// The plane's value at `p`, in the one evaluation order.
+    #[inline(always)]
+    pub fn eval(&self, p: [f64; 3]) -> f64 {
+        ((self.n[0] * p[0] + self.n[1] * p[1]) + self.n[2] * p[2]) + self.d
+    }
+
+    /// The value at the corner of box `[lo, hi]` where it is least.
+    #[inline(always)]
+    fn box_min(&self, lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
+        let c = |i: usize| if self.n[i] >= 0.0 { lo[i] } else { hi[i] };
+        self.eval([c(0), c(1), c(2)])
+    }
+
+    /// The value at the corner where it is largest.
+    #[inline(always)]
+    fn box_max(&self, lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
+        let c = |i: usize| if self.n[i] >= 0.0 { hi[i] } else { lo[i] };
+        self.eval([c(0), c(1), c(2)])
+    }
+}
+
+/// A penumbra volume: the intersection of the inner sides of its planes
+/// (no planes: all of space).
+#[derive(Debug, Clone, Default)]
+pub struct PenumbraVolume {
+    /// The planes (unit normals), at most [`MAX_PLANES`].
+    pub planes: Vec<Plane>,
+}
+
+/// A box against a volume's active planes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoxTest {
+    /// Entirely outside one plane.
+    Outside,
+    /// Overlapping; the planes the box is not entirely inside of.
+    Active(u32),
+}
+
+impl PenumbraVolume {
+    /// Every plane active.
+    pub fn all(&self) -> u32 {
+        if self.planes.len() >= 32 {
+            u32::MAX
+        } else {
+            (1u32 << self.planes.len()) - 1
+        }
+    }
+
+    /// The box `[lo, hi]` against the `active` planes; with `prune`, the
+    /// planes it is entirely inside of leave the active set (§3.3 B).
+    #[inline]
+    pub fn test_box(&self, lo: &[f64; 3], hi: &[f64; 3], active: u32, slack: f64, prune: bool) -> BoxTest {
+        let mut out = active;
+        let mut bits = active;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let p = &self.planes[i];
+            if p.box_max(lo, hi) < -slack {
+                return BoxTest::Outside;
+            }
+            if prune && p.box_min(lo, hi) >= -slack {
+                out &= !(1 << i);
+            }
+        }
+        BoxTest::Active(out)
+    }
+
+    /// Whether `p` is inside every `active` plane.
+    #[inline]
+    pub fn contains(&self, p: [f64; 3], active: u32, slack: f64) -> bool {
+        let mut bits = active;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if self.planes[i].eval(p) < -slack {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+fn cross(a: DVec3, b: DVec3) -> DVec3 {
+    a.cross(b)
+}
+
+/// The penumbra volume of light part `light` and triangle `t` (relative
+/// to the light's centre): every separating plane through an edge of one
+/// and a vertex of the other with all of the light part on one side and
+/// all of the triangle on the other, oriented so the triangle's side is
+/// inside, plus the triangle's plane when the light part lies strictly on
+/// one side of it (§3.2). `tol` is the relative tolerance for a vertex
+/// "on" a candidate plane.
+pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolume) {
+    out.planes.clear();
+    let lv = &light.corners;
+    // The box's 12 edges: corner pairs differing in one bit.
+    const EDGES: [(usize, usize); 12] = [
+        (0, 1),
+        (2, 3),
+        (4, 5),
+        (6, 7),
+        (0, 2),
+        (1, 3),
+        (4, 6),
+        (5, 7),
+        (0, 4),
+        (1, 5),
+        (2, 6),
+        (3, 7),
+    ];
+    let consider = |p: DVec3, q: DVec3, w: DVec3, out: &mut PenumbraVolume| {
+        let n = cross(q - p, w - p);
+        let len = n.length();
+        if !(len > 0.0) || !len.is_finite() {
+            return;
+        }
+        let n = n / len;
+        let d = -n.dot(p);
+        let pl = Plane {
+            n: [n.x, n.y, n.z],
+            d,
+        };
+        let scale = p.abs().max_element().max(q.abs().max_element()).max(w.abs().max_element());
+        let tol = 1e-12 * scale;
+        let (mut lmin, mut lmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for c in lv {
+            let v = pl.eval([c.x, c.y, c.z]);
+            lmin = lmin.min(v);
+            lmax = lmax.max(v);
+        }
+        let (mut tmin, mut tmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for c in t {
+            let v = pl.eval([c.x, c.y, c.z]);
+            tmin = tmin.min(v);
+            tmax = tmax.max(v);
+        }
+        let plane = if lmax <= tol && tmin >= -tol {
+            pl
+        } else if lmin >= -tol && tmax <= tol {
+            Plane {
+                n: [-n.x, -n.y, -n.z],
+                d: -d,
+            }
+        } else {
+            return;
+        };
+        // A plane with both sides "on" it separates nothing.
+        if (lmax - lmin) <= tol && (tmax - tmin) <= tol {
+            return;
+        }
+        if out.planes.len() < MAX_PLANES && !out.planes.contains(&plane) {
+            out.planes.push(plane);
+        }
+    };
+    for &(i, j) in &EDGES {
+        for &w in t {
+            consider(lv[i], lv[j], w, out);
+        }
+    }
+    for e in 0..3 {
+        let (p, q) = (t[e], t[(e + 1) % 3]);
+        for &w in lv {
+            consider(p, q, w, out);
+        }
+    }
+    // The cap: the triangle's own plane, when the light part is strictly
+    // on one side of it.
+    let n = cross(t[1] - t[0], t[2] - t[0]);
+    let len = n.length();
+    if len > 0.0 && len.is_finite() && out.planes.len() < MAX_PLANES {
+        let n = n / len;
+        let d = -n.dot(t[0]);
+        let side: Vec<f64> = lv.iter().map(|c| n.dot(*c) + d).collect();
+        if side.iter().all(|&s| s > 0.0) {
+            out.planes.push(Plane {
+                n: [-n.x, -n.y, -n.z],
+                d: -d,
+            });
+        } else if side.iter().all(|&s| s < 0.0) {
+            out.planes.push(Plane { n: [n.x, n.y, n.z], d });
+        }
+    }
+}
+
+/// The hard shadow volumes of one group of samples (at most 32) and one
+/// triangle, as structure-of-arrays lanes: plane `q` of sample `j` is
+/// `(nx[q][j], ny[q][j], nz[q][j], d[q][j])`, inside iff its value is
+/// `> 0`; an empty volume (sample in the triangle's plane, degenerate
+/// triangle) has a plane that is never positive.
+#[derive(Debug, Clone)]
+pub struct HardVolumes {
+    /// Per plane (3 edges, then the triangle's plane): normal x per sample.
+    pub nx: [[f64; 32]; 4],
+    /// Normal y.
+    pub ny: [[f64; 32]; 4],
+    /// Normal z.
+    pub nz: [[f64; 32]; 4],
+    /// Offset.
+    pub d: [[f64; 32]; 4],
+    /// Samples in the group.
+    pub len: usize,
+}
+
+impl Default for HardVolumes {
+    fn default() -> Self {
+        HardVolumes {
+            nx: [[0.0; 32]; 4],
+            ny: [[0.0; 32]; 4],
+            nz: [[0.0; 32]; 4],
+            d: [[-1.0; 32]; 4],
+            len: 0,
+        }
+    }
+}
+
+impl HardVolumes {
+    /// Builds the volumes of `samples` (≤ 32) and triangle `t` (§3.2:
+    /// three planes through the sample and an edge, and the triangle's
+    /// plane): a point `o` is inside iff the open segment from `o` to the
+    /// sample crosses the triangle's interior.
+    pub fn build(&mut self, samples: &[DVec3], t: &[DVec3; 3]) {
+        self.len = samples.len();
+        let nt = cross(t[1] - t[0], t[2] - t[0]);
+        for (j, &x) in samples.iter().enumerate() {
+            let (a, b, c) = (t[0] - x, t[1] - x, t[2] - x);
+            let det = a.dot(cross(b, c));
+            let side = nt.dot(x - t[0]);
+            if det == 0.0 || side == 0.0 || !det.is_finite() {
+                for q in 0..4 {
+                    self.set(q, j, DVec3::ZERO, -1.0);
+                }
+                continue;
+            }
+            let s = det.signum();
+            // Edge planes through x: the third vertex on the inner side.
+            for (q, (p, r)) in [(a, b), (b, c), (c, a)].into_iter().enumerate() {
+                let n = cross(p, r) * s;
+                self.set(q, j, n, -n.dot(x));
+            }
+            // The triangle's plane: inside on the side away from x.
+            let n4 = nt * (-side.signum());
+            self.set(3, j, n4, -n4.dot(t[0]));
+        }
+        for j in samples.len()..32 {
+            for q in 0..4 {
+                self.set(q, j, DVec3::ZERO, -1.0);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn set(&mut self, q: usize, j: usize, n: DVec3, d: f64) {
+        self.nx[q][j] = n.x;
+        self.ny[q][j] = n.y;
+        self.nz[q][j] = n.z;
+        self.d[q][j] = d;
+    }
+}
+
+/// The point-in-hard-volume kernel for one point against one group's 32
+/// volumes, for a lane module (the SIMD facade or its scalar twin): the
+/// bits of the samples whose volume holds `o`, testing only the samples
+/// whose bit is clear in `skip`.
+macro_rules! kernel {
+    ($name:ident, $lanes:path) => {
+        /// The bits of the samples of `v` whose hard shadow volume holds
+        /// `o`, among those not set in `skip`.
+        #[inline]
+        pub fn $name(v: &HardVolumes, o: [f64; 3], skip: u32) -> u32 {
+            use $lanes as l;
+            let (px, py, pz) = (l::f64x4::splat(o[0]), l::f64x4::splat(o[1]), l::f64x4::splat(o[2]));
+            let zero = l::f64x4::ZERO;
+            let mut out = 0u32;
+            let chunks = v.len.div_ceil(4);
+            for c in 0..chunks {
+                if (skip >> (4 * c)) & 0xf == 0xf {
+                    continue;
+                }
+                let r = 4 * c..4 * c + 4;
+                let mut inside: Option<l::f64x4> = None;
+                for q in 0..4 {
+                    let nx = l::f64x4::load(&v.nx[q][r.clone()]);
+                    let ny = l::f64x4::load(&v.ny[q][r.clone()]);
+                    let nz = l::f64x4::load(&v.nz[q][r.clone()]);
+                    let d = l::f64x4::load(&v.d[q][r.clone()]);
+                    let val = ((nx * px + ny * py) + nz * pz) + d;
+                    let m = val.cmp_gt(zero);
+                    inside = Some(match inside {
+                        None => m,
+                        Some(i) => i & m,
+                    });
+                }
+                let bits = inside.map_or(0, |m| m.move_mask());
+                out |= bits << (4 * c);
+            }
+            out & !skip
+        }
+    };
+}
+
+kernel!(hard_bits_simd, crate::simd);
+kernel!(hard_bits_scalar, crate::simd::scalar);
