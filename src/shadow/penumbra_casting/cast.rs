@@ -87,6 +87,8 @@ pub struct Chunk<'a> {
     tri: [DVec3; 3],
     /// What it measured.
     pub stats: ChunkStats,
+    /// debug
+    pub visits: u64,
 }
 
 impl<'a> Chunk<'a> {
@@ -132,6 +134,7 @@ impl<'a> Chunk<'a> {
             stamp: 0,
             tri: [DVec3::ZERO; 3],
             stats,
+            visits: 0,
         }
     }
 
@@ -247,6 +250,7 @@ impl<'a> Chunk<'a> {
     fn recurse(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
         let sw = self.sw;
         let Node { lo, hi, first, count, group_umbra, full } = self.hier.nodes[node].clone();
+        self.visits += 1;
         if sw.umbra && full {
             return;
         }

@@ -165,7 +165,7 @@ fn surface_area_split(pos: &[[f64; 3]], ids: &mut [u32], scratch: &mut Vec<u32>)
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for k in 1..n {
             grow(&mut lo, &mut hi, pos[scratch[k - 1] as usize]);
-            let cost = area(lo, hi) + right_area[k];
+            let cost = area(lo, hi) * k as f64 + right_area[k] * (n - k) as f64;
             if cost < best.0 {
                 best = (cost, a, k);
             }

@@ -371,6 +371,15 @@ impl PenumbraCasting {
                 });
             }
             report.cast_time += tc.elapsed();
+            if std::env::var("PC_DEBUG").is_ok() {
+                let mut v = PenumbraVolume::default();
+                let mut hist = [0usize; 40];
+                for t in tris.iter().take(2000) { penumbra_volume(&sets.light, t, &mut v); hist[v.planes.len()] += 1; }
+                eprintln!("planes hist {:?}", hist);
+                eprintln!("light box {:?}", sets.light);
+                let visits: u64 = chunks.iter().map(|(_, c)| c.visits).sum();
+                eprintln!("visits {visits} per tri {}", visits as f64 / tris.len() as f64);
+            }
             let mut wave_masks = 0u64;
             for (_, c) in &chunks {
                 let s = &c.stats;

@@ -148,45 +148,59 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
         if !(len > 0.0) || !len.is_finite() {
             return;
         }
-        let n = n / len;
-        let d = -n.dot(p);
-        let pl = Plane {
-            n: [n.x, n.y, n.z],
-            d,
-        };
         let scale = p.abs().max_element().max(q.abs().max_element()).max(w.abs().max_element());
-        let tol = 1e-12 * scale;
-        let (mut lmin, mut lmax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for c in lv {
-            let v = pl.eval([c.x, c.y, c.z]);
-            lmin = lmin.min(v);
-            lmax = lmax.max(v);
-        }
+        // A vertex within this of the plane counts as on it (the plane's
+        // own vertices compute to rounding noise, not to 0).
+        let tol = 1e-12 * scale * len;
+        let val = |c: &DVec3| n.dot(*c - p);
+        // The triangle's side first (3 values), then the light's corners
+        // with an early exit: most candidates fail on the first corners.
         let (mut tmin, mut tmax) = (f64::INFINITY, f64::NEG_INFINITY);
         for c in t {
-            let v = pl.eval([c.x, c.y, c.z]);
+            let v = val(c);
             tmin = tmin.min(v);
             tmax = tmax.max(v);
         }
-        let plane = if lmax <= tol && tmin >= -tol {
-            pl
-        } else if lmin >= -tol && tmax <= tol {
-            Plane {
-                n: [-n.x, -n.y, -n.z],
-                d: -d,
-            }
+        let sign = if tmin >= -tol {
+            1.0
+        } else if tmax <= tol {
+            -1.0
         } else {
             return;
         };
+        let mut lspread = (f64::INFINITY, f64::NEG_INFINITY);
+        for c in lv {
+            let v = sign * val(c);
+            if v > tol {
+                return;
+            }
+            lspread = (lspread.0.min(v), lspread.1.max(v));
+        }
         // A plane with both sides "on" it separates nothing.
-        if (lmax - lmin) <= tol && (tmax - tmin) <= tol {
+        if (lspread.1 - lspread.0) <= tol && (tmax - tmin) <= tol {
             return;
         }
-        if out.planes.len() < MAX_PLANES && !out.planes.contains(&plane) {
+        let n = n * (sign / len);
+        let plane = Plane {
+            n: [n.x, n.y, n.z],
+            d: -n.dot(p),
+        };
+        // Near-duplicates (a thin light box gives each plane twice, through
+        // its top and its bottom edge) are dropped: dropping a plane only
+        // widens the volume, so this stays conservative.
+        let dup = out.planes.iter().any(|q| {
+            let c = q.n[0] * plane.n[0] + q.n[1] * plane.n[1] + q.n[2] * plane.n[2];
+            c > 1.0 - 1e-9
+        });
+        if out.planes.len() < MAX_PLANES && !dup {
             out.planes.push(plane);
         }
     };
-    for &(i, j) in &EDGES {
+    // The box's edges across its thickness only matter for a thick box
+    // (a volumetric light part); skipping candidates is conservative.
+    let thick = (lv[4] - lv[0]).length() > 1e-9 * (lv[1] - lv[0]).length().max((lv[2] - lv[0]).length());
+    let edges = if thick { &EDGES[..] } else { &EDGES[..8] };
+    for &(i, j) in edges {
         for &w in t {
             consider(lv[i], lv[j], w, out);
         }
