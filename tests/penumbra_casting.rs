@@ -240,3 +240,79 @@ fn vcoef_and_radiance_are_the_references_bits() {
     assert_eq!(layer.name, "pc_leaf_triangles");
     assert!(layer.channels[0].1.iter().any(|&c| c > 0.0));
 }
+
+/// The stiff cases of one scene, shifted by `offset`: a box standing on
+/// the ground (contact), a quad lying in the ground's plane (coplanar
+/// receiver and blocker), a box whose top touches the light's plane
+/// under the light, and a tall box crossing the light's plane beside it.
+fn stiff_scene(name: &str, offset: [f64; 3]) -> Scene {
+    let at = |x: f64, y: f64, z: f64| format!("[{}, {}, {}]", x + offset[0], y + offset[1], z + offset[2]);
+    let toml = format!(
+        r#"
+[scene]
+name = "stiff"
+[camera]
+eye = {eye}
+target = {target}
+up = [0.0, 1.0, 0.0]
+fov_y = 50.0
+width = 64
+height = 48
+[[light]]
+type = "rect"
+center = {light}
+u = [0.6, 0.0, 0.0]
+v = [0.0, 0.0, 0.6]
+radiance = [8.0, 8.0, 8.0]
+[[object]]
+name = "ground"
+shape = "quad"
+size = [8.0, 8.0]
+translate = {ground}
+[[object]]
+name = "contact"
+shape = "box"
+size = [0.8, 0.8, 0.8]
+translate = {contact}
+[[object]]
+name = "coplanar"
+shape = "quad"
+size = [1.0, 1.0]
+translate = {coplanar}
+[[object]]
+name = "touching the light"
+shape = "box"
+size = [0.4, 0.6, 0.4]
+translate = {touching}
+[[object]]
+name = "crossing the light's plane"
+shape = "box"
+size = [0.3, 2.0, 0.3]
+translate = {crossing}
+"#,
+        eye = at(0.0, 4.5, 6.0),
+        target = at(0.0, 0.5, 0.0),
+        light = at(0.0, 3.0, 0.0),
+        ground = at(0.0, 0.0, 0.0),
+        contact = at(-1.0, 0.4, 0.5),
+        coplanar = at(1.2, 0.0, 1.0),
+        touching = at(0.3, 2.7, 0.2),
+        crossing = at(1.2, 3.0, -0.3),
+    );
+    common::scene_in_scratch(name, &toml, &[])
+}
+
+#[test]
+fn stiff_cases_lose_and_invent_no_shadow_beyond_ties() {
+    for (name, offset) in [("pc-stiff", [0.0; 3]), ("pc-stiff-far", [1.0e5, -3.0e4, 2.0e5])] {
+        let scene = stiff_scene(name, offset);
+        let frame = common::Frame::new(&scene, 64, 48);
+        let ctx = frame.ctx(&scene);
+        for options in [PenumbraCastingOptions::default(), PenumbraCastingOptions::default().basic()] {
+            let masks = technique(64, options).light_masks(&ctx, 0).expect("penumbra casting runs");
+            let e = check(&scene, &frame, &masks);
+            assert!(e.blocked > e.relations / 20, "{name}: {e:?}");
+            assert_exact(name, &e);
+        }
+    }
+}

@@ -10,7 +10,7 @@
 //! independent of order).
 
 use super::hierarchy::{Hierarchy, Node};
-use super::samples::{SampleSets, GROUP};
+use super::samples::SampleSets;
 use super::volume::{hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes, PenumbraVolume};
 use glam::DVec3;
 use std::time::{Duration, Instant};
@@ -87,8 +87,6 @@ pub struct Chunk<'a> {
     tri: [DVec3; 3],
     /// What it measured.
     pub stats: ChunkStats,
-    /// debug
-    pub visits: u64,
 }
 
 impl<'a> Chunk<'a> {
@@ -134,7 +132,6 @@ impl<'a> Chunk<'a> {
             stamp: 0,
             tri: [DVec3::ZERO; 3],
             stats,
-            visits: 0,
         }
     }
 
@@ -215,9 +212,7 @@ impl<'a> Chunk<'a> {
         let i = set * self.sets.groups + k;
         if self.hard_stamp[i] != self.stamp {
             self.hard_stamp[i] = self.stamp;
-            let p = &self.sets.positions[set];
-            let end = (k * GROUP + GROUP).min(p.len());
-            self.hard[i].build(&p[k * GROUP..end], &self.tri);
+            self.hard[i].build(&self.sets.soa[set][k], &self.tri);
         }
         i
     }
@@ -250,7 +245,6 @@ impl<'a> Chunk<'a> {
     fn recurse(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
         let sw = self.sw;
         let Node { lo, hi, first, count, group_umbra, full } = self.hier.nodes[node].clone();
-        self.visits += 1;
         if sw.umbra && full {
             return;
         }

@@ -2,8 +2,9 @@
 //! shadow-ray origins. Above [`SPATIAL_ABOVE`] points a node's box is
 //! split in two equal halves along its longest axis; below, at the
 //! position that minimises the total surface area of the two children
-//! (over all three axes, points sorted); leaves hold at most [`LEAF`]
-//! points. Each node carries the umbra bits of §3.3 A.
+//! (over all three axes, points sorted, each child's area weighted by its
+//! point count, at multiples of [`LEAF`] points so leaves are full);
+//! leaves hold at most [`LEAF`] points. Each node carries the umbra bits of §3.3 A.
 
 /// Points per leaf (the paper's 16).
 pub const LEAF: usize = 16;
@@ -165,6 +166,11 @@ fn surface_area_split(pos: &[[f64; 3]], ids: &mut [u32], scratch: &mut Vec<u32>)
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for k in 1..n {
             grow(&mut lo, &mut hi, pos[scratch[k - 1] as usize]);
+            // Splits into whole leaves only: a node of n points ends in
+            // ⌈n / 16⌉ leaves, as the paper's leaves of 16 points.
+            if k % LEAF != 0 {
+                continue;
+            }
             let cost = area(lo, hi) * k as f64 + right_area[k] * (n - k) as f64;
             if cost < best.0 {
                 best = (cost, a, k);

@@ -76,13 +76,18 @@ pub struct PenumbraCastingOptions {
     /// (`false`: its scalar twin; same bits).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub pc_simd: bool,
+    /// Penumbra casting: skip the triangles of closed casters whose plane
+    /// has the whole light strictly behind it (a segment crossing a closed
+    /// surface crosses it both ways, so the light-facing crossings suffice).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_cull_back_faces: bool,
     /// Penumbra casting: rebuild a chunk's hierarchy when more than this
     /// percentage of its receivers is in full umbra (0: never).
     #[arg(long, default_value_t = 25)]
     pub pc_rebuild_percent: u32,
     /// Penumbra casting: side in pixels of the square screen chunks whose
     /// receivers share a hierarchy (chunks run in parallel).
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 256)]
     pub pc_chunk: u32,
     /// Penumbra casting: most MiB of bit masks (receivers × samples bits)
     /// held at once; chunks are processed in waves that fit.
@@ -107,6 +112,7 @@ impl PenumbraCastingOptions {
             pc_on_demand_masks: false,
             pc_sort_blockers: false,
             pc_simd: false,
+            pc_cull_back_faces: false,
             ..self
         }
     }
@@ -199,6 +205,8 @@ pub struct LightReport {
     pub receivers: usize,
     /// Blocker triangles cast.
     pub triangles: usize,
+    /// Back faces of closed casters left out.
+    pub culled: usize,
     /// Chunks and waves.
     pub chunks: usize,
     /// Waves of chunks (mask budget).
@@ -284,14 +292,27 @@ impl PenumbraCasting {
         // Triangles: opaque casters, non-degenerate, relative to the light.
         let t0 = std::time::Instant::now();
         let g = ctx.geometry;
+        let cull = self.options.pc_cull_back_faces;
         let tris: Vec<[DVec3; 3]> = (0..g.triangles.len())
             .filter(|&t| {
                 let obj = ctx.scene.objects.get(g.triangle_object[t] as usize);
                 let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
                 obj.is_some_and(|o| o.cast_shadows) && mat.is_some_and(|m| m.is_opaque())
             })
-            .map(|t| g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre))
-            .filter(|t| (t[1] - t[0]).cross(t[2] - t[0]).length_squared() > 0.0)
+            .filter_map(|t| {
+                let tri = g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                if !(n.length_squared() > 0.0) {
+                    return None;
+                }
+                let closed = g.object_closed.get(g.triangle_object[t] as usize) == Some(&true);
+                let behind = |c: &DVec3| n.dot(*c - tri[0]) < 0.0;
+                if cull && closed && sets.light.corners.iter().all(behind) {
+                    report.culled += 1;
+                    return None;
+                }
+                Some(tri)
+            })
             .collect();
         let tris = if self.options.pc_sort_blockers { sort_by_area(tris) } else { tris };
         report.sort_time = t0.elapsed();
@@ -371,15 +392,6 @@ impl PenumbraCasting {
                 });
             }
             report.cast_time += tc.elapsed();
-            if std::env::var("PC_DEBUG").is_ok() {
-                let mut v = PenumbraVolume::default();
-                let mut hist = [0usize; 40];
-                for t in tris.iter().take(2000) { penumbra_volume(&sets.light, t, &mut v); hist[v.planes.len()] += 1; }
-                eprintln!("planes hist {:?}", hist);
-                eprintln!("light box {:?}", sets.light);
-                let visits: u64 = chunks.iter().map(|(_, c)| c.visits).sum();
-                eprintln!("visits {visits} per tri {}", visits as f64 / tris.len() as f64);
-            }
             let mut wave_masks = 0u64;
             for (_, c) in &chunks {
                 let s = &c.stats;
@@ -555,7 +567,8 @@ impl PenumbraCasting {
         notes.push(BufferNote {
             name: format!("light sample sets light {k}"),
             detail: format!(
-                "{} set(s) of {} samples{}; {} triangles cast, {} volume builds",
+                "{} set(s) of {} samples{}; {} triangles cast ({} back faces of closed casters \
+                 skipped), {} volume builds",
                 sets.sets,
                 sets.n,
                 if sets.matches_reference() {
@@ -564,6 +577,7 @@ impl PenumbraCasting {
                     ", assigned per receiver by a pixel hash"
                 },
                 r.triangles,
+                r.culled,
                 r.stats.volumes_built
             ),
             bytes: sets.bytes() + r.volume_bytes,

@@ -21,6 +21,7 @@
 //! rounding margins, so every position a hard shadow volume is built
 //! from lies inside it.
 
+use super::volume::GroupSoa;
 use crate::sampling::{mix64, pixel_key, LightSampler, PatternSampler, SamplePattern};
 use crate::shade::LightSample;
 use glam::{DVec3, Vec3};
@@ -50,6 +51,8 @@ pub struct SampleSets {
     /// Per set: the samples in group order (`32 k + j`), relative to
     /// the light's centre, in `f64` (exact differences of `f32`).
     pub positions: Vec<Vec<DVec3>>,
+    /// Per set and group: the positions as lanes.
+    pub soa: Vec<Vec<GroupSoa>>,
     /// Per set: group-order slot → the sample's index `k` in the
     /// pattern (its index in the reference's sample list).
     pub order: Vec<Vec<u32>>,
@@ -167,7 +170,12 @@ impl SampleSets {
                 }
             })
             .collect();
+        let soa = positions
+            .iter()
+            .map(|set| set.chunks(GROUP).map(GroupSoa::new).collect())
+            .collect();
         SampleSets {
+            soa,
             n,
             groups,
             sets,
