@@ -11,7 +11,9 @@
 
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::SampleSets;
-use super::volume::{hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes, PenumbraVolume};
+use super::volume::{
+    hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes, PenumbraVolume,
+};
 use glam::DVec3;
 use std::time::{Duration, Instant};
 
@@ -91,7 +93,13 @@ pub struct Chunk<'a> {
 
 impl<'a> Chunk<'a> {
     /// A chunk over receivers at `pos` with sets `set`.
-    pub fn new(sets: &'a SampleSets, sw: Switches, slack: f64, pos: Vec<[f64; 3]>, set: Vec<u16>) -> Chunk<'a> {
+    pub fn new(
+        sets: &'a SampleSets,
+        sw: Switches,
+        slack: f64,
+        pos: Vec<[f64; 3]>,
+        set: Vec<u16>,
+    ) -> Chunk<'a> {
         let r = pos.len();
         let g = sets.groups;
         let (slot, pool) = if sw.on_demand {
@@ -158,7 +166,8 @@ impl<'a> Chunk<'a> {
         if sw.umbra
             && sw.rebuild_percent > 0
             && !self.hier.points.is_empty()
-            && self.umbra_in_hier as u64 * 100 > u64::from(sw.rebuild_percent) * self.hier.points.len() as u64
+            && self.umbra_in_hier as u64 * 100
+                > u64::from(sw.rebuild_percent) * self.hier.points.len() as u64
         {
             self.rebuild();
         }
@@ -190,7 +199,9 @@ impl<'a> Chunk<'a> {
 
     fn rebuild(&mut self) {
         let t = Instant::now();
-        let ids: Vec<u32> = (0..self.pos.len() as u32).filter(|&r| !self.full[r as usize]).collect();
+        let ids: Vec<u32> = (0..self.pos.len() as u32)
+            .filter(|&r| !self.full[r as usize])
+            .collect();
         self.hier = Hierarchy::build(&self.pos, ids);
         self.umbra_in_hier = 0;
         self.stats.rebuilds += 1;
@@ -244,7 +255,14 @@ impl<'a> Chunk<'a> {
 
     fn recurse(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
         let sw = self.sw;
-        let Node { lo, hi, first, count, group_umbra, full } = self.hier.nodes[node].clone();
+        let Node {
+            lo,
+            hi,
+            first,
+            count,
+            group_umbra,
+            full,
+        } = self.hier.nodes[node].clone();
         if sw.umbra && full {
             return;
         }
@@ -290,7 +308,16 @@ impl<'a> Chunk<'a> {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn leaf(&mut self, node: usize, first: usize, count: usize, vl: &PenumbraVolume, pl: u32, c0: usize, c1: usize) {
+    fn leaf(
+        &mut self,
+        node: usize,
+        first: usize,
+        count: usize,
+        vl: &PenumbraVolume,
+        pl: u32,
+        c0: usize,
+        c1: usize,
+    ) {
         let sw = self.sw;
         let all = self.sets.all_groups();
         let g = self.sets.groups;
@@ -302,7 +329,11 @@ impl<'a> Chunk<'a> {
             if !(skip_full && self.full[r]) && vl.contains(self.pos[r], pl, self.slack) {
                 self.point(r, c0, c1);
             }
-            let gu = if self.full[r] { all } else { self.group_umbra[r] };
+            let gu = if self.full[r] {
+                all
+            } else {
+                self.group_umbra[r]
+            };
             and_gu &= gu;
             and_full &= self.full[r];
         }
@@ -366,7 +397,11 @@ impl<'a> Chunk<'a> {
     /// Bytes of its hard shadow volume cache.
     pub fn volume_bytes(&self) -> u64 {
         (self.hard.len() * std::mem::size_of::<HardVolumes>()
-            + self.groups_vol.iter().map(|v| v.planes.capacity() * 32).sum::<usize>()) as u64
+            + self
+                .groups_vol
+                .iter()
+                .map(|v| v.planes.capacity() * 32)
+                .sum::<usize>()) as u64
     }
 
     /// Bytes of one mask.

@@ -62,7 +62,14 @@ impl Hierarchy {
         (self.nodes.capacity() * std::mem::size_of::<Node>() + self.points.capacity() * 4) as u64
     }
 
-    fn build_node(&mut self, pos: &[[f64; 3]], node: usize, s: usize, e: usize, scratch: &mut Vec<u32>) {
+    fn build_node(
+        &mut self,
+        pos: &[[f64; 3]],
+        node: usize,
+        s: usize,
+        e: usize,
+        scratch: &mut Vec<u32>,
+    ) {
         let (lo, hi) = bounds(pos, &self.points[s..e]);
         self.nodes[node].lo = lo;
         self.nodes[node].hi = hi;
@@ -137,7 +144,11 @@ fn spatial_median(pos: &[[f64; 3]], ids: &mut [u32], lo: [f64; 3], hi: [f64; 3])
         }
     }
     if i == 0 || i == ids.len() {
-        ids.sort_unstable_by(|&x, &y| pos[x as usize][a].total_cmp(&pos[y as usize][a]).then(x.cmp(&y)));
+        ids.sort_unstable_by(|&x, &y| {
+            pos[x as usize][a]
+                .total_cmp(&pos[y as usize][a])
+                .then(x.cmp(&y))
+        });
         return ids.len() / 2;
     }
     i
@@ -157,7 +168,11 @@ fn surface_area_split(pos: &[[f64; 3]], ids: &mut [u32], scratch: &mut Vec<u32>)
     for a in 0..3 {
         scratch.clear();
         scratch.extend_from_slice(ids);
-        scratch.sort_unstable_by(|&x, &y| pos[x as usize][a].total_cmp(&pos[y as usize][a]).then(x.cmp(&y)));
+        scratch.sort_unstable_by(|&x, &y| {
+            pos[x as usize][a]
+                .total_cmp(&pos[y as usize][a])
+                .then(x.cmp(&y))
+        });
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for k in (1..n).rev() {
             grow(&mut lo, &mut hi, pos[scratch[k] as usize]);
@@ -178,7 +193,11 @@ fn surface_area_split(pos: &[[f64; 3]], ids: &mut [u32], scratch: &mut Vec<u32>)
         }
     }
     let a = best.1;
-    ids.sort_unstable_by(|&x, &y| pos[x as usize][a].total_cmp(&pos[y as usize][a]).then(x.cmp(&y)));
+    ids.sort_unstable_by(|&x, &y| {
+        pos[x as usize][a]
+            .total_cmp(&pos[y as usize][a])
+            .then(x.cmp(&y))
+    });
     best.2
 }
 

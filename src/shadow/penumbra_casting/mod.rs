@@ -250,7 +250,10 @@ impl PenumbraCasting {
             ));
         }
         if o.pc_chunk == 0 {
-            return Err(Error::param("--pc-chunk", "the chunk side must be at least 1 pixel"));
+            return Err(Error::param(
+                "--pc-chunk",
+                "the chunk side must be at least 1 pixel",
+            ));
         }
         if o.pc_rebuild_percent > 100 {
             return Err(Error::param("--pc-rebuild-percent", "takes 0 to 100"));
@@ -264,7 +267,12 @@ impl PenumbraCasting {
     /// Casts every opaque caster for light `k` and calls `finish` with
     /// each finished chunk (its pixels and state), chunks of a wave in
     /// parallel.
-    fn run_light<F>(&self, ctx: &ShadowContext, k: usize, finish: F) -> Result<(SampleSets, LightReport)>
+    fn run_light<F>(
+        &self,
+        ctx: &ShadowContext,
+        k: usize,
+        finish: F,
+    ) -> Result<(SampleSets, LightReport)>
     where
         F: Fn(&SampleSets, &[u32], &Chunk) + Sync,
     {
@@ -286,13 +294,45 @@ impl PenumbraCasting {
         let e2 = e3.cross(e1);
         let sampler = LightSampler::new(light);
         let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
-        let sets = SampleSets::new(&sampler, &pattern, self.options.pc_sample_sets as usize, centre, [e1, e2, e3]);
+        let sets = SampleSets::new(
+            &sampler,
+            &pattern,
+            self.options.pc_sample_sets as usize,
+            centre,
+            [e1, e2, e3],
+        );
         let mut report = LightReport::default();
 
         // Triangles: opaque casters, non-degenerate, relative to the light.
         let t0 = std::time::Instant::now();
         let g = ctx.geometry;
         let cull = self.options.pc_cull_back_faces;
+        // Back faces may be skipped only for closed casters the light is
+        // outside of (a sample on a caster's surface sees only its exit
+        // crossing): those whose bounding box is disjoint from the light's.
+        let (llo, lhi) = sets
+            .light
+            .corners
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(*c), hi.max(*c))
+            });
+        let mut object_box = vec![(DVec3::INFINITY, DVec3::NEG_INFINITY); ctx.scene.objects.len()];
+        for (t, tri) in g.triangles.iter().enumerate() {
+            if let Some(b) = object_box.get_mut(g.triangle_object[t] as usize) {
+                for &i in tri {
+                    let p = g.positions[i as usize].as_dvec3() - centre;
+                    *b = (b.0.min(p), b.1.max(p));
+                }
+            }
+        }
+        let light_outside: Vec<bool> = object_box
+            .iter()
+            .map(|&(lo, hi)| {
+                let m = 1e-6 * (hi - lo).max_element().max((lhi - llo).max_element());
+                (lo - DVec3::splat(m)).cmpgt(lhi).any() || (hi + DVec3::splat(m)).cmplt(llo).any()
+            })
+            .collect();
         let tris: Vec<[DVec3; 3]> = (0..g.triangles.len())
             .filter(|&t| {
                 let obj = ctx.scene.objects.get(g.triangle_object[t] as usize);
@@ -305,7 +345,9 @@ impl PenumbraCasting {
                 if !(n.length_squared() > 0.0) {
                     return None;
                 }
-                let closed = g.object_closed.get(g.triangle_object[t] as usize) == Some(&true);
+                let o = g.triangle_object[t] as usize;
+                let closed =
+                    g.object_closed.get(o) == Some(&true) && light_outside.get(o) == Some(&true);
                 let behind = |c: &DVec3| n.dot(*c - tri[0]) < 0.0;
                 if cull && closed && sets.light.corners.iter().all(behind) {
                     report.culled += 1;
@@ -314,7 +356,11 @@ impl PenumbraCasting {
                 Some(tri)
             })
             .collect();
-        let tris = if self.options.pc_sort_blockers { sort_by_area(tris) } else { tris };
+        let tris = if self.options.pc_sort_blockers {
+            sort_by_area(tris)
+        } else {
+            tris
+        };
         report.sort_time = t0.elapsed();
         report.triangles = tris.len();
 
@@ -324,14 +370,18 @@ impl PenumbraCasting {
         let (w, h) = (gb.width.max(1), gb.height);
         let side = self.options.pc_chunk;
         let (cw, ch) = (w.div_ceil(side), h.div_ceil(side));
-        let mut inputs: Vec<ChunkInput> = (0..cw * ch).map(|_| ChunkInput { pixels: Vec::new() }).collect();
+        let mut inputs: Vec<ChunkInput> = (0..cw * ch)
+            .map(|_| ChunkInput { pixels: Vec::new() })
+            .collect();
         for i in 0..gb.len() {
             let Some(s) = gb.get(i) else { continue };
             if !s.is_surface() || !receives(ctx, s.object) {
                 continue;
             }
             let (x, y) = (i as u32 % w, i as u32 / w);
-            inputs[((y / side) * cw + x / side) as usize].pixels.push(i as u32);
+            inputs[((y / side) * cw + x / side) as usize]
+                .pixels
+                .push(i as u32);
         }
         inputs.retain(|c| !c.pixels.is_empty());
         report.chunks = inputs.len();
@@ -384,7 +434,10 @@ impl PenumbraCasting {
             let mut vl: Vec<PenumbraVolume> = Vec::new();
             for batch in tris.chunks(BATCH) {
                 vl.resize_with(batch.len(), PenumbraVolume::default);
-                batch.par_iter().zip(vl.par_iter_mut()).for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
+                batch
+                    .par_iter()
+                    .zip(vl.par_iter_mut())
+                    .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
                 chunks.par_iter_mut().for_each(|(_, c)| {
                     for (t, v) in batch.iter().zip(&vl) {
                         c.process(t, v);
@@ -445,7 +498,10 @@ impl PenumbraCasting {
     }
 
     /// Runs every light and reports each.
-    pub fn compute_with_report(&self, ctx: &ShadowContext) -> Result<(ShadowOutput, Vec<LightReport>)> {
+    pub fn compute_with_report(
+        &self,
+        ctx: &ShadowContext,
+    ) -> Result<(ShadowOutput, Vec<LightReport>)> {
         self.check()?;
         let mut out = ShadowOutput::default();
         let mut layer = Layer {
@@ -492,7 +548,12 @@ impl PenumbraCasting {
             let mut vcoef = vec![0.0f32; len];
             let mut radiance = vec![Vec3::ZERO; len];
             let mut leaf = vec![0.0f32; len];
-            for (i, v, r, l) in results.into_inner().expect("no panic").into_iter().flatten() {
+            for (i, v, r, l) in results
+                .into_inner()
+                .expect("no panic")
+                .into_iter()
+                .flatten()
+            {
                 vcoef[i as usize] = v;
                 radiance[i as usize] = r;
                 leaf[i as usize] = l as f32;
@@ -500,12 +561,17 @@ impl PenumbraCasting {
             // Surface pixels that receive no shadows: every sample visible.
             let all_visible = vec![1.0f32; sets.n];
             for i in 0..len {
-                let Some(g) = ctx.gbuffer.get(i) else { continue };
+                let Some(g) = ctx.gbuffer.get(i) else {
+                    continue;
+                };
                 if g.is_surface() && !receives(ctx, g.object) {
                     let set = sets.set_of(((i % w) as u32, (i / w) as u32));
                     vcoef[i] = 1.0;
-                    radiance[i] =
-                        prepared.direct_from_samples(&surface_point(ctx.scene, &g, eye), &sets.samples[set], &all_visible);
+                    radiance[i] = prepared.direct_from_samples(
+                        &surface_point(ctx.scene, &g, eye),
+                        &sets.samples[set],
+                        &all_visible,
+                    );
                 }
             }
             t.finish_with(
@@ -585,7 +651,8 @@ impl PenumbraCasting {
         if k == 0 {
             notes.push(BufferNote {
                 name: "semi-opaque transmittance".into(),
-                detail: "left out: one bit per relation; casters of opacity below 1 are not cast".into(),
+                detail: "left out: one bit per relation; casters of opacity below 1 are not cast"
+                    .into(),
                 bytes: 0,
             });
             notes.push(BufferNote {

@@ -81,7 +81,14 @@ impl PenumbraVolume {
     /// The box `[lo, hi]` against the `active` planes; with `prune`, the
     /// planes it is entirely inside of leave the active set (§3.3 B).
     #[inline]
-    pub fn test_box(&self, lo: &[f64; 3], hi: &[f64; 3], active: u32, slack: f64, prune: bool) -> BoxTest {
+    pub fn test_box(
+        &self,
+        lo: &[f64; 3],
+        hi: &[f64; 3],
+        active: u32,
+        slack: f64,
+        prune: bool,
+    ) -> BoxTest {
         let mut out = active;
         let mut bits = active;
         while bits != 0 {
@@ -148,7 +155,11 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
         if !(len > 0.0) || !len.is_finite() {
             return;
         }
-        let scale = p.abs().max_element().max(q.abs().max_element()).max(w.abs().max_element());
+        let scale = p
+            .abs()
+            .max_element()
+            .max(q.abs().max_element())
+            .max(w.abs().max_element());
         // A vertex within this of the plane counts as on it (the plane's
         // own vertices compute to rounding noise, not to 0).
         let tol = 1e-12 * scale * len;
@@ -198,7 +209,8 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
     };
     // The box's edges across its thickness only matter for a thick box
     // (a volumetric light part); skipping candidates is conservative.
-    let thick = (lv[4] - lv[0]).length() > 1e-9 * (lv[1] - lv[0]).length().max((lv[2] - lv[0]).length());
+    let thick =
+        (lv[4] - lv[0]).length() > 1e-9 * (lv[1] - lv[0]).length().max((lv[2] - lv[0]).length());
     let edges = if thick { &EDGES[..] } else { &EDGES[..8] };
     for &(i, j) in edges {
         for &w in t {
@@ -225,7 +237,10 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
                 d: -d,
             });
         } else if side.iter().all(|&s| s < 0.0) {
-            out.planes.push(Plane { n: [n.x, n.y, n.z], d });
+            out.planes.push(Plane {
+                n: [n.x, n.y, n.z],
+                d,
+            });
         }
     }
 }
@@ -284,13 +299,20 @@ impl HardVolumes {
             let sub = |p: DVec3| (sp(p.x) - x, sp(p.y) - y, sp(p.z) - z);
             let (a, b, cc) = (sub(t0), sub(t1), sub(t2));
             type V = (f64x4, f64x4, f64x4);
-            let cr = |p: V, q: V| -> V { (p.1 * q.2 - p.2 * q.1, p.2 * q.0 - p.0 * q.2, p.0 * q.1 - p.1 * q.0) };
+            let cr = |p: V, q: V| -> V {
+                (
+                    p.1 * q.2 - p.2 * q.1,
+                    p.2 * q.0 - p.0 * q.2,
+                    p.0 * q.1 - p.1 * q.0,
+                )
+            };
             let dot = |p: V, q: V| (p.0 * q.0 + p.1 * q.1) + p.2 * q.2;
             let bc = cr(b, cc);
             let det = dot(a, bc);
             // side = nt · (x − t0) = −nt · a.
             let side = zero - ((sp(nt.x) * a.0 + sp(nt.y) * a.1) + sp(nt.z) * a.2);
-            let empty = det.cmp_eq(zero) | side.cmp_eq(zero) | det.cmp_ne(det) | (det - det).cmp_ne(zero);
+            let empty =
+                det.cmp_eq(zero) | side.cmp_eq(zero) | det.cmp_ne(det) | (det - det).cmp_ne(zero);
             let flip = det.cmp_lt(zero);
             let pos = (x, y, z);
             let lanes = c * 4;
@@ -425,7 +447,11 @@ macro_rules! kernel {
         #[inline]
         pub fn $name(v: &HardVolumes, o: [f64; 3], skip: u32) -> u32 {
             use $lanes as l;
-            let (px, py, pz) = (l::f64x4::splat(o[0]), l::f64x4::splat(o[1]), l::f64x4::splat(o[2]));
+            let (px, py, pz) = (
+                l::f64x4::splat(o[0]),
+                l::f64x4::splat(o[1]),
+                l::f64x4::splat(o[2]),
+            );
             let zero = l::f64x4::ZERO;
             let mut out = 0u32;
             let chunks = v.len.div_ceil(4);
@@ -481,7 +507,9 @@ mod tests {
         let mut total = 0usize;
         for round in 0..200 {
             let len = 1 + round % 32;
-            let samples: Vec<DVec3> = (0..len).map(|_| v(&mut st) + DVec3::new(0.0, 2.0, 0.0)).collect();
+            let samples: Vec<DVec3> = (0..len)
+                .map(|_| v(&mut st) + DVec3::new(0.0, 2.0, 0.0))
+                .collect();
             let t = [v(&mut st), v(&mut st), v(&mut st)];
             let (mut a, mut b) = (HardVolumes::default(), HardVolumes::default());
             a.build(&GroupSoa::new(&samples), &t);
@@ -509,7 +537,8 @@ mod tests {
                     if ours != crosses {
                         // Only within rounding of an edge or an end.
                         let near = hit.is_some_and(|(tt, b1, b2)| {
-                            (tt - 1.0).abs() < 1e-9 || b1.abs().min(b2.abs()).min((1.0 - b1 - b2).abs()) < 1e-9
+                            (tt - 1.0).abs() < 1e-9
+                                || b1.abs().min(b2.abs()).min((1.0 - b1 - b2).abs()) < 1e-9
                         });
                         assert!(near, "round {round} sample {j}: {hit:?}");
                     }
