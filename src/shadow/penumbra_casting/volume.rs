@@ -311,8 +311,10 @@ impl HardVolumes {
             let det = dot(a, bc);
             // side = nt · (x − t0) = −nt · a.
             let side = zero - ((sp(nt.x) * a.0 + sp(nt.y) * a.1) + sp(nt.z) * a.2);
-            let empty =
-                det.cmp_eq(zero) | side.cmp_eq(zero) | det.cmp_ne(det) | (det - det).cmp_ne(zero);
+            // Empty: det or side 0, or det not finite (the abs compare is
+            // false for NaN and infinity).
+            let finite = det.abs().cmp_lt(sp(f64::INFINITY));
+            let empty = finite.blend(det.cmp_eq(zero) | side.cmp_eq(zero), zero.cmp_eq(zero));
             let flip = det.cmp_lt(zero);
             let pos = (x, y, z);
             let lanes = c * 4;
