@@ -28,6 +28,7 @@ mod common;
 use common::Rng;
 use penumbra::render::{render, Aov, RenderOptions};
 use penumbra::report::Progress;
+use penumbra::sampling::SamplePattern;
 use penumbra::shadow::registry::Support;
 use penumbra::shadow::{Technique, TechniqueOptions};
 
@@ -210,12 +211,25 @@ fn check(case: &Case, technique: Technique, reference: &[f32], mask: &[bool]) ->
     None
 }
 
+/// The run of `technique`. Penumbra casting samples the light with
+/// `interleaved:2` and four sample sets: its K shared sets are then exactly
+/// the reference's per-pixel samples (its default, 8 sets of a decorrelated
+/// pattern, is exact for its own samples, which are not the reference's).
+/// The reference it is held against is rendered with the same pattern.
 fn options(technique: Technique) -> RenderOptions {
+    let mut options = TechniqueOptions::default();
+    let mut pattern = SamplePattern::default();
+    if technique.name() == "penumbra-casting" {
+        options.penumbra_casting.pc_sample_sets = 4;
+        pattern = SamplePattern::Interleaved { n: 2 };
+    }
     RenderOptions {
         technique,
         samples: SAMPLES,
         width: Some(SIZE),
         height: Some(SIZE),
+        pattern,
+        options,
         ..RenderOptions::default()
     }
 }
@@ -224,7 +238,8 @@ fn options(technique: Technique) -> RenderOptions {
 /// result computed here.
 fn failure(case: &Case, technique: Technique) -> Option<String> {
     let scene = common::scene_in_scratch("agreement-ref", &case.toml(), &[]);
-    let mut ref_options = options(Technique::named("reference").unwrap());
+    let mut ref_options = options(technique);
+    ref_options.technique = Technique::named("reference").unwrap();
     ref_options.aovs = vec![Aov::Mask];
     let reference = render(&scene, &ref_options, &Progress::hidden())
         .expect("the reference renders every generated scene");

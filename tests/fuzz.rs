@@ -753,6 +753,12 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
                     [rng.range(0, 2) as usize],
                 ssm_lookup: [Lookup::Nearest, Lookup::Bilinear][rng.range(0, 1) as usize],
             },
+            penumbra_casting: penumbra::shadow::penumbra_casting::PenumbraCastingOptions {
+                pc_sample_sets: [1, 2, 8][rng.range(0, 2) as usize],
+                pc_umbra_bits: rng.range(0, 1) == 1,
+                pc_on_demand_masks: rng.range(0, 1) == 1,
+                ..Default::default()
+            },
         },
     };
     let _ = write!(case.log, "| render {options:?}");

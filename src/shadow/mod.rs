@@ -11,6 +11,7 @@ pub mod dcs;
 pub mod kit;
 pub mod multi_map;
 pub mod pcss;
+pub mod penumbra_casting;
 pub mod reference;
 pub mod registry;
 pub mod shadow_map;

@@ -11,6 +11,7 @@
 use super::adaptive_maps::AdaptiveMapsOptions;
 use super::dcs::DcsOptions;
 use super::pcss::PcssOptions;
+use super::penumbra_casting::PenumbraCastingOptions;
 use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
 use super::soft_shadow_map::SsmOptions;
@@ -37,6 +38,7 @@ pub static TECHNIQUES: &[&TechniqueInfo] = &[
     &super::multi_map::TECHNIQUE,
     &super::adaptive_maps::TECHNIQUE,
     &super::soft_shadow_map::TECHNIQUE,
+    &super::penumbra_casting::TECHNIQUE,
 ];
 
 /// The name `render` uses when no `--technique` is given: exact depth
@@ -66,6 +68,9 @@ pub struct TechniqueOptions {
     /// Soft shadow maps.
     #[command(flatten)]
     pub ssm: SsmOptions,
+    /// Hierarchical penumbra casting.
+    #[command(flatten)]
+    pub penumbra_casting: PenumbraCastingOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
     #[command(flatten)]

@@ -1,0 +1,411 @@
+//! Casting blocker triangles into one chunk of receivers: the traversal of
+//! Fig. 2 (basic) and Fig. 3 (optimised), each optimisation of §3.3
+//! switchable.
+//!
+//! A chunk owns its receivers' state — group-umbra and full-umbra bits,
+//! bit masks (on demand or all up front), its hierarchy — and sees every
+//! blocker triangle in the same order; chunks share nothing, so they run
+//! in parallel and the bits never depend on the thread count (a relation
+//! is blocked iff some triangle's hard shadow volume holds it: an OR,
+//! independent of order).
+
+use super::hierarchy::{Hierarchy, Node};
+use super::samples::SampleSets;
+use super::volume::{
+    hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes, PenumbraVolume,
+};
+use glam::DVec3;
+use std::time::{Duration, Instant};
+
+/// No mask.
+const NONE: u32 = u32::MAX;
+
+/// Which parts of the algorithm run (§3.3; all on is Fig. 3, all off
+/// Fig. 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Switches {
+    /// A: umbra bits (and hierarchy rebuilds).
+    pub umbra: bool,
+    /// B: active plane sets.
+    pub active_planes: bool,
+    /// C: lazy construction of the group and hard shadow volumes.
+    pub lazy: bool,
+    /// D: masks allocated on demand, freed at full umbra.
+    pub on_demand: bool,
+    /// Point-in-hard-volume tests through the SIMD facade (else its
+    /// scalar twin).
+    pub simd: bool,
+    /// Rebuild the hierarchy when more than this percentage of its
+    /// receivers is in full umbra (0: never; needs `umbra`).
+    pub rebuild_percent: u32,
+}
+
+/// What a chunk measured.
+#[derive(Debug, Clone, Default)]
+pub struct ChunkStats {
+    /// Hierarchy builds after the first.
+    pub rebuilds: u32,
+    /// Largest node count of its hierarchies.
+    pub peak_nodes: usize,
+    /// Largest bytes of its hierarchies.
+    pub peak_hierarchy_bytes: u64,
+    /// Most masks alive at once.
+    pub peak_masks: usize,
+    /// Receivers that ever got a mask.
+    pub masked: usize,
+    /// Time spent building hierarchies (first build and rebuilds).
+    pub build_time: Duration,
+    /// Triangles whose group and hard volumes were built (lazily).
+    pub volumes_built: u64,
+}
+
+/// One chunk of receivers.
+pub struct Chunk<'a> {
+    sets: &'a SampleSets,
+    sw: Switches,
+    slack: f64,
+    /// Per receiver: the shadow-ray origin relative to the light's centre.
+    pub pos: Vec<[f64; 3]>,
+    /// Per receiver: its sample set.
+    pub set: Vec<u16>,
+    /// Per receiver: group-umbra bits.
+    pub group_umbra: Vec<u128>,
+    /// Per receiver: full umbra.
+    pub full: Vec<bool>,
+    /// Per receiver: blocker triangles that reached its leaf.
+    pub leaf_triangles: Vec<u32>,
+    slot: Vec<u32>,
+    pool: Vec<u32>,
+    free: Vec<u32>,
+    live: usize,
+    hier: Hierarchy,
+    umbra_in_hier: usize,
+    stack: Vec<(u16, u32)>,
+    groups_vol: Vec<PenumbraVolume>,
+    groups_built: bool,
+    hard: Vec<HardVolumes>,
+    hard_stamp: Vec<u32>,
+    stamp: u32,
+    tri: [DVec3; 3],
+    /// What it measured.
+    pub stats: ChunkStats,
+}
+
+impl<'a> Chunk<'a> {
+    /// A chunk over receivers at `pos` with sets `set`.
+    pub fn new(
+        sets: &'a SampleSets,
+        sw: Switches,
+        slack: f64,
+        pos: Vec<[f64; 3]>,
+        set: Vec<u16>,
+    ) -> Chunk<'a> {
+        let r = pos.len();
+        let g = sets.groups;
+        let (slot, pool) = if sw.on_demand {
+            (vec![NONE; r], Vec::new())
+        } else {
+            ((0..r as u32).collect(), vec![0u32; r * g])
+        };
+        let t = Instant::now();
+        let hier = Hierarchy::build(&pos, (0..r as u32).collect());
+        let mut stats = ChunkStats {
+            peak_nodes: hier.nodes.len(),
+            peak_hierarchy_bytes: hier.bytes(),
+            peak_masks: if sw.on_demand { 0 } else { r },
+            masked: if sw.on_demand { 0 } else { r },
+            ..ChunkStats::default()
+        };
+        stats.build_time = t.elapsed();
+        Chunk {
+            sets,
+            sw,
+            slack,
+            group_umbra: vec![0; r],
+            full: vec![false; r],
+            leaf_triangles: vec![0; r],
+            pos,
+            set,
+            slot,
+            pool,
+            free: Vec::new(),
+            live: 0,
+            hier,
+            umbra_in_hier: 0,
+            stack: Vec::new(),
+            groups_vol: vec![PenumbraVolume::default(); g],
+            groups_built: false,
+            hard: vec![HardVolumes::default(); sets.sets * g],
+            hard_stamp: vec![0; sets.sets * g],
+            stamp: 0,
+            tri: [DVec3::ZERO; 3],
+            stats,
+        }
+    }
+
+    /// The blocked-relation words of receiver `r` (group order), or
+    /// `None` when it has no mask (nothing blocked) — a full-umbra
+    /// receiver whose mask was freed gives every valid bit.
+    pub fn words(&self, r: usize, out: &mut Vec<u32>) {
+        out.clear();
+        if self.full[r] {
+            out.extend_from_slice(&self.sets.valid);
+        } else if self.slot[r] == NONE {
+            out.resize(self.sets.groups, 0);
+        } else {
+            let g = self.sets.groups;
+            let s = self.slot[r] as usize * g;
+            out.extend_from_slice(&self.pool[s..s + g]);
+        }
+    }
+
+    /// Casts triangle `t` (relative to the light's centre) with its light
+    /// penumbra volume `vl`.
+    pub fn process(&mut self, t: &[DVec3; 3], vl: &PenumbraVolume) {
+        let sw = self.sw;
+        if sw.umbra
+            && sw.rebuild_percent > 0
+            && !self.hier.points.is_empty()
+            && self.umbra_in_hier as u64 * 100
+                > u64::from(sw.rebuild_percent) * self.hier.points.len() as u64
+        {
+            self.rebuild();
+        }
+        if self.hier.nodes.is_empty() {
+            return;
+        }
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.hard_stamp.iter_mut().for_each(|s| *s = u32::MAX);
+            self.stamp = 1;
+        }
+        self.tri = *t;
+        self.groups_built = false;
+        if !sw.lazy {
+            self.build_groups();
+            for s in 0..self.sets.sets {
+                for k in 0..self.sets.groups {
+                    self.hard_volumes(s, k);
+                }
+            }
+        }
+        self.stack.clear();
+        for k in 0..self.sets.groups {
+            self.stack.push((k as u16, u32::MAX));
+        }
+        let n = self.stack.len();
+        self.recurse(0, vl, vl.all(), 0, n);
+    }
+
+    fn rebuild(&mut self) {
+        let t = Instant::now();
+        let ids: Vec<u32> = (0..self.pos.len() as u32)
+            .filter(|&r| !self.full[r as usize])
+            .collect();
+        self.hier = Hierarchy::build(&self.pos, ids);
+        self.umbra_in_hier = 0;
+        self.stats.rebuilds += 1;
+        self.stats.peak_nodes = self.stats.peak_nodes.max(self.hier.nodes.len());
+        self.stats.peak_hierarchy_bytes = self.stats.peak_hierarchy_bytes.max(self.hier.bytes());
+        self.stats.build_time += t.elapsed();
+    }
+
+    fn build_groups(&mut self) {
+        self.groups_built = true;
+        self.stats.volumes_built += 1;
+        let t = self.tri;
+        for (k, v) in self.groups_vol.iter_mut().enumerate() {
+            penumbra_volume(&self.sets.group_bounds[k], &t, v);
+        }
+    }
+
+    fn hard_volumes(&mut self, set: usize, k: usize) -> usize {
+        let i = set * self.sets.groups + k;
+        if self.hard_stamp[i] != self.stamp {
+            self.hard_stamp[i] = self.stamp;
+            self.hard[i].build(&self.sets.soa[set][k], &self.tri);
+        }
+        i
+    }
+
+    fn alloc(&mut self, r: usize) {
+        let g = self.sets.groups;
+        let s = if let Some(s) = self.free.pop() {
+            self.pool[s as usize * g..(s as usize + 1) * g].fill(0);
+            s
+        } else {
+            let s = (self.pool.len() / g.max(1)) as u32;
+            self.pool.resize(self.pool.len() + g, 0);
+            s
+        };
+        self.slot[r] = s;
+        self.live += 1;
+        self.stats.masked += 1;
+        self.stats.peak_masks = self.stats.peak_masks.max(self.live);
+    }
+
+    fn release(&mut self, r: usize) {
+        let s = self.slot[r];
+        if s != NONE {
+            self.free.push(s);
+            self.slot[r] = NONE;
+            self.live -= 1;
+        }
+    }
+
+    fn recurse(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
+        let sw = self.sw;
+        let Node {
+            lo,
+            hi,
+            first,
+            count,
+            group_umbra,
+            full,
+        } = self.hier.nodes[node].clone();
+        if sw.umbra && full {
+            return;
+        }
+        let pl2 = match vl.test_box(&lo, &hi, pl, self.slack, sw.active_planes) {
+            BoxTest::Outside => return,
+            BoxTest::Active(p) => p,
+        };
+        let c0 = self.stack.len();
+        for i in s0..s1 {
+            let (k, pk) = self.stack[i];
+            if sw.umbra && (group_umbra >> k) & 1 == 1 {
+                continue;
+            }
+            if self.groups_built {
+                let v = &self.groups_vol[k as usize];
+                match v.test_box(&lo, &hi, pk & v.all(), self.slack, sw.active_planes) {
+                    BoxTest::Outside => {}
+                    BoxTest::Active(p) => self.stack.push((k, p)),
+                }
+            } else {
+                self.stack.push((k, u32::MAX));
+            }
+        }
+        let c1 = self.stack.len();
+        if c1 == c0 {
+            return;
+        }
+        if count == 0 {
+            let left = first as usize;
+            self.recurse(left, vl, pl2, c0, c1);
+            self.recurse(left + 1, vl, pl2, c0, c1);
+            if sw.umbra {
+                let (l, r) = (&self.hier.nodes[left], &self.hier.nodes[left + 1]);
+                let (gu, f) = (l.group_umbra & r.group_umbra, l.full && r.full);
+                let n = &mut self.hier.nodes[node];
+                n.group_umbra = gu;
+                n.full = f;
+            }
+        } else {
+            self.leaf(node, first as usize, count as usize, vl, pl2, c0, c1);
+        }
+        self.stack.truncate(c0);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn leaf(
+        &mut self,
+        node: usize,
+        first: usize,
+        count: usize,
+        vl: &PenumbraVolume,
+        pl: u32,
+        c0: usize,
+        c1: usize,
+    ) {
+        let sw = self.sw;
+        let all = self.sets.all_groups();
+        let g = self.sets.groups;
+        let skip_full = sw.umbra || sw.on_demand;
+        let (mut and_gu, mut and_full) = (all, true);
+        for idx in first..first + count {
+            let r = self.hier.points[idx] as usize;
+            self.leaf_triangles[r] += 1;
+            if !(skip_full && self.full[r]) && vl.contains(self.pos[r], pl, self.slack) {
+                self.point(r, c0, c1);
+            }
+            let gu = if self.full[r] {
+                all
+            } else {
+                self.group_umbra[r]
+            };
+            and_gu &= gu;
+            and_full &= self.full[r];
+        }
+        if sw.umbra {
+            let n = &mut self.hier.nodes[node];
+            n.group_umbra = and_gu;
+            n.full = and_full;
+        }
+        let _ = g;
+    }
+
+    fn point(&mut self, r: usize, c0: usize, c1: usize) {
+        let sw = self.sw;
+        if self.slot[r] == NONE {
+            self.alloc(r);
+        }
+        if !self.groups_built {
+            self.build_groups();
+        }
+        let set = self.set[r] as usize;
+        let o = self.pos[r];
+        let g = self.sets.groups;
+        let base = self.slot[r] as usize * g;
+        for i in c0..c1 {
+            let (k, pk) = self.stack[i];
+            let k = k as usize;
+            if sw.umbra && (self.group_umbra[r] >> k) & 1 == 1 {
+                continue;
+            }
+            let v = &self.groups_vol[k];
+            if !v.contains(o, pk & v.all(), self.slack) {
+                continue;
+            }
+            let valid = self.sets.valid[k];
+            let word = self.pool[base + k];
+            if word == valid {
+                continue;
+            }
+            let hv = self.hard_volumes(set, k);
+            let skip = word | !valid;
+            let bits = if sw.simd {
+                hard_bits_simd(&self.hard[hv], o, skip)
+            } else {
+                hard_bits_scalar(&self.hard[hv], o, skip)
+            };
+            let word = word | bits;
+            self.pool[base + k] = word;
+            if word == valid {
+                self.group_umbra[r] |= 1u128 << k;
+            }
+        }
+        if self.group_umbra[r] == self.sets.all_groups() && !self.full[r] {
+            self.full[r] = true;
+            self.umbra_in_hier += 1;
+            if sw.on_demand {
+                self.release(r);
+            }
+        }
+    }
+
+    /// Bytes of its hard shadow volume cache.
+    pub fn volume_bytes(&self) -> u64 {
+        (self.hard.len() * std::mem::size_of::<HardVolumes>()
+            + self
+                .groups_vol
+                .iter()
+                .map(|v| v.planes.capacity() * 32)
+                .sum::<usize>()) as u64
+    }
+
+    /// Bytes of one mask.
+    pub fn mask_bytes(&self) -> u64 {
+        self.sets.groups as u64 * 4
+    }
+}

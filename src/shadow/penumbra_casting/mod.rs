@@ -1,0 +1,709 @@
+//! Hierarchical penumbra casting (Laine & Aila 2005): exact per-sample
+//! visibility by casting every blocker triangle into a hierarchy of
+//! receiver points — ray casting transposed.
+//!
+//! Per light:
+//!
+//! 1. **Receivers**: the G-buffer's points, as the reference's shadow-ray
+//!    origins ([`ShadowOrigin`]), in screen chunks ([`cast::Chunk`]), each
+//!    with its own AABB hierarchy ([`hierarchy`]).
+//! 2. **Light samples** in three levels ([`samples`]): the light, groups
+//!    of 32, the samples; `K` sets from the one sampling module.
+//! 3. **Casting** ([`cast`]): per opaque caster triangle (coarsely sorted
+//!    by area, largest first), its penumbra volume with the whole light
+//!    `V_L` ([`volume`]) culls hierarchy nodes, the group volumes `V_Gk`
+//!    cull groups, and at the leaves each receiver is tested against the
+//!    hard shadow volume of every remaining sample of its set (SIMD over
+//!    four samples), setting its bits. The optimisations of §3.3 are
+//!    switchable ([`PenumbraCastingOptions`]).
+//! 4. **Shading**: the same per-sample visibility the reference computes
+//!    (1 − bit), with the reference's estimator: a
+//!    [`LightTerm::Radiance`] whose Vcoef and radiance are bit for bit the
+//!    reference's where the sample sets are the reference's and no
+//!    relation is a tie.
+//!
+//! See `docs/algorithms/penumbra-casting.md`.
+
+pub mod cast;
+pub mod hierarchy;
+pub mod samples;
+pub mod volume;
+
+use super::kit::rays::{scene_diagonal, ShadowOrigin};
+use super::kit::timing::PassTimer;
+use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
+use crate::error::{Error, Result};
+use crate::output::Layer;
+use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
+use crate::scene::LightShape;
+use crate::shade::{surface_point, PreparedLight};
+use cast::{Chunk, ChunkStats, Switches};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use samples::{SampleSets, GROUP, MAX_GROUPS};
+use std::time::Duration;
+use volume::{penumbra_volume, PenumbraVolume};
+
+/// Penumbra casting's command-line options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
+pub struct PenumbraCastingOptions {
+    /// Penumbra casting: distinct light-sample sets, assigned per receiver
+    /// (§3.4; the paper's 8). With `--pattern interleaved:n` and
+    /// `n²` sets, or `--pattern correlated`, every receiver gets the
+    /// reference's own samples.
+    #[arg(long, default_value_t = 8)]
+    pub pc_sample_sets: u32,
+    /// Penumbra casting: umbra bits and hierarchy rebuilds (§3.3 A).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_umbra_bits: bool,
+    /// Penumbra casting: active plane sets (§3.3 B).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_active_planes: bool,
+    /// Penumbra casting: lazy group and hard-shadow-volume construction
+    /// (§3.3 C).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_lazy_volumes: bool,
+    /// Penumbra casting: bit masks allocated on demand and freed at full
+    /// umbra (§3.3 D).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_on_demand_masks: bool,
+    /// Penumbra casting: coarse blocker sorting by area buckets, largest
+    /// first (§3.3).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_sort_blockers: bool,
+    /// Penumbra casting: point-in-volume tests through the SIMD facade
+    /// (`false`: its scalar twin; same bits).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_simd: bool,
+    /// Penumbra casting: skip the triangles of closed casters whose plane
+    /// has the whole light strictly behind it (a segment crossing a closed
+    /// surface crosses it both ways, so the light-facing crossings suffice).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_cull_back_faces: bool,
+    /// Penumbra casting: rebuild a chunk's hierarchy when more than this
+    /// percentage of its receivers is in full umbra (0: never).
+    #[arg(long, default_value_t = 25)]
+    pub pc_rebuild_percent: u32,
+    /// Penumbra casting: side in pixels of the square screen chunks whose
+    /// receivers share a hierarchy (chunks run in parallel).
+    #[arg(long, default_value_t = 256)]
+    pub pc_chunk: u32,
+    /// Penumbra casting: most MiB of bit masks (receivers × samples bits)
+    /// held at once; chunks are processed in waves that fit.
+    #[arg(long, default_value_t = 1024)]
+    pub pc_mask_budget_mib: u32,
+}
+
+impl Default for PenumbraCastingOptions {
+    /// The command line's defaults (every optimisation on).
+    fn default() -> Self {
+        crate::shadow::TechniqueOptions::default().penumbra_casting
+    }
+}
+
+impl PenumbraCastingOptions {
+    /// Every optimisation off, scalar tests: the basic algorithm of Fig. 2.
+    pub fn basic(self) -> Self {
+        PenumbraCastingOptions {
+            pc_umbra_bits: false,
+            pc_active_planes: false,
+            pc_lazy_volumes: false,
+            pc_on_demand_masks: false,
+            pc_sort_blockers: false,
+            pc_simd: false,
+            pc_cull_back_faces: false,
+            ..self
+        }
+    }
+
+    fn switches(&self) -> Switches {
+        Switches {
+            umbra: self.pc_umbra_bits,
+            active_planes: self.pc_active_planes,
+            lazy: self.pc_lazy_volumes,
+            on_demand: self.pc_on_demand_masks,
+            simd: self.pc_simd,
+            rebuild_percent: self.pc_rebuild_percent,
+        }
+    }
+}
+
+const SEMI_OPAQUE: Support = Support::Ignored(
+    "penumbra casting keeps one bit per relation; casters of constant opacity below 1 cast no \
+     shadow here (use dcs or reference)",
+);
+const S_TRIANGLES: Support = Support::Ignored(
+    "the alpha-matte pass (§3.4) is not built; opacity-textured casters cast no shadow here \
+     (use dcs or reference)",
+);
+
+/// Penumbra casting in the technique registry.
+pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
+    name: "penumbra-casting",
+    summary: "hierarchical penumbra casting: blocker triangles cast into a receiver hierarchy, exact per-sample bits (Laine & Aila 2005)",
+    module: "shadow/penumbra_casting/",
+    page: Some("penumbra-casting.md"),
+    capabilities: |_| Capabilities {
+        rect_lights: Support::Yes,
+        sphere_lights: Support::Refused {
+            param: "--technique",
+            why: "the light-sample hierarchy is built for rect lights (a sphere's samples move \
+                  with the receiver); use dcs or reference",
+        },
+        textured_lights: Support::Yes,
+        enclosed_lights: Support::Yes,
+        semi_opaque: SEMI_OPAQUE,
+        s_triangles: S_TRIANGLES,
+        output: TermKind::Radiance,
+        exact: true,
+    },
+    quality_settings: |s| s.per_sample_count("penumbra-casting", "", s.first_pattern(), |_| {}),
+    build: |p| {
+        Box::new(PenumbraCasting {
+            samples: p.samples,
+            seed: p.seed,
+            pattern: p.pattern,
+            options: p.options.penumbra_casting,
+        })
+    },
+};
+
+/// The penumbra-casting technique.
+#[derive(Debug, Clone, Copy)]
+pub struct PenumbraCasting {
+    /// Light samples per receiver and light (1 ..= 4096).
+    pub samples: u32,
+    /// Seed of the light samples.
+    pub seed: u64,
+    /// How samples are placed on the light.
+    pub pattern: SamplePattern,
+    /// Its options.
+    pub options: PenumbraCastingOptions,
+}
+
+/// Every receiver's blocked relations for one light (for checks).
+#[derive(Debug, Clone)]
+pub struct LightMasks {
+    /// The sample sets.
+    pub sets: SampleSets,
+    /// Per pixel: its set, or `None` for background and non-receivers.
+    pub set: Vec<Option<u16>>,
+    /// Per pixel: `groups` words of blocked bits in group order (bit `j`
+    /// of word `k` is sample `sets.order[set][32 k + j]`).
+    pub words: Vec<u32>,
+    /// Per pixel: group-umbra bits and the full-umbra bit as the
+    /// traversal left them.
+    pub umbra: Vec<(u128, bool)>,
+    /// What the light's pass measured.
+    pub report: LightReport,
+}
+
+/// What one light's pass measured.
+#[derive(Debug, Clone, Default)]
+pub struct LightReport {
+    /// Receivers cast into.
+    pub receivers: usize,
+    /// Blocker triangles cast.
+    pub triangles: usize,
+    /// Back faces of closed casters left out.
+    pub culled: usize,
+    /// Chunks and waves.
+    pub chunks: usize,
+    /// Waves of chunks (mask budget).
+    pub waves: usize,
+    /// Summed over chunks.
+    pub stats: ChunkStats,
+    /// Summed peak mask bytes of the chunks of the largest wave.
+    pub peak_mask_bytes: u64,
+    /// Hard-volume caches, summed over chunks.
+    pub volume_bytes: u64,
+    /// Wall-clock times.
+    pub sort_time: Duration,
+    /// Light volumes of the triangles and hierarchy casting.
+    pub cast_time: Duration,
+    /// First hierarchy builds (wall clock).
+    pub build_time: Duration,
+}
+
+/// A chunk's receivers: pixel indices and sets.
+struct ChunkInput {
+    pixels: Vec<u32>,
+}
+
+impl PenumbraCasting {
+    fn check(&self) -> Result<()> {
+        if self.samples == 0 || self.samples as usize > GROUP * MAX_GROUPS {
+            return Err(Error::param(
+                "--samples",
+                format!(
+                    "penumbra casting takes 1 to {} light samples, not {}",
+                    GROUP * MAX_GROUPS,
+                    self.samples
+                ),
+            ));
+        }
+        let o = &self.options;
+        if o.pc_sample_sets == 0 || o.pc_sample_sets > 4096 {
+            return Err(Error::param(
+                "--pc-sample-sets",
+                format!("takes 1 to 4096 sets, not {}", o.pc_sample_sets),
+            ));
+        }
+        if o.pc_chunk == 0 {
+            return Err(Error::param(
+                "--pc-chunk",
+                "the chunk side must be at least 1 pixel",
+            ));
+        }
+        if o.pc_rebuild_percent > 100 {
+            return Err(Error::param("--pc-rebuild-percent", "takes 0 to 100"));
+        }
+        if o.pc_mask_budget_mib == 0 {
+            return Err(Error::param("--pc-mask-budget-mib", "must be at least 1"));
+        }
+        Ok(())
+    }
+
+    /// Casts every opaque caster for light `k` and calls `finish` with
+    /// each finished chunk (its pixels and state), chunks of a wave in
+    /// parallel.
+    fn run_light<F>(
+        &self,
+        ctx: &ShadowContext,
+        k: usize,
+        finish: F,
+    ) -> Result<(SampleSets, LightReport)>
+    where
+        F: Fn(&SampleSets, &[u32], &Chunk) + Sync,
+    {
+        self.check()?;
+        let light = ctx
+            .scene
+            .lights
+            .get(k)
+            .ok_or_else(|| Error::param("--technique", format!("no light {k}")))?;
+        let LightShape::Rect { center, u, v, .. } = light.shape else {
+            return Err(Error::param(
+                "--technique",
+                "penumbra casting takes rect lights only (use dcs or reference)",
+            ));
+        };
+        let centre = center.as_dvec3();
+        let e1 = u.as_dvec3().normalize_or_zero();
+        let e3 = u.as_dvec3().cross(v.as_dvec3()).normalize_or_zero();
+        let e2 = e3.cross(e1);
+        let sampler = LightSampler::new(light);
+        let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
+        let sets = SampleSets::new(
+            &sampler,
+            &pattern,
+            self.options.pc_sample_sets as usize,
+            centre,
+            [e1, e2, e3],
+        );
+        let mut report = LightReport::default();
+
+        // Triangles: opaque casters, non-degenerate, relative to the light.
+        let t0 = std::time::Instant::now();
+        let g = ctx.geometry;
+        let cull = self.options.pc_cull_back_faces;
+        // Back faces may be skipped only for closed casters the light is
+        // outside of (a sample on a caster's surface sees only its exit
+        // crossing): those whose bounding box is disjoint from the light's.
+        let (llo, lhi) = sets
+            .light
+            .corners
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(*c), hi.max(*c))
+            });
+        let mut object_box = vec![(DVec3::INFINITY, DVec3::NEG_INFINITY); ctx.scene.objects.len()];
+        for (t, tri) in g.triangles.iter().enumerate() {
+            if let Some(b) = object_box.get_mut(g.triangle_object[t] as usize) {
+                for &i in tri {
+                    let p = g.positions[i as usize].as_dvec3() - centre;
+                    *b = (b.0.min(p), b.1.max(p));
+                }
+            }
+        }
+        let light_outside: Vec<bool> = object_box
+            .iter()
+            .map(|&(lo, hi)| {
+                let m = 1e-6 * (hi - lo).max_element().max((lhi - llo).max_element());
+                (lo - DVec3::splat(m)).cmpgt(lhi).any() || (hi + DVec3::splat(m)).cmplt(llo).any()
+            })
+            .collect();
+        let tris: Vec<[DVec3; 3]> = (0..g.triangles.len())
+            .filter(|&t| {
+                let obj = ctx.scene.objects.get(g.triangle_object[t] as usize);
+                let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
+                obj.is_some_and(|o| o.cast_shadows) && mat.is_some_and(|m| m.is_opaque())
+            })
+            .filter_map(|t| {
+                let tri = g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                if !(n.length_squared() > 0.0) {
+                    return None;
+                }
+                let o = g.triangle_object[t] as usize;
+                let closed =
+                    g.object_closed.get(o) == Some(&true) && light_outside.get(o) == Some(&true);
+                let behind = |c: &DVec3| n.dot(*c - tri[0]) < 0.0;
+                if cull && closed && sets.light.corners.iter().all(behind) {
+                    report.culled += 1;
+                    return None;
+                }
+                Some(tri)
+            })
+            .collect();
+        let tris = if self.options.pc_sort_blockers {
+            sort_by_area(tris)
+        } else {
+            tris
+        };
+        report.sort_time = t0.elapsed();
+        report.triangles = tris.len();
+
+        // Receivers, by screen chunk.
+        let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
+        let gb = ctx.gbuffer;
+        let (w, h) = (gb.width.max(1), gb.height);
+        let side = self.options.pc_chunk;
+        let (cw, ch) = (w.div_ceil(side), h.div_ceil(side));
+        let mut inputs: Vec<ChunkInput> = (0..cw * ch)
+            .map(|_| ChunkInput { pixels: Vec::new() })
+            .collect();
+        for i in 0..gb.len() {
+            let Some(s) = gb.get(i) else { continue };
+            if !s.is_surface() || !receives(ctx, s.object) {
+                continue;
+            }
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            inputs[((y / side) * cw + x / side) as usize]
+                .pixels
+                .push(i as u32);
+        }
+        inputs.retain(|c| !c.pixels.is_empty());
+        report.chunks = inputs.len();
+        report.receivers = inputs.iter().map(|c| c.pixels.len()).sum();
+
+        // Waves of chunks within the mask budget.
+        let budget = u64::from(self.options.pc_mask_budget_mib) << 20;
+        let per_receiver = sets.groups as u64 * 4;
+        let mut waves: Vec<Vec<ChunkInput>> = Vec::new();
+        let mut bytes = 0u64;
+        for c in inputs {
+            let b = c.pixels.len() as u64 * per_receiver;
+            if waves.is_empty() || bytes + b > budget {
+                waves.push(Vec::new());
+                bytes = 0;
+            }
+            bytes += b;
+            waves.last_mut().expect("a wave").push(c);
+        }
+        report.waves = waves.len();
+
+        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
+        let sw = self.options.switches();
+        const BATCH: usize = 4096;
+        for wave in waves {
+            let tb = std::time::Instant::now();
+            let mut chunks: Vec<(Vec<u32>, Chunk)> = wave
+                .into_par_iter()
+                .map(|c| {
+                    let pos = c
+                        .pixels
+                        .iter()
+                        .map(|&i| {
+                            let s = gb.sample(i as usize);
+                            let o = origin.of(s.position, s.geo_normal).as_dvec3() - centre;
+                            [o.x, o.y, o.z]
+                        })
+                        .collect();
+                    let set = c
+                        .pixels
+                        .iter()
+                        .map(|&i| sets.set_of((i % w, i / w)) as u16)
+                        .collect();
+                    let chunk = Chunk::new(&sets, sw, slack, pos, set);
+                    (c.pixels, chunk)
+                })
+                .collect();
+            report.build_time += tb.elapsed();
+            let tc = std::time::Instant::now();
+            let mut vl: Vec<PenumbraVolume> = Vec::new();
+            for batch in tris.chunks(BATCH) {
+                vl.resize_with(batch.len(), PenumbraVolume::default);
+                batch
+                    .par_iter()
+                    .zip(vl.par_iter_mut())
+                    .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
+                chunks.par_iter_mut().for_each(|(_, c)| {
+                    for (t, v) in batch.iter().zip(&vl) {
+                        c.process(t, v);
+                    }
+                });
+            }
+            report.cast_time += tc.elapsed();
+            let mut wave_masks = 0u64;
+            for (_, c) in &chunks {
+                let s = &c.stats;
+                report.stats.rebuilds += s.rebuilds;
+                report.stats.peak_nodes += s.peak_nodes;
+                report.stats.peak_hierarchy_bytes += s.peak_hierarchy_bytes;
+                report.stats.peak_masks += s.peak_masks;
+                report.stats.masked += s.masked;
+                report.stats.build_time += s.build_time;
+                report.stats.volumes_built += s.volumes_built;
+                report.volume_bytes += c.volume_bytes();
+                wave_masks += s.peak_masks as u64 * c.mask_bytes();
+            }
+            report.peak_mask_bytes = report.peak_mask_bytes.max(wave_masks);
+            chunks.par_iter().for_each(|(px, c)| finish(&sets, px, c));
+        }
+        Ok((sets, report))
+    }
+
+    /// Every receiver's blocked relations for light `k` (checks and
+    /// tests).
+    pub fn light_masks(&self, ctx: &ShadowContext, k: usize) -> Result<LightMasks> {
+        let n = ctx.gbuffer.len();
+        type Row = (u32, u16, Vec<u32>, (u128, bool));
+        let out = std::sync::Mutex::new(Vec::<Row>::new());
+        let (sets, report) = self.run_light(ctx, k, |sets, px, c| {
+            let mut words = Vec::new();
+            let mut local = Vec::with_capacity(px.len());
+            for (r, &i) in px.iter().enumerate() {
+                c.words(r, &mut words);
+                local.push((i, c.set[r], words.clone(), (c.group_umbra[r], c.full[r])));
+            }
+            let _ = sets;
+            out.lock().expect("no panic").extend(local);
+        })?;
+        let g = sets.groups;
+        let mut masks = LightMasks {
+            set: vec![None; n],
+            words: vec![0; n * g],
+            umbra: vec![(0, false); n],
+            report,
+            sets,
+        };
+        for (i, set, words, umbra) in out.into_inner().expect("no panic") {
+            let i = i as usize;
+            masks.set[i] = Some(set);
+            masks.words[i * g..(i + 1) * g].copy_from_slice(&words);
+            masks.umbra[i] = umbra;
+        }
+        Ok(masks)
+    }
+
+    /// Runs every light and reports each.
+    pub fn compute_with_report(
+        &self,
+        ctx: &ShadowContext,
+    ) -> Result<(ShadowOutput, Vec<LightReport>)> {
+        self.check()?;
+        let mut out = ShadowOutput::default();
+        let mut layer = Layer {
+            name: "pc_leaf_triangles".into(),
+            channels: Vec::new(),
+        };
+        let mut reports = Vec::new();
+        let len = ctx.gbuffer.len();
+        let w = ctx.gbuffer.width.max(1) as usize;
+        let eye = ctx.view.eye.as_vec3();
+        for k in 0..ctx.scene.lights.len() {
+            let t = PassTimer::start(format!("penumbra casting light {k}"));
+            let light = &ctx.scene.lights[k];
+            let prepared = PreparedLight::new(light, &ctx.scene.textures);
+            type Px = (u32, f32, Vec3, u32);
+            let results = std::sync::Mutex::new(Vec::<Vec<Px>>::new());
+            let (sets, report) = self.run_light(ctx, k, |sets, px, c| {
+                let n = sets.n;
+                let mut words = Vec::new();
+                let mut vis = vec![1.0f32; n];
+                let mut local = Vec::with_capacity(px.len());
+                for (r, &i) in px.iter().enumerate() {
+                    let set = c.set[r] as usize;
+                    c.words(r, &mut words);
+                    vis.iter_mut().for_each(|v| *v = 1.0);
+                    let mut visible = n;
+                    for (slot, &orig) in sets.order[set].iter().enumerate() {
+                        if (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1 {
+                            vis[orig as usize] = 0.0;
+                            visible -= 1;
+                        }
+                    }
+                    let g = ctx.gbuffer.sample(i as usize);
+                    let vcoef = (visible as f64 / n as f64) as f32;
+                    let rad = prepared.direct_from_samples(
+                        &surface_point(ctx.scene, &g, eye),
+                        &sets.samples[set],
+                        &vis,
+                    );
+                    local.push((i, vcoef, rad, c.leaf_triangles[r]));
+                }
+                results.lock().expect("no panic").push(local);
+            })?;
+            let mut vcoef = vec![0.0f32; len];
+            let mut radiance = vec![Vec3::ZERO; len];
+            let mut leaf = vec![0.0f32; len];
+            for (i, v, r, l) in results
+                .into_inner()
+                .expect("no panic")
+                .into_iter()
+                .flatten()
+            {
+                vcoef[i as usize] = v;
+                radiance[i as usize] = r;
+                leaf[i as usize] = l as f32;
+            }
+            // Surface pixels that receive no shadows: every sample visible.
+            let all_visible = vec![1.0f32; sets.n];
+            for i in 0..len {
+                let Some(g) = ctx.gbuffer.get(i) else {
+                    continue;
+                };
+                if g.is_surface() && !receives(ctx, g.object) {
+                    let set = sets.set_of(((i % w) as u32, (i / w) as u32));
+                    vcoef[i] = 1.0;
+                    radiance[i] = prepared.direct_from_samples(
+                        &surface_point(ctx.scene, &g, eye),
+                        &sets.samples[set],
+                        &all_visible,
+                    );
+                }
+            }
+            t.finish_with(
+                &mut out.passes,
+                format!(
+                    "sort {:.3} s, build {:.3} s, cast {:.3} s",
+                    report.sort_time.as_secs_f64(),
+                    report.build_time.as_secs_f64(),
+                    report.cast_time.as_secs_f64()
+                ),
+            );
+            layer.channels.push((k.to_string(), leaf));
+            self.notes(k, &sets, &report, &mut out.buffers);
+            out.lights.push(LightTerm::Radiance { radiance, vcoef });
+            reports.push(report);
+        }
+        out.layers.push(layer);
+        Ok((out, reports))
+    }
+
+    fn notes(&self, k: usize, sets: &SampleSets, r: &LightReport, notes: &mut Vec<BufferNote>) {
+        let o = &self.options;
+        notes.push(BufferNote {
+            name: format!("receiver hierarchy light {k}"),
+            detail: format!(
+                "{} receivers in {} chunks of {}² px ({} wave(s)); {} nodes at peak (leaves ≤ {}, \
+                 spatial median above {} points, least surface area below); {} rebuild(s) at > {} % \
+                 in umbra, {:.3} s building (CPU)",
+                r.receivers,
+                r.chunks,
+                o.pc_chunk,
+                r.waves,
+                r.stats.peak_nodes,
+                hierarchy::LEAF,
+                hierarchy::SPATIAL_ABOVE,
+                r.stats.rebuilds,
+                o.pc_rebuild_percent,
+                r.stats.build_time.as_secs_f64()
+            ),
+            bytes: r.stats.peak_hierarchy_bytes + r.receivers as u64 * 64,
+        });
+        notes.push(BufferNote {
+            name: format!("bit masks light {k}"),
+            detail: format!(
+                "{} bits per receiver ({} groups of ≤ 32), {}; {} receivers ever masked, {} at the \
+                 chunks' summed peaks",
+                sets.n,
+                sets.groups,
+                if o.pc_on_demand_masks {
+                    "allocated on demand, freed at full umbra"
+                } else {
+                    "allocated for every receiver"
+                },
+                r.stats.masked,
+                r.stats.peak_masks
+            ),
+            bytes: r.peak_mask_bytes,
+        });
+        notes.push(BufferNote {
+            name: format!("light sample sets light {k}"),
+            detail: format!(
+                "{} set(s) of {} samples{}; {} triangles cast ({} back faces of closed casters \
+                 skipped), {} volume builds",
+                sets.sets,
+                sets.n,
+                if sets.matches_reference() {
+                    " (every receiver gets the reference's samples)"
+                } else {
+                    ", assigned per receiver by a pixel hash"
+                },
+                r.triangles,
+                r.culled,
+                r.stats.volumes_built
+            ),
+            bytes: sets.bytes() + r.volume_bytes,
+        });
+        if k == 0 {
+            notes.push(BufferNote {
+                name: "semi-opaque transmittance".into(),
+                detail: "left out: one bit per relation; casters of opacity below 1 are not cast"
+                    .into(),
+                bytes: 0,
+            });
+            notes.push(BufferNote {
+                name: "S-triangle (alpha-matte) pass".into(),
+                detail: "left out: not built; opacity-textured casters are not cast".into(),
+                bytes: 0,
+            });
+        }
+    }
+}
+
+impl ShadowTechnique for PenumbraCasting {
+    fn name(&self) -> &'static str {
+        "penumbra-casting"
+    }
+
+    fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
+        Ok(self.compute_with_report(ctx)?.0)
+    }
+}
+
+/// Whether object `object` receives shadows (unknown objects do, as for
+/// the reference).
+fn receives(ctx: &ShadowContext, object: u32) -> bool {
+    ctx.scene
+        .objects
+        .get(object as usize)
+        .is_none_or(|o| o.receive_shadows)
+}
+
+/// Coarse blocker sorting (§3.3): buckets by `⌊log2(max area / area)⌋`
+/// (32 buckets, the last catching the rest), largest first, stable.
+fn sort_by_area(tris: Vec<[DVec3; 3]>) -> Vec<[DVec3; 3]> {
+    const BUCKETS: usize = 32;
+    let area = |t: &[DVec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length();
+    let max = tris.iter().map(area).fold(0.0f64, f64::max);
+    if !(max > 0.0) {
+        return tris;
+    }
+    let bucket = |t: &[DVec3; 3]| -> usize {
+        let r = max / area(t);
+        if !(r.is_finite()) {
+            BUCKETS - 1
+        } else {
+            (r.log2().floor().max(0.0) as usize).min(BUCKETS - 1)
+        }
+    };
+    let mut out: Vec<Vec<[DVec3; 3]>> = vec![Vec::new(); BUCKETS];
+    for t in tris {
+        out[bucket(&t)].push(t);
+    }
+    out.into_iter().flatten().collect()
+}

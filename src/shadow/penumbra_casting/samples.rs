@@ -1,0 +1,260 @@
+//! The three-level light-sample hierarchy (§3.1, §3.4): the light, groups
+//! of 32 nearby samples, the samples; in `K` distinct sample sets, each
+//! the points of the one sampling module at one "set pixel".
+//!
+//! Set `σ` of a rect light is `LightSampler::samples_with(pattern, _,
+//! set_pixel(σ))`. With the `correlated` pattern every pixel of the
+//! reference shares one set (so `K = 1`); with `interleaved:n` and
+//! `K = n²` set `σ` is the reference's set number `σ` and each receiver
+//! gets the set of its own pixel: in both cases every receiver's samples
+//! are bit for bit the reference's. Otherwise set `σ` is the pattern's
+//! points at the virtual pixel `(u32::MAX − σ, u32::MAX)` (outside every
+//! image) and a receiver gets the set `pixel_key(seed, light, pixel) mod K`
+//! (noise instead of the banding of a fixed assignment).
+//!
+//! Groups: each set's unit points are split by counts along the longer
+//! side of a nominal region (the same splits for every set), so group `k`
+//! covers the same part of the light in every set; with a jittered grid
+//! the groups are blocks of strata (4 × 8 cells at 256 samples). A group's
+//! bound is the box, in the light's frame, of its samples' `f32`
+//! positions over every set (§3.4: it must bound all sets), widened by
+//! rounding margins, so every position a hard shadow volume is built
+//! from lies inside it.
+
+use super::volume::GroupSoa;
+use crate::sampling::{mix64, pixel_key, LightSampler, PatternSampler, SamplePattern};
+use crate::shade::LightSample;
+use glam::{DVec3, Vec3};
+
+/// Samples per group (the paper's 32: one `u32` mask word).
+pub const GROUP: usize = 32;
+/// Most groups: the umbra bits are one `u128`.
+pub const MAX_GROUPS: usize = 128;
+
+/// A convex light part as a box in the light's frame: its 8 corners,
+/// relative to the light's centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightBox {
+    /// Corners `lo + (i&1, i&2, i&4)·(hi − lo)` in world axes.
+    pub corners: [DVec3; 8],
+}
+
+/// The sample sets of one light.
+#[derive(Debug, Clone)]
+pub struct SampleSets {
+    /// Samples per set, `N`.
+    pub n: usize,
+    /// Groups, `⌈N / 32⌉`.
+    pub groups: usize,
+    /// Distinct sets.
+    pub sets: usize,
+    /// Per set: the samples in group order (`32 k + j`), relative to
+    /// the light's centre, in `f64` (exact differences of `f32`).
+    pub positions: Vec<Vec<DVec3>>,
+    /// Per set and group: the positions as lanes.
+    pub soa: Vec<Vec<GroupSoa>>,
+    /// Per set: group-order slot → the sample's index `k` in the
+    /// pattern (its index in the reference's sample list).
+    pub order: Vec<Vec<u32>>,
+    /// Per set: the samples as the reference gets them (index order).
+    pub samples: Vec<Vec<LightSample>>,
+    /// The bound of every sample of every set (`Δ_L`).
+    pub light: LightBox,
+    /// Per group: the bound of its samples over every set (`Δ_Gk`).
+    pub group_bounds: Vec<LightBox>,
+    /// Per group: the valid bits of its mask word.
+    pub valid: Vec<u32>,
+    /// How receivers get their set.
+    assign: Assign,
+    seed: u64,
+    light_index: usize,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Assign {
+    /// Every receiver set 0.
+    One,
+    /// The reference's interleaved set of the pixel.
+    Interleaved(u32),
+    /// A hash of the pixel, mod K.
+    Hashed,
+}
+
+impl SampleSets {
+    /// The sets of rect light `sampler` (index `light_index`) for
+    /// `pattern` with `k` distinct sets (`k ≥ 1`); `n` must be ≥ 1 and at
+    /// most `32 × MAX_GROUPS` (checked by the caller).
+    pub fn new(
+        sampler: &LightSampler,
+        pattern: &PatternSampler,
+        k: usize,
+        centre: DVec3,
+        axes: [DVec3; 3],
+    ) -> SampleSets {
+        let n = pattern.len() as usize;
+        let (sets, assign) = match pattern.pattern() {
+            SamplePattern::Correlated => (1, Assign::One),
+            SamplePattern::Interleaved { n: side } if (side.max(1) * side.max(1)) as usize == k => {
+                (k, Assign::Interleaved(side.max(1)))
+            }
+            _ if k <= 1 => (1, Assign::Hashed),
+            _ => (k, Assign::Hashed),
+        };
+        let set_pixel = |s: usize| -> (u32, u32) {
+            match assign {
+                Assign::Interleaved(side) => (s as u32 % side, s as u32 / side),
+                _ => (u32::MAX - s as u32, u32::MAX),
+            }
+        };
+        let groups = n.div_ceil(GROUP);
+        let mut positions: Vec<Vec<DVec3>> = Vec::with_capacity(sets);
+        let mut order = Vec::with_capacity(sets);
+        let mut samples_all = Vec::with_capacity(sets);
+        let mut units = Vec::new();
+        let mut samples = Vec::new();
+        for s in 0..sets {
+            let px = set_pixel(s);
+            pattern.unit_points(px, &mut units);
+            // A rect light's samples do not depend on the receiver.
+            sampler.samples_with(pattern, Vec3::ZERO, px, &mut samples);
+            let mut idx: Vec<u32> = (0..n as u32).collect();
+            split(&units, &mut idx, [1.0, 1.0]);
+            positions.push(
+                idx.iter()
+                    .map(|&i| samples[i as usize].x.as_dvec3() - centre)
+                    .collect(),
+            );
+            order.push(idx);
+            samples_all.push(samples.clone());
+        }
+        let frame = |p: DVec3| DVec3::new(p.dot(axes[0]), p.dot(axes[1]), p.dot(axes[2]));
+        let mut lo = vec![DVec3::INFINITY; groups];
+        let mut hi = vec![DVec3::NEG_INFINITY; groups];
+        for set in &positions {
+            for (slot, &p) in set.iter().enumerate() {
+                let q = frame(p);
+                lo[slot / GROUP] = lo[slot / GROUP].min(q);
+                hi[slot / GROUP] = hi[slot / GROUP].max(q);
+            }
+        }
+        let scale = positions
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m, p| m.max(p.abs().max_element()))
+            + centre.abs().max_element();
+        // The frame projection and back rounds at ~1e-16 relative; the
+        // margin is far above it and far below any geometric feature.
+        let margin = 1e-12 * scale.max(f64::MIN_POSITIVE);
+        let make = |lo: DVec3, hi: DVec3| -> LightBox {
+            let (lo, hi) = (lo - DVec3::splat(margin), hi + DVec3::splat(margin));
+            let mut corners = [DVec3::ZERO; 8];
+            for (i, c) in corners.iter_mut().enumerate() {
+                let q = DVec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                );
+                *c = axes[0] * q.x + axes[1] * q.y + axes[2] * q.z;
+            }
+            LightBox { corners }
+        };
+        let all_lo = lo.iter().fold(DVec3::INFINITY, |a, &b| a.min(b));
+        let all_hi = hi.iter().fold(DVec3::NEG_INFINITY, |a, &b| a.max(b));
+        let valid = (0..groups)
+            .map(|g| {
+                let len = (n - g * GROUP).min(GROUP);
+                if len == GROUP {
+                    u32::MAX
+                } else {
+                    (1u32 << len) - 1
+                }
+            })
+            .collect();
+        let soa = positions
+            .iter()
+            .map(|set| set.chunks(GROUP).map(GroupSoa::new).collect())
+            .collect();
+        SampleSets {
+            soa,
+            n,
+            groups,
+            sets,
+            light: make(all_lo, all_hi),
+            group_bounds: (0..groups).map(|g| make(lo[g], hi[g])).collect(),
+            positions,
+            order,
+            samples: samples_all,
+            valid,
+            assign,
+            seed: pattern.seed(),
+            light_index: pattern.light_index(),
+        }
+    }
+
+    /// The set of the receiver at `pixel`.
+    pub fn set_of(&self, pixel: (u32, u32)) -> usize {
+        match self.assign {
+            Assign::One => 0,
+            Assign::Interleaved(side) => {
+                ((pixel.0 % side) + side * (pixel.1 % side)) as usize % self.sets
+            }
+            Assign::Hashed => {
+                if self.sets <= 1 {
+                    0
+                } else {
+                    (mix64(pixel_key(self.seed, self.light_index, pixel) ^ 0x5bd1_e995)
+                        % self.sets as u64) as usize
+                }
+            }
+        }
+    }
+
+    /// Whether every receiver's samples are the reference's at its pixel.
+    pub fn matches_reference(&self) -> bool {
+        matches!(self.assign, Assign::One | Assign::Interleaved(_))
+    }
+
+    /// The umbra bits of a receiver with every group in umbra.
+    pub fn all_groups(&self) -> u128 {
+        if self.groups == MAX_GROUPS {
+            u128::MAX
+        } else {
+            (1u128 << self.groups) - 1
+        }
+    }
+
+    /// Bytes of the sets (positions, orders, samples).
+    pub fn bytes(&self) -> u64 {
+        (self.sets * self.n * (24 + 4 + std::mem::size_of::<LightSample>())) as u64
+    }
+}
+
+/// Orders `idx` so that consecutive runs of 32 are nearby groups: split
+/// by count along the longer side of the nominal region `extent` (the
+/// same decisions for every set), full groups on the left.
+fn split(units: &[(f64, f64)], idx: &mut [u32], extent: [f64; 2]) {
+    let len = idx.len();
+    if len <= GROUP {
+        return;
+    }
+    let groups = len.div_ceil(GROUP);
+    let left = GROUP * (groups / 2);
+    let axis = usize::from(extent[1] > extent[0]);
+    let key = |i: u32| {
+        let p = units[i as usize];
+        if axis == 0 {
+            p.0
+        } else {
+            p.1
+        }
+    };
+    idx.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
+    let f = left as f64 / len as f64;
+    let (l, r) = idx.split_at_mut(left);
+    let mut le = extent;
+    le[axis] *= f;
+    let mut re = extent;
+    re[axis] *= 1.0 - f;
+    split(units, l, le);
+    split(units, r, re);
+}
