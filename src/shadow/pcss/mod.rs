@@ -21,7 +21,12 @@
 //!   eye (no caster is nearer to the light than `z_s`, so every caster
 //!   that can occlude a point of the light lies in it);
 //! - penumbra width on the receiver `w = (z_r' − z_b') · 2h / z_b'`
-//!   (Fernando's eq. 1), filter half-width `(w / 2) / z_r`.
+//!   (Fernando's estimate), filter half-width `(w / 2) / z_r`.
+//!
+//! Each tap is compared with the receiver's plane at the tap (the ray
+//! through the tap meets the plane of the receiver's geometric normal),
+//! not with the receiver's own depth: NVIDIA's receiver-plane depth bias,
+//! exact, slope capped at 10 (`--pcss-flat-receiver` turns it off).
 //!
 //! Taps are a Poisson disk (`--pcss-kernel poisson`, rotated per pixel by
 //! the seeded per-pixel key, the disk scaled per axis: an ellipse inscribed
