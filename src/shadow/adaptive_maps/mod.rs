@@ -51,10 +51,10 @@ use crate::shadow::kit::many_maps::{
     active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup, RenderedMap,
     QSCALE,
 };
+use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, QualitySetting, Support, TechniqueInfo, TermKind};
-use crate::shadow::shadow_map::ShadowMapOptions;
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use rayon::prelude::*;
 use std::collections::BTreeSet;

@@ -26,6 +26,7 @@ pub mod groups;
 pub mod light_frame;
 pub mod light_view;
 pub mod many_maps;
+pub mod map_fit;
 pub mod membership;
 pub mod rays;
 pub mod shadow_maps;

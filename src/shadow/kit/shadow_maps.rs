@@ -292,3 +292,43 @@ pub fn poisson_disk(n: u32, radius: f64) -> Vec<DVec2> {
     }
     taps
 }
+
+/// Shadow maps' command-line options.
+#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
+pub struct ShadowMapOptions {
+    /// Shadow maps: texels per side of each light's depth map.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=MAX_MAP_SIZE as i64))]
+    pub map_size: u32,
+    /// Shadow maps: percentage-closer filter, 1 | 2x2 | 3x3 | poisson:N.
+    #[arg(long, default_value = "1")]
+    pub pcf: Pcf,
+    /// Shadow maps: constant depth bias, a fraction of the receiver's depth
+    /// (defaults of the three biases: the bias study in
+    /// docs/algorithms/shadow-maps.md).
+    #[arg(long, default_value_t = 1e-4)]
+    pub depth_bias: f64,
+    /// Shadow maps: slope-scaled depth bias, in texels.
+    #[arg(long, default_value_t = 0.0)]
+    pub slope_bias: f64,
+    /// Shadow maps: normal offset of the receiver, in texels.
+    #[arg(long, default_value_t = 0.5)]
+    pub normal_offset: f64,
+}
+
+impl Default for ShadowMapOptions {
+    /// The command line's defaults.
+    fn default() -> Self {
+        crate::shadow::TechniqueOptions::default().shadow_map
+    }
+}
+
+impl ShadowMapOptions {
+    /// The depth biases these options ask for.
+    pub fn bias(&self) -> DepthBias {
+        DepthBias {
+            constant: self.depth_bias,
+            slope: self.slope_bias,
+            normal_offset: self.normal_offset,
+        }
+    }
+}

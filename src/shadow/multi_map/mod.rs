@@ -23,10 +23,10 @@ use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
 use crate::shadow::kit::many_maps::{
     active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup,
 };
+use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, QualitySetting, Support, TechniqueInfo, TermKind};
-use crate::shadow::shadow_map::ShadowMapOptions;
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 
 /// Largest `--samples` multi-map accepts: the `u64` accumulators then hold
@@ -51,7 +51,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     name: "multi-map",
     summary: "--samples hard shadow maps per light from the pattern's points, averaged per receiver (the brute-force image-based soft shadow)",
     module: "shadow/multi_map/",
-    page: Some("adaptive-light-sampling.md"),
+    page: Some("shadow-maps.md"),
     capabilities: |_| Capabilities {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,

@@ -37,14 +37,14 @@
 use crate::error::{Error, Result};
 use crate::scene::{Light, LightShape};
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds, DepthMap};
+use crate::shadow::kit::map_fit::tight_light_view;
+use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{
     centre_point, hard_test, opaque_depth_map, pixel_rotation, poisson_disk, project_receiver,
     MapReceiver,
 };
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use crate::shadow::shadow_map::fit::tight_light_view;
-use crate::shadow::shadow_map::ShadowMapOptions;
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::View;
 use glam::DVec2;

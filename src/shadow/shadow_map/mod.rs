@@ -14,59 +14,18 @@
 //! Semi-opaque casters are not in the map (the warning says so);
 //! S-triangles are shadowed by the soft-textured-shadow-volume add-on.
 
-pub mod fit;
-
 use crate::error::Result;
 use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+use crate::shadow::kit::map_fit::tight_light_view;
+pub use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{
     centre_point, opaque_depth_map, pcf_visibility, pixel_rotation, poisson_disk, project_receiver,
-    DepthBias,
 };
 pub use crate::shadow::kit::shadow_maps::{Pcf, MAX_MAP_SIZE};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use rayon::prelude::*;
-
-/// Shadow maps' command-line options.
-#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
-pub struct ShadowMapOptions {
-    /// Shadow maps: texels per side of each light's depth map.
-    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=MAX_MAP_SIZE as i64))]
-    pub map_size: u32,
-    /// Shadow maps: percentage-closer filter, 1 | 2x2 | 3x3 | poisson:N.
-    #[arg(long, default_value = "1")]
-    pub pcf: Pcf,
-    /// Shadow maps: constant depth bias, a fraction of the receiver's depth
-    /// (defaults of the three biases: the bias study in
-    /// docs/algorithms/shadow-maps.md).
-    #[arg(long, default_value_t = 1e-4)]
-    pub depth_bias: f64,
-    /// Shadow maps: slope-scaled depth bias, in texels.
-    #[arg(long, default_value_t = 0.0)]
-    pub slope_bias: f64,
-    /// Shadow maps: normal offset of the receiver, in texels.
-    #[arg(long, default_value_t = 0.5)]
-    pub normal_offset: f64,
-}
-
-impl Default for ShadowMapOptions {
-    /// The command line's defaults.
-    fn default() -> Self {
-        crate::shadow::TechniqueOptions::default().shadow_map
-    }
-}
-
-impl ShadowMapOptions {
-    /// The depth biases these options ask for.
-    pub fn bias(&self) -> DepthBias {
-        DepthBias {
-            constant: self.depth_bias,
-            slope: self.slope_bias,
-            normal_offset: self.normal_offset,
-        }
-    }
-}
 
 /// The hard shadow-map technique.
 #[derive(Debug, Clone, Copy)]
@@ -149,8 +108,7 @@ impl ShadowTechnique for ShadowMap {
         for (k, light) in ctx.scene.lights.iter().enumerate() {
             let t = PassTimer::start(format!("shadow map light {k}"));
             let point = centre_point(light, casters);
-            let lv =
-                fit::tight_light_view(ctx.scene, light, point, casters, receivers, (size, size))?;
+            let lv = tight_light_view(ctx.scene, light, point, casters, receivers, (size, size))?;
             let Some(lv) = lv else {
                 // No caster in front of the light: nothing to shadow.
                 out.lights.push(LightTerm::Vcoef(vec![1.0; n]));

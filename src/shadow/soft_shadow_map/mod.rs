@@ -37,10 +37,10 @@ use crate::scene::{Light, LightShape, Scene};
 use crate::shadow::kit::light_view::{
     caster_bounds, depth_map, receiver_bounds, Bounds, LightView, MAX_DEPTH_TEXELS,
 };
+use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{opaque_caster, project_receiver, DepthBias, MapReceiver};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
-use crate::shadow::shadow_map::ShadowMapOptions;
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::{Extent, View};
 use geometry::{patch_occlusion, reach};
