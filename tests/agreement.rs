@@ -28,7 +28,6 @@ mod common;
 use common::Rng;
 use penumbra::render::{render, Aov, RenderOptions};
 use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
 use penumbra::shadow::registry::Support;
 use penumbra::shadow::{Technique, TechniqueOptions};
 
@@ -211,18 +210,11 @@ fn check(case: &Case, technique: Technique, reference: &[f32], mask: &[bool]) ->
     None
 }
 
-/// The run of `technique`. Penumbra casting samples the light with
-/// `interleaved:2` and four sample sets: its K shared sets are then exactly
-/// the reference's per-pixel samples (its default, 8 sets of a decorrelated
-/// pattern, is exact for its own samples, which are not the reference's).
-/// The reference it is held against is rendered with the same pattern.
+/// The run of `technique`, with the sampling under which an exact
+/// technique's samples are the reference's ([`common::matched_sampling`]);
+/// the reference it is held against is rendered with the same pattern.
 fn options(technique: Technique) -> RenderOptions {
-    let mut options = TechniqueOptions::default();
-    let mut pattern = SamplePattern::default();
-    if technique.name() == "penumbra-casting" {
-        options.penumbra_casting.pc_sample_sets = 4;
-        pattern = SamplePattern::Interleaved { n: 2 };
-    }
+    let (options, pattern) = common::matched_sampling(technique);
     RenderOptions {
         technique,
         samples: SAMPLES,

@@ -7,6 +7,7 @@ mod common;
 
 use penumbra::render::{render, RenderOptions, RenderOutput};
 use penumbra::report::Progress;
+use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::{Technique, TechniqueOptions};
 
@@ -17,6 +18,15 @@ fn run(
     technique: Technique,
     options: TechniqueOptions,
 ) -> penumbra::error::Result<RenderOutput> {
+    run_with(scene, technique, options, SamplePattern::default())
+}
+
+fn run_with(
+    scene: &Scene,
+    technique: Technique,
+    options: TechniqueOptions,
+    pattern: SamplePattern,
+) -> penumbra::error::Result<RenderOutput> {
     render(
         scene,
         &RenderOptions {
@@ -25,6 +35,7 @@ fn run(
             width: Some(SIZE),
             height: Some(SIZE),
             options,
+            pattern,
             ..RenderOptions::default()
         },
         &Progress::hidden(),
@@ -218,9 +229,19 @@ translate = [0.0, -1.0, 0.0]
     let lit = reference.iter().filter(|&&v| v == 1.0).count();
     assert!(lit > reference.len() / 2 && lit < reference.len(), "{lit}");
     for t in Technique::all() {
-        let out = run(&scene, t, TechniqueOptions::default())
+        let (options, pattern) = common::matched_sampling(t);
+        let out = run_with(&scene, t, options.clone(), pattern)
             .unwrap_or_else(|e| panic!("{}: {e}", t.name()));
         let v = vcoef(&out);
+        let reference = vcoef(
+            &run_with(
+                &scene,
+                Technique::named("reference").unwrap(),
+                options,
+                pattern,
+            )
+            .unwrap(),
+        );
         let (mean, _) = difference(&v, &reference);
         if t.capabilities(&TechniqueOptions::default()).exact {
             // Same samples, same receivers: only ties may differ.

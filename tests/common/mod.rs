@@ -152,3 +152,24 @@ pub fn render_bits(out: &penumbra::render::RenderOutput) -> Vec<u32> {
     }
     v
 }
+
+/// The sampling under which an exact technique's samples are the
+/// reference's own: the defaults, except for penumbra casting, whose K
+/// shared sample sets equal the reference's per-pixel samples with
+/// `interleaved:2` and four sets (its default, 8 sets of a decorrelated
+/// pattern, is exact for samples that are not the reference's). Render the
+/// reference with the same pattern.
+pub fn matched_sampling(
+    technique: penumbra::shadow::Technique,
+) -> (
+    penumbra::shadow::TechniqueOptions,
+    penumbra::sampling::SamplePattern,
+) {
+    let mut options = penumbra::shadow::TechniqueOptions::default();
+    let mut pattern = penumbra::sampling::SamplePattern::default();
+    if technique.name() == "penumbra-casting" {
+        options.penumbra_casting.pc_sample_sets = 4;
+        pattern = penumbra::sampling::SamplePattern::Interleaved { n: 2 };
+    }
+    (options, pattern)
+}
