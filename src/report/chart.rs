@@ -125,9 +125,11 @@ fn register_embedded_font() -> std::result::Result<(), String> {
     }
 }
 
-/// Okabe–Ito colours: distinguishable with the common colour-vision
-/// deficiencies and on white. Curves past the eighth reuse them.
-const PALETTE: [RGBColor; 8] = [
+/// Okabe–Ito colours first (distinguishable with the common colour-vision
+/// deficiencies and on white), then six darker ones so that a comparison of
+/// every registered technique (fourteen curves) repeats no colour. Curves
+/// past the fourteenth reuse them.
+const PALETTE: [RGBColor; 14] = [
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(0, 158, 115),
@@ -136,6 +138,12 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(86, 180, 233),
     RGBColor(120, 120, 120),
     RGBColor(240, 228, 66),
+    RGBColor(0, 0, 0),
+    RGBColor(136, 34, 85),
+    RGBColor(102, 51, 153),
+    RGBColor(140, 86, 30),
+    RGBColor(128, 128, 0),
+    RGBColor(0, 0, 128),
 ];
 
 /// A point where it is drawn: clamped into the log axes.
