@@ -132,6 +132,12 @@ pub const OPAQUE_ONLY: Support = Support::Ignored(
      here (use dcs or reference)",
 );
 
+/// What the shadow-map techniques say of semi-opaque casters.
+pub const MAPS_OPAQUE_ONLY: Support = Support::Ignored(
+    "the depth maps hold opaque casters only; casters of constant opacity below 1 cast no \
+     shadow here (use dcs or reference)",
+);
+
 /// What the silhouette-based techniques say of a light inside a closed
 /// caster.
 pub const SILHOUETTES_MISS_ENCLOSURE: Support = Support::Refused {

@@ -126,10 +126,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
              not weight the maps (the unshadowed light still uses it)",
         ),
         enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
-        semi_opaque: Support::Ignored(
-            "the depth maps hold opaque casters only; casters of constant opacity below 1 \
-             cast no shadow here (use dcs or reference)",
-        ),
+        semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,

@@ -47,10 +47,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
         enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
-        semi_opaque: Support::Ignored(
-            "the depth map holds opaque casters only; casters of constant opacity below 1 \
-             cast no shadow here (use dcs or reference)",
-        ),
+        semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
