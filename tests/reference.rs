@@ -468,6 +468,90 @@ translate = [0.0, 1.0, 0.0]
     assert!(vis.iter().all(|&v| v == 1.0));
 }
 
+// ------------------------------------------------ (d') ray bundles
+
+/// (d') `occluded_bundle` gives, ray by ray, exactly `occluded`'s answer:
+/// bundles of 1–37 rays (partial packets) from random origins toward
+/// random points of a rectangle (coherent, like a light's samples), toward
+/// the bunny's vertices and edge midpoints (ties: rays through shared
+/// edges and vertices), and in random directions; with axis-parallel,
+/// zero and NaN directions mixed in and several `t_max`.
+#[test]
+fn ray_bundles_agree_with_single_rays_bit_for_bit() {
+    let scene = shipped("bunny.toml");
+    let geometry = SceneGeometry::new(&scene);
+    let bvh = Bvh::build(&geometry, |_| true);
+    let verts = &geometry.positions;
+    let (lo, hi) = verts
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| {
+            (l.min(*p), h.max(*p))
+        });
+    let size = hi - lo;
+    let mut rng = Rng(777);
+    let (mut rays, mut hits, mut mismatches) = (0usize, 0usize, Vec::new());
+    for bundle in 0..3000 {
+        let o = lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
+            - size * 0.2;
+        let n = 1 + (rng.next_u64() % 37) as usize;
+        let centre = lo + Vec3::new(rng.f64() as f32, 1.5, rng.f64() as f32) * size;
+        let dirs: Vec<Vec3> = (0..n)
+            .map(|i| {
+                let d = match bundle % 3 {
+                    0 => {
+                        centre
+                            + Vec3::new(rng.f64() as f32 - 0.5, 0.0, rng.f64() as f32 - 0.5)
+                                * size.x
+                            - o
+                    }
+                    1 => {
+                        let t = &geometry.triangles
+                            [(rng.next_u64() % geometry.triangles.len() as u64) as usize];
+                        let (a, b) = (verts[t[0] as usize], verts[t[1] as usize]);
+                        if i % 2 == 0 {
+                            a - o
+                        } else {
+                            a.lerp(b, 0.5) - o
+                        }
+                    }
+                    _ => Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) - 0.5,
+                };
+                match rng.next_u64() % 16 {
+                    0 => Vec3::new(0.0, d.y, 0.0),
+                    1 => Vec3::new(d.x, 0.0, d.z),
+                    2 => Vec3::ZERO,
+                    3 => Vec3::new(f32::NAN, d.y, d.z),
+                    _ => d,
+                }
+            })
+            .collect();
+        let t_max = [1.0 - 1e-6, 2.0, 0.5, 0.0][bundle % 4];
+        let mut out = vec![true; n];
+        bvh.occluded_bundle(o, &dirs, t_max, &mut out);
+        for (i, (&d, &b)) in dirs.iter().zip(&out).enumerate() {
+            let single = bvh.occluded(o, d, t_max);
+            rays += 1;
+            hits += single as usize;
+            if single != b {
+                mismatches.push(format!("bundle {bundle} ray {i}: o {o:?} d {d:?} t_max {t_max}: single {single}, bundle {b}"));
+            }
+        }
+    }
+    eprintln!(
+        "{rays} rays, {hits} occluded, {} mismatches",
+        mismatches.len()
+    );
+    assert!(
+        hits > rays / 10 && hits < rays * 9 / 10,
+        "a useful mix: {hits} of {rays}"
+    );
+    assert!(
+        mismatches.is_empty(),
+        "{}",
+        mismatches[..mismatches.len().min(10)].join("\n")
+    );
+}
+
 // ------------------------------------------------ (d) BVH vs brute force
 
 /// (d) `occluded` and `for_each_hit` agree with a brute-force loop over all

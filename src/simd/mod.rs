@@ -388,6 +388,18 @@ bit_casts!(f32x8, cast_i32, i32x8, cast_f32);
 bit_casts!(f32x4, cast_u32, u32x4, cast_f32);
 bit_casts!(f32x4, cast_i32, i32x4, cast_f32);
 
+impl f32x8 {
+    /// The eight lanes widened to `f64` (exact): lanes 0–3 and 4–7.
+    #[inline(always)]
+    pub fn widen(self) -> [f64x4; 2] {
+        let a = self.to_array();
+        [
+            f64x4::new([a[0] as f64, a[1] as f64, a[2] as f64, a[3] as f64]),
+            f64x4::new([a[4] as f64, a[5] as f64, a[6] as f64, a[7] as f64]),
+        ]
+    }
+}
+
 impl f32x4 {
     /// Truncation toward zero as `as i32`: saturating, NaN to 0.
     #[inline(always)]

@@ -401,6 +401,10 @@ fn conversions_agree() {
             s.cast_i32().to_array(),
             false,
         );
+        let (wv, ws) = (v.widen(), s.widen());
+        for h in 0..2 {
+            same("f32x8 widen", i, wv[h].to_array(), ws[h].to_array(), false);
+        }
         let back = v.cast_i32().cast_f32().to_array();
         same("f32x8 cast round trip", i, back, a, false);
         let bits = s.cast_i32().to_array();

@@ -118,6 +118,9 @@ pub struct ShadowTracer<'a> {
 #[derive(Debug, Default)]
 struct Scratch {
     hits: Vec<Hit>,
+    /// One receiver's sample directions and their opaque occlusion.
+    dirs: Vec<Vec3>,
+    occluded: Vec<bool>,
 }
 
 impl<'a> ShadowTracer<'a> {
@@ -277,20 +280,63 @@ impl<'a> ShadowTracer<'a> {
     /// sample by sample.
     pub fn sample_visibility(&self, g: &GSample, samples: &[LightSample], out: &mut [f32]) {
         let mut scratch = Scratch::default();
-        for (s, o) in samples.iter().zip(out.iter_mut()) {
-            *o = self.gsample_vt(g, s.x, &mut scratch).0 as f32;
+        let n = samples.len().min(out.len());
+        let mut vt = Vec::with_capacity(n);
+        self.gsample_bundle(g, &samples[..n], &mut vt, &mut scratch);
+        for (o, v) in out.iter_mut().zip(vt) {
+            *o = v as f32;
         }
     }
 
-    /// `V·T` from shading point `g` to `x` and the traversals it took.
-    fn gsample_vt(&self, g: &GSample, x: Vec3, scratch: &mut Scratch) -> (f64, u64) {
-        if !g.is_surface() {
-            return (0.0, 0);
+    /// `V·T` from shading point `g` to each sample (into `out`, cleared
+    /// first) and the traversals it took: the values of
+    /// [`ShadowTracer::segment`] per sample, the opaque test done for all
+    /// samples together by [`Bvh::occluded_bundle`] (same bits as one
+    /// ray at a time; the rays share their origin, which makes them
+    /// coherent).
+    fn gsample_bundle(
+        &self,
+        g: &GSample,
+        samples: &[LightSample],
+        out: &mut Vec<f64>,
+        scratch: &mut Scratch,
+    ) -> u64 {
+        out.clear();
+        if !g.is_surface() || !self.receives(g) {
+            let v = if g.is_surface() { 1.0 } else { 0.0 };
+            out.resize(samples.len(), v);
+            return 0;
         }
-        if !self.receives(g) {
-            return (1.0, 0);
+        let origin = self.shadow_origin(g.position, g.geo_normal);
+        let t_max = (1.0 - END_SHORTEN) as f32;
+        let mut dirs = std::mem::take(&mut scratch.dirs);
+        let mut occluded = std::mem::take(&mut scratch.occluded);
+        dirs.clear();
+        dirs.extend(
+            samples
+                .iter()
+                .map(|s| (s.x.as_dvec3() - origin.as_dvec3()).as_vec3()),
+        );
+        occluded.resize(dirs.len(), false);
+        self.opaque
+            .occluded_bundle(origin, &dirs, t_max, &mut occluded);
+        let mut rays = 0;
+        let walk = self.translucent.triangle_count() > 0;
+        for (&dir, &blocked) in dirs.iter().zip(&occluded) {
+            if blocked {
+                out.push(0.0);
+                rays += 1;
+            } else if !walk {
+                out.push(1.0);
+                rays += 1;
+            } else {
+                out.push(self.walk(origin, dir, t_max, scratch));
+                rays += 2;
+            }
         }
-        self.segment_with(self.shadow_origin(g.position, g.geo_normal), x, scratch)
+        scratch.dirs = dirs;
+        scratch.occluded = occluded;
+        rays
     }
 
     /// Hard-shadow visibility from light `light`'s centre (a sphere light:
@@ -372,6 +418,7 @@ impl<'a> ShadowTracer<'a> {
             .map(|(y, (vrow, rrow))| {
                 let mut samples = Vec::new();
                 let mut vis = Vec::new();
+                let mut vts = Vec::new();
                 let mut scratch = Scratch::default();
                 let mut rays = 0u64;
                 for (x, (v, r)) in vrow.iter_mut().zip(rrow.iter_mut()).enumerate() {
@@ -389,11 +436,10 @@ impl<'a> ShadowTracer<'a> {
                         *v = 1.0;
                         continue;
                     }
+                    rays += self.gsample_bundle(&g, &samples, &mut vts, &mut scratch);
                     vis.clear();
                     let mut sum = 0.0f64;
-                    for s in &samples {
-                        let (vt, traced) = self.gsample_vt(&g, s.x, &mut scratch);
-                        rays += traced;
+                    for &vt in &vts {
                         sum += vt;
                         vis.push(vt as f32);
                     }

@@ -23,6 +23,10 @@
 //!   counts as inside (inclusive), so two triangles sharing an edge never
 //!   both miss a ray through it.
 
+mod packet;
+
+pub use packet::PACKET;
+
 use crate::geom::SceneGeometry;
 use crate::simd::f32x4;
 use glam::Vec3;

@@ -1,0 +1,294 @@
+//! Shadow rays from one origin, eight at a time.
+//!
+//! The reference's rays of one receiver share their origin and point at
+//! one light, so they are coherent: [`Bvh::occluded_bundle`] walks the tree
+//! once per packet of [`PACKET`] rays, testing each child box and each
+//! leaf triangle against all eight in `f32x8` / `f64x4` lanes.
+//!
+//! **Same answer as one ray at a time, bit for bit.** Every lane performs
+//! exactly the arithmetic [`Bvh::occluded`] performs for that ray: the
+//! per-ray constants come from the same `Ray::new`; a child box's slab
+//! distances are `(lo − origin) · inv` with the same operands (the
+//! subtraction is shared by the lanes because the origin is); the
+//! parallel-axis rule and the conservative far scale are the same; the
+//! watertight triangle test picks each lane's own axes `kx, ky, kz` by
+//! blends and runs the same f32 shear and the same f64 edge functions and
+//! depth test. A lane tests a leaf's triangles only if every box above the
+//! leaf passed for that lane (the stack carries lane masks), so each lane
+//! tests the triangles its own walk would test; only the order differs,
+//! which an "any hit" answer does not see. `tests/reference.rs` holds the
+//! two against each other ray by ray.
+
+use super::{Bvh, Node, FAR_SCALE, STACK};
+use crate::simd::{f32x8, f64x4};
+use glam::Vec3;
+
+/// Rays per packet.
+pub const PACKET: usize = 8;
+
+/// All eight lanes.
+const ALL: u32 = (1 << PACKET) - 1;
+
+/// Up to eight rays from one origin, as lanes.
+struct Packet {
+    origin: Vec3,
+    /// Lanes holding a usable ray (finite, non-zero direction).
+    valid: u32,
+    t_max: f32,
+    /// Slab test: inverse direction per axis, and the mask of lanes whose
+    /// direction is exactly 0 along it (with whether any lane is).
+    inv: [f32x8; 3],
+    parallel: [f32x8; 3],
+    any_parallel: [bool; 3],
+    /// Watertight test: for `kx`, `ky`, `kz`, the masks "k = 0" and
+    /// "k = 1" (else 2), and the shear.
+    pick: [[f32x8; 2]; 3],
+    shear: [f32x8; 3],
+}
+
+impl Packet {
+    /// The packet of `dirs` (at most [`PACKET`]) from `origin`: lane by
+    /// lane the constants `Ray::new` computes, with the same IEEE
+    /// operations (divisions, the clamp, the dominant-axis rule).
+    fn new(origin: Vec3, dirs: &[Vec3], t_max: f32) -> Packet {
+        let mut valid = 0;
+        let mut d = [[1.0f32; PACKET]; 3];
+        if origin.is_finite() {
+            for (lane, &dir) in dirs.iter().enumerate().take(PACKET) {
+                // `Ray::new`'s refusal: a zero or non-finite direction.
+                if dir.is_finite() && dir != Vec3::ZERO {
+                    valid |= 1 << lane;
+                    for axis in 0..3 {
+                        d[axis][lane] = dir[axis];
+                    }
+                }
+            }
+        }
+        let [dx, dy, dz] = d.map(f32x8::new);
+        let one = f32x8::splat(1.0);
+        let (zero, max, min) = (f32x8::ZERO, f32x8::splat(f32::MAX), f32x8::splat(-f32::MAX));
+        let inv = [dx, dy, dz].map(|c| (one / c).max(min).min(max));
+        let parallel = [dx, dy, dz].map(|c| c.cmp_eq(zero));
+        // kz: x if |x| ≥ |y| and |x| ≥ |z|, else y if |y| ≥ |z|, else z.
+        let (ax, ay, az) = (dx.abs(), dy.abs(), dz.abs());
+        let z0 = ax.cmp_ge(ay) & ax.cmp_ge(az);
+        let z1 = !z0 & ay.cmp_ge(az);
+        let z2 = !(z0 | z1);
+        let pick = |m0: f32x8, m1: f32x8| m0.blend(dx, m1.blend(dy, dz));
+        let dkz = pick(z0, z1);
+        // kx, ky = kz + 1, kz + 2 (mod 3), swapped when dir[kz] < 0.
+        let neg = dkz.cmp_lt(zero);
+        let x0 = (z1 & neg) | (z2 & !neg);
+        let x1 = (z0 & !neg) | (z2 & neg);
+        let y0 = (z1 & !neg) | (z2 & neg);
+        let y1 = (z0 & neg) | (z2 & !neg);
+        let shear = [pick(x0, x1) / dkz, pick(y0, y1) / dkz, one / dkz];
+        Packet {
+            origin,
+            valid,
+            t_max,
+            inv,
+            any_parallel: parallel.map(|m| m.move_mask() & valid != 0),
+            parallel,
+            pick: [[x0, x1], [y0, y1], [z0, z1]],
+            shear,
+        }
+    }
+
+    /// Lanes whose segment may touch child `slot`'s box (as
+    /// `Ray::hit_boxes` decides it for each lane's ray).
+    #[inline]
+    fn hit_box(&self, node: &Node, slot: usize) -> u32 {
+        let mut near = f32x8::splat(0.0);
+        let mut far = f32x8::splat(self.t_max);
+        let mut outside = f32x8::ZERO;
+        for axis in 0..3 {
+            let (lo, hi) = (node.lo[axis][slot], node.hi[axis][slot]);
+            let o = self.origin[axis];
+            let t0 = f32x8::splat(lo - o) * self.inv[axis];
+            let t1 = f32x8::splat(hi - o) * self.inv[axis];
+            let n = near.max(t0.min(t1));
+            let f = far.min(t0.max(t1));
+            if self.any_parallel[axis] {
+                let par = self.parallel[axis];
+                near = par.blend(near, n);
+                far = par.blend(far, f);
+                if !(lo <= o && o <= hi) {
+                    outside |= par;
+                }
+            } else {
+                near = n;
+                far = f;
+            }
+        }
+        let hit = near.cmp_le(far * f32x8::splat(FAR_SCALE)) & !outside;
+        hit.move_mask()
+    }
+
+    /// Lanes that `Ray::intersect` would find hitting `tri`.
+    #[inline]
+    fn hit_triangle(&self, tri: &[Vec3; 3]) -> u32 {
+        let a = tri[0] - self.origin;
+        let b = tri[1] - self.origin;
+        let c = tri[2] - self.origin;
+        let pick = |v: Vec3, k: usize| {
+            let [is0, is1] = self.pick[k];
+            is0.blend(
+                f32x8::splat(v.x),
+                is1.blend(f32x8::splat(v.y), f32x8::splat(v.z)),
+            )
+        };
+        let [sx, sy, sz] = self.shear;
+        let (akz, bkz, ckz) = (pick(a, 2), pick(b, 2), pick(c, 2));
+        let ax = (pick(a, 0) - sx * akz).widen();
+        let ay = (pick(a, 1) - sy * akz).widen();
+        let bx = (pick(b, 0) - sx * bkz).widen();
+        let by = (pick(b, 1) - sy * bkz).widen();
+        let cx = (pick(c, 0) - sx * ckz).widen();
+        let cy = (pick(c, 1) - sy * ckz).widen();
+        let (akz, bkz, ckz, sz) = (akz.widen(), bkz.widen(), ckz.widen(), sz.widen());
+        let zero = f64x4::ZERO;
+        let t_max = f64x4::splat(f64::from(self.t_max));
+        let mut mask = 0;
+        for h in 0..2 {
+            let u = cx[h] * by[h] - cy[h] * bx[h];
+            let v = ax[h] * cy[h] - ay[h] * cx[h];
+            let w = bx[h] * ay[h] - by[h] * ax[h];
+            let negative = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
+            let positive = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
+            let det = u + v + w;
+            let t_scaled = u * (sz[h] * akz[h]) + v * (sz[h] * bkz[h]) + w * (sz[h] * ckz[h]);
+            let limit = t_max * det;
+            let ahead = det.cmp_gt(zero).blend(
+                t_scaled.cmp_gt(zero) & t_scaled.cmp_lt(limit),
+                t_scaled.cmp_lt(zero) & t_scaled.cmp_gt(limit),
+            );
+            // `det = 0` fails both branches of `ahead`: no separate test.
+            let hit = ahead & !(negative & positive);
+            mask |= hit.move_mask() << (4 * h);
+        }
+        mask
+    }
+}
+
+impl Bvh {
+    /// Whether each segment `origin + t · dirs[i]`, `t ∈ (0, t_max)`, hits
+    /// a triangle: `out[i]` is exactly [`Bvh::occluded`]`(origin, dirs[i],
+    /// t_max)` (see the module docs), computed [`PACKET`] rays at a time.
+    /// `out` must be as long as `dirs`.
+    pub fn occluded_bundle(&self, origin: Vec3, dirs: &[Vec3], t_max: f32, out: &mut [bool]) {
+        out.fill(false);
+        if self.nodes.is_empty() || !(t_max > 0.0) {
+            return;
+        }
+        let mut last = None;
+        for (chunk, res) in dirs.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+            let packet = Packet::new(origin, chunk, t_max);
+            if packet.valid == 0 {
+                continue;
+            }
+            let hit = self.packet_occluded(&packet, &mut last);
+            for (lane, r) in res.iter_mut().enumerate() {
+                *r = hit >> lane & 1 == 1;
+            }
+        }
+    }
+
+    /// The lanes of `packet` whose ray hits a triangle. `last` is the
+    /// leaf (node, slot) where the previous packet of the bundle found a
+    /// hit, tried first: neighbouring rays tend to hit the same occluder.
+    /// Trying it first changes no answer: a lane tests its triangles only
+    /// if it passes the leaf's own box, and then it passes every box above
+    /// it (each encloses the leaf's box, and the rounded slab distances
+    /// are monotone in the bounds), so its own walk would test them too.
+    fn packet_occluded(&self, packet: &Packet, last: &mut Option<(u32, usize)>) -> u32 {
+        let mut hit = 0u32;
+        if let Some((index, slot)) = *last {
+            if let Some(node) = self.nodes.get(index as usize) {
+                hit = self.leaf_hits(packet, node, slot, packet.valid);
+                if hit == packet.valid {
+                    return hit;
+                }
+            }
+        }
+        let mut stack = [(0u32, 0u32); STACK];
+        stack[0] = (0, packet.valid & !hit);
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let (index, lanes) = stack[top];
+            let lanes = lanes & !hit;
+            if lanes == 0 {
+                continue;
+            }
+            let Some(node) = self.nodes.get(index as usize) else {
+                continue;
+            };
+            for slot in 0..4 {
+                let count = node.count[slot] as usize;
+                if count == 0 && node.child[slot] == u32::MAX {
+                    // An empty slot: its box (the point at +∞) meets no ray.
+                    continue;
+                }
+                let live = lanes & !hit;
+                if live == 0 {
+                    break;
+                }
+                let through = packet.hit_box(node, slot) & live;
+                if through == 0 {
+                    continue;
+                }
+                if count == 0 {
+                    // Cannot overflow (see `STACK`); the check only keeps
+                    // the index provably in bounds.
+                    if top < STACK {
+                        stack[top] = (node.child[slot], through);
+                        top += 1;
+                    }
+                    continue;
+                }
+                let found = self.triangle_hits(packet, node, slot, through);
+                if found != 0 {
+                    hit |= found;
+                    *last = Some((index, slot));
+                }
+            }
+            if hit == packet.valid & ALL {
+                break;
+            }
+        }
+        hit & packet.valid
+    }
+
+    /// The lanes of `lanes` that pass leaf `slot`'s box and hit one of its
+    /// triangles.
+    #[inline]
+    fn leaf_hits(&self, packet: &Packet, node: &Node, slot: usize, lanes: u32) -> u32 {
+        if node.count[slot] == 0 {
+            return 0;
+        }
+        let through = packet.hit_box(node, slot) & lanes;
+        if through == 0 {
+            return 0;
+        }
+        self.triangle_hits(packet, node, slot, through)
+    }
+
+    /// The lanes of `through` that hit one of leaf `slot`'s triangles.
+    #[inline]
+    fn triangle_hits(&self, packet: &Packet, node: &Node, slot: usize, through: u32) -> u32 {
+        let first = node.child[slot] as usize;
+        let count = node.count[slot] as usize;
+        let Some(tris) = self.tris.get(first..first + count) else {
+            return 0;
+        };
+        let mut hit = 0;
+        for tri in tris {
+            hit |= packet.hit_triangle(tri) & through;
+            if through & !hit == 0 {
+                break;
+            }
+        }
+        hit
+    }
+}
