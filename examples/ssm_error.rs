@@ -431,7 +431,8 @@ fn tilt() {
             q0 - e1 * 0.5 + e2 * 0.5,
         ];
         let view = &ssm.view;
-        let (mut max_err, mut sum_err, mut sum_sl, mut np, mut max_sl) = (0.0f64, 0.0, 0.0, 0usize, 0.0f64);
+        let (mut max_err, mut sum_err, mut sum_sl, mut np, mut max_sl) =
+            (0.0f64, 0.0, 0.0, 0usize, 0.0f64);
         for ry in 0..h {
             for rx in 0..w {
                 let z = ssm.receivers[ry * w + rx] as f64;
