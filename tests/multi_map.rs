@@ -306,6 +306,9 @@ fn lane_look_up_equals_the_scalar_one() {
             }
         }
         // Both outcomes occur: the comparison is not vacuous.
-        assert!(lit > 100 && shadowed > 100, "{lit} lit, {shadowed} shadowed");
+        assert!(
+            lit > 100 && shadowed > 100,
+            "{lit} lit, {shadowed} shadowed"
+        );
     }
 }
