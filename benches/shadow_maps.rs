@@ -8,6 +8,12 @@
 //!
 //! Run: `cargo bench --bench shadow_maps`. Criterion reports elements/s =
 //! maps per second (maps per second × 64 for the multi-map group).
+//!
+//! The `penumbra` binary sets glibc's allocator to keep freed memory
+//! (`src/main.rs`); a bench binary does not run that `main`, so run it with
+//! the same setting for figures comparable with the command line:
+//! `GLIBC_TUNABLES=glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=2147483647`.
+//! The multi-map group renders 4 maps per receiver pass (`multi_map::BATCH`).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use penumbra::gbuffer::gbuffer_pass;

@@ -214,3 +214,101 @@ fn absurd_map_counts_are_refused() {
     let e = render(&scene, &options, &Progress::hidden()).expect_err("refused");
     assert!(e.to_string().contains("--samples"), "{e}");
 }
+
+/// The four-lane hard look-up (`HardLanes`, the default path) gives the
+/// scalar `project_receiver` + hard test's value for every receiver, on the
+/// spheres' G-buffer points and on points jittered off them (shadow edges,
+/// behind the view, outside the window), from a corner of the light.
+#[test]
+fn lane_look_up_equals_the_scalar_one() {
+    use penumbra::gbuffer::{gbuffer_pass, GSample};
+    use penumbra::geom::SceneGeometry;
+    use penumbra::render::view_for;
+    use penumbra::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+    use penumbra::shadow::kit::many_maps::{point_on_light, HardLanes};
+    use penumbra::shadow::kit::shadow_maps::{
+        light_view_at, opaque_depth_map, pcf_visibility, project_receiver, DepthBias, Pcf,
+    };
+    let scene = common::shipped("spheres.toml");
+    let options = RenderOptions {
+        width: Some(96),
+        height: Some(96),
+        ..RenderOptions::default()
+    };
+    let view = view_for(&scene, &options).unwrap();
+    let geometry = SceneGeometry::new(&scene);
+    let (gbuffer, _, _) = gbuffer_pass(&scene, &geometry, &view).unwrap();
+    let (casters, receivers) = (
+        caster_bounds(&scene).unwrap(),
+        receiver_bounds(&scene).unwrap(),
+    );
+    let light = &scene.lights[0];
+    let lv = light_view_at(
+        light,
+        point_on_light(light, (0.0, 1.0), casters),
+        casters,
+        receivers,
+        (256, 256),
+    )
+    .unwrap()
+    .unwrap();
+    let map = opaque_depth_map(&scene, &geometry, &lv.view).unwrap();
+    let mut points: Vec<(glam::Vec3, glam::Vec3)> = (0..gbuffer.len())
+        .map(|i| gbuffer.sample(i))
+        .filter(|g| g.is_surface())
+        .map(|g| (g.position, g.geo_normal))
+        .collect();
+    let n = points.len();
+    let mut state = 0x1234_5678u64;
+    for k in 0..n {
+        state = penumbra::sampling::mix64(state);
+        let j = |s: u64| ((s & 0xffff) as f32 / 65535.0 - 0.5) * 0.05;
+        let (p, nm) = points[k];
+        points.push((
+            p + glam::Vec3::new(j(state), j(state >> 16), j(state >> 32)),
+            nm,
+        ));
+    }
+    // Behind the view's eye and far outside its window.
+    points.push((lv.view.eye.as_vec3() + glam::Vec3::Y, glam::Vec3::Y));
+    points.push((glam::Vec3::new(1e4, 0.0, 0.0), glam::Vec3::Y));
+    for bias in [
+        DepthBias {
+            constant: 1e-4,
+            slope: 0.0,
+            normal_offset: 0.5,
+        },
+        DepthBias {
+            constant: 0.0,
+            slope: 0.0,
+            normal_offset: 0.0,
+        },
+    ] {
+        let lanes = HardLanes::new(&lv.view, &bias);
+        let (mut lit, mut shadowed) = (0, 0);
+        for quad in points.chunks_exact(4) {
+            let quad: [(glam::Vec3, glam::Vec3); 4] = quad.try_into().unwrap();
+            let got = lanes.visibility(&map, &quad);
+            for (l, &(position, geo_normal)) in quad.iter().enumerate() {
+                let g = GSample {
+                    position,
+                    geo_normal,
+                    ..GSample::BACKGROUND
+                };
+                let want = project_receiver(&g, &lv.view, &bias)
+                    .map_or(0.0, |r| pcf_visibility(&map, &r, Pcf::Nearest, &[], 0.0));
+                assert_eq!(got[l].to_bits(), want.to_bits(), "receiver {position:?}");
+                if want == 1.0 {
+                    lit += 1;
+                } else {
+                    shadowed += 1;
+                }
+            }
+        }
+        // Both outcomes occur: the comparison is not vacuous.
+        assert!(
+            lit > 100 && shadowed > 100,
+            "{lit} lit, {shadowed} shadowed"
+        );
+    }
+}

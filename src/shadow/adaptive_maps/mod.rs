@@ -186,6 +186,22 @@ pub struct AdaptiveReport {
     pub splits: u32,
     /// Quads that split on the centre probe alone.
     pub probe_splits: u32,
+    /// Per depth `0..D`: quads tested, quads split, and the failing
+    /// receivers summed over the tested quads (the evidence of why a level
+    /// split).
+    pub per_depth: Vec<DepthStats>,
+}
+
+/// One subdivision level's decisions.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DepthStats {
+    /// Quads tested at this depth.
+    pub tested: u32,
+    /// Of those, quads that split.
+    pub split: u32,
+    /// Failing receivers (banding, plus the probe's), summed over the tested
+    /// quads.
+    pub fails: u64,
 }
 
 /// The common denominator `lcm_{d ≤ D} (2^d + 1)²` and the integer weight
@@ -266,13 +282,25 @@ impl AdaptiveMaps {
                 .filter(|(_, &c)| c > 0)
                 .map(|(d, c)| format!("{c} at depth {d}"))
                 .collect();
+            let levels: Vec<String> = report
+                .per_depth
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.tested > 0)
+                .map(|(d, s)| {
+                    format!(
+                        "depth {d}: {} of {} split, {} failing receivers",
+                        s.split, s.tested, s.fails
+                    )
+                })
+                .collect();
             out.buffers.push(BufferNote {
                 name: "shadow maps".into(),
                 detail: format!(
                     "{} rendered for light {k}: {} sample points in the estimate ({}); {} for \
                      the tests, {} centre probes, {} rendered again for the estimate; {} quads \
-                     split ({} on the centre probe alone); one map resident at a time ({}² f32 \
-                     linear depth)",
+                     split ({} on the centre probe alone; {}); one map resident at a time ({}² \
+                     f32 linear depth)",
                     report.rendered,
                     report.points,
                     per_depth.join(", "),
@@ -281,6 +309,11 @@ impl AdaptiveMaps {
                     report.rerendered,
                     report.splits,
                     report.probe_splits,
+                    if levels.is_empty() {
+                        "no test".to_string()
+                    } else {
+                        levels.join("; ")
+                    },
                     self.maps.map_size
                 ),
                 bytes: peak,
@@ -338,6 +371,7 @@ impl AdaptiveMaps {
         let point = |i: u32, j: u32| point_on_light(light, unit(i, j), setup.casters);
         let mut report = AdaptiveReport {
             points_per_depth: vec![0; dmax as usize + 1],
+            per_depth: vec![DepthStats::default(); dmax as usize],
             ..AdaptiveReport::default()
         };
         let active = active_receivers(ctx.gbuffer, light);
@@ -436,6 +470,9 @@ impl AdaptiveMaps {
                     };
                     let penumbra_fails = grid.penumbra_fails(&bits);
                     let mut split = penumbra_fails > o.adaptive_threshold;
+                    let stats = &mut report.per_depth[d as usize];
+                    stats.tested += 1;
+                    stats.fails += penumbra_fails;
                     // The centre probe, only where the corners alone keep
                     // the quad whole: on the decision grid it is kept (a
                     // corner of the children), on the last tested level it
@@ -470,6 +507,7 @@ impl AdaptiveMaps {
                                 grid.probe_fails(&bits, |p| probe_lit[p] == 1)
                             }
                         };
+                        report.per_depth[d as usize].fails += probe_fails;
                         if penumbra_fails + probe_fails > o.adaptive_threshold {
                             split = true;
                             report.probe_splits += 1;
@@ -477,6 +515,7 @@ impl AdaptiveMaps {
                     }
                     if split {
                         report.splits += 1;
+                        report.per_depth[d as usize].split += 1;
                         let h = s / 2;
                         for (di, dj) in [(0, 0), (h, 0), (0, h), (h, h)] {
                             next.push(Quad {

@@ -16,10 +16,11 @@ use crate::gbuffer::{GBuffer, GSample};
 use crate::scene::{Light, LightShape, Scene};
 use crate::shadow::kit::light_view::{Bounds, DepthMap};
 use crate::shadow::kit::shadow_maps::{
-    light_view_at, opaque_depth_map, pcf_visibility, pixel_rotation, project_receiver, DepthBias,
-    Pcf,
+    hard_test, light_view_at, opaque_depth_map, pcf_visibility, pixel_rotation, project_receiver,
+    DepthBias, Pcf,
 };
 use crate::shadow::ShadowContext;
+use crate::simd::f64x4;
 use crate::view::View;
 use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
@@ -202,30 +203,82 @@ impl MapSetup<'_, '_> {
         per_receiver: usize,
         f: impl Fn(f32, &mut [T]) + Sync,
     ) {
+        self.consume_batch(&[map], pcf, active, state, per_receiver, |_, v, slot| {
+            f(v, slot)
+        });
+    }
+
+    /// [`MapSetup::consume`] of several maps in one pass over the
+    /// receivers: each receiver is read once and `f(k, visibility, slot)`
+    /// is called for map `k` of `maps`, in order. The hard test without a
+    /// slope bias (the many-map techniques' default) runs four receivers
+    /// at a time in f64 lanes ([`HardLanes`], the same bits as
+    /// [`project_receiver`]); filters and the slope bias take the scalar
+    /// path.
+    pub fn consume_batch<T: Send>(
+        &self,
+        maps: &[Option<&RenderedMap>],
+        pcf: Pcf,
+        active: &[bool],
+        state: &mut [T],
+        per_receiver: usize,
+        f: impl Fn(usize, f32, &mut [T]) + Sync,
+    ) {
         let gb = self.ctx.gbuffer;
         let width = gb.width as usize;
-        if width == 0 || per_receiver == 0 {
+        if width == 0 || per_receiver == 0 || maps.is_empty() {
             return;
         }
+        let lanes: Option<Vec<Option<HardLanes>>> = (pcf == Pcf::Nearest && self.bias.slope == 0.0)
+            .then(|| {
+                maps.iter()
+                    .map(|m| m.map(|m| HardLanes::new(&m.view, &self.bias)))
+                    .collect()
+            });
         state
             .par_chunks_mut(width * per_receiver)
             .enumerate()
             .for_each(|(y, row)| {
+                let row_points = &self.points[y * width..(y + 1) * width];
+                let row_active = &active[y * width..(y + 1) * width];
+                if let Some(lanes) = &lanes {
+                    for (c, slots) in row.chunks_mut(4 * per_receiver).enumerate() {
+                        let x0 = 4 * c;
+                        let count = slots.len() / per_receiver;
+                        if !row_active[x0..x0 + count].iter().any(|&a| a) {
+                            continue;
+                        }
+                        // Short chunks repeat their last receiver (ignored).
+                        let at = |l: usize| row_points[x0 + l.min(count - 1)];
+                        let quad = [at(0), at(1), at(2), at(3)];
+                        for (k, (m, l)) in maps.iter().zip(lanes).enumerate() {
+                            let v = match (m, l) {
+                                (Some(m), Some(l)) => l.visibility(&m.map, &quad),
+                                _ => [1.0; 4],
+                            };
+                            for (lane, slot) in slots.chunks_mut(per_receiver).enumerate() {
+                                if row_active[x0 + lane] {
+                                    f(k, v[lane], slot);
+                                }
+                            }
+                        }
+                    }
+                    return;
+                }
                 for (x, slot) in row.chunks_mut(per_receiver).enumerate() {
-                    let i = y * width + x;
-                    if !active[i] {
+                    if !row_active[x] {
                         continue;
                     }
-                    let v = match map {
-                        None => 1.0,
-                        Some(m) => {
-                            let (position, geo_normal) = self.points[i];
-                            let g = GSample {
-                                position,
-                                geo_normal,
-                                ..GSample::BACKGROUND
-                            };
-                            match project_receiver(&g, &m.view, &self.bias) {
+                    let (position, geo_normal) = row_points[x];
+                    let g = GSample {
+                        position,
+                        geo_normal,
+                        ..GSample::BACKGROUND
+                    };
+                    for (k, map) in maps.iter().enumerate() {
+                        let v = match map {
+                            None => 1.0,
+                            Some(m) => match project_receiver(&g, &m.view, &self.bias) {
                                 None => 0.0,
                                 Some(r) => {
                                     let rotation = match pcf {
@@ -236,11 +289,98 @@ impl MapSetup<'_, '_> {
                                     };
                                     pcf_visibility(&m.map, &r, pcf, &self.taps, rotation)
                                 }
-                            }
-                        }
-                    };
-                    f(v, slot);
+                            },
+                        };
+                        f(k, v, slot);
+                    }
                 }
             });
+    }
+}
+
+/// One map's receiver projection and hard test without a slope bias, four
+/// receivers at a time: [`project_receiver`]'s arithmetic with the view's
+/// constants hoisted, each step the same correctly rounded IEEE operation
+/// in the same order on f64 lanes (no FMA, no reciprocal), so each lane
+/// equals the scalar result to the bit. With a zero slope bias the scalar
+/// code's slope term is `0 · texel · tan θ = +0` (both factors finite and
+/// non-negative), so it is left out here. The depth after the normal
+/// offset is the `z` the window projection divides by (the same
+/// expression).
+pub struct HardLanes {
+    eye: [f64x4; 3],
+    forward: [f64x4; 3],
+    right: [f64x4; 3],
+    up: [f64x4; 3],
+    left: f64x4,
+    span_x: f64x4,
+    top: f64x4,
+    span_y: f64x4,
+    width: f64x4,
+    height: f64x4,
+    constant: f64x4,
+    offset: f64x4,
+}
+
+impl HardLanes {
+    /// The constants of `view` and `bias` (whose slope term is ignored:
+    /// callers use this only when it is 0).
+    pub fn new(view: &View, bias: &DepthBias) -> HardLanes {
+        let v3 = |v: DVec3| [f64x4::splat(v.x), f64x4::splat(v.y), f64x4::splat(v.z)];
+        let w = &view.window;
+        HardLanes {
+            eye: v3(view.eye),
+            forward: v3(view.forward),
+            right: v3(view.right),
+            up: v3(view.up),
+            left: f64x4::splat(w.left),
+            span_x: f64x4::splat(w.right - w.left),
+            top: f64x4::splat(w.top),
+            span_y: f64x4::splat(w.top - w.bottom),
+            width: f64x4::splat(f64::from(view.width)),
+            height: f64x4::splat(f64::from(view.height)),
+            constant: f64x4::splat(bias.constant),
+            offset: f64x4::splat(bias.normal_offset),
+        }
+    }
+
+    /// The hard-test visibility in `map` of four receivers `(position,
+    /// geometric normal)`: 0 behind the view, else the texel's test.
+    #[inline]
+    pub fn visibility(&self, map: &DepthMap, quad: &[(Vec3, Vec3); 4]) -> [f32; 4] {
+        let lane = |f: &dyn Fn(usize) -> f32| f64x4::new([0, 1, 2, 3].map(|l| f64::from(f(l))));
+        let p = [
+            lane(&|l| quad[l].0.x),
+            lane(&|l| quad[l].0.y),
+            lane(&|l| quad[l].0.z),
+        ];
+        let n = [
+            lane(&|l| quad[l].1.x),
+            lane(&|l| quad[l].1.y),
+            lane(&|l| quad[l].1.z),
+        ];
+        let dot = |a: &[f64x4; 3], b: &[f64x4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let sub = |a: &[f64x4; 3], b: &[f64x4; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let d0 = dot(&sub(&p, &self.eye), &self.forward);
+        let texel = d0 * self.span_x / self.width;
+        let s = self.offset * texel;
+        let q = [p[0] + n[0] * s, p[1] + n[1] * s, p[2] + n[2] * s];
+        let d = sub(&q, &self.eye);
+        let z = dot(&d, &self.forward);
+        let x = dot(&d, &self.right) / z;
+        let y = dot(&d, &self.up) / z;
+        let u = (x - self.left) / self.span_x * self.width;
+        let v = (self.top - y) / self.span_y * self.height;
+        let test = z - self.constant * z;
+        let (d0, z) = (d0.to_array(), z.to_array());
+        let (u, v, test) = (u.to_array(), v.to_array(), test.to_array());
+        [0, 1, 2, 3].map(|l| {
+            // `project_receiver`'s two refusals (NaN-safe: `!(x > 0)`).
+            if !(d0[l] > 0.0 && z[l] > 0.0) {
+                0.0
+            } else {
+                hard_test(map, u[l].floor() as i64, v[l].floor() as i64, test[l])
+            }
+        })
     }
 }

@@ -12,8 +12,8 @@
 //! sampling module does; sphere lights get the receiver-independent
 //! stand-in of [`point_on_light`] (stated in the docs).
 //!
-//! Maps are rendered and consumed one at a time: per receiver one `u64`
-//! accumulator, whatever `N` ([`crate::shadow::kit::many_maps`]).
+//! Maps are rendered and consumed a few at a time ([`BATCH`], one pass over
+//! the receivers per batch): per receiver one `u64` accumulator, whatever `N` ([`crate::shadow::kit::many_maps`]).
 //! Receivers facing away from the whole light get no look-ups (Vcoef 0),
 //! a light no receiver faces no maps.
 
@@ -32,6 +32,11 @@ use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTe
 /// Largest `--samples` multi-map accepts: the `u64` accumulators then hold
 /// `N · QSCALE` with room to spare, and 65536 full maps is hours of work.
 pub const MAX_MAPS: u32 = 65536;
+
+/// Maps rendered before one pass of look-ups consumes them all: the
+/// G-buffer is read once per batch, and memory stays at `BATCH` maps
+/// whatever `--samples` is.
+pub const BATCH: usize = 4;
 
 /// The multi-map technique.
 #[derive(Debug, Clone, Copy)]
@@ -121,6 +126,7 @@ impl ShadowTechnique for MultiMap {
         let pcf = self.options.pcf;
         let size = self.options.map_size;
         let mut peak_map = 0u64;
+        let mut resident = 0u64;
         let receivers_at = receiver_points(ctx.gbuffer);
         for (k, light) in ctx.scene.lights.iter().enumerate() {
             let t = PassTimer::start(format!("multi-map light {k}"));
@@ -147,13 +153,23 @@ impl ShadowTechnique for MultiMap {
             };
             let mut acc = vec![0u64; n];
             let mut rendered = 0u32;
-            for &st in &points {
-                let map = setup.render(point_on_light(light, st, casters))?;
-                if let Some(m) = &map {
-                    rendered += 1;
-                    peak_map = peak_map.max(m.map.memory_bytes());
+            // A few maps per pass over the receivers: each receiver is read
+            // once per batch (the sum is exact and order-free, so batching
+            // does not change a bit).
+            for batch in points.chunks(BATCH) {
+                let mut maps = Vec::with_capacity(batch.len());
+                for &st in batch {
+                    let map = setup.render(point_on_light(light, st, casters))?;
+                    if let Some(m) = &map {
+                        rendered += 1;
+                        resident += m.map.memory_bytes();
+                    }
+                    maps.push(map);
                 }
-                setup.consume(map.as_ref(), pcf, &active, &mut acc, 1, |v, a| {
+                peak_map = peak_map.max(resident);
+                resident = 0;
+                let refs: Vec<_> = maps.iter().map(Option::as_ref).collect();
+                setup.consume_batch(&refs, pcf, &active, &mut acc, 1, |_, v, a| {
                     a[0] += quantize(v);
                 });
             }
@@ -164,8 +180,8 @@ impl ShadowTechnique for MultiMap {
                 name: "shadow maps".into(),
                 detail: format!(
                     "{rendered} rendered for light {k} ({} points of pattern {}; {} of {n} \
-                     receivers face the light, the others get no look-up), one resident at a \
-                     time ({size}² f32 linear depth)",
+                     receivers face the light, the others get no look-up), up to {BATCH} \
+                     resident at a time ({size}² f32 linear depth), consumed in one pass",
                     points.len(),
                     self.pattern,
                     faced
