@@ -32,8 +32,8 @@ pub mod volume;
 
 use super::kit::rays::{scene_diagonal, ShadowOrigin};
 use super::kit::timing::PassTimer;
-use super::stsv::Filter;
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::stsv::Filter;
 use super::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::{Error, Result};
 use crate::output::Layer;
@@ -354,13 +354,7 @@ impl PenumbraCasting {
         let e2 = e3.cross(e1);
         let sampler = LightSampler::new(light);
         let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
-        let sets = SampleSets::new(
-            &sampler,
-            &pattern,
-            self.sample_sets(),
-            centre,
-            [e1, e2, e3],
-        );
+        let sets = SampleSets::new(&sampler, &pattern, self.sample_sets(), centre, [e1, e2, e3]);
         let mut report = LightReport::default();
 
         // Triangles: opaque casters, non-degenerate, relative to the light.
@@ -597,12 +591,20 @@ impl PenumbraCasting {
                 c.words(r, &mut words);
                 let vt = if tr.any() {
                     (0..sets.n)
-                        .map(|slot| tr.vt(r, slot, (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1))
+                        .map(|slot| {
+                            tr.vt(r, slot, (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1)
+                        })
                         .collect()
                 } else {
                     Vec::new()
                 };
-                local.push((i, c.set[r], words.clone(), (c.group_umbra[r], c.full[r]), vt));
+                local.push((
+                    i,
+                    c.set[r],
+                    words.clone(),
+                    (c.group_umbra[r], c.full[r]),
+                    vt,
+                ));
             }
             out.lock().expect("no panic").extend(local);
         })?;
@@ -725,10 +727,11 @@ impl PenumbraCasting {
             t.finish_with(
                 &mut out.passes,
                 format!(
-                    "sort {:.3} s, build {:.3} s, cast {:.3} s",
+                    "sort {:.3} s, build {:.3} s, cast {:.3} s, translucent {:.3} s",
                     report.sort_time.as_secs_f64(),
                     report.build_time.as_secs_f64(),
-                    report.cast_time.as_secs_f64()
+                    report.cast_time.as_secs_f64(),
+                    report.translucent_time.as_secs_f64()
                 ),
             );
             layer.channels.push((k.to_string(), leaf));

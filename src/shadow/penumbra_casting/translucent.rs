@@ -41,8 +41,8 @@
 use super::cast::Chunk;
 use super::hierarchy::Hierarchy;
 use super::samples::{SampleSets, GROUP};
-use super::volume::{hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes};
 use super::volume::PenumbraVolume;
+use super::volume::{hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes};
 use crate::scene::Scene;
 use crate::shadow::kit::groups::{Attenuation, TransmittanceMode};
 use crate::shadow::stsv::{Filter, STriangle, SamplePositions, SampleProjector};
@@ -99,8 +99,7 @@ impl Casters {
         for s in &ctx.cache.s_triangles().list {
             let t = s.corners.map(|c| c - centre);
             if area(&t) {
-                out.tris
-                    .push((t, Kind::Matte(out.mattes.len() as u32)));
+                out.tris.push((t, Kind::Matte(out.mattes.len() as u32)));
                 out.mattes.push(*s);
             }
         }
