@@ -260,8 +260,11 @@ pub fn cast(
     let g = sets.groups;
     let mut vl = PenumbraVolume::default();
     let mut gv = vec![PenumbraVolume::default(); g];
-    let mut hard = vec![HardVolumes::default(); sets.sets * g];
-    let mut stamp = vec![0u32; sets.sets * g];
+    // The hard-volume cache (`sets × groups × 4 KiB`) only for layers.
+    let layers = casters.tris.iter().any(|t| matches!(t.1, Kind::Layer(_)));
+    let cache = if layers { sets.sets * g } else { 0 };
+    let mut hard = vec![HardVolumes::default(); cache];
+    let mut stamp = vec![0u32; cache];
     let mut words = Vec::new();
     let mut stack: Vec<(u32, u32)> = Vec::new();
     let mut hits: Vec<(usize, f64)> = Vec::new();
