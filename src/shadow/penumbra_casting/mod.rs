@@ -27,11 +27,13 @@
 pub mod cast;
 pub mod hierarchy;
 pub mod samples;
+pub mod translucent;
 pub mod volume;
 
 use super::kit::rays::{scene_diagonal, ShadowOrigin};
 use super::kit::timing::PassTimer;
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::stsv::Filter;
 use super::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::{Error, Result};
 use crate::output::Layer;
@@ -49,10 +51,13 @@ use volume::{penumbra_volume, PenumbraVolume};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
 pub struct PenumbraCastingOptions {
     /// Penumbra casting: distinct light-sample sets, assigned per receiver
-    /// (§3.4; the paper's 8). With `--pattern interleaved:n` and
-    /// `n²` sets, or `--pattern correlated`, every receiver gets the
-    /// reference's own samples.
-    #[arg(long, default_value_t = 8)]
+    /// (§3.4). 0 (the default): the reference's own sets where the pattern
+    /// has finitely many — `interleaved:n` gets its `n²` sets (while
+    /// `n² × ⌈N/32⌉ ≤ 4096`), `correlated` and `grid` their one set — and
+    /// the paper's 8 otherwise (per-pixel patterns such as `stratified`).
+    /// With `interleaved:n` and `n²` sets, `correlated` or `grid`, every
+    /// receiver gets the reference's samples of its pixel.
+    #[arg(long, default_value_t = 0)]
     pub pc_sample_sets: u32,
     /// Penumbra casting: umbra bits and hierarchy rebuilds (§3.3 A).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
@@ -93,6 +98,10 @@ pub struct PenumbraCastingOptions {
     /// held at once; chunks are processed in waves that fit.
     #[arg(long, default_value_t = 1024)]
     pub pc_mask_budget_mib: u32,
+    /// How S-triangles' opacity textures are read (the shared
+    /// `--opacity-filter`, filled in by the registry's `build`).
+    #[arg(skip)]
+    pub opacity_filter: Filter,
 }
 
 impl Default for PenumbraCastingOptions {
@@ -129,15 +138,6 @@ impl PenumbraCastingOptions {
     }
 }
 
-const SEMI_OPAQUE: Support = Support::Ignored(
-    "penumbra casting keeps one bit per relation; casters of constant opacity below 1 cast no \
-     shadow here (use dcs or reference)",
-);
-const S_TRIANGLES: Support = Support::Ignored(
-    "the alpha-matte pass (§3.4) is not built; opacity-textured casters cast no shadow here \
-     (use dcs or reference)",
-);
-
 /// Penumbra casting in the technique registry.
 pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     name: "penumbra-casting",
@@ -153,8 +153,8 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         },
         textured_lights: Support::Yes,
         enclosed_lights: Support::Yes,
-        semi_opaque: SEMI_OPAQUE,
-        s_triangles: S_TRIANGLES,
+        semi_opaque: Support::Yes,
+        s_triangles: Support::Yes,
         output: TermKind::Radiance,
         exact: true,
     },
@@ -164,7 +164,10 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             samples: p.samples,
             seed: p.seed,
             pattern: p.pattern,
-            options: p.options.penumbra_casting,
+            options: PenumbraCastingOptions {
+                opacity_filter: p.options.stsv.opacity_filter,
+                ..p.options.penumbra_casting
+            },
         })
     },
 };
@@ -195,6 +198,10 @@ pub struct LightMasks {
     /// Per pixel: group-umbra bits and the full-umbra bit as the
     /// traversal left them.
     pub umbra: Vec<(u128, bool)>,
+    /// Per pixel and slot (group order, `sets.n` per pixel): the
+    /// relation's `V·T` (0 where blocked); empty when the scene has no
+    /// translucent casters.
+    pub transmittance: Vec<f64>,
     /// What the light's pass measured.
     pub report: LightReport,
 }
@@ -224,6 +231,32 @@ pub struct LightReport {
     pub cast_time: Duration,
     /// First hierarchy builds (wall clock).
     pub build_time: Duration,
+    /// The translucent pass (semi-opaque layers and S-triangles).
+    pub translucent: translucent::Stats,
+    /// Its wall-clock time.
+    pub translucent_time: Duration,
+}
+
+/// A finished chunk's translucent transmittances.
+struct Tr<'a> {
+    casters: &'a translucent::Casters,
+    records: Option<&'a translucent::Records>,
+}
+
+impl Tr<'_> {
+    /// Whether the scene has translucent casters.
+    fn any(&self) -> bool {
+        self.records.is_some()
+    }
+
+    /// Receiver `r`'s relation `slot`: `V·T` given its opaque bit.
+    fn vt(&self, r: usize, slot: usize, blocked: bool) -> f64 {
+        match self.records {
+            _ if blocked => 0.0,
+            None => 1.0,
+            Some(rec) => rec.transmittance(self.casters, r, slot),
+        }
+    }
 }
 
 /// A chunk's receivers: pixel indices and sets.
@@ -244,10 +277,10 @@ impl PenumbraCasting {
             ));
         }
         let o = &self.options;
-        if o.pc_sample_sets == 0 || o.pc_sample_sets > 4096 {
+        if o.pc_sample_sets > 4096 {
             return Err(Error::param(
                 "--pc-sample-sets",
-                format!("takes 1 to 4096 sets, not {}", o.pc_sample_sets),
+                format!("takes 0 (auto) to 4096 sets, not {}", o.pc_sample_sets),
             ));
         }
         if o.pc_chunk == 0 {
@@ -265,9 +298,35 @@ impl PenumbraCasting {
         Ok(())
     }
 
-    /// Casts every opaque caster for light `k` and calls `finish` with
-    /// each finished chunk (its pixels and state), chunks of a wave in
-    /// parallel.
+    /// The sample sets actually used: `--pc-sample-sets`, or for 0 the
+    /// reference's own sets where the pattern has finitely many (see the
+    /// option).
+    pub fn sample_sets(&self) -> usize {
+        let groups = (self.samples as usize).div_ceil(GROUP).max(1);
+        match (self.options.pc_sample_sets, self.pattern) {
+            (0, SamplePattern::Interleaved { n }) => {
+                let k = (n.max(1) * n.max(1)) as usize;
+                if k * groups <= 4096 {
+                    k
+                } else {
+                    8
+                }
+            }
+            (0, SamplePattern::Correlated | SamplePattern::Grid) => 1,
+            (0, _) => 8,
+            (k, _) => k as usize,
+        }
+    }
+
+    /// Whether every receiver gets the reference's samples of its pixel.
+    fn matches_reference(&self, sets: &SampleSets) -> bool {
+        // Grid points do not depend on the pixel: every set is the grid.
+        sets.matches_reference() || self.pattern == SamplePattern::Grid
+    }
+
+    /// Casts every opaque caster for light `k`, then the translucent
+    /// ones, and calls `finish` with each finished chunk (its pixels,
+    /// state and translucent records), chunks of a wave in parallel.
     fn run_light<F>(
         &self,
         ctx: &ShadowContext,
@@ -275,7 +334,7 @@ impl PenumbraCasting {
         finish: F,
     ) -> Result<(SampleSets, LightReport)>
     where
-        F: Fn(&SampleSets, &[u32], &Chunk) + Sync,
+        F: Fn(&SampleSets, &[u32], &Chunk, &Tr) + Sync,
     {
         self.check()?;
         let light = ctx
@@ -295,13 +354,7 @@ impl PenumbraCasting {
         let e2 = e3.cross(e1);
         let sampler = LightSampler::new(light);
         let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
-        let sets = SampleSets::new(
-            &sampler,
-            &pattern,
-            self.options.pc_sample_sets as usize,
-            centre,
-            [e1, e2, e3],
-        );
+        let sets = SampleSets::new(&sampler, &pattern, self.sample_sets(), centre, [e1, e2, e3]);
         let mut report = LightReport::default();
 
         // Triangles: opaque casters, non-degenerate, relative to the light.
@@ -388,9 +441,25 @@ impl PenumbraCasting {
         report.chunks = inputs.len();
         report.receivers = inputs.iter().map(|c| c.pixels.len()).sum();
 
-        // Waves of chunks within the mask budget.
+        // Translucent casters (semi-opaque layers, S-triangles).
+        let casters = translucent::Casters::collect(ctx, &sets, centre);
+        report.translucent.layers = casters
+            .tris
+            .iter()
+            .filter(|t| matches!(t.1, translucent::Kind::Layer(_)))
+            .count();
+        report.translucent.mattes = casters.mattes.len();
+        report.translucent.bytes_per_sample = casters.record_bytes(1);
+
+        // Waves of chunks within the mask budget (a translucent record
+        // counted for every receiver: the worst case).
         let budget = u64::from(self.options.pc_mask_budget_mib) << 20;
-        let per_receiver = sets.groups as u64 * 4;
+        let per_receiver = sets.groups as u64 * 4
+            + if casters.is_empty() {
+                0
+            } else {
+                casters.record_bytes(sets.n)
+            };
         let mut waves: Vec<Vec<ChunkInput>> = Vec::new();
         let mut bytes = 0u64;
         for c in inputs {
@@ -460,7 +529,51 @@ impl PenumbraCasting {
                 wave_masks += s.peak_masks as u64 * c.mask_bytes();
             }
             report.peak_mask_bytes = report.peak_mask_bytes.max(wave_masks);
-            chunks.par_iter().for_each(|(px, c)| finish(&sets, px, c));
+            let tt = std::time::Instant::now();
+            let records: Vec<Option<translucent::Records>> = chunks
+                .par_iter()
+                .map(|(px, c)| {
+                    (!casters.is_empty()).then(|| {
+                        let origins: Vec<Vec3> = px
+                            .iter()
+                            .map(|&i| {
+                                let s = gb.sample(i as usize);
+                                origin.of(s.position, s.geo_normal)
+                            })
+                            .collect();
+                        translucent::cast(
+                            c,
+                            &sets,
+                            &casters,
+                            ctx.scene,
+                            self.options.opacity_filter,
+                            &origins,
+                            slack,
+                            sw.simd,
+                        )
+                    })
+                })
+                .collect();
+            report.translucent_time += tt.elapsed();
+            let (mut rb, mut hb) = (0u64, 0u64);
+            for r in records.iter().flatten() {
+                report.translucent.recorded += r.recorded;
+                report.translucent.time += r.time;
+                rb += r.bytes();
+                hb += r.hierarchy_bytes;
+            }
+            report.translucent.record_bytes = report.translucent.record_bytes.max(rb);
+            report.translucent.hierarchy_bytes = report.translucent.hierarchy_bytes.max(hb);
+            chunks
+                .par_iter()
+                .zip(records.par_iter())
+                .for_each(|((px, c), r)| {
+                    let tr = Tr {
+                        casters: &casters,
+                        records: r.as_ref(),
+                    };
+                    finish(&sets, px, c, &tr)
+                });
         }
         Ok((sets, report))
     }
@@ -469,31 +582,55 @@ impl PenumbraCasting {
     /// tests).
     pub fn light_masks(&self, ctx: &ShadowContext, k: usize) -> Result<LightMasks> {
         let n = ctx.gbuffer.len();
-        type Row = (u32, u16, Vec<u32>, (u128, bool));
+        type Row = (u32, u16, Vec<u32>, (u128, bool), Vec<f64>);
         let out = std::sync::Mutex::new(Vec::<Row>::new());
-        let (sets, report) = self.run_light(ctx, k, |sets, px, c| {
+        let (sets, report) = self.run_light(ctx, k, |sets, px, c, tr| {
             let mut words = Vec::new();
             let mut local = Vec::with_capacity(px.len());
             for (r, &i) in px.iter().enumerate() {
                 c.words(r, &mut words);
-                local.push((i, c.set[r], words.clone(), (c.group_umbra[r], c.full[r])));
+                let vt = if tr.any() {
+                    (0..sets.n)
+                        .map(|slot| {
+                            tr.vt(r, slot, (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1)
+                        })
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                local.push((
+                    i,
+                    c.set[r],
+                    words.clone(),
+                    (c.group_umbra[r], c.full[r]),
+                    vt,
+                ));
             }
-            let _ = sets;
             out.lock().expect("no panic").extend(local);
         })?;
         let g = sets.groups;
+        let translucent = report.translucent.layers + report.translucent.mattes > 0;
         let mut masks = LightMasks {
             set: vec![None; n],
             words: vec![0; n * g],
             umbra: vec![(0, false); n],
+            transmittance: if translucent {
+                vec![1.0; n * sets.n]
+            } else {
+                Vec::new()
+            },
             report,
             sets,
         };
-        for (i, set, words, umbra) in out.into_inner().expect("no panic") {
+        let sn = masks.sets.n;
+        for (i, set, words, umbra, vt) in out.into_inner().expect("no panic") {
             let i = i as usize;
             masks.set[i] = Some(set);
             masks.words[i * g..(i + 1) * g].copy_from_slice(&words);
             masks.umbra[i] = umbra;
+            if translucent {
+                masks.transmittance[i * sn..(i + 1) * sn].copy_from_slice(&vt);
+            }
         }
         Ok(masks)
     }
@@ -519,24 +656,36 @@ impl PenumbraCasting {
             let prepared = PreparedLight::new(light, &ctx.scene.textures);
             type Px = (u32, f32, Vec3, u32);
             let results = std::sync::Mutex::new(Vec::<Vec<Px>>::new());
-            let (sets, report) = self.run_light(ctx, k, |sets, px, c| {
+            let (sets, report) = self.run_light(ctx, k, |sets, px, c, tr| {
                 let n = sets.n;
                 let mut words = Vec::new();
                 let mut vis = vec![1.0f32; n];
+                let mut vt = vec![1.0f64; n];
                 let mut local = Vec::with_capacity(px.len());
                 for (r, &i) in px.iter().enumerate() {
                     let set = c.set[r] as usize;
                     c.words(r, &mut words);
                     vis.iter_mut().for_each(|v| *v = 1.0);
-                    let mut visible = n;
-                    for (slot, &orig) in sets.order[set].iter().enumerate() {
-                        if (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1 {
-                            vis[orig as usize] = 0.0;
-                            visible -= 1;
+                    let vcoef = if tr.any() {
+                        for (slot, &orig) in sets.order[set].iter().enumerate() {
+                            let blocked = (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1;
+                            vt[orig as usize] = tr.vt(r, slot, blocked);
+                            vis[orig as usize] = vt[orig as usize] as f32;
                         }
-                    }
+                        // The reference's sum: f64, in sample order.
+                        let sum = vt.iter().fold(0.0f64, |a, &b| a + b);
+                        (sum / n as f64) as f32
+                    } else {
+                        let mut visible = n;
+                        for (slot, &orig) in sets.order[set].iter().enumerate() {
+                            if (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1 {
+                                vis[orig as usize] = 0.0;
+                                visible -= 1;
+                            }
+                        }
+                        (visible as f64 / n as f64) as f32
+                    };
                     let g = ctx.gbuffer.sample(i as usize);
-                    let vcoef = (visible as f64 / n as f64) as f32;
                     let rad = prepared.direct_from_samples(
                         &surface_point(ctx.scene, &g, eye),
                         &sets.samples[set],
@@ -578,10 +727,11 @@ impl PenumbraCasting {
             t.finish_with(
                 &mut out.passes,
                 format!(
-                    "sort {:.3} s, build {:.3} s, cast {:.3} s",
+                    "sort {:.3} s, build {:.3} s, cast {:.3} s, translucent {:.3} s",
                     report.sort_time.as_secs_f64(),
                     report.build_time.as_secs_f64(),
-                    report.cast_time.as_secs_f64()
+                    report.cast_time.as_secs_f64(),
+                    report.translucent_time.as_secs_f64()
                 ),
             );
             layer.channels.push((k.to_string(), leaf));
@@ -638,7 +788,7 @@ impl PenumbraCasting {
                  skipped), {} volume builds",
                 sets.sets,
                 sets.n,
-                if sets.matches_reference() {
+                if self.matches_reference(sets) {
                     " (every receiver gets the reference's samples)"
                 } else {
                     ", assigned per receiver by a pixel hash"
@@ -649,17 +799,27 @@ impl PenumbraCasting {
             ),
             bytes: sets.bytes() + r.volume_bytes,
         });
-        if k == 0 {
+        let t = &r.translucent;
+        if t.layers + t.mattes > 0 {
             notes.push(BufferNote {
-                name: "semi-opaque transmittance".into(),
-                detail: "left out: one bit per relation; casters of opacity below 1 are not cast"
-                    .into(),
-                bytes: 0,
-            });
-            notes.push(BufferNote {
-                name: "S-triangle (alpha-matte) pass".into(),
-                detail: "left out: not built; opacity-textured casters are not cast".into(),
-                bytes: 0,
+                name: format!("translucent records light {k}"),
+                detail: format!(
+                    "{} semi-opaque triangles, {} S-triangles ({} look-ups) cast after the opaque \
+                     ones; {} receivers got a record of {} bytes per sample (u16 layer counts per \
+                     opacity group, f64 optical depth for S-triangles), the largest wave's shown; \
+                     {:.3} s (wall), second hierarchy {} bytes",
+                    t.layers,
+                    t.mattes,
+                    match o.opacity_filter {
+                        Filter::Nearest => "nearest",
+                        Filter::Bilinear => "bilinear",
+                    },
+                    t.recorded,
+                    t.bytes_per_sample,
+                    r.translucent_time.as_secs_f64(),
+                    t.hierarchy_bytes
+                ),
+                bytes: t.record_bytes + t.hierarchy_bytes,
             });
         }
     }
