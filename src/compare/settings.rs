@@ -34,6 +34,9 @@ pub struct CompareOptions {
     /// Sample patterns DCS is measured with (one curve each); the first
     /// is also the reference's and whole-light silhouettes' pattern.
     pub patterns: Vec<SamplePattern>,
+    /// `--verify K`: relations re-cast with shadow rays per run of a
+    /// technique that exposes its decisions (not timed).
+    pub verify: Option<u64>,
 }
 
 impl CompareOptions {
