@@ -467,10 +467,13 @@ pub fn verify_with(
         .collect();
     // The first of the largest, in relation order (deterministic), those
     // at no textured caster first: the error to show.
-    let rank = |d: &Disagreement| (!d.textured, d.tie_distance);
     let worst = found.iter().copied().reduce(|a, b| {
-        let (ra, rb) = (rank(&a), rank(&b));
-        if rb.0 > ra.0 || (rb.0 == ra.0 && rb.1 > ra.1) {
+        let better = if a.textured == b.textured {
+            b.tie_distance > a.tie_distance
+        } else {
+            a.textured
+        };
+        if better {
             b
         } else {
             a
