@@ -264,9 +264,9 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             for path in std::iter::once(&output).chain(&exr) {
                 check_output(path)?;
             }
-            if verify.is_some() {
+            if let Some(k) = verify {
                 // Refused before the render, not after it.
-                check_verifiable(options.technique, &options.build_params())?;
+                check_verifiable(options.technique, &options.build_params(), k)?;
             }
             let scene = load_scene(&scene)?;
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;

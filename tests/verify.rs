@@ -192,6 +192,14 @@ fn the_command_line_exits_on_a_failed_check() {
         "{err}"
     );
     assert!(!png.exists(), "refused before rendering");
+    let zero = run(&["--verify", "0"]);
+    let err = String::from_utf8_lossy(&zero.stderr);
+    assert!(!zero.status.success());
+    assert!(
+        err.contains("--verify") && err.contains("outside 1..="),
+        "{err}"
+    );
+    assert!(!png.exists(), "refused before rendering");
 }
 
 /// `compare --verify` reports the certificate for the runs of techniques

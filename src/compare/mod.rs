@@ -116,7 +116,7 @@ pub fn compare_scene(
                 run_result(&setting, timed, &reference, options, out, (width, height))?;
             if let Some(k) = options.verify {
                 let params = setting_options.build_params();
-                if check_verifiable(technique, &params).is_ok() {
+                if check_verifiable(technique, &params, k).is_ok() {
                     progress.stage(&format!("{} {} (verify)", setting.curve, setting.label));
                     result.verify = Some(verify_render(scene, &setting_options, k)?);
                 }

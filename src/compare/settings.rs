@@ -45,6 +45,13 @@ impl CompareOptions {
         if self.techniques.is_empty() {
             return Err(Error::param("--techniques", "name at least one technique"));
         }
+        let max = crate::shadow::kit::verify::MAX_RELATIONS;
+        if let Some(k) = self.verify.filter(|k| !(1..=max).contains(k)) {
+            return Err(Error::param(
+                "--verify",
+                format!("{k} relations is outside 1..={max}"),
+            ));
+        }
         if self.samples.is_empty() {
             return Err(Error::param("--samples", "give at least one sample count"));
         }

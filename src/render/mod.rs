@@ -279,7 +279,7 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
 /// ([`VerifyReport::check`]).
 pub fn verify_render(scene: &Scene, options: &RenderOptions, k: u64) -> Result<VerifyReport> {
     let params = options.build_params();
-    verify::check_verifiable(options.technique, &params)?;
+    verify::check_verifiable(options.technique, &params, k)?;
     let view = view_for(scene, options)?;
     check_memory(scene, options, &view)?;
     let geometry = SceneGeometry::new(scene);

@@ -224,8 +224,18 @@ pub fn verifiable() -> Vec<&'static str> {
         .collect()
 }
 
-/// An error unless `technique` built from `params` exposes its decisions.
-pub fn check_verifiable(technique: Technique, params: &BuildParams) -> Result<()> {
+/// Most relations one `--verify` checks (they are held in memory).
+pub const MAX_RELATIONS: u64 = 10_000_000;
+
+/// An error unless `technique` built from `params` exposes its decisions
+/// and `k` is in `1..=MAX_RELATIONS`.
+pub fn check_verifiable(technique: Technique, params: &BuildParams, k: u64) -> Result<()> {
+    if !(1..=MAX_RELATIONS).contains(&k) {
+        return Err(Error::param(
+            "--verify",
+            format!("{k} relations is outside 1..={MAX_RELATIONS}"),
+        ));
+    }
     if technique.build(params).sample_decisions().is_some() {
         return Ok(());
     }
@@ -379,7 +389,7 @@ pub fn verify(
     ctx: &ShadowContext,
     k: u64,
 ) -> Result<VerifyReport> {
-    check_verifiable(technique, params)?;
+    check_verifiable(technique, params, k)?;
     let built = technique.build(params);
     let decisions = built
         .sample_decisions()
