@@ -4,6 +4,12 @@
 //! radiance estimator), on 1 and on 2 threads. The BVH is built once,
 //! outside the timed loop; its build is timed separately.
 //!
+//! A second group times the whole technique (as `render` runs it: every
+//! light, the estimator, its buffers) at 64 and 256 light samples on 2
+//! threads, the sample counts of the DCS bench (benches/dcs.rs) and of the
+//! Embree comparison; 256² keeps the whole bench under about 2 minutes on
+//! 2 cores (the reference's time is linear in pixels × samples).
+//!
 //! Run: `cargo bench --bench reference`. Criterion reports the throughput
 //! in elements/s = shadow rays (BVH traversals) per second.
 
@@ -13,8 +19,10 @@ use penumbra::geom::SceneGeometry;
 use penumbra::render::{view_for, RenderOptions};
 use penumbra::scene::load_scene;
 use penumbra::shadow::kit::rays::ShadowTracer;
-use penumbra::shadow::ShadowContext;
+use penumbra::shadow::reference::Reference;
+use penumbra::shadow::{ShadowContext, ShadowTechnique};
 use std::path::Path;
+use std::time::Duration;
 
 const SAMPLES: u32 = 16;
 
@@ -55,6 +63,24 @@ fn reference(c: &mut Criterion) {
         group.throughput(Throughput::Elements(geometry.triangles.len() as u64));
         group.bench_function(format!("bvh_build_{threads}t"), |b| {
             b.iter(|| pool.install(|| ShadowTracer::new(&scene, &geometry)))
+        });
+    }
+    group.finish();
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("thread pool");
+    let mut group = c.benchmark_group("reference_technique_spheres_256_2t");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(8));
+    for samples in [64, 256] {
+        let technique = Reference::new(samples, 0);
+        let (_, rays) = tracer.trace_light(&ctx, 0, samples, 0);
+        group.throughput(Throughput::Elements(rays));
+        group.bench_function(format!("reference_{samples}spp"), |b| {
+            b.iter(|| pool.install(|| technique.compute(&ctx).expect("reference runs")))
         });
     }
     group.finish();

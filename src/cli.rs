@@ -8,11 +8,12 @@ use crate::compare::{
 use crate::error::{Error, Result};
 use crate::output::{check_output, write_stderr, write_stdout, OutputSet};
 use crate::raster::MAX_SIDE;
-use crate::render::{render, with_threads, Aov, RenderOptions};
+use crate::render::{render, verify_render, with_threads, Aov, RenderOptions};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
 use crate::scene::{load_scene, LightShape, Scene};
+use crate::shadow::kit::verify::check_verifiable;
 use crate::shadow::registry::DEFAULT_TECHNIQUE;
 use crate::shadow::{Technique, TechniqueOptions};
 use clap::{Parser, Subcommand};
@@ -76,6 +77,13 @@ enum Command {
         /// (or left out, and why), with their memory.
         #[arg(long)]
         explain: bool,
+        /// Exactness certificate: re-cast this many random (pixel, light
+        /// sample) relations, keyed by --seed, with the reference's shadow
+        /// rays and compare them with the technique's own decisions (dcs,
+        /// penumbra-casting); a disagreement beyond the tie distance is an
+        /// error.
+        #[arg(long, value_name = "K")]
+        verify: Option<u64>,
     },
     /// Time every technique at several quality settings and measure its
     /// error against a cached ray-traced reference at the same receiver
@@ -132,6 +140,13 @@ enum Command {
         /// Skip per-run images and heat maps (charts and tables only).
         #[arg(long)]
         no_images: bool,
+        /// Exactness certificate per run of a technique that exposes its
+        /// decisions (dcs, penumbra-casting): this many relations re-cast
+        /// with shadow rays (a `verify` column; not timed). A run that
+        /// declares itself exact and disagrees beyond the tie distance
+        /// fails the command once the results are written.
+        #[arg(long, value_name = "K")]
+        verify: Option<u64>,
         /// The techniques' own options, the base every quality setting
         /// starts from.
         #[command(flatten)]
@@ -211,6 +226,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             options: technique_options,
             timings,
             explain,
+            verify,
         } => {
             let aovs = aov
                 .iter()
@@ -248,6 +264,10 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             for path in std::iter::once(&output).chain(&exr) {
                 check_output(path)?;
             }
+            if let Some(k) = verify {
+                // Refused before the render, not after it.
+                check_verifiable(options.technique, &options.build_params(), k)?;
+            }
             let scene = load_scene(&scene)?;
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
             let out = with_threads(threads, || render(&scene, &options, &progress))??;
@@ -282,6 +302,11 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 outputs.exr(&exr, out.width, out.height, &out.radiance, &out.layers)?;
             }
             outputs.commit()?;
+            if let Some(k) = verify {
+                let report = with_threads(threads, || verify_render(&scene, &options, k))??;
+                write_stderr(&format!("penumbra: {report}\n"));
+                report.check()?;
+            }
             Ok(Outcome::Success)
         }
         Command::Compare {
@@ -299,6 +324,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             cache_dir,
             report,
             no_images,
+            verify,
             options: technique_options,
         } => {
             let options = CompareOptions {
@@ -312,6 +338,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 seed,
                 cache_dir: cache_dir.unwrap_or_else(|| default_cache_dir(&out.join("cache"))),
                 images: !no_images,
+                verify,
                 patterns: patterns
                     .iter()
                     .map(|p| {
@@ -366,6 +393,16 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     r.runs.len(),
                     dir.display()
                 ));
+            }
+            // Inexact settings are expected to disagree; exact ones not.
+            for (r, _) in &results {
+                for run in &r.runs {
+                    if let Some(v) = run.verify.as_ref().filter(|v| v.declared_exact) {
+                        v.check().map_err(|e| {
+                            Error::param("--verify", format!("{} ({}): {e}", r.scene, run.setting))
+                        })?;
+                    }
+                }
             }
             Ok(Outcome::Success)
         }

@@ -37,6 +37,7 @@ fn options(cache: &Path, reference_samples: u32) -> CompareOptions {
         cache_dir: cache.to_path_buf(),
         images: true,
         patterns: vec![penumbra::sampling::SamplePattern::Stratified],
+        verify: None,
     }
 }
 

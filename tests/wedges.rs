@@ -72,6 +72,7 @@ fn check_exact_case(name: &str, toml: &str) {
         cache_dir: dir.join("cache"),
         images: false,
         patterns: vec![penumbra::sampling::SamplePattern::Stratified],
+        verify: None,
     };
     let c = compare_scene(&scene, &options, &dir, &Progress::hidden()).expect("compare");
     let wedges = c.runs.iter().find(|r| r.technique == "wedges").unwrap();

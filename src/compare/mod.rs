@@ -28,9 +28,10 @@ pub use settings::{progress_steps, quality_settings, CompareOptions};
 
 use crate::error::{Error, Result};
 use crate::output::write_png;
-use crate::render::RenderOptions;
+use crate::render::{verify_render, RenderOptions};
 use crate::report::Progress;
 use crate::scene::Scene;
+use crate::shadow::kit::verify::check_verifiable;
 use reference::{reference, NoiseFloors, ReferenceImages};
 use run::{run_result, time_setting};
 use serde::Serialize;
@@ -111,14 +112,16 @@ pub fn compare_scene(
             else {
                 continue;
             };
-            runs.push(run_result(
-                &setting,
-                timed,
-                &reference,
-                options,
-                out,
-                (width, height),
-            )?);
+            let mut result =
+                run_result(&setting, timed, &reference, options, out, (width, height))?;
+            if let Some(k) = options.verify {
+                let params = setting_options.build_params();
+                if check_verifiable(technique, &params, k).is_ok() {
+                    progress.stage(&format!("{} {} (verify)", setting.curve, setting.label));
+                    result.verify = Some(verify_render(scene, &setting_options, k)?);
+                }
+            }
+            runs.push(result);
         }
     }
     let floor = floors.vcoef_all_lights;

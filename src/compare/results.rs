@@ -23,14 +23,20 @@ fn is_common_pass(name: &str) -> bool {
 /// rows for each reference's noise floor (technique `reference-floor`).
 pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
     let mut s = String::from(
-        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,pareto\n",
+        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,pareto,verify_checked,verify_disagreements,verify_beyond_tie,verify_max_tie\n",
     );
     for sc in scenes {
         for r in &sc.runs {
+            let verify = r.verify.as_ref().map_or(",,,".to_string(), |v| {
+                format!(
+                    "{},{},{},{:e}",
+                    v.checked, v.disagreements, v.beyond_tie, v.max_tie_distance
+                )
+            });
             let mut row = |quantity: &str, region: &str, m: &ErrorMetrics| {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{:.4},{:.4},{:.4},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{:e},{:e},{:e},{:e},{},{}",
+                    "{},{},{},{},{:.4},{:.4},{:.4},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{:e},{:e},{:e},{:e},{},{},{verify}",
                     csv_field(&sc.scene),
                     csv_field(&r.technique),
                     csv_field(&r.setting),
@@ -76,7 +82,7 @@ pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
             ] {
                 let _ = writeln!(
                     s,
-                    "{},reference-floor,{} spp,{},,,,,,,,,{},{},,{:e},{:e},,,,",
+                    "{},reference-floor,{} spp,{},,,,,,,,,{},{},,{:e},{:e},,,,,,,,",
                     csv_field(&sc.scene),
                     floor.samples,
                     floor.samples,
@@ -222,16 +228,26 @@ pub fn write_markdown(
                 link(c)
             );
         }
+        // The `--verify` column only when something was verified.
+        let verified = sc.runs.iter().any(|r| r.verify.is_some());
         let _ = writeln!(
             s,
-            "| technique | setting | time (ms) | G-buffer | shadows | shading | Vcoef RMSE | Vcoef RMSE (penumbra) | MAE (penumbra) | max abs | > 1/255 (penumbra) | radiance RMSE | radiance RMSE (penumbra) | Pareto |"
+            "| technique | setting | time (ms) | G-buffer | shadows | shading | Vcoef RMSE | Vcoef RMSE (penumbra) | MAE (penumbra) | max abs | > 1/255 (penumbra) | radiance RMSE | radiance RMSE (penumbra) | Pareto |{}",
+            if verified { " verify: disagreeing / checked (beyond tie), max tie |" } else { "" }
         );
         let _ = writeln!(
             s,
-            "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|"
+            "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|{}",
+            if verified { "--:|" } else { "" }
         );
         for run in &sc.runs {
             row(&mut s, run, sc);
+            if verified {
+                // `row` ends the line with `|\n`: append the cell.
+                s.pop();
+                let cell = run.verify.as_ref().map_or("—".to_string(), |v| v.cell());
+                let _ = writeln!(s, " {cell} |");
+            }
         }
         let _ = writeln!(s);
         if let Some(c) = &sc.chart_all {

@@ -8,6 +8,7 @@ use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::render::{render, RenderOptions, RenderOutput};
 use crate::report::{ErrorMetrics, Progress};
+use crate::shadow::kit::verify::VerifyReport;
 use crate::shadow::registry::QualitySetting;
 use serde::Serialize;
 use std::path::Path;
@@ -63,6 +64,9 @@ pub struct RunResult {
     pub image: Option<String>,
     /// Vcoef heat maps per light, relative to the output directory.
     pub heatmaps: Vec<String>,
+    /// `--verify`: its exactness certificate (techniques that expose their
+    /// decisions).
+    pub verify: Option<VerifyReport>,
 }
 
 impl RunResult {
@@ -205,6 +209,7 @@ pub(super) fn run_result(
         pareto: false,
         image,
         heatmaps,
+        verify: None,
     })
 }
 

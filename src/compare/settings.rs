@@ -34,6 +34,9 @@ pub struct CompareOptions {
     /// Sample patterns DCS is measured with (one curve each); the first
     /// is also the reference's and whole-light silhouettes' pattern.
     pub patterns: Vec<SamplePattern>,
+    /// `--verify K`: relations re-cast with shadow rays per run of a
+    /// technique that exposes its decisions (not timed).
+    pub verify: Option<u64>,
 }
 
 impl CompareOptions {
@@ -41,6 +44,13 @@ impl CompareOptions {
     pub fn validate(&self) -> Result<()> {
         if self.techniques.is_empty() {
             return Err(Error::param("--techniques", "name at least one technique"));
+        }
+        let max = crate::shadow::kit::verify::MAX_RELATIONS;
+        if let Some(k) = self.verify.filter(|k| !(1..=max).contains(k)) {
+            return Err(Error::param(
+                "--verify",
+                format!("{k} relations is outside 1..={max}"),
+            ));
         }
         if self.samples.is_empty() {
             return Err(Error::param("--samples", "give at least one sample count"));

@@ -12,6 +12,7 @@ use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::sampling::SamplePattern;
 use crate::scene::Scene;
+use crate::shadow::kit::verify::{self, VerifyReport};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::BuildParams;
 use crate::shadow::{
@@ -269,6 +270,37 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
         passes,
         gbuffer_stats,
     })
+}
+
+/// `--verify k`: the G-buffer of the render `options` asks for, and `k` of
+/// its technique's (pixel, light, sample) relations re-cast with shadow
+/// rays ([`crate::shadow::kit::verify`]). An error if the technique does
+/// not expose its decisions; a failed check is a report, not an error
+/// ([`VerifyReport::check`]).
+pub fn verify_render(scene: &Scene, options: &RenderOptions, k: u64) -> Result<VerifyReport> {
+    let params = options.build_params();
+    verify::check_verifiable(options.technique, &params, k)?;
+    let view = view_for(scene, options)?;
+    check_memory(scene, options, &view)?;
+    let geometry = SceneGeometry::new(scene);
+    let (gbuffer, depth, _) = gbuffer_pass(scene, &geometry, &view)?;
+    let cache = ShadowCache::new(scene, &geometry);
+    let ctx = ShadowContext {
+        scene,
+        geometry: &geometry,
+        view: &view,
+        gbuffer: &gbuffer,
+        depth: &depth,
+        cache: &cache,
+    };
+    crate::shadow::registry::check_scene(
+        options.technique,
+        &options.options,
+        scene,
+        &geometry,
+        &view,
+    )?;
+    verify::verify(options.technique, &params, &ctx, k)
 }
 
 /// Builds the requested standard AOV layers. Background pixels hold 0 in

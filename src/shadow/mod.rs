@@ -127,6 +127,11 @@ pub trait ShadowTechnique: Sync {
     fn name(&self) -> &'static str;
     /// Computes the shadow term of every light.
     fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput>;
+    /// Its per-sample decisions for `--verify` ([`kit::verify`]), if it
+    /// exposes them; `None` refuses `--verify` by name.
+    fn sample_decisions(&self) -> Option<&dyn kit::verify::SampleDecisions> {
+        None
+    }
 }
 
 /// No shadows: every light fully visible everywhere.

@@ -43,6 +43,7 @@ pub use super::kit::groups::TransmittanceMode;
 use super::kit::membership::light_start;
 use super::kit::rays::ShadowOrigin;
 use super::kit::timing::{timed, PassTimer};
+use super::kit::verify::{PixelVisibility, SampleDecisions};
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use super::stsv::{Filter, STriangles};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -267,7 +268,7 @@ impl DepthComplexitySampling {
         k: usize,
         casters: &SceneCasters,
         passes: &mut Vec<PassTiming>,
-        inspect: Option<&CounterInspector>,
+        inspect: Option<(&CounterInspector, Option<&[usize]>)>,
     ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
         let light = &ctx.scene.lights[k];
         let start = light_start(ctx, k, passes)?;
@@ -301,7 +302,8 @@ impl DepthComplexitySampling {
             s_triangles: (!s_triangles.is_empty()).then_some(s_triangles),
             exact_start: &exact_start,
             origin: ShadowOrigin::new(ctx.scene, ctx.geometry),
-            inspect,
+            inspect: inspect.map(|i| i.0),
+            inspect_pixels: inspect.and_then(|i| i.1),
         };
         let results = count_tiles(&pass, grid, &mut tiles, &wedges.unbounded, stsv.as_ref());
         t.finish(passes);
@@ -486,7 +488,53 @@ impl DepthComplexitySampling {
     ) -> Result<LightTerm> {
         let mut passes = Vec::new();
         let casters = SceneCasters::new(ctx);
-        Ok(self.light(ctx, k, &casters, &mut passes, Some(inspect))?.0)
+        Ok(self
+            .light(ctx, k, &casters, &mut passes, Some((inspect, None)))?
+            .0)
+    }
+}
+
+impl SampleDecisions for DepthComplexitySampling {
+    /// Per sample: `H(D)` (the opaque count says visible) times the
+    /// semi-opaque casters' and S-triangles' transmittance, the values
+    /// the shading uses.
+    fn sample_visibility(
+        &self,
+        ctx: &ShadowContext,
+        light: usize,
+        pixels: &[usize],
+    ) -> Result<Vec<PixelVisibility>> {
+        let out = std::sync::Mutex::new(Vec::with_capacity(pixels.len()));
+        let visit = |i: usize, px: &InspectedPixel| {
+            let visibility = px
+                .counters
+                .iter()
+                .enumerate()
+                .map(|(s, &c)| {
+                    let t = px.transmittance.get(s).copied().unwrap_or(1.0);
+                    if c <= 0 {
+                        t
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            out.lock().expect("no panic").push(PixelVisibility {
+                pixel: i,
+                samples: px.samples.to_vec(),
+                visibility,
+            });
+        };
+        let mut passes = Vec::new();
+        let casters = SceneCasters::new(ctx);
+        self.light(
+            ctx,
+            light,
+            &casters,
+            &mut passes,
+            Some((&visit, Some(pixels))),
+        )?;
+        Ok(out.into_inner().expect("no panic"))
     }
 }
 
@@ -497,5 +545,9 @@ impl ShadowTechnique for DepthComplexitySampling {
 
     fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
         Ok(self.compute_with_report(ctx)?.0)
+    }
+
+    fn sample_decisions(&self) -> Option<&dyn SampleDecisions> {
+        Some(self)
     }
 }

@@ -92,6 +92,9 @@ pub(super) struct LightPass<'a, 'c> {
     pub(super) origin: ShadowOrigin,
     /// Called with every surface pixel's samples and counters.
     pub(super) inspect: Option<&'a CounterInspector<'a>>,
+    /// Only these pixels (sorted) are inspected, when given: the others
+    /// keep their fast paths.
+    pub(super) inspect_pixels: Option<&'a [usize]>,
 }
 
 /// One receiver's per-sample state, as [`CounterInspector`]s see it.
@@ -132,12 +135,16 @@ impl LightPass<'_, '_> {
         scratch: &mut Scratch,
     ) -> PixelResult {
         let gbuffer = self.ctx.gbuffer;
+        let inspect = self.inspect.filter(|_| {
+            self.inspect_pixels
+                .is_none_or(|p| p.binary_search(&i).is_ok())
+        });
         let d0 = self.groups[0].start[i];
         let g = gbuffer.sample(i);
         let eye = self.ctx.view.eye.as_vec3();
         let direct = self.technique.mode == DcsMode::Direct;
         let sp = || surface_point(self.ctx.scene, &g, eye);
-        if tags.is_empty() && extra.is_empty() && s_triangles.is_empty() && self.inspect.is_none() {
+        if tags.is_empty() && extra.is_empty() && s_triangles.is_empty() && inspect.is_none() {
             // Outside every wedge: D = D(O) and the layer counts are the
             // start counts for every sample.
             let t = if d0 <= 0 {
@@ -168,7 +175,7 @@ impl LightPass<'_, '_> {
         if !rect
             || direct
             || self.prepared.is_textured()
-            || self.inspect.is_some()
+            || inspect.is_some()
             || !s_triangles.is_empty()
         {
             self.sampler
@@ -285,7 +292,7 @@ impl LightPass<'_, '_> {
             .transmittance
             .extend(scratch.attenuation.iter().map(|&a| mode.transmittance(a)));
         let counters = &scratch.counters[..count];
-        if let Some(inspect) = self.inspect {
+        if let Some(inspect) = inspect {
             inspect(
                 i,
                 &InspectedPixel {

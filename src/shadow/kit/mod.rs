@@ -19,6 +19,7 @@
 //! - [`groups`]: semi-opaque caster groups and transmittance.
 //! - [`timing`]: pass timing.
 //! - [`tiles`]: tile-local to image pixel mapping.
+//! - [`verify`]: `--verify`, re-casting relations with shadow rays.
 
 pub mod cache;
 pub mod enclosure;
@@ -32,6 +33,7 @@ pub mod rays;
 pub mod shadow_maps;
 pub mod tiles;
 pub mod timing;
+pub mod verify;
 pub mod volumes;
 pub mod wedge_geometry;
 

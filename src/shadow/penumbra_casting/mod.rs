@@ -32,6 +32,7 @@ pub mod volume;
 
 use super::kit::rays::{scene_diagonal, ShadowOrigin};
 use super::kit::timing::PassTimer;
+use super::kit::verify::{PixelVisibility, SampleDecisions};
 use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use super::stsv::Filter;
 use super::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -825,9 +826,48 @@ impl PenumbraCasting {
     }
 }
 
+impl SampleDecisions for PenumbraCasting {
+    /// Per sample: 1 − its blocked bit, from the light's masks, or its
+    /// `V·T` where the scene has translucent casters.
+    fn sample_visibility(
+        &self,
+        ctx: &ShadowContext,
+        light: usize,
+        pixels: &[usize],
+    ) -> Result<Vec<PixelVisibility>> {
+        let m = self.light_masks(ctx, light)?;
+        let g = m.sets.groups;
+        Ok(pixels
+            .iter()
+            .filter_map(|&i| {
+                let set = usize::from((*m.set.get(i)?)?);
+                let words = &m.words[i * g..(i + 1) * g];
+                let mut visibility = vec![1.0; m.sets.n];
+                let vt = m.transmittance.get(i * m.sets.n..(i + 1) * m.sets.n);
+                for (slot, &orig) in m.sets.order[set].iter().enumerate() {
+                    if let Some(vt) = vt {
+                        visibility[orig as usize] = vt[slot];
+                    } else if (words[slot / GROUP] >> (slot % GROUP)) & 1 == 1 {
+                        visibility[orig as usize] = 0.0;
+                    }
+                }
+                Some(PixelVisibility {
+                    pixel: i,
+                    samples: m.sets.samples[set].clone(),
+                    visibility,
+                })
+            })
+            .collect())
+    }
+}
+
 impl ShadowTechnique for PenumbraCasting {
     fn name(&self) -> &'static str {
         "penumbra-casting"
+    }
+
+    fn sample_decisions(&self) -> Option<&dyn SampleDecisions> {
+        Some(self)
     }
 
     fn compute(&self, ctx: &ShadowContext) -> Result<ShadowOutput> {
