@@ -12,7 +12,8 @@
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::SampleSets;
 use super::volume::{
-    hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes, PenumbraVolume,
+    cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane, penumbra_volume, BoxTest,
+    Cone, HardVolumes, PenumbraVolume,
 };
 use glam::DVec3;
 use std::time::{Duration, Instant};
@@ -35,6 +36,10 @@ pub struct Switches {
     /// Point-in-hard-volume tests through the SIMD facade (else its
     /// scalar twin).
     pub simd: bool,
+    /// The cone prefilter: chunks of four samples outside the cone from
+    /// the receiver through the triangle skip the kernel (and, when every
+    /// chunk of a group does, its hard volumes are not built).
+    pub cone: bool,
     /// Rebuild the hierarchy when more than this percentage of its
     /// receivers is in full umbra (0: never; needs `umbra`).
     pub rebuild_percent: u32,
@@ -87,6 +92,10 @@ pub struct Chunk<'a> {
     hard_stamp: Vec<u32>,
     stamp: u32,
     tri: [DVec3; 3],
+    /// Largest coordinate magnitude of the receivers.
+    pos_extent: f64,
+    /// The current triangle's cone allowance, where the prefilter holds.
+    cone_slack: Option<f64>,
     /// What it measured.
     pub stats: ChunkStats,
 }
@@ -117,9 +126,15 @@ impl<'a> Chunk<'a> {
             ..ChunkStats::default()
         };
         stats.build_time = t.elapsed();
+        let pos_extent = pos
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m: f64, v: &f64| m.max(v.abs()));
         Chunk {
             sets,
             sw,
+            pos_extent,
+            cone_slack: None,
             slack,
             group_umbra: vec![0; r],
             full: vec![false; r],
@@ -216,6 +231,18 @@ impl<'a> Chunk<'a> {
         let t = self.tri;
         for (k, v) in self.groups_vol.iter_mut().enumerate() {
             penumbra_volume(&self.sets.group_bounds[k], &t, v);
+        }
+        self.cone_slack = None;
+        if self.sw.cone {
+            let m = t
+                .iter()
+                .fold(self.pos_extent.max(self.sets.extent), |m, v| {
+                    m.max(v.abs().max_element())
+                });
+            let slack = cone_slack(m);
+            if slack.is_finite() && light_clear_of_plane(&self.sets.light, &t, slack) {
+                self.cone_slack = Some(slack);
+            }
         }
     }
 
@@ -357,6 +384,7 @@ impl<'a> Chunk<'a> {
         let o = self.pos[r];
         let g = self.sets.groups;
         let base = self.slot[r] as usize * g;
+        let cone = self.cone_slack.and_then(|s| Cone::new(&self.tri, o, s));
         for i in c0..c1 {
             let (k, pk) = self.stack[i];
             let k = k as usize;
@@ -372,8 +400,14 @@ impl<'a> Chunk<'a> {
             if word == valid {
                 continue;
             }
+            let mut skip = word | !valid;
+            if let Some(c) = &cone {
+                skip |= c.outside_chunks(&self.sets.boxes[set][k]);
+                if skip == u32::MAX {
+                    continue;
+                }
+            }
             let hv = self.hard_volumes(set, k);
-            let skip = word | !valid;
             let bits = if sw.simd {
                 hard_bits_simd(&self.hard[hv], o, skip)
             } else {
