@@ -90,6 +90,8 @@ pub struct Chunk<'a> {
     groups_built: bool,
     hard: Vec<HardVolumes>,
     hard_stamp: Vec<u32>,
+    /// Per (set, group): the chunks of four built for the current stamp.
+    hard_built: Vec<u8>,
     stamp: u32,
     tri: [DVec3; 3],
     /// Largest coordinate magnitude of the receivers.
@@ -152,6 +154,7 @@ impl<'a> Chunk<'a> {
             groups_built: false,
             hard: vec![HardVolumes::default(); sets.sets * g],
             hard_stamp: vec![0; sets.sets * g],
+            hard_built: vec![0; sets.sets * g],
             stamp: 0,
             tri: [DVec3::ZERO; 3],
             stats,
@@ -200,7 +203,7 @@ impl<'a> Chunk<'a> {
             self.build_groups();
             for s in 0..self.sets.sets {
                 for k in 0..self.sets.groups {
-                    self.hard_volumes(s, k);
+                    self.hard_volumes(s, k, 0xff);
                 }
             }
         }
@@ -246,11 +249,19 @@ impl<'a> Chunk<'a> {
         }
     }
 
-    fn hard_volumes(&mut self, set: usize, k: usize) -> usize {
+    /// The hard volumes of (set, group k) with at least the chunks of
+    /// four in `need` built for the current triangle (built lazily, chunk
+    /// by chunk: the cone prefilter leaves most chunks untested).
+    fn hard_volumes(&mut self, set: usize, k: usize, need: u8) -> usize {
         let i = set * self.sets.groups + k;
         if self.hard_stamp[i] != self.stamp {
             self.hard_stamp[i] = self.stamp;
-            self.hard[i].build(&self.sets.soa[set][k], &self.tri);
+            self.hard_built[i] = 0;
+        }
+        let missing = need & !self.hard_built[i];
+        if missing != 0 {
+            self.hard_built[i] |= missing;
+            self.hard[i].build_chunks(&self.sets.soa[set][k], &self.tri, missing);
         }
         i
     }
@@ -407,7 +418,14 @@ impl<'a> Chunk<'a> {
                     continue;
                 }
             }
-            let hv = self.hard_volumes(set, k);
+            // The chunks of four with a sample left to test.
+            let mut need = 0u8;
+            for c in 0..8 {
+                if (skip >> (4 * c)) & 0xf != 0xf {
+                    need |= 1 << c;
+                }
+            }
+            let hv = self.hard_volumes(set, k, need);
             let bits = if sw.simd {
                 hard_bits_simd(&self.hard[hv], o, skip)
             } else {

@@ -284,14 +284,24 @@ impl HardVolumes {
     /// through the SIMD facade (IEEE operations only, so the bits are the
     /// scalar formula's, [`HardVolumes::build_scalar`]).
     pub fn build(&mut self, samples: &GroupSoa, t: &[DVec3; 3]) {
+        self.build_chunks(samples, t, 0xff);
+    }
+
+    /// [`HardVolumes::build`] for the chunks of four samples in `chunks`
+    /// (bit `c`: samples `4c .. 4c + 4`) only; the others keep their
+    /// values (the caller tracks which chunks are current).
+    pub fn build_chunks(&mut self, samples: &GroupSoa, t: &[DVec3; 3], chunks: u8) {
         use crate::simd::f64x4;
         self.len = samples.len;
         let nt = cross(t[1] - t[0], t[2] - t[0]);
         let sp = |v: f64| f64x4::splat(v);
         let zero = f64x4::ZERO;
         let (t0, t1, t2) = (t[0], t[1], t[2]);
-        let chunks = samples.len.div_ceil(4);
-        for c in 0..chunks {
+        let count = samples.len.div_ceil(4);
+        for c in 0..count {
+            if (chunks >> c) & 1 == 0 {
+                continue;
+            }
             let r = 4 * c..4 * c + 4;
             let x = f64x4::load(&samples.x[r.clone()]);
             let y = f64x4::load(&samples.y[r.clone()]);
