@@ -12,7 +12,8 @@
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::SampleSets;
 use super::volume::{
-    hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes, PenumbraVolume,
+    cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane, penumbra_volume, BoxTest,
+    Cone, HardVolumes, PenumbraVolume,
 };
 use glam::DVec3;
 use std::time::{Duration, Instant};
@@ -35,6 +36,10 @@ pub struct Switches {
     /// Point-in-hard-volume tests through the SIMD facade (else its
     /// scalar twin).
     pub simd: bool,
+    /// The cone prefilter: chunks of four samples outside the cone from
+    /// the receiver through the triangle skip the kernel (and, when every
+    /// chunk of a group does, its hard volumes are not built).
+    pub cone: bool,
     /// Rebuild the hierarchy when more than this percentage of its
     /// receivers is in full umbra (0: never; needs `umbra`).
     pub rebuild_percent: u32,
@@ -85,8 +90,14 @@ pub struct Chunk<'a> {
     groups_built: bool,
     hard: Vec<HardVolumes>,
     hard_stamp: Vec<u32>,
+    /// Per (set, group): the chunks of four built for the current stamp.
+    hard_built: Vec<u8>,
     stamp: u32,
     tri: [DVec3; 3],
+    /// Largest coordinate magnitude of the receivers.
+    pos_extent: f64,
+    /// The current triangle's cone allowance, where the prefilter holds.
+    cone_slack: Option<f64>,
     /// What it measured.
     pub stats: ChunkStats,
 }
@@ -117,9 +128,15 @@ impl<'a> Chunk<'a> {
             ..ChunkStats::default()
         };
         stats.build_time = t.elapsed();
+        let pos_extent = pos
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m: f64, v: &f64| m.max(v.abs()));
         Chunk {
             sets,
             sw,
+            pos_extent,
+            cone_slack: None,
             slack,
             group_umbra: vec![0; r],
             full: vec![false; r],
@@ -137,6 +154,7 @@ impl<'a> Chunk<'a> {
             groups_built: false,
             hard: vec![HardVolumes::default(); sets.sets * g],
             hard_stamp: vec![0; sets.sets * g],
+            hard_built: vec![0; sets.sets * g],
             stamp: 0,
             tri: [DVec3::ZERO; 3],
             stats,
@@ -185,7 +203,7 @@ impl<'a> Chunk<'a> {
             self.build_groups();
             for s in 0..self.sets.sets {
                 for k in 0..self.sets.groups {
-                    self.hard_volumes(s, k);
+                    self.hard_volumes(s, k, 0xff);
                 }
             }
         }
@@ -217,13 +235,33 @@ impl<'a> Chunk<'a> {
         for (k, v) in self.groups_vol.iter_mut().enumerate() {
             penumbra_volume(&self.sets.group_bounds[k], &t, v);
         }
+        self.cone_slack = None;
+        if self.sw.cone {
+            let m = t
+                .iter()
+                .fold(self.pos_extent.max(self.sets.extent), |m, v| {
+                    m.max(v.abs().max_element())
+                });
+            let slack = cone_slack(m);
+            if slack.is_finite() && light_clear_of_plane(&self.sets.light, &t, slack) {
+                self.cone_slack = Some(slack);
+            }
+        }
     }
 
-    fn hard_volumes(&mut self, set: usize, k: usize) -> usize {
+    /// The hard volumes of (set, group k) with at least the chunks of
+    /// four in `need` built for the current triangle (built lazily, chunk
+    /// by chunk: the cone prefilter leaves most chunks untested).
+    fn hard_volumes(&mut self, set: usize, k: usize, need: u8) -> usize {
         let i = set * self.sets.groups + k;
         if self.hard_stamp[i] != self.stamp {
             self.hard_stamp[i] = self.stamp;
-            self.hard[i].build(&self.sets.soa[set][k], &self.tri);
+            self.hard_built[i] = 0;
+        }
+        let missing = need & !self.hard_built[i];
+        if missing != 0 {
+            self.hard_built[i] |= missing;
+            self.hard[i].build_chunks(&self.sets.soa[set][k], &self.tri, missing);
         }
         i
     }
@@ -357,6 +395,7 @@ impl<'a> Chunk<'a> {
         let o = self.pos[r];
         let g = self.sets.groups;
         let base = self.slot[r] as usize * g;
+        let cone = self.cone_slack.and_then(|s| Cone::new(&self.tri, o, s));
         for i in c0..c1 {
             let (k, pk) = self.stack[i];
             let k = k as usize;
@@ -372,8 +411,21 @@ impl<'a> Chunk<'a> {
             if word == valid {
                 continue;
             }
-            let hv = self.hard_volumes(set, k);
-            let skip = word | !valid;
+            let mut skip = word | !valid;
+            if let Some(c) = &cone {
+                skip |= c.outside_chunks(&self.sets.boxes[set][k]);
+                if skip == u32::MAX {
+                    continue;
+                }
+            }
+            // The chunks of four with a sample left to test.
+            let mut need = 0u8;
+            for c in 0..8 {
+                if (skip >> (4 * c)) & 0xf != 0xf {
+                    need |= 1 << c;
+                }
+            }
+            let hv = self.hard_volumes(set, k, need);
             let bits = if sw.simd {
                 hard_bits_simd(&self.hard[hv], o, skip)
             } else {

@@ -82,6 +82,11 @@ pub struct PenumbraCastingOptions {
     /// (`false`: its scalar twin; same bits).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub pc_simd: bool,
+    /// Penumbra casting: skip the kernel for samples outside the cone from
+    /// the receiver through the triangle (a conservative prefilter: same
+    /// bits).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_cone_prefilter: bool,
     /// Penumbra casting: skip the triangles of closed casters whose plane
     /// has the whole light strictly behind it (a segment crossing a closed
     /// surface crosses it both ways, so the light-facing crossings suffice).
@@ -122,6 +127,7 @@ impl PenumbraCastingOptions {
             pc_on_demand_masks: false,
             pc_sort_blockers: false,
             pc_simd: false,
+            pc_cone_prefilter: false,
             pc_cull_back_faces: false,
             ..self
         }
@@ -134,6 +140,7 @@ impl PenumbraCastingOptions {
             lazy: self.pc_lazy_volumes,
             on_demand: self.pc_on_demand_masks,
             simd: self.pc_simd,
+            cone: self.pc_cone_prefilter,
             rebuild_percent: self.pc_rebuild_percent,
         }
     }

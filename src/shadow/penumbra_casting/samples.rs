@@ -21,7 +21,7 @@
 //! rounding margins, so every position a hard shadow volume is built
 //! from lies inside it.
 
-use super::volume::GroupSoa;
+use super::volume::{ChunkBoxes, GroupSoa};
 use crate::sampling::{mix64, pixel_key, LightSampler, PatternSampler, SamplePattern};
 use crate::shade::LightSample;
 use glam::{DVec3, Vec3};
@@ -53,6 +53,12 @@ pub struct SampleSets {
     pub positions: Vec<Vec<DVec3>>,
     /// Per set and group: the positions as lanes.
     pub soa: Vec<Vec<GroupSoa>>,
+    /// Per set and group: the boxes of its samples four by four (the
+    /// cone prefilter's chunks).
+    pub boxes: Vec<Vec<ChunkBoxes>>,
+    /// The largest coordinate magnitude of the light's box corners
+    /// (bounds every sample's, relative to the centre).
+    pub extent: f64,
     /// Per set: group-order slot → the sample's index `k` in the
     /// pattern (its index in the reference's sample list).
     pub order: Vec<Vec<u32>>,
@@ -174,12 +180,23 @@ impl SampleSets {
             .iter()
             .map(|set| set.chunks(GROUP).map(GroupSoa::new).collect())
             .collect();
+        let boxes = positions
+            .iter()
+            .map(|set| set.chunks(GROUP).map(ChunkBoxes::new).collect())
+            .collect();
+        let light = make(all_lo, all_hi);
+        let extent = light
+            .corners
+            .iter()
+            .fold(0.0f64, |m, c| m.max(c.abs().max_element()));
         SampleSets {
             soa,
+            boxes,
+            extent,
             n,
             groups,
             sets,
-            light: make(all_lo, all_hi),
+            light,
             group_bounds: (0..groups).map(|g| make(lo[g], hi[g])).collect(),
             positions,
             order,
@@ -231,14 +248,18 @@ impl SampleSets {
 
 /// Orders `idx` so that consecutive runs of 32 are nearby groups: split
 /// by count along the longer side of the nominal region `extent` (the
-/// same decisions for every set), full groups on the left.
+/// same decisions for every set), full groups on the left; within a
+/// group, the same down to runs of 4.
 fn split(units: &[(f64, f64)], idx: &mut [u32], extent: [f64; 2]) {
     let len = idx.len();
-    if len <= GROUP {
+    // Runs of 32 (the groups), then within a group runs of 4 (the
+    // kernel's lanes, so the cone prefilter's chunk boxes are compact).
+    let unit = if len > GROUP { GROUP } else { 4 };
+    if len <= unit {
         return;
     }
-    let groups = len.div_ceil(GROUP);
-    let left = GROUP * (groups / 2);
+    let parts = len.div_ceil(unit);
+    let left = unit * (parts / 2);
     let axis = usize::from(extent[1] > extent[0]);
     let key = |i: u32| {
         let p = units[i as usize];

@@ -284,14 +284,24 @@ impl HardVolumes {
     /// through the SIMD facade (IEEE operations only, so the bits are the
     /// scalar formula's, [`HardVolumes::build_scalar`]).
     pub fn build(&mut self, samples: &GroupSoa, t: &[DVec3; 3]) {
+        self.build_chunks(samples, t, 0xff);
+    }
+
+    /// [`HardVolumes::build`] for the chunks of four samples in `chunks`
+    /// (bit `c`: samples `4c .. 4c + 4`) only; the others keep their
+    /// values (the caller tracks which chunks are current).
+    pub fn build_chunks(&mut self, samples: &GroupSoa, t: &[DVec3; 3], chunks: u8) {
         use crate::simd::f64x4;
         self.len = samples.len;
         let nt = cross(t[1] - t[0], t[2] - t[0]);
         let sp = |v: f64| f64x4::splat(v);
         let zero = f64x4::ZERO;
         let (t0, t1, t2) = (t[0], t[1], t[2]);
-        let chunks = samples.len.div_ceil(4);
-        for c in 0..chunks {
+        let count = samples.len.div_ceil(4);
+        for c in 0..count {
+            if (chunks >> c) & 1 == 0 {
+                continue;
+            }
             let r = 4 * c..4 * c + 4;
             let x = f64x4::load(&samples.x[r.clone()]);
             let y = f64x4::load(&samples.y[r.clone()]);
@@ -407,6 +417,124 @@ impl HardVolumes {
     }
 }
 
+/// The boxes of a group's samples four by four (the kernel's lanes):
+/// chunk `c` bounds samples `4c .. 4c + 4` (exact `f64` positions).
+#[derive(Debug, Clone)]
+pub struct ChunkBoxes {
+    /// Least corner per chunk, per axis.
+    pub lo: [[f64; 8]; 3],
+    /// Greatest corner per chunk, per axis.
+    pub hi: [[f64; 8]; 3],
+}
+
+impl ChunkBoxes {
+    /// The boxes of `samples` (≤ 32); chunks without samples are empty
+    /// (`lo = +∞`, `hi = −∞`: no plane's maximum over them is finite).
+    pub fn new(samples: &[DVec3]) -> ChunkBoxes {
+        let mut b = ChunkBoxes {
+            lo: [[f64::INFINITY; 8]; 3],
+            hi: [[f64::NEG_INFINITY; 8]; 3],
+        };
+        for (j, p) in samples.iter().enumerate() {
+            for (a, v) in p.to_array().into_iter().enumerate() {
+                b.lo[a][j / 4] = b.lo[a][j / 4].min(v);
+                b.hi[a][j / 4] = b.hi[a][j / 4].max(v);
+            }
+        }
+        b
+    }
+}
+
+/// Relative rounding allowance of the cone prefilter: `CONE_C · ε · M³`
+/// bounds, with a wide margin, the rounding of both the kernel's plane
+/// values (≈ 400 ε M³) and the cone's own (the same form), for
+/// coordinates of magnitude at most `M`.
+const CONE_C: f64 = 4096.0 * f64::EPSILON;
+
+/// The cone from a receiver through a triangle (§4 of
+/// `docs/algorithms/penumbra-casting.md`, "cone prefilter"): the three
+/// planes through the receiver `o` and an edge, oriented inwards, in
+/// unnormalised form `s·((t_a − o) × (t_b − o))·(y − o)`. In exact
+/// arithmetic this is the value of the kernel's edge plane of sample `y`
+/// at `o` (a triple product is translation invariant), so where the
+/// prefilter is valid ([`Cone::new`]) a chunk of samples whose box is
+/// outside one plane by more than the rounding allowance holds no sample
+/// the kernel can mark: skipping it changes no bit.
+#[derive(Debug, Clone, Copy)]
+pub struct Cone {
+    n: [[f64; 3]; 3],
+    o: [f64; 3],
+    slack: f64,
+}
+
+impl Cone {
+    /// The cone of receiver `o` and triangle `t`, or `None` where the
+    /// prefilter's proof does not hold: the caller has checked that the
+    /// light's box is strictly on one side of the triangle's plane by
+    /// more than `slack` ([`light_clear_of_plane`]); here `o` must be off
+    /// that plane by more than `slack` too (so `o` and a sample the kernel
+    /// marks are on opposite sides, and the kernel's orientation is the
+    /// exact one). `slack` comes from [`cone_slack`].
+    #[inline]
+    pub fn new(t: &[DVec3; 3], o: [f64; 3], slack: f64) -> Option<Cone> {
+        let od = DVec3::from_array(o);
+        let (a, b, c) = (t[0] - od, t[1] - od, t[2] - od);
+        let n01 = a.cross(b);
+        let n12 = b.cross(c);
+        let n20 = c.cross(a);
+        let det = a.dot(n12);
+        if !(det.abs() > slack) {
+            return None;
+        }
+        let s = if det > 0.0 { 1.0 } else { -1.0 };
+        Some(Cone {
+            n: [
+                (n01 * s).to_array(),
+                (n12 * s).to_array(),
+                (n20 * s).to_array(),
+            ],
+            o,
+            slack,
+        })
+    }
+
+    /// The skip bits (four per chunk) of the chunks of `b` that are
+    /// outside one of the cone's planes by more than the allowance.
+    #[inline]
+    pub fn outside_chunks(&self, b: &ChunkBoxes) -> u32 {
+        let mut out = 0u32;
+        for n in &self.n {
+            let pick = |a: usize| if n[a] >= 0.0 { &b.hi[a] } else { &b.lo[a] };
+            let (cx, cy, cz) = (pick(0), pick(1), pick(2));
+            for c in 0..8 {
+                let v = (n[0] * (cx[c] - self.o[0]) + n[1] * (cy[c] - self.o[1]))
+                    + n[2] * (cz[c] - self.o[2]);
+                // Empty chunks give NaN or −∞: skipped either way.
+                if !(v >= -self.slack) {
+                    out |= 0xf << (4 * c);
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The cone prefilter's allowance for coordinates (relative to the
+/// light's centre) of magnitude at most `m`: `CONE_C · m³`, rounded up.
+pub fn cone_slack(m: f64) -> f64 {
+    CONE_C * m * m * m * (1.0 + 1e-6)
+}
+
+/// Whether every corner of `light` is strictly on one side of the plane
+/// of `t`, by more than `slack` in the unnormalised value
+/// `((t1 − t0) × (t2 − t0))·(c − t0)`: then every sample is, so the
+/// kernel's per-sample orientation (the sign of that value) is exact.
+pub fn light_clear_of_plane(light: &LightBox, t: &[DVec3; 3], slack: f64) -> bool {
+    let nt = cross(t[1] - t[0], t[2] - t[0]);
+    let v = light.corners.map(|c| nt.dot(c - t[0]));
+    v.iter().all(|&x| x > slack) || v.iter().all(|&x| x < -slack)
+}
+
 /// One group's sample positions as lanes (padded to 32 with zeros).
 #[derive(Debug, Clone)]
 pub struct GroupSoa {
@@ -463,9 +591,10 @@ macro_rules! kernel {
                 }
                 let r = 4 * c..4 * c + 4;
                 let mut inside: Option<l::f64x4> = None;
-                // The triangle's plane first, then the edges; stop once no
-                // lane is left inside (the bits do not depend on the order).
-                for q in [3, 0, 1, 2] {
+                // The edges first (they reject most lanes), then the
+                // triangle's plane; stop once no lane is left inside (the
+                // bits, an AND, do not depend on the order).
+                for q in [0, 1, 2, 3] {
                     let nx = l::f64x4::load(&v.nx[q][r.clone()]);
                     let ny = l::f64x4::load(&v.ny[q][r.clone()]);
                     let nz = l::f64x4::load(&v.nz[q][r.clone()]);
