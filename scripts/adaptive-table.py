@@ -66,6 +66,9 @@ def render(args, scene, technique, extra, exr):
         if p.returncode != 0:
             sys.exit("render failed: %s\n%s" % (" ".join(cmd), p.stderr))
         t = 0.0
+        # Counts are summed over the lights of one run, not over repeats.
+        maps = None
+        points = None
         for line in p.stderr.splitlines():
             m = re.match(r"\s*([0-9.]+) ms\s+(multi-map|adaptive maps|reference|pcss)\b", line)
             if m:
