@@ -391,9 +391,12 @@ pub fn verify(
 ) -> Result<VerifyReport> {
     check_verifiable(technique, params, k)?;
     let built = technique.build(params);
-    let decisions = built
-        .sample_decisions()
-        .expect("check_verifiable found its decisions");
+    let Some(decisions) = built.sample_decisions() else {
+        return Err(Error::param(
+            "--verify",
+            format!("{} has no per-sample decisions to verify", technique.name()),
+        ));
+    };
     let exact = technique.capabilities(params.options).exact;
     verify_with(decisions, technique.name(), exact, ctx, k, params.seed)
 }
