@@ -8,6 +8,7 @@
 // range: the negation is the point, not an accident.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod allocator;
 pub mod cli;
 pub mod compare;
 pub mod error;
