@@ -43,6 +43,9 @@ struct Packet {
     /// Watertight test: for `kx`, `ky`, `kz`, the masks "k = 0" and
     /// "k = 1" (else 2), and the shear.
     pick: [[f32x8; 2]; 3],
+    /// `Some([kx, ky, kz])` when every valid lane has the same axes (the
+    /// usual case): the picks are then plain indexing, no blends.
+    uniform: Option<[usize; 3]>,
     shear: [f32x8; 3],
 }
 
@@ -83,6 +86,20 @@ impl Packet {
         let y0 = (z1 & !neg) | (z2 & neg);
         let y1 = (z0 & neg) | (z2 & !neg);
         let shear = [pick(x0, x1) / dkz, pick(y0, y1) / dkz, one / dkz];
+        let pick = [[x0, x1], [y0, y1], [z0, z1]];
+        let uniform = (|| {
+            let mut k = [0usize; 3];
+            for (axis, [is0, is1]) in pick.iter().enumerate() {
+                let (m0, m1) = (is0.move_mask() & valid, is1.move_mask() & valid);
+                k[axis] = match (m0, m1) {
+                    (m, 0) if m == valid => 0,
+                    (0, m) if m == valid => 1,
+                    (0, 0) => 2,
+                    _ => return None,
+                };
+            }
+            Some(k)
+        })();
         Packet {
             origin,
             valid,
@@ -90,7 +107,8 @@ impl Packet {
             inv,
             any_parallel: parallel.map(|m| m.move_mask() & valid != 0),
             parallel,
-            pick: [[x0, x1], [y0, y1], [z0, z1]],
+            pick,
+            uniform,
             shear,
         }
     }
@@ -131,12 +149,17 @@ impl Packet {
         let a = tri[0] - self.origin;
         let b = tri[1] - self.origin;
         let c = tri[2] - self.origin;
-        let pick = |v: Vec3, k: usize| {
-            let [is0, is1] = self.pick[k];
-            is0.blend(
-                f32x8::splat(v.x),
-                is1.blend(f32x8::splat(v.y), f32x8::splat(v.z)),
-            )
+        // The same values either way on every valid lane (the only lanes
+        // the caller reads).
+        let pick = |v: Vec3, k: usize| match self.uniform {
+            Some(axes) => f32x8::splat(v[axes[k]]),
+            None => {
+                let [is0, is1] = self.pick[k];
+                is0.blend(
+                    f32x8::splat(v.x),
+                    is1.blend(f32x8::splat(v.y), f32x8::splat(v.z)),
+                )
+            }
         };
         let [sx, sy, sz] = self.shear;
         let (akz, bkz, ckz) = (pick(a, 2), pick(b, 2), pick(c, 2));
