@@ -46,7 +46,7 @@
 
 use crate::error::{Error, Result};
 use crate::sampling::grid_coordinate;
-use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+use crate::shadow::kit::light_view::{fully_lit, map_bounds};
 use crate::shadow::kit::many_maps::{
     active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup, RenderedMap,
     QSCALE,
@@ -243,16 +243,9 @@ impl AdaptiveMaps {
         let mut out = ShadowOutput::default();
         let mut reports = Vec::new();
         let n = ctx.gbuffer.len();
-        let (Some(casters), Some(receivers)) =
-            (caster_bounds(ctx.scene), receiver_bounds(ctx.scene))
-        else {
-            out.lights = ctx
-                .scene
-                .lights
-                .iter()
-                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
-                .collect();
-            return Ok((out, reports));
+        // Nothing casts or nothing receives: every light fully visible.
+        let Some((casters, receivers)) = map_bounds(ctx.scene) else {
+            return Ok((fully_lit(ctx), reports));
         };
         let mut cache_bytes = 0u64;
         let points = receiver_points(ctx.gbuffer);

@@ -17,6 +17,7 @@ use crate::raster::{
     draw, Framebuffer, NoFragmentStage, RasterState, TileGrid, FAR_DEPTH, MAX_SIDE, TILE_SIZE,
 };
 use crate::scene::{Light, LightShape, Scene};
+use crate::shadow::{LightTerm, ShadowContext, ShadowOutput};
 use crate::view::{Extent, View};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -171,6 +172,28 @@ impl LightView {
             receivers_bounds,
             size,
         )
+    }
+}
+
+/// The casters' and the receivers' bounds, for a light view fitted to
+/// both; `None` when nothing casts or nothing receives (then every light
+/// is fully visible: [`fully_lit`]).
+pub fn map_bounds(scene: &Scene) -> Option<(Bounds, Bounds)> {
+    Some((caster_bounds(scene)?, receiver_bounds(scene)?))
+}
+
+/// Every light fully visible at every pixel (Vcoef 1): the answer of a
+/// light-view technique when [`map_bounds`] is `None`.
+pub fn fully_lit(ctx: &ShadowContext) -> ShadowOutput {
+    let n = ctx.gbuffer.len();
+    ShadowOutput {
+        lights: ctx
+            .scene
+            .lights
+            .iter()
+            .map(|_| LightTerm::Vcoef(vec![1.0; n]))
+            .collect(),
+        ..ShadowOutput::default()
     }
 }
 

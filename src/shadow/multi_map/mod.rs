@@ -19,7 +19,7 @@
 
 use crate::error::{Error, Result};
 use crate::sampling::{PatternSampler, SamplePattern};
-use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+use crate::shadow::kit::light_view::{fully_lit, map_bounds};
 use crate::shadow::kit::many_maps::{
     active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup,
 };
@@ -112,16 +112,9 @@ impl ShadowTechnique for MultiMap {
         bias.validate()?;
         let mut out = ShadowOutput::default();
         let n = ctx.gbuffer.len();
-        let (Some(casters), Some(receivers)) =
-            (caster_bounds(ctx.scene), receiver_bounds(ctx.scene))
-        else {
-            out.lights = ctx
-                .scene
-                .lights
-                .iter()
-                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
-                .collect();
-            return Ok(out);
+        // Nothing casts or nothing receives: every light fully visible.
+        let Some((casters, receivers)) = map_bounds(ctx.scene) else {
+            return Ok(fully_lit(ctx));
         };
         let pcf = self.options.pcf;
         let size = self.options.map_size;

@@ -36,7 +36,7 @@
 
 use crate::error::{Error, Result};
 use crate::scene::{Light, LightShape};
-use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds, DepthMap};
+use crate::shadow::kit::light_view::{fully_lit, map_bounds, DepthMap};
 use crate::shadow::kit::map_fit::tight_light_view;
 use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{
@@ -373,16 +373,9 @@ impl ShadowTechnique for Pcss {
         let mut out = ShadowOutput::default();
         let size = self.map.map_size;
         let n = ctx.gbuffer.len();
-        let (Some(casters), Some(receivers)) =
-            (caster_bounds(ctx.scene), receiver_bounds(ctx.scene))
-        else {
-            out.lights = ctx
-                .scene
-                .lights
-                .iter()
-                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
-                .collect();
-            return Ok(out);
+        // Nothing casts or nothing receives: every light fully visible.
+        let Some((casters, receivers)) = map_bounds(ctx.scene) else {
+            return Ok(fully_lit(ctx));
         };
         let kernel = self.options.pcss_kernel;
         let receiver_plane = !self.options.pcss_flat_receiver;

@@ -15,7 +15,7 @@
 //! S-triangles are shadowed by the soft-textured-shadow-volume add-on.
 
 use crate::error::Result;
-use crate::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+use crate::shadow::kit::light_view::{fully_lit, map_bounds};
 use crate::shadow::kit::map_fit::tight_light_view;
 pub use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{
@@ -82,17 +82,9 @@ impl ShadowTechnique for ShadowMap {
         let mut out = ShadowOutput::default();
         let size = self.options.map_size;
         let n = ctx.gbuffer.len();
-        let (Some(casters), Some(receivers)) =
-            (caster_bounds(ctx.scene), receiver_bounds(ctx.scene))
-        else {
-            // Nothing casts or nothing receives: every light fully visible.
-            out.lights = ctx
-                .scene
-                .lights
-                .iter()
-                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
-                .collect();
-            return Ok(out);
+        // Nothing casts or nothing receives: every light fully visible.
+        let Some((casters, receivers)) = map_bounds(ctx.scene) else {
+            return Ok(fully_lit(ctx));
         };
         let pcf = self.options.pcf;
         let taps = match pcf {

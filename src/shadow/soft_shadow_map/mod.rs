@@ -35,7 +35,7 @@ use crate::raster::{
 };
 use crate::scene::{Light, LightShape, Scene};
 use crate::shadow::kit::light_view::{
-    caster_bounds, depth_map, receiver_bounds, Bounds, LightView, MAX_DEPTH_TEXELS,
+    depth_map, fully_lit, map_bounds, Bounds, LightView, MAX_DEPTH_TEXELS,
 };
 use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{opaque_caster, project_receiver, DepthBias, MapReceiver};
@@ -567,16 +567,9 @@ impl ShadowTechnique for SoftShadowMap {
         bias.validate()?;
         let mut out = ShadowOutput::default();
         let n = ctx.gbuffer.len();
-        let (Some(casters), Some(receivers)) =
-            (caster_bounds(ctx.scene), receiver_bounds(ctx.scene))
-        else {
-            out.lights = ctx
-                .scene
-                .lights
-                .iter()
-                .map(|_| LightTerm::Vcoef(vec![1.0; n]))
-                .collect();
-            return Ok(out);
+        // Nothing casts or nothing receives: every light fully visible.
+        let Some((casters, receivers)) = map_bounds(ctx.scene) else {
+            return Ok(fully_lit(ctx));
         };
         let width = ctx.gbuffer.width as usize;
         let mut peak = 0;
