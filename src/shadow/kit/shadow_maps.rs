@@ -20,12 +20,13 @@
 //!   projected.
 
 use crate::error::{Error, Result};
-use crate::gbuffer::GSample;
+use crate::gbuffer::{GBuffer, GSample};
 use crate::geom::SceneGeometry;
 use crate::scene::{Light, LightShape, Scene};
 use crate::shadow::kit::light_view::{depth_map, Bounds, DepthMap, LightView};
 use crate::view::View;
 use glam::{DVec2, Vec3};
+use rayon::prelude::*;
 use std::fmt;
 use std::str::FromStr;
 
@@ -172,6 +173,30 @@ pub struct MapReceiver {
     pub test_depth: f64,
     /// World size of one texel at its depth.
     pub texel: f64,
+}
+
+/// One map look-up pass over the image: `visibility(x, y, receiver)` for
+/// every surface pixel, 0 for the background (it has no light term). Rows
+/// go to rayon's workers; each pixel is written by one call whatever the
+/// split, so the result does not depend on the thread count.
+pub fn per_receiver(
+    gbuffer: &GBuffer,
+    width: usize,
+    visibility: impl Fn(usize, usize, &GSample) -> f32 + Sync,
+) -> Vec<f32> {
+    let mut vcoef = vec![0.0f32; gbuffer.len()];
+    vcoef
+        .par_chunks_mut(width.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, v) in row.iter_mut().enumerate() {
+                let g = gbuffer.sample(y * width + x);
+                if g.is_surface() {
+                    *v = visibility(x, y, &g);
+                }
+            }
+        });
+    vcoef
 }
 
 /// Projects receiver `g` into `view` with the biases applied; `None` when

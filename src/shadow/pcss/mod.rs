@@ -40,15 +40,14 @@ use crate::shadow::kit::light_view::{fully_lit, map_bounds, DepthMap};
 use crate::shadow::kit::map_fit::tight_light_view;
 use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{
-    centre_point, hard_test, opaque_depth_map, pixel_rotation, poisson_disk, project_receiver,
-    MapReceiver,
+    centre_point, hard_test, opaque_depth_map, per_receiver, pixel_rotation, poisson_disk,
+    project_receiver, MapReceiver,
 };
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::View;
 use glam::DVec2;
-use rayon::prelude::*;
 
 /// Most taps of either PCSS stage.
 pub const MAX_PCSS_SAMPLES: u32 = 4096;
@@ -402,40 +401,22 @@ impl ShadowTechnique for Pcss {
             let t = PassTimer::start(format!("pcss look-up light {k}"));
             let view = lv.view;
             let setup = LightSetup::new(light, &view, &map);
-            let mut vcoef = vec![0.0f32; n];
-            vcoef
-                .par_chunks_mut(width.max(1))
-                .enumerate()
-                .for_each(|(y, row)| {
-                    for (x, v) in row.iter_mut().enumerate() {
-                        let g = ctx.gbuffer.sample(y * width + x);
-                        if !g.is_surface() {
-                            continue;
-                        }
-                        // Behind the map's eye or outside its window: not
-                        // lit from the centre's hemisphere (as shadow-map).
-                        let Some(r) = project_receiver(&g, &view, &bias) else {
-                            continue;
-                        };
-                        let rotation = match kernel {
-                            PcssKernel::Poisson => {
-                                Some(pixel_rotation(self.seed, k, x as u32, y as u32).sin_cos())
-                            }
-                            PcssKernel::Box => None,
-                        };
-                        let plane = receiver_plane
-                            .then(|| ReceiverPlane::new(&g, &view, &r, bias.normal_offset));
-                        *v = pcss_visibility(
-                            &map,
-                            &setup,
-                            &r,
-                            &search,
-                            &filter,
-                            rotation,
-                            plane.as_ref(),
-                        );
+            let vcoef = per_receiver(ctx.gbuffer, width, |x, y, g| {
+                // Behind the map's eye or outside its window: not lit from
+                // the centre's hemisphere (as shadow-map).
+                let Some(r) = project_receiver(g, &view, &bias) else {
+                    return 0.0;
+                };
+                let rotation = match kernel {
+                    PcssKernel::Poisson => {
+                        Some(pixel_rotation(self.seed, k, x as u32, y as u32).sin_cos())
                     }
-                });
+                    PcssKernel::Box => None,
+                };
+                let plane =
+                    receiver_plane.then(|| ReceiverPlane::new(g, &view, &r, bias.normal_offset));
+                pcss_visibility(&map, &setup, &r, &search, &filter, rotation, plane.as_ref())
+            });
             t.finish(&mut out.passes);
             out.lights.push(LightTerm::Vcoef(vcoef));
         }

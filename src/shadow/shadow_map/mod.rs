@@ -19,13 +19,13 @@ use crate::shadow::kit::light_view::{fully_lit, map_bounds};
 use crate::shadow::kit::map_fit::tight_light_view;
 pub use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{
-    centre_point, opaque_depth_map, pcf_visibility, pixel_rotation, poisson_disk, project_receiver,
+    centre_point, opaque_depth_map, pcf_visibility, per_receiver, pixel_rotation, poisson_disk,
+    project_receiver,
 };
 pub use crate::shadow::kit::shadow_maps::{Pcf, MAX_MAP_SIZE};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
-use rayon::prelude::*;
 
 /// The hard shadow-map technique.
 #[derive(Debug, Clone, Copy)]
@@ -111,25 +111,15 @@ impl ShadowTechnique for ShadowMap {
 
             let t = PassTimer::start(format!("shadow map look-up light {k}"));
             let view = lv.view;
-            let mut vcoef = vec![0.0f32; n];
-            vcoef
-                .par_chunks_mut(width.max(1))
-                .enumerate()
-                .for_each(|(y, row)| {
-                    for (x, v) in row.iter_mut().enumerate() {
-                        let g = ctx.gbuffer.sample(y * width + x);
-                        if !g.is_surface() {
-                            continue;
-                        }
-                        // Behind the view or outside it: that point of the
-                        // light does not reach the receiver.
-                        let Some(r) = project_receiver(&g, &view, &bias) else {
-                            continue;
-                        };
-                        let rotation = pixel_rotation(self.seed, k, x as u32, y as u32);
-                        *v = pcf_visibility(&map, &r, pcf, &taps, rotation);
-                    }
-                });
+            let vcoef = per_receiver(ctx.gbuffer, width, |x, y, g| {
+                // Behind the view or outside it: that point of the light
+                // does not reach the receiver.
+                let Some(r) = project_receiver(g, &view, &bias) else {
+                    return 0.0;
+                };
+                let rotation = pixel_rotation(self.seed, k, x as u32, y as u32);
+                pcf_visibility(&map, &r, pcf, &taps, rotation)
+            });
             t.finish(&mut out.passes);
             out.lights.push(LightTerm::Vcoef(vcoef));
         }

@@ -38,7 +38,9 @@ use crate::shadow::kit::light_view::{
     depth_map, fully_lit, map_bounds, Bounds, LightView, MAX_DEPTH_TEXELS,
 };
 use crate::shadow::kit::shadow_maps::ShadowMapOptions;
-use crate::shadow::kit::shadow_maps::{opaque_caster, project_receiver, DepthBias, MapReceiver};
+use crate::shadow::kit::shadow_maps::{
+    opaque_caster, per_receiver, project_receiver, DepthBias, MapReceiver,
+};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -609,30 +611,18 @@ impl ShadowTechnique for SoftShadowMap {
             let t = PassTimer::start(format!("soft shadow map look-up light {k}"));
             let view = ssm.view;
             let lookup = self.options.ssm_lookup;
-            let mut vcoef = vec![0.0f32; n];
-            vcoef
-                .par_chunks_mut(width.max(1))
-                .enumerate()
-                .for_each(|(y, row)| {
-                    for (x, v) in row.iter_mut().enumerate() {
-                        let g = ctx.gbuffer.sample(y * width + x);
-                        if !g.is_surface() {
-                            continue;
-                        }
-                        // Behind the light's plane: that side is not lit
-                        // from the centre's view (as hard shadow maps).
-                        if !(view.depth_of(g.position.as_dvec3()) > 0.0) {
-                            continue;
-                        }
-                        // Outside the SSM's window: beyond every penumbra.
-                        let Some(r) = project_receiver(&g, &view, &bias) else {
-                            *v = 1.0;
-                            continue;
-                        };
-                        let occ = ssm.occlusion(&r, lookup);
-                        *v = 1.0 - occ.clamp(0.0, 1.0);
-                    }
-                });
+            let vcoef = per_receiver(ctx.gbuffer, width, |_, _, g| {
+                // Behind the light's plane: that side is not lit from the
+                // centre's view (as hard shadow maps).
+                if !(view.depth_of(g.position.as_dvec3()) > 0.0) {
+                    return 0.0;
+                }
+                // Outside the SSM's window: beyond every penumbra.
+                let Some(r) = project_receiver(g, &view, &bias) else {
+                    return 1.0;
+                };
+                1.0 - ssm.occlusion(&r, lookup).clamp(0.0, 1.0)
+            });
             t.finish(&mut out.passes);
             out.lights.push(LightTerm::Vcoef(vcoef));
         }
