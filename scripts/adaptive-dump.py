@@ -6,8 +6,10 @@ adaptive-maps` writes (per light: every decision point's hard-test bit per
 receiver, the G-buffer, the quad log), rebuilds each tested quad's 0-4
 counts and failing receivers (checked against the log), writes one PNG per
 subdivision depth (the image in grey, failing receivers of any quad at that
-depth in red, the object boundaries in blue) and prints, per depth, how the
-failing receivers split by kind:
+depth in red, receivers the bias band left out of the test (their hard test
+from one of the quad's corners flips between the band's biases: acne or
+leak) in yellow, the object boundaries in blue) and prints, per depth, how
+the failing receivers split by kind:
 
   discontinuity  a 1-ring neighbour is on another surface (depth jump or
                  normal turn), so its count is no evidence about banding
@@ -32,7 +34,9 @@ def load(d, k):
     w, h, words = meta["width"], meta["height"], meta["words"]
     bits = np.fromfile(os.path.join(d, "light%d-bits.bin" % k), dtype="<u8").reshape(h, w, words)
     g = np.fromfile(os.path.join(d, "light%d-gbuffer.bin" % k), dtype="<f4").reshape(h, w, 10)
-    return meta, note, bits, g
+    amb = np.fromfile(os.path.join(d, "light%d-ambiguous.bin" % k), dtype="<u8")
+    amb = amb.reshape(h, w, words) if amb.size else None
+    return meta, note, bits, g, amb
 
 
 def bit(bits, di):
@@ -62,7 +66,7 @@ def main():
     ap.add_argument("--out")
     a = ap.parse_args()
     out = a.out or a.dir
-    meta, note, bits, g = load(a.dir, a.light)
+    meta, note, bits, g, amb = load(a.dir, a.light)
     if meta["target"] != [meta["width"], meta["height"]]:
         print("note: comparison target %s, image %dx%d; analysed at image resolution"
               % (meta["target"], meta["width"], meta["height"]))
@@ -86,6 +90,7 @@ def main():
             continue
         s = (gd - 1) >> depth  # decision-grid cells per quad side
         fail_any = np.zeros((h, w), int)
+        left_out = np.zeros((h, w), bool)
         kinds = {"discontinuity": 0, "grazing": 0, "other": 0}
         where = {}
         tot = 0
@@ -94,7 +99,13 @@ def main():
             cs = [(i0, j0), (i0 + s, j0), (i0, j0 + s), (i0 + s, j0 + s)]
             dis = [i + j * gd for i, j in cs]
             count = 4 - sum(bit(bits, di) for di in dis).astype(int)
-            pen = compared & (count >= 1) & (count <= 3)
+            tested = compared.copy()
+            if amb is not None:
+                for di in dis:
+                    tested &= bit(amb, di) == 0
+            left_out |= compared & ~tested
+            # Ambiguous receivers cannot fail but stay neighbours.
+            pen = tested & (count >= 1) & (count <= 3)
             fails = pen & ~ring_differs(count, compared)
             n = int(fails.sum())
             assert n == pf, ("quad", d, qi, qj, "log", pf, "rebuilt", n)
@@ -126,6 +137,7 @@ def main():
         img = np.zeros((h, w, 3), np.uint8)
         shade = np.clip(np.abs(nrm[:, :, 1]) * 120 + 40, 0, 255)
         img[:, :, 0] = img[:, :, 1] = img[:, :, 2] = np.where(compared, shade, 0).astype(np.uint8)
+        img[left_out] = (255, 255, 0)
         img[edge] = (0, 0, 255)
         img[fail_any > 0] = (255, 0, 0)
         path = os.path.join(out, "light%d-depth%d-fails.png" % (a.light, depth))
