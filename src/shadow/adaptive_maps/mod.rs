@@ -259,7 +259,7 @@ impl AdaptiveMaps {
             ("--adaptive-band-low", o.adaptive_band_low),
             ("--adaptive-band-high", o.adaptive_band_high),
         ] {
-            if !(v >= 0.0 && v <= 1e3) {
+            if !(0.0..=1e3).contains(&v) {
                 return Err(Error::param(name, format!("{v} is outside 0..=1000")));
             }
         }
