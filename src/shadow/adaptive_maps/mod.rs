@@ -26,6 +26,14 @@
 //!    is kept; the probe is limited to shallow quads (at most 1 + 4 maps
 //!    at the default) because a probe that does not split is a map the
 //!    estimate does not use.
+//!    **Beyond the paper: the bias band** (`--adaptive-band-low` 0.5,
+//!    `--adaptive-band-high` 4 texels; 0 turns it off). A receiver whose
+//!    hard test from one of the quad's corners flips between those biases
+//!    cannot fail (it still counts as a neighbour): each corner map has
+//!    its own acne and light-leak pattern at its own texel phase, and
+//!    those texel-wide patches failed the test on curved self-shadowing
+//!    casters (bunny-paper: 268 maps instead of 25; located with the
+//!    `PENUMBRA_ADAPTIVE_DUMP` dump, docs/algorithms/adaptive-light-sampling.md).
 //! 3. **Estimate** (§3.4.1): every corner of a leaf quad is a sample point
 //!    with weight `ω = 1/(2^d + 1)²` (eq. 3), `d` the depth of the deepest
 //!    leaf it is a corner of (all points at depth `d`: the `(2^d + 1)²` grid
