@@ -36,7 +36,9 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # (label: first word is the --variants key, extra options)
 VARIANTS = [("default", "adaptive-maps", []),
-            ("paper", "adaptive-maps, paper (no probe)", ["--adaptive-centre-depth", "0"]),
+            ("paper", "adaptive-maps, paper (no probe, no bias band)",
+             ["--adaptive-centre-depth", "0", "--adaptive-band-high", "0"]),
+            ("noband", "adaptive-maps, no bias band", ["--adaptive-band-high", "0"]),
             ("half-pcf", "adaptive-maps, ½ target + 3×3 PCF",
              ["--comparison-scale", "0.5", "--pcf", "3x3"])]
 NOTES = []

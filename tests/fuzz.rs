@@ -729,6 +729,8 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
                 comparison_scale: [1.0, 0.5, 0.01][rng.range(0, 2) as usize],
                 adaptive_centre_depth: rng.range(0, 2) as u32,
                 adaptive_split_all: rng.range(0, 3) == 0,
+                adaptive_band_low: 0.5,
+                adaptive_band_high: [0.0, 4.0][rng.range(0, 1) as usize],
             },
             shadow_map: penumbra::shadow::shadow_map::ShadowMapOptions {
                 map_size: [1, 16, 64][rng.range(0, 2) as usize],

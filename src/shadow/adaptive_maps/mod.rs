@@ -26,6 +26,14 @@
 //!    is kept; the probe is limited to shallow quads (at most 1 + 4 maps
 //!    at the default) because a probe that does not split is a map the
 //!    estimate does not use.
+//!    **Beyond the paper: the bias band** (`--adaptive-band-low` 0.5,
+//!    `--adaptive-band-high` 4 texels; 0 turns it off). A receiver whose
+//!    hard test from one of the quad's corners flips between those biases
+//!    cannot fail (it still counts as a neighbour): each corner map has
+//!    its own acne and light-leak pattern at its own texel phase, and
+//!    those texel-wide patches failed the test on curved self-shadowing
+//!    casters (bunny-paper: 268 maps instead of 25; located with the
+//!    `PENUMBRA_ADAPTIVE_DUMP` dump, docs/algorithms/adaptive-light-sampling.md).
 //! 3. **Estimate** (§3.4.1): every corner of a leaf quad is a sample point
 //!    with weight `ω = 1/(2^d + 1)²` (eq. 3), `d` the depth of the deepest
 //!    leaf it is a corner of (all points at depth `d`: the `(2^d + 1)²` grid
@@ -51,13 +59,16 @@ use crate::shadow::kit::many_maps::{
     active_receivers, point_on_light, quantize, receiver_points, resolve, MapSetup, RenderedMap,
     QSCALE,
 };
-use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
+use crate::shadow::kit::shadow_maps::{DepthBias, ShadowMapOptions};
 use crate::shadow::kit::PassTimer;
 use crate::shadow::registry::{Capabilities, QualitySetting, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
+use glam::Vec3;
 use rayon::prelude::*;
 use std::collections::BTreeSet;
+
+pub mod dump;
 
 /// Deepest `--max-depth` accepted: 65 × 65 = 4225 points.
 pub const MAX_DEPTH: u32 = 6;
@@ -88,6 +99,18 @@ pub struct AdaptiveMapsOptions {
     /// (2^D+1)² grid through the adaptive machinery; for tests).
     #[arg(long)]
     pub adaptive_split_all: bool,
+    /// Adaptive maps: low end of the bias band of the banding test, a normal
+    /// offset in texels without slope bias (capped at the run's own). A
+    /// receiver whose hard test from one of the quad's corners differs
+    /// between the band's ends is acne or light leak, not banding: the test
+    /// leaves it out.
+    #[arg(long, default_value_t = 0.5)]
+    pub adaptive_band_low: f64,
+    /// Adaptive maps: high end of the bias band, normal offset and slope
+    /// bias in texels (at least the run's own); 0 turns the band off (the
+    /// paper's test).
+    #[arg(long, default_value_t = 4.0)]
+    pub adaptive_band_high: f64,
 }
 
 impl Default for AdaptiveMapsOptions {
@@ -240,6 +263,14 @@ impl AdaptiveMaps {
         }
         let bias = self.maps.bias();
         bias.validate()?;
+        for (name, v) in [
+            ("--adaptive-band-low", o.adaptive_band_low),
+            ("--adaptive-band-high", o.adaptive_band_high),
+        ] {
+            if !(0.0..=1e3).contains(&v) {
+                return Err(Error::param(name, format!("{v} is outside 0..=1000")));
+            }
+        }
         let mut out = ShadowOutput::default();
         let mut reports = Vec::new();
         let n = ctx.gbuffer.len();
@@ -386,6 +417,7 @@ impl AdaptiveMaps {
         {
             let grid = Comparison {
                 words: 0,
+                ambiguous: &[],
                 corners: &[],
                 compared: &[],
                 cw,
@@ -410,9 +442,59 @@ impl AdaptiveMaps {
                 .then(|| (i / 2 + (j / 2) * gd) as usize)
         };
         let mut bits = vec![0u64; if testing { n * words } else { 0 }];
+        // The bias band: per decision point and receiver, whether its hard
+        // test differs between the band's ends (bias-ambiguous).
+        let band = testing && o.adaptive_band_high > 0.0;
+        let mut ambiguous = vec![0u64; if band { n * words } else { 0 }];
+        let b = setup.bias;
+        let low = DepthBias {
+            constant: b.constant,
+            slope: 0.0,
+            normal_offset: b.normal_offset.min(o.adaptive_band_low),
+        };
+        let high = DepthBias {
+            constant: b.constant,
+            slope: b.slope.max(o.adaptive_band_high),
+            normal_offset: b.normal_offset.max(o.adaptive_band_high),
+        };
+        let band_setups = band.then(|| {
+            let with = |bias: DepthBias| MapSetup {
+                ctx: setup.ctx,
+                light: setup.light,
+                casters: setup.casters,
+                receivers: setup.receivers,
+                size: setup.size,
+                bias,
+                seed: setup.seed,
+                taps: Vec::new(),
+                points: setup.points,
+            };
+            (with(low), with(high))
+        });
+        let mut lit_low = vec![0u8; if band { n } else { 0 }];
+        let mut lit_high = vec![0u8; if band { n } else { 0 }];
+        // Hard-test bits of a decision point, and its ambiguity bits.
+        let mut decide =
+            |map: Option<&RenderedMap>, bits: &mut [u64], ambiguous: &mut [u64], di: usize| {
+                set_bits(setup, map, &active, bits, words, di);
+                if let Some((lo, hi)) = &band_setups {
+                    set_ambiguous(
+                        (lo, hi),
+                        map,
+                        &active,
+                        (&mut lit_low, &mut lit_high),
+                        ambiguous,
+                        words,
+                        di,
+                    );
+                }
+            };
         let mut cached = vec![false; (gd * gd) as usize];
 
         let mut leaves: Vec<Quad> = Vec::new();
+        let dump_dir = dump::dir();
+        let dumping = dump_dir.is_some();
+        let mut quad_log: Vec<String> = Vec::new();
         // Finest-grid points whose centre-probe map was rendered but not
         // kept (last tested level: they are depth-D points).
         let mut probed = vec![false; (g * g) as usize];
@@ -443,7 +525,7 @@ impl AdaptiveMaps {
                     let map = setup.render(point(i, j))?;
                     track(&map);
                     report.test_maps += 1;
-                    set_bits(setup, map.as_ref(), &active, &mut bits, words, di);
+                    decide(map.as_ref(), &mut bits, &mut ambiguous, di);
                     cached[di] = true;
                 }
                 let mut next = Vec::new();
@@ -454,6 +536,7 @@ impl AdaptiveMaps {
                         .collect();
                     let grid = Comparison {
                         words,
+                        ambiguous: &ambiguous,
                         corners: &c,
                         compared: &compared,
                         cw,
@@ -464,6 +547,7 @@ impl AdaptiveMaps {
                     let penumbra_fails = grid.penumbra_fails(&bits);
                     let mut split = penumbra_fails > o.adaptive_threshold;
                     let stats = &mut report.per_depth[d as usize];
+                    let fails_before = stats.fails;
                     stats.tested += 1;
                     stats.fails += penumbra_fails;
                     // The centre probe, only where the corners alone keep
@@ -478,9 +562,19 @@ impl AdaptiveMaps {
                                     let map = setup.render(point(i, j))?;
                                     track(&map);
                                     report.probe_maps += 1;
-                                    set_bits(setup, map.as_ref(), &active, &mut bits, words, di);
+                                    decide(map.as_ref(), &mut bits, &mut ambiguous, di);
                                     cached[di] = true;
                                 }
+                                let grid = Comparison {
+                                    ambiguous: &ambiguous,
+                                    corners: &c,
+                                    compared: &compared,
+                                    words,
+                                    cw,
+                                    ch,
+                                    width,
+                                    height,
+                                };
                                 grid.probe_fails(&bits, |p| grid.bit(&bits, p, di) == 1)
                             }
                             None => {
@@ -506,6 +600,15 @@ impl AdaptiveMaps {
                             report.probe_splits += 1;
                         }
                     }
+                    if dumping {
+                        quad_log.push(format!(
+                            "[{d},{},{},{penumbra_fails},{},{}]",
+                            q.i / s,
+                            q.j / s,
+                            report.per_depth[d as usize].fails - fails_before - penumbra_fails,
+                            u8::from(split)
+                        ));
+                    }
                     if split {
                         report.splits += 1;
                         report.per_depth[d as usize].split += 1;
@@ -524,6 +627,42 @@ impl AdaptiveMaps {
                 level = next;
             }
             leaves.extend(level);
+        }
+        if let (true, Some(dir)) = (testing, dump_dir) {
+            // Every decision point's bits, also those the subdivision did
+            // not need (not marked cached: the estimate is unchanged).
+            let mut all = vec![Vec3::ZERO; (gd * gd) as usize];
+            for j in (0..g).step_by(2) {
+                for i in (0..g).step_by(2) {
+                    let di = dec(i, j).expect("on the grid");
+                    all[di] = point(i, j);
+                    if !cached[di] {
+                        let map = setup.render(point(i, j))?;
+                        decide(map.as_ref(), &mut bits, &mut ambiguous, di);
+                    }
+                }
+            }
+            dump::write_light(
+                &dir,
+                &dump::LightDump {
+                    light: setup.light,
+                    gbuffer: ctx.gbuffer,
+                    active: &active,
+                    compared: &compared,
+                    target: (cw, ch),
+                    bits: &bits,
+                    ambiguous: &ambiguous,
+                    words,
+                    grid: gd,
+                    points: all,
+                    note: format!(
+                        "{{\"max_depth\":{dmax},\"threshold\":{},\"centre_depth\":{},\"quads\":[{}]}}",
+                        o.adaptive_threshold,
+                        o.adaptive_centre_depth,
+                        quad_log.join(",")
+                    ),
+                },
+            )?;
         }
 
         // Each point's depth: the deepest leaf it is a corner of.
@@ -615,11 +754,43 @@ fn set_bits(
     });
 }
 
+/// Sets bit `di` of `ambiguous` for every active receiver whose hard test
+/// in `map` differs between the bias band's ends (`lo`, `hi`: the setups
+/// with those biases; `lit` two byte buffers of scratch).
+fn set_ambiguous<'a, 'b>(
+    (lo, hi): (&MapSetup<'a, 'b>, &MapSetup<'a, 'b>),
+    map: Option<&RenderedMap>,
+    active: &[bool],
+    (lit_lo, lit_hi): (&mut [u8], &mut [u8]),
+    ambiguous: &mut [u64],
+    words: usize,
+    di: usize,
+) {
+    for (setup, lit) in [(lo, &mut *lit_lo), (hi, &mut *lit_hi)] {
+        lit.fill(0);
+        setup.consume(map, Pcf::Nearest, active, lit, 1, |v, slot| {
+            slot[0] = u8::from(v >= 0.5)
+        });
+    }
+    let (w, b) = (di / 64, 1u64 << (di % 64));
+    ambiguous
+        .par_chunks_mut(words)
+        .zip(lit_lo.par_iter().zip(lit_hi.par_iter()))
+        .for_each(|(slot, (l, h))| {
+            if l != h {
+                slot[w] |= b;
+            }
+        });
+}
+
 /// One quad's view of the comparison target: per texel the receiver's
 /// count of shadowing corners, from the decision bits.
 #[derive(Clone, Copy)]
 struct Comparison<'a> {
     words: usize,
+    /// Bias-ambiguity bits (same layout as the decision bits; empty: no
+    /// band).
+    ambiguous: &'a [u64],
     corners: &'a [usize],
     compared: &'a [bool],
     cw: usize,
@@ -633,6 +804,21 @@ impl Comparison<'_> {
     #[inline]
     fn bit(&self, bits: &[u64], p: usize, di: usize) -> u32 {
         ((bits[p * self.words + di / 64] >> (di % 64)) & 1) as u32
+    }
+
+    /// Whether receiver `p` can fail this quad's test: read by the
+    /// comparison target, and no corner's hard test is bias-ambiguous
+    /// (acne or leak). An ambiguous receiver still counts as a neighbour:
+    /// leaving it out there would make its penumbra neighbours fail
+    /// (measured: spheres-paper 100 → 185 maps).
+    #[inline]
+    fn tested(&self, p: usize) -> bool {
+        self.compared[p]
+            && (self.ambiguous.is_empty()
+                || self
+                    .corners
+                    .iter()
+                    .all(|&di| (self.ambiguous[p * self.words + di / 64] >> (di % 64)) & 1 == 0))
     }
 
     /// How many of the quad's corners shadow receiver `p` (0–4).
@@ -656,8 +842,8 @@ impl Comparison<'_> {
     }
 
     /// Penumbra texels (count 1–3) whose 1-ring holds no different count
-    /// (§3.3.3); neighbours that are not receivers of the light are not
-    /// looked at.
+    /// (§3.3.3), bias-ambiguous texels excepted; neighbours that are not
+    /// receivers of the light are not looked at.
     fn penumbra_fails(&self, bits: &[u64]) -> u64 {
         (0..self.ch)
             .into_par_iter()
@@ -665,7 +851,7 @@ impl Comparison<'_> {
                 let mut fails = 0u64;
                 for ci in 0..self.cw {
                     let p = self.pixel(ci, cj);
-                    if !self.compared[p] {
+                    if !self.tested(p) {
                         continue;
                     }
                     let cnt = self.count(bits, p);
@@ -707,7 +893,7 @@ impl Comparison<'_> {
                 let mut fails = 0u64;
                 for ci in 0..self.cw {
                     let p = self.pixel(ci, cj);
-                    if !self.compared[p] {
+                    if !self.tested(p) {
                         continue;
                     }
                     let cnt = self.count(bits, p);
