@@ -12,8 +12,8 @@
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::SampleSets;
 use super::volume::{
-    cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane, penumbra_volume, BoxTest,
-    Cone, HardVolumes, PenumbraVolume,
+    chunks_left, cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane,
+    penumbra_volume, BoxTest, Cone, HardVolumes, PenumbraVolume,
 };
 use glam::DVec3;
 use std::time::{Duration, Instant};
@@ -430,12 +430,7 @@ impl<'a> Chunk<'a> {
                 }
             }
             // The chunks of four with a sample left to test.
-            let mut need = 0u8;
-            for c in 0..8 {
-                if (skip >> (4 * c)) & 0xf != 0xf {
-                    need |= 1 << c;
-                }
-            }
+            let need = chunks_left(skip);
             let hv = self.hard_volumes(set, k, need);
             let bits = if sw.simd {
                 hard_bits_simd(&self.hard[hv], o, skip)
