@@ -909,7 +909,11 @@ mod tests {
             }
             vol.finish();
             assert!(vol.has_quads());
-            for _ in 0..40 {
+            // Half the points just behind the triangle as seen from the
+            // light (mostly inside), half anywhere.
+            let behind = (t[0] + t[1] + t[2]) / 3.0;
+            let behind = behind + (behind - c) * 0.2;
+            for k in 0..40 {
                 let (a, b) = (v(&mut st) * 3.0, v(&mut st) * 3.0);
                 let (lo, hi) = (a.min(b).to_array(), a.max(b).to_array());
                 let active = ((st >> 7) as u32 | (st >> 41) as u32) & vol.all();
@@ -922,7 +926,11 @@ mod tests {
                         _ => {}
                     }
                 }
-                let o = (v(&mut st) * 3.0).to_array();
+                let o = if k % 2 == 0 {
+                    (v(&mut st) * 3.0).to_array()
+                } else {
+                    (behind + v(&mut st) * 0.05).to_array()
+                };
                 let x = vol.contains(o, active, 1e-9);
                 assert_eq!(x, vol.contains_scalar(o, active, 1e-9));
                 inside += usize::from(x);
