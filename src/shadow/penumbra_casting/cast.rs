@@ -12,8 +12,8 @@
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::SampleSets;
 use super::volume::{
-    cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane, penumbra_volume, BoxTest,
-    Cone, HardVolumes, PenumbraVolume,
+    chunks_left, cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane,
+    penumbra_volume, BoxTest, Cone, HardVolumes, PenumbraVolume,
 };
 use glam::DVec3;
 use std::time::{Duration, Instant};
@@ -69,6 +69,10 @@ pub struct Chunk<'a> {
     sets: &'a SampleSets,
     sw: Switches,
     slack: f64,
+    /// Per receiver: its index in the input of [`Chunk::new`] (receivers
+    /// are stored in the first hierarchy's leaf order, so a leaf's
+    /// points are contiguous in memory).
+    pub order: Vec<u32>,
     /// Per receiver: the shadow-ray origin relative to the light's centre.
     pub pos: Vec<[f64; 3]>,
     /// Per receiver: its sample set.
@@ -103,7 +107,8 @@ pub struct Chunk<'a> {
 }
 
 impl<'a> Chunk<'a> {
-    /// A chunk over receivers at `pos` with sets `set`.
+    /// A chunk over receivers at `pos` with sets `set`; receiver `r` of
+    /// the chunk is input receiver `order[r]`.
     pub fn new(
         sets: &'a SampleSets,
         sw: Switches,
@@ -119,7 +124,12 @@ impl<'a> Chunk<'a> {
             ((0..r as u32).collect(), vec![0u32; r * g])
         };
         let t = Instant::now();
-        let hier = Hierarchy::build(&pos, (0..r as u32).collect());
+        let mut hier = Hierarchy::build(&pos, (0..r as u32).collect());
+        // Relabel the receivers in leaf order; rebuilds break ties by the
+        // input index, as this first build did.
+        let order = std::mem::replace(&mut hier.points, (0..r as u32).collect());
+        let pos: Vec<[f64; 3]> = order.iter().map(|&i| pos[i as usize]).collect();
+        let set: Vec<u16> = order.iter().map(|&i| set[i as usize]).collect();
         let mut stats = ChunkStats {
             peak_nodes: hier.nodes.len(),
             peak_hierarchy_bytes: hier.bytes(),
@@ -141,6 +151,7 @@ impl<'a> Chunk<'a> {
             group_umbra: vec![0; r],
             full: vec![false; r],
             leaf_triangles: vec![0; r],
+            order,
             pos,
             set,
             slot,
@@ -220,7 +231,7 @@ impl<'a> Chunk<'a> {
         let ids: Vec<u32> = (0..self.pos.len() as u32)
             .filter(|&r| !self.full[r as usize])
             .collect();
-        self.hier = Hierarchy::build(&self.pos, ids);
+        self.hier = Hierarchy::build_keyed(&self.pos, ids, Some(&self.order));
         self.umbra_in_hier = 0;
         self.stats.rebuilds += 1;
         self.stats.peak_nodes = self.stats.peak_nodes.max(self.hier.nodes.len());
@@ -419,12 +430,7 @@ impl<'a> Chunk<'a> {
                 }
             }
             // The chunks of four with a sample left to test.
-            let mut need = 0u8;
-            for c in 0..8 {
-                if (skip >> (4 * c)) & 0xf != 0xf {
-                    need |= 1 << c;
-                }
-            }
+            let need = chunks_left(skip);
             let hv = self.hard_volumes(set, k, need);
             let bits = if sw.simd {
                 hard_bits_simd(&self.hard[hv], o, skip)

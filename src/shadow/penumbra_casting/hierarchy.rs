@@ -43,6 +43,13 @@ impl Hierarchy {
     /// Builds the tree over receivers `ids` with positions `pos` (indexed
     /// by receiver).
     pub fn build(pos: &[[f64; 3]], ids: Vec<u32>) -> Hierarchy {
+        Hierarchy::build_keyed(pos, ids, None)
+    }
+
+    /// [`Hierarchy::build`] with ties between equal coordinates broken by
+    /// `key[id]` (else by the id): a relabelling of the receivers that
+    /// carries their keys builds the same tree.
+    pub fn build_keyed(pos: &[[f64; 3]], ids: Vec<u32>, key: Option<&[u32]>) -> Hierarchy {
         let mut h = Hierarchy {
             nodes: Vec::with_capacity(2 * ids.len() / LEAF + 1),
             points: ids,
@@ -53,7 +60,8 @@ impl Hierarchy {
         h.nodes.push(empty_node());
         let n = h.points.len();
         let mut scratch = Vec::new();
-        h.build_node(pos, 0, 0, n, &mut scratch);
+        let key = Key(key);
+        h.build_node(pos, key, 0, 0, n, &mut scratch);
         h
     }
 
@@ -65,6 +73,7 @@ impl Hierarchy {
     fn build_node(
         &mut self,
         pos: &[[f64; 3]],
+        key: Key,
         node: usize,
         s: usize,
         e: usize,
@@ -80,9 +89,9 @@ impl Hierarchy {
             return;
         }
         let mid = if n > SPATIAL_ABOVE {
-            spatial_median(pos, &mut self.points[s..e], lo, hi)
+            spatial_median(pos, key, &mut self.points[s..e], lo, hi)
         } else {
-            surface_area_split(pos, &mut self.points[s..e], scratch)
+            surface_area_split(pos, key, &mut self.points[s..e], scratch)
         };
         let mid = s + mid;
         let left = self.nodes.len();
@@ -90,8 +99,22 @@ impl Hierarchy {
         self.nodes.push(empty_node());
         self.nodes[node].first = left as u32;
         self.nodes[node].count = 0;
-        self.build_node(pos, left, s, mid, scratch);
-        self.build_node(pos, left + 1, mid, e, scratch);
+        self.build_node(pos, key, left, s, mid, scratch);
+        self.build_node(pos, key, left + 1, mid, e, scratch);
+    }
+}
+
+/// The tie-break key of the receivers.
+#[derive(Clone, Copy)]
+struct Key<'a>(Option<&'a [u32]>);
+
+impl Key<'_> {
+    #[inline(always)]
+    fn of(self, id: u32) -> u32 {
+        match self.0 {
+            Some(k) => k[id as usize],
+            None => id,
+        }
     }
 }
 
@@ -133,7 +156,13 @@ fn longest(lo: [f64; 3], hi: [f64; 3]) -> usize {
 /// Partitions at the middle of the box's longest axis; the count on the
 /// left. Falls back to the median by count when one side would be empty
 /// (coincident points).
-fn spatial_median(pos: &[[f64; 3]], ids: &mut [u32], lo: [f64; 3], hi: [f64; 3]) -> usize {
+fn spatial_median(
+    pos: &[[f64; 3]],
+    key: Key,
+    ids: &mut [u32],
+    lo: [f64; 3],
+    hi: [f64; 3],
+) -> usize {
     let a = longest(lo, hi);
     let m = 0.5 * (lo[a] + hi[a]);
     let mut i = 0;
@@ -147,7 +176,7 @@ fn spatial_median(pos: &[[f64; 3]], ids: &mut [u32], lo: [f64; 3], hi: [f64; 3])
         ids.sort_unstable_by(|&x, &y| {
             pos[x as usize][a]
                 .total_cmp(&pos[y as usize][a])
-                .then(x.cmp(&y))
+                .then(key.of(x).cmp(&key.of(y)))
         });
         return ids.len() / 2;
     }
@@ -161,7 +190,12 @@ fn area(lo: [f64; 3], hi: [f64; 3]) -> f64 {
 
 /// The split (axis, position in sorted order) with the least total
 /// surface area of the two children; `ids` left sorted along that axis.
-fn surface_area_split(pos: &[[f64; 3]], ids: &mut [u32], scratch: &mut Vec<u32>) -> usize {
+fn surface_area_split(
+    pos: &[[f64; 3]],
+    key: Key,
+    ids: &mut [u32],
+    scratch: &mut Vec<u32>,
+) -> usize {
     let n = ids.len();
     let mut best = (f64::INFINITY, 0usize, n / 2);
     let mut right_area = vec![0.0f64; n];
@@ -171,7 +205,7 @@ fn surface_area_split(pos: &[[f64; 3]], ids: &mut [u32], scratch: &mut Vec<u32>)
         scratch.sort_unstable_by(|&x, &y| {
             pos[x as usize][a]
                 .total_cmp(&pos[y as usize][a])
-                .then(x.cmp(&y))
+                .then(key.of(x).cmp(&key.of(y)))
         });
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for k in (1..n).rev() {
@@ -196,7 +230,7 @@ fn surface_area_split(pos: &[[f64; 3]], ids: &mut [u32], scratch: &mut Vec<u32>)
     ids.sort_unstable_by(|&x, &y| {
         pos[x as usize][a]
             .total_cmp(&pos[y as usize][a])
-            .then(x.cmp(&y))
+            .then(key.of(x).cmp(&key.of(y)))
     });
     best.2
 }

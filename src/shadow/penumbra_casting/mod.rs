@@ -504,7 +504,8 @@ impl PenumbraCasting {
                         .map(|&i| sets.set_of((i % w, i / w)) as u16)
                         .collect();
                     let chunk = Chunk::new(&sets, sw, slack, pos, set);
-                    (c.pixels, chunk)
+                    let pixels = chunk.order.iter().map(|&o| c.pixels[o as usize]).collect();
+                    (pixels, chunk)
                 })
                 .collect();
             report.build_time += tb.elapsed();

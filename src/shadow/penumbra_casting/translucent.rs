@@ -252,7 +252,7 @@ pub fn cast(
     if casters.is_empty() || ids.is_empty() {
         return rec;
     }
-    let hier = Hierarchy::build(&c.pos, ids);
+    let hier = Hierarchy::build_keyed(&c.pos, ids, Some(&c.order));
     rec.hierarchy_bytes = hier.bytes();
     // The projector decides the S-triangles' crossings in f32: its culling
     // gets a wider margin (culling only ever keeps more).

@@ -14,6 +14,7 @@
 //! answer, bit for bit).
 
 use super::samples::LightBox;
+use crate::simd::f64x4;
 use glam::DVec3;
 
 /// Most planes kept per penumbra volume (a `u32` active set); further
@@ -57,6 +58,19 @@ impl Plane {
 pub struct PenumbraVolume {
     /// The planes (unit normals), at most [`MAX_PLANES`].
     pub planes: Vec<Plane>,
+    /// The planes four by four as lanes (padding lanes zero, never
+    /// active), filled by [`PenumbraVolume::finish`]; the SIMD tests use
+    /// them while they match `planes`.
+    quads: Vec<PlaneQuad>,
+}
+
+/// Four planes as lanes.
+#[derive(Debug, Clone, Copy, Default)]
+struct PlaneQuad {
+    nx: f64x4,
+    ny: f64x4,
+    nz: f64x4,
+    d: f64x4,
 }
 
 /// A box against a volume's active planes.
@@ -78,10 +92,89 @@ impl PenumbraVolume {
         }
     }
 
+    /// Fills the lanes the SIMD tests read from `planes` (after any
+    /// change to them).
+    pub fn finish(&mut self) {
+        self.quads.clear();
+        for c in self.planes.chunks(4) {
+            let mut a = [[0.0f64; 4]; 4];
+            for (j, p) in c.iter().enumerate() {
+                a[0][j] = p.n[0];
+                a[1][j] = p.n[1];
+                a[2][j] = p.n[2];
+                a[3][j] = p.d;
+            }
+            self.quads.push(PlaneQuad {
+                nx: f64x4::new(a[0]),
+                ny: f64x4::new(a[1]),
+                nz: f64x4::new(a[2]),
+                d: f64x4::new(a[3]),
+            });
+        }
+    }
+
+    /// Whether the lanes match the planes (else the scalar tests run).
+    #[inline(always)]
+    fn has_quads(&self) -> bool {
+        self.quads.len() == self.planes.len().div_ceil(4)
+    }
+
     /// The box `[lo, hi]` against the `active` planes; with `prune`, the
     /// planes it is entirely inside of leave the active set (§3.3 B).
+    /// Four planes at a time through the SIMD facade, each plane's value
+    /// at each corner computed as [`Plane::eval`] does: the answer is
+    /// [`PenumbraVolume::test_box_scalar`]'s, bit for bit.
     #[inline]
     pub fn test_box(
+        &self,
+        lo: &[f64; 3],
+        hi: &[f64; 3],
+        active: u32,
+        slack: f64,
+        prune: bool,
+    ) -> BoxTest {
+        if !self.has_quads() {
+            return self.test_box_scalar(lo, hi, active, slack, prune);
+        }
+        let zero = f64x4::ZERO;
+        let s = f64x4::splat(-slack);
+        let (lx, ly, lz) = (
+            f64x4::splat(lo[0]),
+            f64x4::splat(lo[1]),
+            f64x4::splat(lo[2]),
+        );
+        let (hx, hy, hz) = (
+            f64x4::splat(hi[0]),
+            f64x4::splat(hi[1]),
+            f64x4::splat(hi[2]),
+        );
+        let mut out = active;
+        for (i, q) in self.quads.iter().enumerate() {
+            let lanes = (active >> (4 * i)) & 0xf;
+            if lanes == 0 {
+                continue;
+            }
+            let (px, py, pz) = (q.nx.cmp_ge(zero), q.ny.cmp_ge(zero), q.nz.cmp_ge(zero));
+            // The corner where the value is largest: hi where n ≥ 0.
+            let vmax = ((q.nx * px.blend(hx, lx) + q.ny * py.blend(hy, ly))
+                + q.nz * pz.blend(hz, lz))
+                + q.d;
+            if vmax.cmp_lt(s).move_mask() & lanes != 0 {
+                return BoxTest::Outside;
+            }
+            if prune {
+                let vmin = ((q.nx * px.blend(lx, hx) + q.ny * py.blend(ly, hy))
+                    + q.nz * pz.blend(lz, hz))
+                    + q.d;
+                out &= !((vmin.cmp_ge(s).move_mask() & lanes) << (4 * i));
+            }
+        }
+        BoxTest::Active(out)
+    }
+
+    /// [`PenumbraVolume::test_box`], plane by plane (its scalar twin).
+    #[inline]
+    pub fn test_box_scalar(
         &self,
         lo: &[f64; 3],
         hi: &[f64; 3],
@@ -105,9 +198,32 @@ impl PenumbraVolume {
         BoxTest::Active(out)
     }
 
-    /// Whether `p` is inside every `active` plane.
+    /// Whether `p` is inside every `active` plane: four planes at a time
+    /// through the SIMD facade, each value [`Plane::eval`]'s (the answer
+    /// is [`PenumbraVolume::contains_scalar`]'s).
     #[inline]
     pub fn contains(&self, p: [f64; 3], active: u32, slack: f64) -> bool {
+        if !self.has_quads() {
+            return self.contains_scalar(p, active, slack);
+        }
+        let s = f64x4::splat(-slack);
+        let (x, y, z) = (f64x4::splat(p[0]), f64x4::splat(p[1]), f64x4::splat(p[2]));
+        for (i, q) in self.quads.iter().enumerate() {
+            let lanes = (active >> (4 * i)) & 0xf;
+            if lanes == 0 {
+                continue;
+            }
+            let v = ((q.nx * x + q.ny * y) + q.nz * z) + q.d;
+            if v.cmp_lt(s).move_mask() & lanes != 0 {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// [`PenumbraVolume::contains`], plane by plane (its scalar twin).
+    #[inline]
+    pub fn contains_scalar(&self, p: [f64; 3], active: u32, slack: f64) -> bool {
         let mut bits = active;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
@@ -149,28 +265,34 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
         (2, 6),
         (3, 7),
     ];
-    let consider = |p: DVec3, q: DVec3, w: DVec3, out: &mut PenumbraVolume| {
+    // Each vertex's largest coordinate magnitude, once (the candidates'
+    // scales are maxima of three of them).
+    let lm = lv.map(|c| c.abs().max_element());
+    let tm = t.map(|c| c.abs().max_element());
+    let consider = |p: DVec3, q: DVec3, w: DVec3, sm: f64, out: &mut PenumbraVolume| {
         let n = cross(q - p, w - p);
         let len = n.length();
         if !(len > 0.0) || !len.is_finite() {
             return;
         }
-        let scale = p
-            .abs()
-            .max_element()
-            .max(q.abs().max_element())
-            .max(w.abs().max_element());
+        let scale = sm;
         // A vertex within this of the plane counts as on it (the plane's
         // own vertices compute to rounding noise, not to 0).
         let tol = 1e-12 * scale * len;
         let val = |c: &DVec3| n.dot(*c - p);
         // The triangle's side first (3 values), then the light's corners
         // with an early exit: most candidates fail on the first corners.
+        // (Compares rather than f64::min / max: the same results for
+        // every value, NaN included, in fewer instructions.)
         let (mut tmin, mut tmax) = (f64::INFINITY, f64::NEG_INFINITY);
         for c in t {
             let v = val(c);
-            tmin = tmin.min(v);
-            tmax = tmax.max(v);
+            if v < tmin {
+                tmin = v;
+            }
+            if v > tmax {
+                tmax = v;
+            }
         }
         let sign = if tmin >= -tol {
             1.0
@@ -185,7 +307,12 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
             if v > tol {
                 return;
             }
-            lspread = (lspread.0.min(v), lspread.1.max(v));
+            if v < lspread.0 {
+                lspread.0 = v;
+            }
+            if v > lspread.1 {
+                lspread.1 = v;
+            }
         }
         // A plane with both sides "on" it separates nothing.
         if (lspread.1 - lspread.0) <= tol && (tmax - tmin) <= tol {
@@ -213,14 +340,14 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
         (lv[4] - lv[0]).length() > 1e-9 * (lv[1] - lv[0]).length().max((lv[2] - lv[0]).length());
     let edges = if thick { &EDGES[..] } else { &EDGES[..8] };
     for &(i, j) in edges {
-        for &w in t {
-            consider(lv[i], lv[j], w, out);
+        for (&w, &wm) in t.iter().zip(&tm) {
+            consider(lv[i], lv[j], w, lm[i].max(lm[j]).max(wm), out);
         }
     }
     for e in 0..3 {
-        let (p, q) = (t[e], t[(e + 1) % 3]);
-        for &w in lv {
-            consider(p, q, w, out);
+        let (a, b) = (e, (e + 1) % 3);
+        for (&w, &wm) in lv.iter().zip(&lm) {
+            consider(t[a], t[b], w, tm[a].max(tm[b]).max(wm), out);
         }
     }
     // The cap: the triangle's own plane, when the light part is strictly
@@ -230,7 +357,7 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
     if len > 0.0 && len.is_finite() && out.planes.len() < MAX_PLANES {
         let n = n / len;
         let d = -n.dot(t[0]);
-        let side: Vec<f64> = lv.iter().map(|c| n.dot(*c) + d).collect();
+        let side = lv.map(|c| n.dot(c) + d);
         if side.iter().all(|&s| s > 0.0) {
             out.planes.push(Plane {
                 n: [-n.x, -n.y, -n.z],
@@ -243,6 +370,7 @@ pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolum
             });
         }
     }
+    out.finish();
 }
 
 /// The hard shadow volumes of one group of samples (at most 32) and one
@@ -425,6 +553,10 @@ pub struct ChunkBoxes {
     pub lo: [[f64; 8]; 3],
     /// Greatest corner per chunk, per axis.
     pub hi: [[f64; 8]; 3],
+    /// Least corner of the whole group (of every chunk's box).
+    pub group_lo: [f64; 3],
+    /// Greatest corner of the whole group.
+    pub group_hi: [f64; 3],
 }
 
 impl ChunkBoxes {
@@ -434,11 +566,15 @@ impl ChunkBoxes {
         let mut b = ChunkBoxes {
             lo: [[f64::INFINITY; 8]; 3],
             hi: [[f64::NEG_INFINITY; 8]; 3],
+            group_lo: [f64::INFINITY; 3],
+            group_hi: [f64::NEG_INFINITY; 3],
         };
         for (j, p) in samples.iter().enumerate() {
             for (a, v) in p.to_array().into_iter().enumerate() {
                 b.lo[a][j / 4] = b.lo[a][j / 4].min(v);
                 b.hi[a][j / 4] = b.hi[a][j / 4].max(v);
+                b.group_lo[a] = b.group_lo[a].min(v);
+                b.group_hi[a] = b.group_hi[a].max(v);
             }
         }
         b
@@ -499,9 +635,51 @@ impl Cone {
     }
 
     /// The skip bits (four per chunk) of the chunks of `b` that are
-    /// outside one of the cone's planes by more than the allowance.
+    /// outside one of the cone's planes by more than the allowance:
+    /// [`Cone::outside_chunks_scalar`]'s answer, bit for bit. First the
+    /// group's box: each rounding step of a plane's value is monotonic in
+    /// each coordinate, so where the group's extreme corner is outside by
+    /// more than the allowance every chunk's is (all skipped). Then eight
+    /// chunks as two lanes of four through the SIMD facade, each value
+    /// computed as the scalar twin does.
     #[inline]
     pub fn outside_chunks(&self, b: &ChunkBoxes) -> u32 {
+        let o = self.o;
+        for n in &self.n {
+            let c = |a: usize| {
+                if n[a] >= 0.0 {
+                    b.group_hi[a]
+                } else {
+                    b.group_lo[a]
+                }
+            };
+            let v = (n[0] * (c(0) - o[0]) + n[1] * (c(1) - o[1])) + n[2] * (c(2) - o[2]);
+            if v < -self.slack {
+                return u32::MAX;
+            }
+        }
+        let s = f64x4::splat(-self.slack);
+        let (ox, oy, oz) = (f64x4::splat(o[0]), f64x4::splat(o[1]), f64x4::splat(o[2]));
+        let mut out = 0u32;
+        for n in &self.n {
+            let pick = |a: usize| if n[a] >= 0.0 { &b.hi[a] } else { &b.lo[a] };
+            let (cx, cy, cz) = (pick(0), pick(1), pick(2));
+            let (nx, ny, nz) = (f64x4::splat(n[0]), f64x4::splat(n[1]), f64x4::splat(n[2]));
+            for h in 0..2 {
+                let r = 4 * h..4 * h + 4;
+                let v = (nx * (f64x4::load(&cx[r.clone()]) - ox)
+                    + ny * (f64x4::load(&cy[r.clone()]) - oy))
+                    + nz * (f64x4::load(&cz[r]) - oz);
+                // Not ≥ −allowance (NaN and −∞ of empty chunks included).
+                out |= (v.cmp_ge(s).move_mask() ^ 0xf) << (4 * h);
+            }
+        }
+        nibbles(out)
+    }
+
+    /// [`Cone::outside_chunks`], chunk by chunk (its scalar twin).
+    #[inline]
+    pub fn outside_chunks_scalar(&self, b: &ChunkBoxes) -> u32 {
         let mut out = 0u32;
         for n in &self.n {
             let pick = |a: usize| if n[a] >= 0.0 { &b.hi[a] } else { &b.lo[a] };
@@ -517,6 +695,27 @@ impl Cone {
         }
         out
     }
+}
+
+/// Bit `c` of `m` (c < 8) spread to the nibble `4c .. 4c + 4`.
+#[inline(always)]
+pub fn nibbles(m: u32) -> u32 {
+    let x = m & 0xff;
+    let x = (x | x << 12) & 0x000f_000f;
+    let x = (x | x << 6) & 0x0303_0303;
+    let x = (x | x << 3) & 0x1111_1111;
+    x * 0xf
+}
+
+/// Bit `c` (c < 8) set where nibble `c` of `skip` is not all ones: the
+/// chunks of four with a sample left to test.
+#[inline(always)]
+pub fn chunks_left(skip: u32) -> u8 {
+    let x = !skip;
+    let x = (x | x >> 1 | x >> 2 | x >> 3) & 0x1111_1111;
+    let x = (x | x >> 3) & 0x0303_0303;
+    let x = (x | x >> 6) & 0x000f_000f;
+    ((x | x >> 12) & 0xff) as u8
 }
 
 /// The cone prefilter's allowance for coordinates (relative to the
@@ -629,6 +828,119 @@ mod tests {
     fn rng(state: &mut u64) -> f64 {
         *state = crate::sampling::mix64(state.wrapping_add(0x9e37_79b9_7f4a_7c15));
         (*state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+
+    #[test]
+    fn nibble_helpers_equal_their_loops() {
+        for m in 0..256u32 {
+            let mut want = 0u32;
+            for c in 0..8 {
+                if (m >> c) & 1 == 1 {
+                    want |= 0xf << (4 * c);
+                }
+            }
+            assert_eq!(nibbles(m), want);
+        }
+        let mut st = 3u64;
+        for i in 0..20_000u64 {
+            st = crate::sampling::mix64(st.wrapping_add(i));
+            // Nibbles mostly all ones or all zeros, some mixed.
+            let skip = nibbles(st as u32) | (st >> 32) as u32 & (st >> 40) as u32;
+            let mut want = 0u8;
+            for c in 0..8 {
+                if (skip >> (4 * c)) & 0xf != 0xf {
+                    want |= 1 << c;
+                }
+            }
+            assert_eq!(chunks_left(skip), want, "{skip:#x}");
+        }
+    }
+
+    #[test]
+    fn cone_simd_equals_its_scalar_twin() {
+        let mut st = 11u64;
+        let v = |s: &mut u64| DVec3::new(rng(s), rng(s), rng(s));
+        let (mut all, mut some) = (0usize, 0usize);
+        for round in 0..400 {
+            let len = 1 + round % 32;
+            let samples: Vec<DVec3> = (0..len)
+                .map(|_| v(&mut st) * 0.5 + DVec3::new(0.0, 2.0, 0.0))
+                .collect();
+            let boxes = ChunkBoxes::new(&samples);
+            let t = [v(&mut st), v(&mut st), v(&mut st)];
+            for _ in 0..30 {
+                let o = (v(&mut st) * 3.0 - DVec3::new(0.0, 2.0, 0.0)).to_array();
+                let Some(c) = Cone::new(&t, o, 1e-12) else {
+                    continue;
+                };
+                let x = c.outside_chunks(&boxes);
+                assert_eq!(x, c.outside_chunks_scalar(&boxes));
+                all += usize::from(x == u32::MAX);
+                some += usize::from(x != u32::MAX && x != 0 && len > 4);
+            }
+        }
+        assert!(all > 1000 && some > 300, "{all} {some}");
+    }
+
+    #[test]
+    fn simd_box_and_point_tests_equal_the_scalar_twins() {
+        let mut st = 7u64;
+        let v = |s: &mut u64| DVec3::new(rng(s), rng(s), rng(s));
+        let (mut outside, mut pruned, mut inside) = (0usize, 0usize, 0usize);
+        for round in 0..300 {
+            // A small light box above random triangles: volumes of 0 to
+            // 32 planes (with random extra planes past the separating ones).
+            let (c, e) = (DVec3::new(0.0, 2.0, 0.0), v(&mut st).abs() * 0.5);
+            let mut corners = [DVec3::ZERO; 8];
+            for (i, k) in corners.iter_mut().enumerate() {
+                let f = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
+                *k = c + e * DVec3::new(f(1), f(2), f(4));
+            }
+            let light = LightBox { corners };
+            let t = [v(&mut st), v(&mut st), v(&mut st)];
+            let mut vol = PenumbraVolume::default();
+            penumbra_volume(&light, &t, &mut vol);
+            while vol.planes.len() < round % 33 {
+                let n = v(&mut st).normalize_or_zero();
+                vol.planes.push(Plane {
+                    n: n.to_array(),
+                    d: rng(&mut st),
+                });
+            }
+            vol.finish();
+            assert!(vol.has_quads());
+            // Half the points just behind the triangle as seen from the
+            // light (mostly inside), half anywhere.
+            let behind = (t[0] + t[1] + t[2]) / 3.0;
+            let behind = behind + (behind - c) * 0.2;
+            for k in 0..40 {
+                let (a, b) = (v(&mut st) * 3.0, v(&mut st) * 3.0);
+                let (lo, hi) = (a.min(b).to_array(), a.max(b).to_array());
+                let active = ((st >> 7) as u32 | (st >> 41) as u32) & vol.all();
+                for prune in [false, true] {
+                    let x = vol.test_box(&lo, &hi, active, 1e-9, prune);
+                    assert_eq!(x, vol.test_box_scalar(&lo, &hi, active, 1e-9, prune));
+                    match x {
+                        BoxTest::Outside => outside += 1,
+                        BoxTest::Active(p) if p != active => pruned += 1,
+                        _ => {}
+                    }
+                }
+                let o = if k % 2 == 0 {
+                    (v(&mut st) * 3.0).to_array()
+                } else {
+                    (behind + v(&mut st) * 0.05).to_array()
+                };
+                let x = vol.contains(o, active, 1e-9);
+                assert_eq!(x, vol.contains_scalar(o, active, 1e-9));
+                inside += usize::from(x);
+            }
+        }
+        // Every branch was taken often.
+        assert!(
+            outside > 500 && pruned > 500 && inside > 500,
+            "{outside} {pruned} {inside}"
+        );
     }
 
     #[test]
