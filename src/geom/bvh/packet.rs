@@ -19,8 +19,8 @@
 //! which an "any hit" answer does not see. `tests/reference.rs` holds the
 //! two against each other ray by ray.
 
-use super::{Bvh, Node, FAR_SCALE, STACK};
-use crate::simd::{f32x8, f64x4};
+use super::{Bvh, Node, Ray, Rel, FAR_SCALE, STACK};
+use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
 
 /// Rays per packet.
@@ -28,6 +28,11 @@ pub const PACKET: usize = 8;
 
 /// All eight lanes.
 const ALL: u32 = (1 << PACKET) - 1;
+
+/// A leaf reached by at most this many lanes is tested with the
+/// single-ray triangle test lane by lane; the eight-lane test costs about
+/// as much as four single ones.
+const SCALAR_LANES: u32 = 3;
 
 /// Up to eight rays from one origin, as lanes.
 struct Packet {
@@ -47,6 +52,13 @@ struct Packet {
     /// usual case): the picks are then plain indexing, no blends.
     uniform: Option<[usize; 3]>,
     shear: [f32x8; 3],
+    /// Each valid lane's own single-ray constants (`Ray::new`; invalid
+    /// lanes hold `Ray::UNUSED` and are never read): the box test
+    /// runs ray by ray against a node's four children, and leaves reached
+    /// by few lanes use the single-ray triangle test itself.
+    rays: [Ray; PACKET],
+    /// The origin splatted per axis (`Ray::org` of every lane).
+    org: [f32x4; 3],
 }
 
 impl Packet {
@@ -56,17 +68,20 @@ impl Packet {
     fn new(origin: Vec3, dirs: &[Vec3], t_max: f32) -> Packet {
         let mut valid = 0;
         let mut d = [[1.0f32; PACKET]; 3];
-        if origin.is_finite() {
-            for (lane, &dir) in dirs.iter().enumerate().take(PACKET) {
-                // `Ray::new`'s refusal: a zero or non-finite direction.
-                if dir.is_finite() && dir != Vec3::ZERO {
+        let rays: [Ray; PACKET] = std::array::from_fn(|lane| {
+            // `Ray::new`'s refusal: a zero or non-finite direction or
+            // origin.
+            match dirs.get(lane).and_then(|&dir| Ray::new(origin, dir, t_max)) {
+                Some(ray) => {
                     valid |= 1 << lane;
                     for axis in 0..3 {
-                        d[axis][lane] = dir[axis];
+                        d[axis][lane] = dirs[lane][axis];
                     }
+                    ray
                 }
+                None => Ray::UNUSED,
             }
-        }
+        });
         let [dx, dy, dz] = d.map(f32x8::new);
         let one = f32x8::splat(1.0);
         let (zero, max, min) = (f32x8::ZERO, f32x8::splat(f32::MAX), f32x8::splat(-f32::MAX));
@@ -110,6 +125,8 @@ impl Packet {
             pick,
             uniform,
             shear,
+            rays,
+            org: [0, 1, 2].map(|i| f32x4::splat(origin[i])),
         }
     }
 
@@ -240,37 +257,44 @@ impl Bvh {
         while top > 0 {
             top -= 1;
             let (index, lanes) = stack[top];
-            let lanes = lanes & !hit;
+            let mut lanes = lanes & !hit;
             if lanes == 0 {
                 continue;
             }
             let Some(node) = self.nodes.get(index as usize) else {
                 continue;
             };
-            for slot in 0..4 {
+            // Ray by ray against the four children (exactly
+            // `Ray::hit_boxes`, the bounds minus the shared origin computed
+            // once); byte `slot` of `through` collects the lanes passing
+            // child `slot`.
+            let rel = Rel::new(node, &packet.org);
+            let mut through = 0u32;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros();
+                lanes &= lanes - 1;
+                let m = packet.rays[lane as usize].hit_boxes_rel(node, &rel);
+                // Bit `s` of the 4-bit `m` to bit `8 s`.
+                through |= ((m * 0x0020_4081) & 0x0101_0101) << lane;
+            }
+            while through != 0 {
+                let slot = (through.trailing_zeros() / 8) as usize;
+                let pass = (through >> (8 * slot)) & ALL & !hit;
+                through &= !(0xff << (8 * slot));
+                if pass == 0 {
+                    continue;
+                }
                 let count = node.count[slot] as usize;
-                if count == 0 && node.child[slot] == u32::MAX {
-                    // An empty slot: its box (the point at +∞) meets no ray.
-                    continue;
-                }
-                let live = lanes & !hit;
-                if live == 0 {
-                    break;
-                }
-                let through = packet.hit_box(node, slot) & live;
-                if through == 0 {
-                    continue;
-                }
                 if count == 0 {
                     // Cannot overflow (see `STACK`); the check only keeps
                     // the index provably in bounds.
                     if top < STACK {
-                        stack[top] = (node.child[slot], through);
+                        stack[top] = (node.child[slot], pass);
                         top += 1;
                     }
                     continue;
                 }
-                let found = self.triangle_hits(packet, node, slot, through);
+                let found = self.triangle_hits(packet, node, slot, pass);
                 if found != 0 {
                     hit |= found;
                     *last = Some((index, slot));
@@ -306,6 +330,19 @@ impl Bvh {
             return 0;
         };
         let mut hit = 0;
+        if through.count_ones() <= SCALAR_LANES {
+            // Few lanes: the single-ray test itself, lane by lane.
+            let mut lanes = through;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros();
+                lanes &= lanes - 1;
+                let ray = &packet.rays[lane as usize];
+                if tris.iter().any(|tri| ray.intersect(tri).is_some()) {
+                    hit |= 1 << lane;
+                }
+            }
+            return hit;
+        }
         for tri in tris {
             hit |= packet.hit_triangle(tri) & through;
             if through & !hit == 0 {
