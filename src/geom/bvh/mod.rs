@@ -495,8 +495,17 @@ impl Rel {
     #[inline]
     fn new(node: &Node, org: &[f32x4; 3]) -> Rel {
         Rel {
-            lo: [0, 1, 2].map(|a| f32x4::new(node.lo[a]) - org[a]),
-            hi: [0, 1, 2].map(|a| f32x4::new(node.hi[a]) - org[a]),
+            // Written out: `[0, 1, 2].map` is not unrolled here.
+            lo: [
+                f32x4::new(node.lo[0]) - org[0],
+                f32x4::new(node.lo[1]) - org[1],
+                f32x4::new(node.lo[2]) - org[2],
+            ],
+            hi: [
+                f32x4::new(node.hi[0]) - org[0],
+                f32x4::new(node.hi[1]) - org[1],
+                f32x4::new(node.hi[2]) - org[2],
+            ],
         }
     }
 }
@@ -559,9 +568,18 @@ impl Ray {
         Some(Ray {
             origin,
             t_max,
-            org: [0, 1, 2].map(|i| f32x4::splat(origin[i])),
-            inv: [0, 1, 2].map(|i| f32x4::splat(inv(dir[i]))),
-            parallel: [0, 1, 2].map(|i| dir[i] == 0.0),
+            // Written out: `[0, 1, 2].map` is not unrolled here.
+            org: [
+                f32x4::splat(origin.x),
+                f32x4::splat(origin.y),
+                f32x4::splat(origin.z),
+            ],
+            inv: [
+                f32x4::splat(inv(dir.x)),
+                f32x4::splat(inv(dir.y)),
+                f32x4::splat(inv(dir.z)),
+            ],
+            parallel: [dir.x == 0.0, dir.y == 0.0, dir.z == 0.0],
             any_parallel: dir.cmpeq(Vec3::ZERO).any(),
             k: [kx, ky, kz],
             shear: Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]),
@@ -618,9 +636,10 @@ impl Ray {
     fn intersect(&self, tri: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
         let [kx, ky, kz] = self.k;
         let s = self.shear;
-        let a = tri[0] - self.origin;
-        let b = tri[1] - self.origin;
-        let c = tri[2] - self.origin;
+        // Arrays: indexing a `Vec3` by a run-time axis is a match.
+        let a = (tri[0] - self.origin).to_array();
+        let b = (tri[1] - self.origin).to_array();
+        let c = (tri[2] - self.origin).to_array();
         // Shear into ray space: each vertex transformed on its own, so a
         // vertex shared by two triangles gets the same coordinates in both.
         let (ax, ay) = (a[kx] - s.x * a[kz], a[ky] - s.y * a[kz]);

@@ -19,7 +19,8 @@
 //! which an "any hit" answer does not see. `tests/reference.rs` holds the
 //! two against each other ray by ray.
 
-use super::{Bvh, Node, Ray, Rel, FAR_SCALE, STACK};
+use super::{Bvh, Node, Ray, Rel, STACK};
+use std::cell::OnceCell;
 use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
 
@@ -40,18 +41,11 @@ struct Packet {
     /// Lanes holding a usable ray (finite, non-zero direction).
     valid: u32,
     t_max: f32,
-    /// Slab test: inverse direction per axis, and the mask of lanes whose
-    /// direction is exactly 0 along it (with whether any lane is).
-    inv: [f32x8; 3],
-    parallel: [f32x8; 3],
-    any_parallel: [bool; 3],
-    /// Watertight test: for `kx`, `ky`, `kz`, the masks "k = 0" and
-    /// "k = 1" (else 2), and the shear.
-    pick: [[f32x8; 2]; 3],
-    /// `Some([kx, ky, kz])` when every valid lane has the same axes (the
-    /// usual case): the picks are then plain indexing, no blends.
-    uniform: Option<[usize; 3]>,
-    shear: [f32x8; 3],
+    /// The lanes' directions per axis (1 in unused lanes).
+    d: [[f32; PACKET]; 3],
+    /// The eight-lane triangle test's constants, built on first use (many
+    /// packets reach only leaves that few lanes reach).
+    woop: OnceCell<Woop>,
     /// Each valid lane's own single-ray constants (`Ray::new`; invalid
     /// lanes hold `Ray::UNUSED` and are never read): the box test
     /// runs ray by ray against a node's four children, and leaves reached
@@ -82,11 +76,45 @@ impl Packet {
                 None => Ray::UNUSED,
             }
         });
+        Packet {
+            origin,
+            valid,
+            t_max,
+            d,
+            woop: OnceCell::new(),
+            rays,
+            org: [
+                f32x4::splat(origin.x),
+                f32x4::splat(origin.y),
+                f32x4::splat(origin.z),
+            ],
+        }
+    }
+
+    /// The eight-lane triangle test's constants.
+    #[inline]
+    fn woop(&self) -> &Woop {
+        self.woop.get_or_init(|| Woop::new(&self.d, self.valid))
+    }
+}
+
+/// The watertight test's per-lane constants, as `Ray::new` computes them
+/// (the same IEEE operations, the same dominant-axis rule).
+struct Woop {
+    /// For `kx`, `ky`, `kz`, the masks "k = 0" and "k = 1" (else 2).
+    pick: [[f32x8; 2]; 3],
+    /// `Some([kx, ky, kz])` when every valid lane has the same axes (the
+    /// usual case): the picks are then plain indexing, no blends.
+    uniform: Option<[usize; 3]>,
+    shear: [f32x8; 3],
+}
+
+impl Woop {
+    /// The constants of the lanes `valid` of directions `d`.
+    fn new(d: &[[f32; PACKET]; 3], valid: u32) -> Woop {
         let [dx, dy, dz] = d.map(f32x8::new);
         let one = f32x8::splat(1.0);
-        let (zero, max, min) = (f32x8::ZERO, f32x8::splat(f32::MAX), f32x8::splat(-f32::MAX));
-        let inv = [dx, dy, dz].map(|c| (one / c).max(min).min(max));
-        let parallel = [dx, dy, dz].map(|c| c.cmp_eq(zero));
+        let zero = f32x8::ZERO;
         // kz: x if |x| ≥ |y| and |x| ≥ |z|, else y if |y| ≥ |z|, else z.
         let (ax, ay, az) = (dx.abs(), dy.abs(), dz.abs());
         let z0 = ax.cmp_ge(ay) & ax.cmp_ge(az);
@@ -115,51 +143,15 @@ impl Packet {
             }
             Some(k)
         })();
-        Packet {
-            origin,
-            valid,
-            t_max,
-            inv,
-            any_parallel: parallel.map(|m| m.move_mask() & valid != 0),
-            parallel,
+        Woop {
             pick,
             uniform,
             shear,
-            rays,
-            org: [0, 1, 2].map(|i| f32x4::splat(origin[i])),
         }
     }
+}
 
-    /// Lanes whose segment may touch child `slot`'s box (as
-    /// `Ray::hit_boxes` decides it for each lane's ray).
-    #[inline]
-    fn hit_box(&self, node: &Node, slot: usize) -> u32 {
-        let mut near = f32x8::splat(0.0);
-        let mut far = f32x8::splat(self.t_max);
-        let mut outside = f32x8::ZERO;
-        for axis in 0..3 {
-            let (lo, hi) = (node.lo[axis][slot], node.hi[axis][slot]);
-            let o = self.origin[axis];
-            let t0 = f32x8::splat(lo - o) * self.inv[axis];
-            let t1 = f32x8::splat(hi - o) * self.inv[axis];
-            let n = near.max(t0.min(t1));
-            let f = far.min(t0.max(t1));
-            if self.any_parallel[axis] {
-                let par = self.parallel[axis];
-                near = par.blend(near, n);
-                far = par.blend(far, f);
-                if !(lo <= o && o <= hi) {
-                    outside |= par;
-                }
-            } else {
-                near = n;
-                far = f;
-            }
-        }
-        let hit = near.cmp_le(far * f32x8::splat(FAR_SCALE)) & !outside;
-        hit.move_mask()
-    }
-
+impl Packet {
     /// Lanes that `Ray::intersect` would find hitting `tri`.
     #[inline]
     fn hit_triangle(&self, tri: &[Vec3; 3]) -> u32 {
@@ -168,17 +160,18 @@ impl Packet {
         let c = tri[2] - self.origin;
         // The same values either way on every valid lane (the only lanes
         // the caller reads).
-        let pick = |v: Vec3, k: usize| match self.uniform {
+        let woop = self.woop();
+        let pick = |v: Vec3, k: usize| match woop.uniform {
             Some(axes) => f32x8::splat(v[axes[k]]),
             None => {
-                let [is0, is1] = self.pick[k];
+                let [is0, is1] = woop.pick[k];
                 is0.blend(
                     f32x8::splat(v.x),
                     is1.blend(f32x8::splat(v.y), f32x8::splat(v.z)),
                 )
             }
         };
-        let [sx, sy, sz] = self.shear;
+        let [sx, sy, sz] = woop.shear;
         let (akz, bkz, ckz) = (pick(a, 2), pick(b, 2), pick(c, 2));
         let ax = (pick(a, 0) - sx * akz).widen();
         let ay = (pick(a, 1) - sy * akz).widen();
@@ -314,7 +307,15 @@ impl Bvh {
         if node.count[slot] == 0 {
             return 0;
         }
-        let through = packet.hit_box(node, slot) & lanes;
+        // Each lane's own `Ray::hit_boxes`.
+        let rel = Rel::new(node, &packet.org);
+        let mut through = 0;
+        let mut l = lanes;
+        while l != 0 {
+            let lane = l.trailing_zeros();
+            l &= l - 1;
+            through |= (packet.rays[lane as usize].hit_boxes_rel(node, &rel) >> slot & 1) << lane;
+        }
         if through == 0 {
             return 0;
         }
