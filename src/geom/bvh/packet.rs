@@ -2,8 +2,12 @@
 //!
 //! The reference's rays of one receiver share their origin and point at
 //! one light, so they are coherent: [`Bvh::occluded_bundle`] walks the tree
-//! once per packet of [`PACKET`] rays, testing each child box and each
-//! leaf triangle against all eight in `f32x8` / `f64x4` lanes.
+//! once per packet of [`PACKET`] rays, the stack carrying lane masks: at
+//! each node every live lane runs its own single-ray test of the four
+//! child boxes (`Ray::hit_boxes_rel`, the bounds minus the shared origin
+//! computed once), and a leaf is tested lane by lane with the single-ray
+//! triangle test when few lanes reach it, else against all eight in
+//! `f32x8` / `f64x4` lanes.
 //!
 //! **Same answer as one ray at a time, bit for bit.** Every lane performs
 //! exactly the arithmetic [`Bvh::occluded`] performs for that ray: the
@@ -20,9 +24,9 @@
 //! two against each other ray by ray.
 
 use super::{Bvh, Node, Ray, Rel, STACK};
-use std::cell::OnceCell;
 use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
+use std::cell::OnceCell;
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
