@@ -483,7 +483,35 @@ fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
     i
 }
 
+/// A node's child bounds minus a ray origin, per axis: the first step of
+/// the slab test, the same for every ray from that origin.
+struct Rel {
+    lo: [f32x4; 3],
+    hi: [f32x4; 3],
+}
+
+impl Rel {
+    /// `node.lo − org`, `node.hi − org` (`org` splatted per axis).
+    #[inline]
+    fn new(node: &Node, org: &[f32x4; 3]) -> Rel {
+        Rel {
+            // Written out: `[0, 1, 2].map` is not unrolled here.
+            lo: [
+                f32x4::new(node.lo[0]) - org[0],
+                f32x4::new(node.lo[1]) - org[1],
+                f32x4::new(node.lo[2]) - org[2],
+            ],
+            hi: [
+                f32x4::new(node.hi[0]) - org[0],
+                f32x4::new(node.hi[1]) - org[1],
+                f32x4::new(node.hi[2]) - org[2],
+            ],
+        }
+    }
+}
+
 /// A ray prepared for box and watertight triangle tests.
+#[derive(Clone, Copy)]
 struct Ray {
     origin: Vec3,
     t_max: f32,
@@ -493,6 +521,8 @@ struct Ray {
     /// Axes along which the direction is exactly 0: there the slab is
     /// everything or nothing, decided by comparing the origin with the box.
     parallel: [bool; 3],
+    /// Whether any of `parallel` is set (the slab-only loop otherwise).
+    any_parallel: bool,
     /// Watertight test: the dominant axis `kz` and the two others
     /// (swapped when `dir[kz] < 0` to keep the winding), and the shear.
     k: [usize; 3],
@@ -500,7 +530,20 @@ struct Ray {
 }
 
 impl Ray {
+    /// A placeholder for unused packet lanes (never tested).
+    const UNUSED: Ray = Ray {
+        origin: Vec3::ZERO,
+        t_max: 0.0,
+        org: [f32x4::ZERO; 3],
+        inv: [f32x4::ZERO; 3],
+        parallel: [false; 3],
+        any_parallel: false,
+        k: [0, 1, 2],
+        shear: Vec3::ZERO,
+    };
+
     /// `None` for a direction that is zero or not finite.
+    #[inline(always)]
     fn new(origin: Vec3, dir: Vec3, t_max: f32) -> Option<Ray> {
         if !(dir.is_finite() && origin.is_finite() && dir != Vec3::ZERO) {
             return None;
@@ -525,9 +568,19 @@ impl Ray {
         Some(Ray {
             origin,
             t_max,
-            org: [0, 1, 2].map(|i| f32x4::splat(origin[i])),
-            inv: [0, 1, 2].map(|i| f32x4::splat(inv(dir[i]))),
-            parallel: [0, 1, 2].map(|i| dir[i] == 0.0),
+            // Written out: `[0, 1, 2].map` is not unrolled here.
+            org: [
+                f32x4::splat(origin.x),
+                f32x4::splat(origin.y),
+                f32x4::splat(origin.z),
+            ],
+            inv: [
+                f32x4::splat(inv(dir.x)),
+                f32x4::splat(inv(dir.y)),
+                f32x4::splat(inv(dir.z)),
+            ],
+            parallel: [dir.x == 0.0, dir.y == 0.0, dir.z == 0.0],
+            any_parallel: dir.cmpeq(Vec3::ZERO).any(),
             k: [kx, ky, kz],
             shear: Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]),
         })
@@ -536,21 +589,39 @@ impl Ray {
     /// Bit mask of the node's children whose box the segment may touch.
     #[inline]
     fn hit_boxes(&self, node: &Node) -> u32 {
+        self.hit_boxes_rel(node, &Rel::new(node, &self.org))
+    }
+
+    /// [`Ray::hit_boxes`] given the node's bounds relative to the ray's
+    /// origin (`Rel::new(node, &self.org)`, or the same values computed
+    /// once for several rays from this origin).
+    #[inline(always)]
+    fn hit_boxes_rel(&self, node: &Node, rel: &Rel) -> u32 {
         let mut near = f32x4::splat(0.0);
         let mut far = f32x4::splat(self.t_max);
+        if !self.any_parallel {
+            // The loop below with every `parallel[axis]` false.
+            for axis in 0..3 {
+                let t0 = rel.lo[axis] * self.inv[axis];
+                let t1 = rel.hi[axis] * self.inv[axis];
+                near = near.max(t0.min(t1));
+                far = far.min(t0.max(t1));
+            }
+            return near.cmp_le(far * f32x4::splat(FAR_SCALE)).move_mask();
+        }
         let mut inside = 0xf;
         for axis in 0..3 {
-            let lo = f32x4::new(node.lo[axis]);
-            let hi = f32x4::new(node.hi[axis]);
             if self.parallel[axis] {
                 // The ray stays in the plane `origin[axis]`: the box's slab
                 // contains all of it or none (faces included).
+                let lo = f32x4::new(node.lo[axis]);
+                let hi = f32x4::new(node.hi[axis]);
                 let o = self.org[axis];
                 inside &= (lo.cmp_le(o) & o.cmp_le(hi)).move_mask();
                 continue;
             }
-            let t0 = (lo - self.org[axis]) * self.inv[axis];
-            let t1 = (hi - self.org[axis]) * self.inv[axis];
+            let t0 = rel.lo[axis] * self.inv[axis];
+            let t1 = rel.hi[axis] * self.inv[axis];
             // No NaN can occur (see `Ray::new`).
             near = near.max(t0.min(t1));
             far = far.min(t0.max(t1));
@@ -565,9 +636,10 @@ impl Ray {
     fn intersect(&self, tri: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
         let [kx, ky, kz] = self.k;
         let s = self.shear;
-        let a = tri[0] - self.origin;
-        let b = tri[1] - self.origin;
-        let c = tri[2] - self.origin;
+        // Arrays: indexing a `Vec3` by a run-time axis is a match.
+        let a = (tri[0] - self.origin).to_array();
+        let b = (tri[1] - self.origin).to_array();
+        let c = (tri[2] - self.origin).to_array();
         // Shear into ray space: each vertex transformed on its own, so a
         // vertex shared by two triangles gets the same coordinates in both.
         let (ax, ay) = (a[kx] - s.x * a[kz], a[ky] - s.y * a[kz]);

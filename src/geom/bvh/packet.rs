@@ -2,8 +2,12 @@
 //!
 //! The reference's rays of one receiver share their origin and point at
 //! one light, so they are coherent: [`Bvh::occluded_bundle`] walks the tree
-//! once per packet of [`PACKET`] rays, testing each child box and each
-//! leaf triangle against all eight in `f32x8` / `f64x4` lanes.
+//! once per packet of [`PACKET`] rays, the stack carrying lane masks: at
+//! each node every live lane runs its own single-ray test of the four
+//! child boxes (`Ray::hit_boxes_rel`, the bounds minus the shared origin
+//! computed once), and a leaf is tested lane by lane with the single-ray
+//! triangle test when few lanes reach it, else against all eight in
+//! `f32x8` / `f64x4` lanes.
 //!
 //! **Same answer as one ray at a time, bit for bit.** Every lane performs
 //! exactly the arithmetic [`Bvh::occluded`] performs for that ray: the
@@ -19,9 +23,10 @@
 //! which an "any hit" answer does not see. `tests/reference.rs` holds the
 //! two against each other ray by ray.
 
-use super::{Bvh, Node, FAR_SCALE, STACK};
-use crate::simd::{f32x8, f64x4};
+use super::{Bvh, Node, Ray, Rel, STACK};
+use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
+use std::cell::OnceCell;
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
@@ -29,24 +34,29 @@ pub const PACKET: usize = 8;
 /// All eight lanes.
 const ALL: u32 = (1 << PACKET) - 1;
 
+/// A leaf reached by at most this many lanes is tested with the
+/// single-ray triangle test lane by lane; the eight-lane test costs about
+/// as much as four single ones.
+const SCALAR_LANES: u32 = 3;
+
 /// Up to eight rays from one origin, as lanes.
 struct Packet {
     origin: Vec3,
     /// Lanes holding a usable ray (finite, non-zero direction).
     valid: u32,
     t_max: f32,
-    /// Slab test: inverse direction per axis, and the mask of lanes whose
-    /// direction is exactly 0 along it (with whether any lane is).
-    inv: [f32x8; 3],
-    parallel: [f32x8; 3],
-    any_parallel: [bool; 3],
-    /// Watertight test: for `kx`, `ky`, `kz`, the masks "k = 0" and
-    /// "k = 1" (else 2), and the shear.
-    pick: [[f32x8; 2]; 3],
-    /// `Some([kx, ky, kz])` when every valid lane has the same axes (the
-    /// usual case): the picks are then plain indexing, no blends.
-    uniform: Option<[usize; 3]>,
-    shear: [f32x8; 3],
+    /// The lanes' directions per axis (1 in unused lanes).
+    d: [[f32; PACKET]; 3],
+    /// The eight-lane triangle test's constants, built on first use (many
+    /// packets reach only leaves that few lanes reach).
+    woop: OnceCell<Woop>,
+    /// Each valid lane's own single-ray constants (`Ray::new`; invalid
+    /// lanes hold `Ray::UNUSED` and are never read): the box test
+    /// runs ray by ray against a node's four children, and leaves reached
+    /// by few lanes use the single-ray triangle test itself.
+    rays: [Ray; PACKET],
+    /// The origin splatted per axis (`Ray::org` of every lane).
+    org: [f32x4; 3],
 }
 
 impl Packet {
@@ -56,22 +66,59 @@ impl Packet {
     fn new(origin: Vec3, dirs: &[Vec3], t_max: f32) -> Packet {
         let mut valid = 0;
         let mut d = [[1.0f32; PACKET]; 3];
-        if origin.is_finite() {
-            for (lane, &dir) in dirs.iter().enumerate().take(PACKET) {
-                // `Ray::new`'s refusal: a zero or non-finite direction.
-                if dir.is_finite() && dir != Vec3::ZERO {
+        let rays: [Ray; PACKET] = std::array::from_fn(|lane| {
+            // `Ray::new`'s refusal: a zero or non-finite direction or
+            // origin.
+            match dirs.get(lane).and_then(|&dir| Ray::new(origin, dir, t_max)) {
+                Some(ray) => {
                     valid |= 1 << lane;
                     for axis in 0..3 {
-                        d[axis][lane] = dir[axis];
+                        d[axis][lane] = dirs[lane][axis];
                     }
+                    ray
                 }
+                None => Ray::UNUSED,
             }
+        });
+        Packet {
+            origin,
+            valid,
+            t_max,
+            d,
+            woop: OnceCell::new(),
+            rays,
+            org: [
+                f32x4::splat(origin.x),
+                f32x4::splat(origin.y),
+                f32x4::splat(origin.z),
+            ],
         }
+    }
+
+    /// The eight-lane triangle test's constants.
+    #[inline]
+    fn woop(&self) -> &Woop {
+        self.woop.get_or_init(|| Woop::new(&self.d, self.valid))
+    }
+}
+
+/// The watertight test's per-lane constants, as `Ray::new` computes them
+/// (the same IEEE operations, the same dominant-axis rule).
+struct Woop {
+    /// For `kx`, `ky`, `kz`, the masks "k = 0" and "k = 1" (else 2).
+    pick: [[f32x8; 2]; 3],
+    /// `Some([kx, ky, kz])` when every valid lane has the same axes (the
+    /// usual case): the picks are then plain indexing, no blends.
+    uniform: Option<[usize; 3]>,
+    shear: [f32x8; 3],
+}
+
+impl Woop {
+    /// The constants of the lanes `valid` of directions `d`.
+    fn new(d: &[[f32; PACKET]; 3], valid: u32) -> Woop {
         let [dx, dy, dz] = d.map(f32x8::new);
         let one = f32x8::splat(1.0);
-        let (zero, max, min) = (f32x8::ZERO, f32x8::splat(f32::MAX), f32x8::splat(-f32::MAX));
-        let inv = [dx, dy, dz].map(|c| (one / c).max(min).min(max));
-        let parallel = [dx, dy, dz].map(|c| c.cmp_eq(zero));
+        let zero = f32x8::ZERO;
         // kz: x if |x| ≥ |y| and |x| ≥ |z|, else y if |y| ≥ |z|, else z.
         let (ax, ay, az) = (dx.abs(), dy.abs(), dz.abs());
         let z0 = ax.cmp_ge(ay) & ax.cmp_ge(az);
@@ -100,49 +147,15 @@ impl Packet {
             }
             Some(k)
         })();
-        Packet {
-            origin,
-            valid,
-            t_max,
-            inv,
-            any_parallel: parallel.map(|m| m.move_mask() & valid != 0),
-            parallel,
+        Woop {
             pick,
             uniform,
             shear,
         }
     }
+}
 
-    /// Lanes whose segment may touch child `slot`'s box (as
-    /// `Ray::hit_boxes` decides it for each lane's ray).
-    #[inline]
-    fn hit_box(&self, node: &Node, slot: usize) -> u32 {
-        let mut near = f32x8::splat(0.0);
-        let mut far = f32x8::splat(self.t_max);
-        let mut outside = f32x8::ZERO;
-        for axis in 0..3 {
-            let (lo, hi) = (node.lo[axis][slot], node.hi[axis][slot]);
-            let o = self.origin[axis];
-            let t0 = f32x8::splat(lo - o) * self.inv[axis];
-            let t1 = f32x8::splat(hi - o) * self.inv[axis];
-            let n = near.max(t0.min(t1));
-            let f = far.min(t0.max(t1));
-            if self.any_parallel[axis] {
-                let par = self.parallel[axis];
-                near = par.blend(near, n);
-                far = par.blend(far, f);
-                if !(lo <= o && o <= hi) {
-                    outside |= par;
-                }
-            } else {
-                near = n;
-                far = f;
-            }
-        }
-        let hit = near.cmp_le(far * f32x8::splat(FAR_SCALE)) & !outside;
-        hit.move_mask()
-    }
-
+impl Packet {
     /// Lanes that `Ray::intersect` would find hitting `tri`.
     #[inline]
     fn hit_triangle(&self, tri: &[Vec3; 3]) -> u32 {
@@ -151,17 +164,18 @@ impl Packet {
         let c = tri[2] - self.origin;
         // The same values either way on every valid lane (the only lanes
         // the caller reads).
-        let pick = |v: Vec3, k: usize| match self.uniform {
+        let woop = self.woop();
+        let pick = |v: Vec3, k: usize| match woop.uniform {
             Some(axes) => f32x8::splat(v[axes[k]]),
             None => {
-                let [is0, is1] = self.pick[k];
+                let [is0, is1] = woop.pick[k];
                 is0.blend(
                     f32x8::splat(v.x),
                     is1.blend(f32x8::splat(v.y), f32x8::splat(v.z)),
                 )
             }
         };
-        let [sx, sy, sz] = self.shear;
+        let [sx, sy, sz] = woop.shear;
         let (akz, bkz, ckz) = (pick(a, 2), pick(b, 2), pick(c, 2));
         let ax = (pick(a, 0) - sx * akz).widen();
         let ay = (pick(a, 1) - sy * akz).widen();
@@ -240,37 +254,44 @@ impl Bvh {
         while top > 0 {
             top -= 1;
             let (index, lanes) = stack[top];
-            let lanes = lanes & !hit;
+            let mut lanes = lanes & !hit;
             if lanes == 0 {
                 continue;
             }
             let Some(node) = self.nodes.get(index as usize) else {
                 continue;
             };
-            for slot in 0..4 {
+            // Ray by ray against the four children (exactly
+            // `Ray::hit_boxes`, the bounds minus the shared origin computed
+            // once); byte `slot` of `through` collects the lanes passing
+            // child `slot`.
+            let rel = Rel::new(node, &packet.org);
+            let mut through = 0u32;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros();
+                lanes &= lanes - 1;
+                let m = packet.rays[lane as usize].hit_boxes_rel(node, &rel);
+                // Bit `s` of the 4-bit `m` to bit `8 s`.
+                through |= ((m * 0x0020_4081) & 0x0101_0101) << lane;
+            }
+            while through != 0 {
+                let slot = (through.trailing_zeros() / 8) as usize;
+                let pass = (through >> (8 * slot)) & ALL & !hit;
+                through &= !(0xff << (8 * slot));
+                if pass == 0 {
+                    continue;
+                }
                 let count = node.count[slot] as usize;
-                if count == 0 && node.child[slot] == u32::MAX {
-                    // An empty slot: its box (the point at +∞) meets no ray.
-                    continue;
-                }
-                let live = lanes & !hit;
-                if live == 0 {
-                    break;
-                }
-                let through = packet.hit_box(node, slot) & live;
-                if through == 0 {
-                    continue;
-                }
                 if count == 0 {
                     // Cannot overflow (see `STACK`); the check only keeps
                     // the index provably in bounds.
                     if top < STACK {
-                        stack[top] = (node.child[slot], through);
+                        stack[top] = (node.child[slot], pass);
                         top += 1;
                     }
                     continue;
                 }
-                let found = self.triangle_hits(packet, node, slot, through);
+                let found = self.triangle_hits(packet, node, slot, pass);
                 if found != 0 {
                     hit |= found;
                     *last = Some((index, slot));
@@ -290,7 +311,15 @@ impl Bvh {
         if node.count[slot] == 0 {
             return 0;
         }
-        let through = packet.hit_box(node, slot) & lanes;
+        // Each lane's own `Ray::hit_boxes`.
+        let rel = Rel::new(node, &packet.org);
+        let mut through = 0;
+        let mut l = lanes;
+        while l != 0 {
+            let lane = l.trailing_zeros();
+            l &= l - 1;
+            through |= (packet.rays[lane as usize].hit_boxes_rel(node, &rel) >> slot & 1) << lane;
+        }
         if through == 0 {
             return 0;
         }
@@ -306,6 +335,19 @@ impl Bvh {
             return 0;
         };
         let mut hit = 0;
+        if through.count_ones() <= SCALAR_LANES {
+            // Few lanes: the single-ray test itself, lane by lane.
+            let mut lanes = through;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros();
+                lanes &= lanes - 1;
+                let ray = &packet.rays[lane as usize];
+                if tris.iter().any(|tri| ray.intersect(tri).is_some()) {
+                    hit |= 1 << lane;
+                }
+            }
+            return hit;
+        }
         for tri in tris {
             hit |= packet.hit_triangle(tri) & through;
             if through & !hit == 0 {
