@@ -23,7 +23,7 @@ use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
 use super::receiver::{GroupPass, LightPass, PixelResult, Scratch};
 use super::region::RegionBound;
-use super::ties::{tied_pixels, ExactStart};
+use super::ties::{own_face_change, tied_pixels, ExactStart, Tie};
 use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
@@ -104,42 +104,64 @@ pub(super) fn group_starts<'a>(
 
 /// Depth ties of the start counts ([`ties`](super::ties)), recounted in
 /// `groups` exactly at the shadow-ray origin by one ray to the centre
-/// `point`; per pixel, whether it was. Only in the exact mode
+/// `point`; per pixel, its [`Tie`] (after the recount, [`Tie::Tied`]
+/// means recounted), and the exact counter the counter pass uses for
+/// own-face ties at a quad (see `receiver.rs`). Only in the exact mode
 /// (whole-light silhouettes), where per-sample counts are meant to equal
 /// ray casting; the fast centre mode keeps the thesis's approximations
 /// and the stencil's constant.
-pub(super) fn recount_ties(
-    ctx: &ShadowContext,
+pub(super) fn recount_ties<'a>(
+    ctx: &ShadowContext<'a>,
     k: usize,
     point: Vec3,
     groups: &mut [GroupStart],
     mode: SilhouetteMode,
     passes: &mut Vec<PassTiming>,
-) -> Result<Vec<bool>> {
+) -> Result<(Vec<Tie>, ExactStart<'a>)> {
     let t = PassTimer::start(format!("start-count ties light {k}"));
-    let mut tied = vec![false; ctx.gbuffer.len()];
+    let mut tied = vec![Tie::None; ctx.gbuffer.len()];
+    let lits: Vec<Vec<bool>> = groups.iter().map(|g| faces_point(g.adj, point)).collect();
     if mode == SilhouetteMode::WholeLight {
-        for group in groups.iter() {
-            for (a, b) in
-                tied.iter_mut()
-                    .zip(tied_pixels(ctx.depth, &group.volume, &group.counts, true)?)
-            {
-                *a |= b;
+        // Per scene triangle: the group it is a cap of, and its stencil
+        // weight there (closed casters: light-facing; open: every face).
+        let mut cap = vec![(usize::MAX, 0); ctx.geometry.triangles.len()];
+        for (k, (group, lit)) in groups.iter().zip(&lits).enumerate() {
+            for (slot, &f) in group.adj.faces.iter().enumerate() {
+                let weight = if group.adj.face_closed[slot] {
+                    i32::from(lit[slot])
+                } else {
+                    1
+                };
+                cap[f as usize] = (k, weight);
+            }
+        }
+        for (k, group) in groups.iter().enumerate() {
+            let own_face = |i: usize| {
+                let g = ctx.gbuffer.sample(i);
+                match cap.get(g.triangle as usize) {
+                    Some(&(c, weight)) if c == k => {
+                        own_face_change(weight, g.geo_normal, g.position, point)
+                    }
+                    _ => Some(0),
+                }
+            };
+            let group_tied = tied_pixels(ctx.depth, &group.volume, &group.counts, true, own_face)?;
+            for (a, b) in tied.iter_mut().zip(group_tied) {
+                *a = (*a).max(b);
             }
         }
     }
-    let mut exact_start = vec![false; tied.len()];
+    let sets: Vec<(&EdgeAdjacency, &[bool])> = groups
+        .iter()
+        .zip(&lits)
+        .map(|(g, lit)| (g.adj, lit.as_slice()))
+        .collect();
+    let exact = ExactStart::new(ctx.geometry, &sets);
     let tied_surface: Vec<usize> = (0..tied.len())
-        .filter(|&i| tied[i] && ctx.gbuffer.is_surface(i))
+        .filter(|&i| tied[i] == Tie::Tied && ctx.gbuffer.is_surface(i))
         .collect();
     if !tied_surface.is_empty() {
-        let lits: Vec<Vec<bool>> = groups.iter().map(|g| faces_point(g.adj, point)).collect();
-        let sets: Vec<(&EdgeAdjacency, &[bool])> = groups
-            .iter()
-            .zip(&lits)
-            .map(|(g, lit)| (g.adj, lit.as_slice()))
-            .collect();
-        let exact = ExactStart::new(ctx.geometry, &sets);
+        let exact = &exact;
         let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
         let n_groups = groups.len();
         let fixes: Vec<(usize, Vec<i32>)> = tied_surface
@@ -155,11 +177,17 @@ pub(super) fn recount_ties(
             for (group, c) in groups.iter_mut().zip(counts) {
                 group.counts[i] = c;
             }
-            exact_start[i] = true;
         }
     }
-    t.finish_with(passes, format!("{} receivers", tied_surface.len()));
-    Ok(exact_start)
+    let own = tied.iter().filter(|&&t| t == Tie::OwnFace).count();
+    t.finish_with(
+        passes,
+        format!(
+            "{} receivers recounted, {own} on their own face",
+            tied_surface.len()
+        ),
+    );
+    Ok((tied, exact))
 }
 
 /// Every group's candidate edges from `light` (centre `point`) in
