@@ -152,6 +152,41 @@ impl<'a> ExactStart<'a> {
         }
     }
 
+    /// The BVH over the groups' faces, built on first use.
+    fn bvh(&self) -> &Bvh {
+        self.bvh
+            .get_or_init(|| Bvh::build(self.geometry, |t| self.table[t as usize] != NONE))
+    }
+
+    /// Does a cap face (a face of weight 1 in its group) other than
+    /// triangle `own` come near receiver `p` between the stencil's point
+    /// and the shadow-ray origin `origin`? Two short segments are tested:
+    /// from `p` towards the eye `eye` over twice the tie test's depth band
+    /// (past the nearer point the tie test counted at), and from `p` to
+    /// `origin`, each extended by half its length behind `p` and half
+    /// beyond its end (the extensions only ever add a `true`).
+    ///
+    /// Why this makes an own-face tie exact ([`Tie::OwnFace`]): the
+    /// nearer count `c(p_n)` equals the stencil's (the tie test), and the
+    /// count at `p'` differs from it by the signed crossings of volume
+    /// faces along any path from `p_n` to `p'`; the path `p_n → p⁺ → p'`
+    /// (`p⁺` on the eye's side of the own face, at `p`) lies within the
+    /// two segments and crosses neither the own face nor, when this is
+    /// `false`, any other cap. Side quads are the counter pass's concern
+    /// (the quad correction, or a ray where it meets an own-face tie).
+    pub fn cap_near(&self, own: u32, p: Vec3, origin: Vec3, eye: Vec3) -> bool {
+        let to_eye = (eye - p) * (2.0 * DEPTH_BAND);
+        let bvh = self.bvh();
+        [to_eye, origin - p].into_iter().any(|d| {
+            let mut near = false;
+            bvh.for_each_hit(p - d * 0.5, d * 2.0, 1.0, |h| {
+                let e = self.table[h.triangle as usize];
+                near |= h.triangle != own && e != NONE && e & 1 == 1;
+            });
+            near
+        })
+    }
+
     /// The start count of each group at `origin` for the light centre
     /// `centre`, into `out` (one entry per group).
     pub fn counts(&self, origin: Vec3, centre: Vec3, out: &mut [i32]) {
@@ -159,10 +194,7 @@ impl<'a> ExactStart<'a> {
         let dir = centre - origin;
         // Stop just short of the centre, as the reference's rays do.
         let t_max = (1.0 - crate::shadow::kit::rays::END_SHORTEN) as f32;
-        let bvh = self
-            .bvh
-            .get_or_init(|| Bvh::build(self.geometry, |t| self.table[t as usize] != NONE));
-        bvh.for_each_hit(origin, dir, t_max, |h| {
+        self.bvh().for_each_hit(origin, dir, t_max, |h| {
             let e = self.table[h.triangle as usize];
             if e != NONE {
                 if let Some(c) = out.get_mut((e >> 1) as usize) {
