@@ -306,7 +306,14 @@ impl DepthComplexitySampling {
             inspect: inspect.map(|i| i.0),
             inspect_pixels: inspect.and_then(|i| i.1),
         };
-        let results = count_tiles(&pass, grid, &mut tiles, &wedges.unbounded, stsv.as_ref());
+        let results = count_tiles(
+            &pass,
+            grid,
+            &mut tiles,
+            &wedges.unbounded,
+            &wedges.clusters,
+            stsv.as_ref(),
+        );
         t.finish(passes);
 
         let with_radiance = self.mode == DcsMode::Direct || pass.prepared.is_textured();

@@ -264,6 +264,22 @@ pub(super) struct UnboundedEdge {
     region: RegionBound,
 }
 
+/// Unbounded edges per [`EdgeCluster`] (consecutive in id order, which
+/// follows the meshes' own order and so is spatially coherent).
+const CLUSTER: usize = 32;
+
+/// A run of [`CLUSTER`] consecutive unbounded edges culled together (the
+/// edge hierarchy of Laine et al. 2005, one level): the union of their
+/// screen rectangles and a world-space bound holding all their regions
+/// ([`RegionBound::around_box`]), so that a tile rejects the whole run by
+/// one test. Conservative: every edge it lets through is still tested
+/// alone, so the edges reaching a receiver are the same.
+pub(super) struct EdgeCluster {
+    edges: std::ops::Range<usize>,
+    rect: [usize; 4],
+    region: RegionBound,
+}
+
 /// One light's wedges over every group's candidate edges.
 pub(super) struct LightWedges {
     /// Both wedge sets.
@@ -274,6 +290,8 @@ pub(super) struct LightWedges {
     pub zpass_edge: Vec<u32>,
     /// Edges without a bounded wedge, tested per receiver instead.
     pub unbounded: Vec<UnboundedEdge>,
+    /// The unbounded edges' clusters, in order.
+    pub clusters: Vec<EdgeCluster>,
 }
 
 /// The wedge of every candidate edge of `groups` from the light `bound`
@@ -288,6 +306,7 @@ pub(super) fn build_wedges(
     let mut wedges = Wedges::default();
     let (mut zfail_edge, mut zpass_edge) = (Vec::new(), Vec::new());
     let mut unbounded = Vec::new();
+    let mut ends: Vec<(DVec3, DVec3)> = Vec::new();
     let corners = light_corners(bound);
     // Receivers' positions round at f32 and move by the shadow-ray
     // offset (≤ 1e-5 relative): a generous slack keeps the test
@@ -324,17 +343,41 @@ pub(super) fn build_wedges(
                     rect: fallback_rect(ctx.view, e, bound),
                     region,
                 });
+                ends.push((e.v0, e.v1));
                 continue;
             }
             zfail_edge.resize(wedges.zfail.halves.len(), id);
             zpass_edge.resize(wedges.zpass.halves.len(), id);
         }
     }
+    let clusters = (0..unbounded.len())
+        .step_by(CLUSTER)
+        .map(|first| {
+            let edges = first..(first + CLUSTER).min(unbounded.len());
+            let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+            let mut rect = [usize::MAX, usize::MAX, 0, 0];
+            for (u, &(v0, v1)) in unbounded[edges.clone()].iter().zip(&ends[edges.clone()]) {
+                (lo, hi) = (lo.min(v0).min(v1), hi.max(v0).max(v1));
+                rect = [
+                    rect[0].min(u.rect[0]),
+                    rect[1].min(u.rect[1]),
+                    rect[2].max(u.rect[2]),
+                    rect[3].max(u.rect[3]),
+                ];
+            }
+            EdgeCluster {
+                edges,
+                rect,
+                region: RegionBound::around_box(lo, hi, &corners, slack),
+            }
+        })
+        .collect();
     LightWedges {
         wedges,
         zfail_edge,
         zpass_edge,
         unbounded,
+        clusters,
     }
 }
 
@@ -517,6 +560,7 @@ pub(super) fn count_tiles(
     grid: TileGrid,
     tiles: &mut [PairTile],
     unbounded: &[UnboundedEdge],
+    clusters: &[EdgeCluster],
     stsv: Option<&StsvMembership>,
 ) -> Vec<TileResult> {
     tiles
@@ -525,6 +569,7 @@ pub(super) fn count_tiles(
         .map_init(Scratch::default, |scratch, (tile, t)| {
             let entries = std::mem::take(&mut t.data);
             let stsv_entries: &[u64] = stsv.map_or(&[], |m| &m.tiles[tile]);
+            let unbounded = (unbounded, clusters);
             tile_counters(pass, grid, tile, entries, unbounded, stsv_entries, scratch)
         })
         .collect()
@@ -540,19 +585,15 @@ fn unbounded_near<'u>(
     ctx: &ShadowContext,
     grid: TileGrid,
     tile: usize,
-    unbounded: &'u [UnboundedEdge],
+    (unbounded, clusters): (&'u [UnboundedEdge], &[EdgeCluster]),
 ) -> (Vec<&'u UnboundedEdge>, Vec<Vec<u32>>) {
     let (width, height) = (grid.width as usize, grid.height as usize);
     let (ox, oy) = grid.tile_origin(tile);
     let (ox, oy) = (ox as usize, oy as usize);
     let (tx1, ty1) = (ox + TILE_SIZE, oy + TILE_SIZE);
-    let mut near: Vec<&UnboundedEdge> = unbounded
-        .iter()
-        .filter(|u| {
-            let r = u.rect;
-            r[0] < tx1 && r[2] > ox && r[1] < ty1 && r[3] > oy
-        })
-        .collect();
+    let in_tile = |r: [usize; 4]| r[0] < tx1 && r[2] > ox && r[1] < ty1 && r[3] > oy;
+    let mut near: Vec<&UnboundedEdge> = Vec::new();
+    let on_screen: Vec<&EdgeCluster> = clusters.iter().filter(|c| in_tile(c.rect)).collect();
     let bbox = |x0: usize, y0: usize, size: usize| {
         let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for y in y0..(y0 + size).min(height) {
@@ -575,10 +616,18 @@ fn unbounded_near<'u>(
             && !u.region.excludes_box(b.0, b.1)
     };
     let mut block_edges: Vec<Vec<u32>> = vec![Vec::new(); PER_ROW * PER_ROW];
-    if !near.is_empty() {
-        match bbox(ox, oy, TILE_SIZE) {
-            Some(b) => near.retain(|u| !u.region.excludes_box(b.0, b.1)),
-            None => near.clear(),
+    if !on_screen.is_empty() {
+        if let Some(b) = bbox(ox, oy, TILE_SIZE) {
+            for c in on_screen {
+                if c.region.excludes_box(b.0, b.1) {
+                    continue;
+                }
+                near.extend(
+                    unbounded[c.edges.clone()]
+                        .iter()
+                        .filter(|u| in_tile(u.rect) && !u.region.excludes_box(b.0, b.1)),
+                );
+            }
         }
     }
     if near.is_empty() {
@@ -624,7 +673,7 @@ fn tile_counters(
     grid: TileGrid,
     tile: usize,
     mut entries: Vec<u64>,
-    unbounded: &[UnboundedEdge],
+    unbounded: (&[UnboundedEdge], &[EdgeCluster]),
     stsv_entries: &[u64],
     scratch: &mut Scratch,
 ) -> TileResult {

@@ -159,32 +159,33 @@ impl<'a> ExactStart<'a> {
     }
 
     /// Does a cap face (a face of weight 1 in its group) other than
-    /// triangle `own` come near receiver `p` between the stencil's point
-    /// and the shadow-ray origin `origin`? Two short segments are tested:
-    /// from `p` towards the eye `eye` over twice the tie test's depth band
-    /// (past the nearer point the tie test counted at), and from `p` to
-    /// `origin`, each extended by half its length behind `p` and half
-    /// beyond its end (the extensions only ever add a `true`).
+    /// triangle `own` cross the segment from `p_n` — receiver `p` moved
+    /// towards the eye `eye` as far as the tie test's nearer count moved
+    /// it (depth `d (1 + DEPTH_BAND)` with `d ∝ 1 / distance`) — to the
+    /// shadow-ray origin `origin`? The segment is extended by a quarter of
+    /// its length at both ends (the extensions only ever add a `true`).
     ///
     /// Why this makes an own-face tie exact ([`Tie::OwnFace`]): the
-    /// nearer count `c(p_n)` equals the stencil's (the tie test), and the
-    /// count at `p'` differs from it by the signed crossings of volume
-    /// faces along any path from `p_n` to `p'`; the path `p_n → p⁺ → p'`
-    /// (`p⁺` on the eye's side of the own face, at `p`) lies within the
-    /// two segments and crosses neither the own face nor, when this is
-    /// `false`, any other cap. Side quads are the counter pass's concern
-    /// (the quad correction, or a ray where it meets an own-face tie).
+    /// nearer count is the count at `p_n` (the tie test found it equal to
+    /// the stencil's), and the count at `p'` differs from it by the signed
+    /// crossings of volume faces along the segment `p_n → p'`. Both ends
+    /// lie on the eye's side of the own face's plane, so the segment does
+    /// not cross the own face; when this is `false` it crosses no other
+    /// cap either. Side quads are the counter pass's concern (the quad
+    /// correction, or a ray where it meets an own-face tie).
     pub fn cap_near(&self, own: u32, p: Vec3, origin: Vec3, eye: Vec3) -> bool {
-        let to_eye = (eye - p) * (2.0 * DEPTH_BAND);
-        let bvh = self.bvh();
-        [to_eye, origin - p].into_iter().any(|d| {
-            let mut near = false;
-            bvh.for_each_hit(p - d * 0.5, d * 2.0, 1.0, |h| {
+        let (p, origin, eye) = (p.as_dvec3(), origin.as_dvec3(), eye.as_dvec3());
+        let band = f64::from(DEPTH_BAND);
+        let p_n = p + (eye - p) * (band / (1.0 + band));
+        let d = origin - p_n;
+        let start = (p_n - d * 0.25).as_vec3();
+        let mut near = false;
+        self.bvh()
+            .for_each_hit(start, (d * 1.5).as_vec3(), 1.0, |h| {
                 let e = self.table[h.triangle as usize];
                 near |= h.triangle != own && e != NONE && e & 1 == 1;
             });
-            near
-        })
+        near
     }
 
     /// The start count of each group at `origin` for the light centre
