@@ -616,17 +616,21 @@ fn unbounded_near<'u>(
             && !u.region.excludes_box(b.0, b.1)
     };
     let mut block_edges: Vec<Vec<u32>> = vec![Vec::new(); PER_ROW * PER_ROW];
+    // The clusters the tile keeps, each with its run of `near`.
+    let mut kept: Vec<(&EdgeCluster, std::ops::Range<u32>)> = Vec::new();
     if !on_screen.is_empty() {
         if let Some(b) = bbox(ox, oy, TILE_SIZE) {
             for c in on_screen {
                 if c.region.excludes_box(b.0, b.1) {
                     continue;
                 }
+                let first = near.len() as u32;
                 near.extend(
                     unbounded[c.edges.clone()]
                         .iter()
                         .filter(|u| in_tile(u.rect) && !u.region.excludes_box(b.0, b.1)),
                 );
+                kept.push((c, first..near.len() as u32));
             }
         }
     }
@@ -639,7 +643,19 @@ fn unbounded_near<'u>(
             let Some(b) = bbox(x0, y0, OUTER) else {
                 continue;
             };
-            let outer: Vec<u32> = (0..near.len() as u32)
+            // Clusters first, then their edges (ascending, as `near`).
+            let outer: Vec<u32> = kept
+                .iter()
+                .filter(|(c, run)| {
+                    let r = c.rect;
+                    !run.is_empty()
+                        && r[0] < x0 + OUTER
+                        && r[2] > x0
+                        && r[1] < y0 + OUTER
+                        && r[3] > y0
+                        && !c.region.excludes_box(b.0, b.1)
+                })
+                .flat_map(|(_, run)| run.clone())
                 .filter(|&k| keeps(near[k as usize], x0, y0, OUTER, b))
                 .collect();
             if outer.is_empty() {
