@@ -274,7 +274,7 @@ impl DepthComplexitySampling {
         let start = light_start(ctx, k, passes)?;
         let (bound, point) = (start.bound, start.point);
         let (mut starts, mut framebuffer) = group_starts(ctx, k, start, casters.partial, passes)?;
-        let exact_start = recount_ties(ctx, k, point, &mut starts, self.silhouettes, passes)?;
+        let (ties, exact) = recount_ties(ctx, k, point, &mut starts, self.silhouettes, passes)?;
         let (groups, wedges) = timed(passes, format!("wedge build light {k}"), || {
             let groups = candidate_edges(light, point, self, starts);
             let wedges = build_wedges(ctx, &bound, point, &groups);
@@ -300,12 +300,20 @@ impl DepthComplexitySampling {
             groups: &groups,
             tables: &tables,
             s_triangles: (!s_triangles.is_empty()).then_some(s_triangles),
-            exact_start: &exact_start,
+            ties: &ties,
+            exact: &exact,
             origin: ShadowOrigin::new(ctx.scene, ctx.geometry),
             inspect: inspect.map(|i| i.0),
             inspect_pixels: inspect.and_then(|i| i.1),
         };
-        let results = count_tiles(&pass, grid, &mut tiles, &wedges.unbounded, stsv.as_ref());
+        let results = count_tiles(
+            &pass,
+            grid,
+            &mut tiles,
+            &wedges.unbounded,
+            &wedges.clusters,
+            stsv.as_ref(),
+        );
         t.finish(passes);
 
         let with_radiance = self.mode == DcsMode::Direct || pass.prepared.is_textured();

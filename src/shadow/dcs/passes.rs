@@ -23,7 +23,7 @@ use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
 use super::receiver::{GroupPass, LightPass, PixelResult, Scratch};
 use super::region::RegionBound;
-use super::ties::{tied_pixels, ExactStart};
+use super::ties::{own_face_change, tied_pixels, ExactStart, Tie};
 use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
@@ -104,43 +104,86 @@ pub(super) fn group_starts<'a>(
 
 /// Depth ties of the start counts ([`ties`](super::ties)), recounted in
 /// `groups` exactly at the shadow-ray origin by one ray to the centre
-/// `point`; per pixel, whether it was. Only in the exact mode
+/// `point`; per pixel, its [`Tie`] (after the recount, [`Tie::Tied`]
+/// means recounted), and the exact counter the counter pass uses for
+/// own-face ties at a quad (see `receiver.rs`). Only in the exact mode
 /// (whole-light silhouettes), where per-sample counts are meant to equal
 /// ray casting; the fast centre mode keeps the thesis's approximations
 /// and the stencil's constant.
-pub(super) fn recount_ties(
-    ctx: &ShadowContext,
+pub(super) fn recount_ties<'a>(
+    ctx: &ShadowContext<'a>,
     k: usize,
     point: Vec3,
     groups: &mut [GroupStart],
     mode: SilhouetteMode,
     passes: &mut Vec<PassTiming>,
-) -> Result<Vec<bool>> {
+) -> Result<(Vec<Tie>, ExactStart<'a>)> {
     let t = PassTimer::start(format!("start-count ties light {k}"));
-    let mut tied = vec![false; ctx.gbuffer.len()];
+    let mut tied = vec![Tie::None; ctx.gbuffer.len()];
+    let lits: Vec<Vec<bool>> = groups.iter().map(|g| faces_point(g.adj, point)).collect();
     if mode == SilhouetteMode::WholeLight {
-        for group in groups.iter() {
-            for (a, b) in
-                tied.iter_mut()
-                    .zip(tied_pixels(ctx.depth, &group.volume, &group.counts, true)?)
-            {
-                *a |= b;
+        // Per scene triangle: the group it is a cap of, and its stencil
+        // weight there (closed casters: light-facing; open: every face).
+        let mut cap = vec![(usize::MAX, 0); ctx.geometry.triangles.len()];
+        for (k, (group, lit)) in groups.iter().zip(&lits).enumerate() {
+            for (slot, &f) in group.adj.faces.iter().enumerate() {
+                let weight = if group.adj.face_closed[slot] {
+                    i32::from(lit[slot])
+                } else {
+                    1
+                };
+                cap[f as usize] = (k, weight);
+            }
+        }
+        for (k, group) in groups.iter().enumerate() {
+            let own_face = |i: usize| {
+                let g = ctx.gbuffer.sample(i);
+                match cap.get(g.triangle as usize) {
+                    Some(&(c, weight)) if c == k => {
+                        own_face_change(weight, g.geo_normal, g.position, point)
+                    }
+                    _ => Some(0),
+                }
+            };
+            let group_tied = tied_pixels(ctx.depth, &group.volume, &group.counts, true, own_face)?;
+            for (a, b) in tied.iter_mut().zip(group_tied) {
+                *a = (*a).max(b);
             }
         }
     }
-    let mut exact_start = vec![false; tied.len()];
+    let sets: Vec<(&EdgeAdjacency, &[bool])> = groups
+        .iter()
+        .zip(&lits)
+        .map(|(g, lit)| (g.adj, lit.as_slice()))
+        .collect();
+    let exact = ExactStart::new(ctx.geometry, &sets);
+    let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
+    // An own-face verdict holds only where no other cap face comes
+    // between the stencil's point and `p'` ([`ExactStart::cap_near`]): a
+    // face folded over the receiver's own (bunny.toml at 1024², pixel
+    // (644, 446)) lies across the normal offset but off the view ray,
+    // where the depth-shifted counts cannot see it.
+    let eye = ctx.view.eye.as_vec3();
+    let own_faces: Vec<usize> = (0..tied.len())
+        .filter(|&i| tied[i] == Tie::OwnFace && ctx.gbuffer.is_surface(i))
+        .collect();
+    let demoted: Vec<usize> = own_faces
+        .par_iter()
+        .copied()
+        .filter(|&i| {
+            let g = ctx.gbuffer.sample(i);
+            let p_ray = origin.of(g.position, g.geo_normal);
+            exact.cap_near(g.triangle, g.position, p_ray, eye)
+        })
+        .collect();
+    for &i in &demoted {
+        tied[i] = Tie::Tied;
+    }
     let tied_surface: Vec<usize> = (0..tied.len())
-        .filter(|&i| tied[i] && ctx.gbuffer.is_surface(i))
+        .filter(|&i| tied[i] == Tie::Tied && ctx.gbuffer.is_surface(i))
         .collect();
     if !tied_surface.is_empty() {
-        let lits: Vec<Vec<bool>> = groups.iter().map(|g| faces_point(g.adj, point)).collect();
-        let sets: Vec<(&EdgeAdjacency, &[bool])> = groups
-            .iter()
-            .zip(&lits)
-            .map(|(g, lit)| (g.adj, lit.as_slice()))
-            .collect();
-        let exact = ExactStart::new(ctx.geometry, &sets);
-        let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
+        let exact = &exact;
         let n_groups = groups.len();
         let fixes: Vec<(usize, Vec<i32>)> = tied_surface
             .par_iter()
@@ -155,11 +198,18 @@ pub(super) fn recount_ties(
             for (group, c) in groups.iter_mut().zip(counts) {
                 group.counts[i] = c;
             }
-            exact_start[i] = true;
         }
     }
-    t.finish_with(passes, format!("{} receivers", tied_surface.len()));
-    Ok(exact_start)
+    let own = tied.iter().filter(|&&t| t == Tie::OwnFace).count();
+    t.finish_with(
+        passes,
+        format!(
+            "{} receivers recounted ({} near another cap), {own} on their own face",
+            tied_surface.len(),
+            demoted.len()
+        ),
+    );
+    Ok((tied, exact))
 }
 
 /// Every group's candidate edges from `light` (centre `point`) in
@@ -214,6 +264,22 @@ pub(super) struct UnboundedEdge {
     region: RegionBound,
 }
 
+/// Unbounded edges per [`EdgeCluster`] (consecutive in id order, which
+/// follows the meshes' own order and so is spatially coherent).
+const CLUSTER: usize = 32;
+
+/// A run of [`CLUSTER`] consecutive unbounded edges culled together (the
+/// edge hierarchy of Laine et al. 2005, one level): the union of their
+/// screen rectangles and a world-space bound holding all their regions
+/// ([`RegionBound::around_box`]), so that a tile rejects the whole run by
+/// one test. Conservative: every edge it lets through is still tested
+/// alone, so the edges reaching a receiver are the same.
+pub(super) struct EdgeCluster {
+    edges: std::ops::Range<usize>,
+    rect: [usize; 4],
+    region: RegionBound,
+}
+
 /// One light's wedges over every group's candidate edges.
 pub(super) struct LightWedges {
     /// Both wedge sets.
@@ -224,6 +290,8 @@ pub(super) struct LightWedges {
     pub zpass_edge: Vec<u32>,
     /// Edges without a bounded wedge, tested per receiver instead.
     pub unbounded: Vec<UnboundedEdge>,
+    /// The unbounded edges' clusters, in order.
+    pub clusters: Vec<EdgeCluster>,
 }
 
 /// The wedge of every candidate edge of `groups` from the light `bound`
@@ -238,6 +306,7 @@ pub(super) fn build_wedges(
     let mut wedges = Wedges::default();
     let (mut zfail_edge, mut zpass_edge) = (Vec::new(), Vec::new());
     let mut unbounded = Vec::new();
+    let mut ends: Vec<(DVec3, DVec3)> = Vec::new();
     let corners = light_corners(bound);
     // Receivers' positions round at f32 and move by the shadow-ray
     // offset (≤ 1e-5 relative): a generous slack keeps the test
@@ -274,17 +343,41 @@ pub(super) fn build_wedges(
                     rect: fallback_rect(ctx.view, e, bound),
                     region,
                 });
+                ends.push((e.v0, e.v1));
                 continue;
             }
             zfail_edge.resize(wedges.zfail.halves.len(), id);
             zpass_edge.resize(wedges.zpass.halves.len(), id);
         }
     }
+    let clusters = (0..unbounded.len())
+        .step_by(CLUSTER)
+        .map(|first| {
+            let edges = first..(first + CLUSTER).min(unbounded.len());
+            let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+            let mut rect = [usize::MAX, usize::MAX, 0, 0];
+            for (u, &(v0, v1)) in unbounded[edges.clone()].iter().zip(&ends[edges.clone()]) {
+                (lo, hi) = (lo.min(v0).min(v1), hi.max(v0).max(v1));
+                rect = [
+                    rect[0].min(u.rect[0]),
+                    rect[1].min(u.rect[1]),
+                    rect[2].max(u.rect[2]),
+                    rect[3].max(u.rect[3]),
+                ];
+            }
+            EdgeCluster {
+                edges,
+                rect,
+                region: RegionBound::around_box(lo, hi, &corners, slack),
+            }
+        })
+        .collect();
     LightWedges {
         wedges,
         zfail_edge,
         zpass_edge,
         unbounded,
+        clusters,
     }
 }
 
@@ -467,6 +560,7 @@ pub(super) fn count_tiles(
     grid: TileGrid,
     tiles: &mut [PairTile],
     unbounded: &[UnboundedEdge],
+    clusters: &[EdgeCluster],
     stsv: Option<&StsvMembership>,
 ) -> Vec<TileResult> {
     tiles
@@ -475,6 +569,7 @@ pub(super) fn count_tiles(
         .map_init(Scratch::default, |scratch, (tile, t)| {
             let entries = std::mem::take(&mut t.data);
             let stsv_entries: &[u64] = stsv.map_or(&[], |m| &m.tiles[tile]);
+            let unbounded = (unbounded, clusters);
             tile_counters(pass, grid, tile, entries, unbounded, stsv_entries, scratch)
         })
         .collect()
@@ -490,19 +585,15 @@ fn unbounded_near<'u>(
     ctx: &ShadowContext,
     grid: TileGrid,
     tile: usize,
-    unbounded: &'u [UnboundedEdge],
+    (unbounded, clusters): (&'u [UnboundedEdge], &[EdgeCluster]),
 ) -> (Vec<&'u UnboundedEdge>, Vec<Vec<u32>>) {
     let (width, height) = (grid.width as usize, grid.height as usize);
     let (ox, oy) = grid.tile_origin(tile);
     let (ox, oy) = (ox as usize, oy as usize);
     let (tx1, ty1) = (ox + TILE_SIZE, oy + TILE_SIZE);
-    let mut near: Vec<&UnboundedEdge> = unbounded
-        .iter()
-        .filter(|u| {
-            let r = u.rect;
-            r[0] < tx1 && r[2] > ox && r[1] < ty1 && r[3] > oy
-        })
-        .collect();
+    let in_tile = |r: [usize; 4]| r[0] < tx1 && r[2] > ox && r[1] < ty1 && r[3] > oy;
+    let mut near: Vec<&UnboundedEdge> = Vec::new();
+    let on_screen: Vec<&EdgeCluster> = clusters.iter().filter(|c| in_tile(c.rect)).collect();
     let bbox = |x0: usize, y0: usize, size: usize| {
         let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for y in y0..(y0 + size).min(height) {
@@ -525,10 +616,22 @@ fn unbounded_near<'u>(
             && !u.region.excludes_box(b.0, b.1)
     };
     let mut block_edges: Vec<Vec<u32>> = vec![Vec::new(); PER_ROW * PER_ROW];
-    if !near.is_empty() {
-        match bbox(ox, oy, TILE_SIZE) {
-            Some(b) => near.retain(|u| !u.region.excludes_box(b.0, b.1)),
-            None => near.clear(),
+    // The clusters the tile keeps, each with its run of `near`.
+    let mut kept: Vec<(&EdgeCluster, std::ops::Range<u32>)> = Vec::new();
+    if !on_screen.is_empty() {
+        if let Some(b) = bbox(ox, oy, TILE_SIZE) {
+            for c in on_screen {
+                if c.region.excludes_box(b.0, b.1) {
+                    continue;
+                }
+                let first = near.len() as u32;
+                near.extend(
+                    unbounded[c.edges.clone()]
+                        .iter()
+                        .filter(|u| in_tile(u.rect) && !u.region.excludes_box(b.0, b.1)),
+                );
+                kept.push((c, first..near.len() as u32));
+            }
         }
     }
     if near.is_empty() {
@@ -540,7 +643,19 @@ fn unbounded_near<'u>(
             let Some(b) = bbox(x0, y0, OUTER) else {
                 continue;
             };
-            let outer: Vec<u32> = (0..near.len() as u32)
+            // Clusters first, then their edges (ascending, as `near`).
+            let outer: Vec<u32> = kept
+                .iter()
+                .filter(|(c, run)| {
+                    let r = c.rect;
+                    !run.is_empty()
+                        && r[0] < x0 + OUTER
+                        && r[2] > x0
+                        && r[1] < y0 + OUTER
+                        && r[3] > y0
+                        && !c.region.excludes_box(b.0, b.1)
+                })
+                .flat_map(|(_, run)| run.clone())
                 .filter(|&k| keeps(near[k as usize], x0, y0, OUTER, b))
                 .collect();
             if outer.is_empty() {
@@ -574,7 +689,7 @@ fn tile_counters(
     grid: TileGrid,
     tile: usize,
     mut entries: Vec<u64>,
-    unbounded: &[UnboundedEdge],
+    unbounded: (&[UnboundedEdge], &[EdgeCluster]),
     stsv_entries: &[u64],
     scratch: &mut Scratch,
 ) -> TileResult {

@@ -8,6 +8,7 @@ use super::bitfield::CoverageTables;
 use super::chart::ReceiverChart;
 use super::counters::{add_covered, ChartSamples, OrientedEdge};
 use super::edges::{side_of, CandidateEdges};
+use super::ties::{ExactStart, Tie};
 use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::sampling::{LightSampler, PatternSampler};
 use crate::shade::{surface_point, LightSample, PreparedLight};
@@ -85,9 +86,12 @@ pub(super) struct LightPass<'a, 'c> {
     pub(super) tables: &'a [CoverageTables],
     /// The scene's S-triangles, when it has any.
     pub(super) s_triangles: Option<&'a STriangles>,
-    /// Per pixel: the start counts were recounted at the shadow-ray
-    /// origin (a depth tie), so no quad correction applies.
-    pub(super) exact_start: &'a [bool],
+    /// Per pixel: the tie test's verdict on the start counts
+    /// ([`Tie::Tied`]: recounted at the shadow-ray origin, so no quad
+    /// correction applies).
+    pub(super) ties: &'a [Tie],
+    /// Exact start counts by a ray, for own-face ties at a quad.
+    pub(super) exact: &'a ExactStart<'a>,
     /// The shadow-ray origin rule (the reference's).
     pub(super) origin: ShadowOrigin,
     /// Called with every surface pixel's samples and counters.
@@ -227,7 +231,7 @@ impl LightPass<'_, '_> {
             let (group_tags, group_extra) = (&tags[ti..t_end], &extra[xi..x_end]);
             (ti, xi) = (t_end, x_end);
             if k == 0 {
-                self.count_group(group, i, p, &chart, group_tags, group_extra, scratch, false);
+                self.count_group(k, i, p, &chart, group_tags, group_extra, scratch, false);
                 continue;
             }
             if group_tags.is_empty() && group_extra.is_empty() {
@@ -238,7 +242,7 @@ impl LightPass<'_, '_> {
                 }
                 continue;
             }
-            self.count_group(group, i, p, &chart, group_tags, group_extra, scratch, true);
+            self.count_group(k, i, p, &chart, group_tags, group_extra, scratch, true);
             let Scratch {
                 layers,
                 attenuation,
@@ -350,7 +354,7 @@ impl LightPass<'_, '_> {
     #[allow(clippy::too_many_arguments)]
     fn count_group(
         &self,
-        group: &GroupPass,
+        k: usize,
         i: usize,
         p: DVec3,
         chart: &ReceiverChart,
@@ -359,6 +363,7 @@ impl LightPass<'_, '_> {
         scratch: &mut Scratch,
         layers: bool,
     ) {
+        let group = &self.groups[k];
         let edges = &group.candidates.edges;
         let local = |global: u32| (global - group.first_edge) as usize;
         // The stencil decided `D(O)` at the raster's receiver `p`; the
@@ -368,12 +373,14 @@ impl LightPass<'_, '_> {
         // volume, −m leaving it.
         // Each tag's side is computed once, here, and reused below.
         let mut d0 = group.start[i];
+        let tie = self.ties[i];
+        let mut crossed = false;
         scratch.sides.clear();
         for &t in tags {
             let e = &edges[local((t >> 1) as u32)];
             let geometric = side_of(p, e.v0, e.v1, self.centre);
             scratch.sides.push(geometric as i8);
-            if e.quad_sign == 0 || self.exact_start[i] {
+            if e.quad_sign == 0 || tie == Tie::Tied {
                 continue;
             }
             let outer = t & 1 == 1;
@@ -381,7 +388,17 @@ impl LightPass<'_, '_> {
             if geometric != 0 && geometric != raster {
                 let m = e.quad_weight as i32;
                 d0 += if outer { m } else { -m };
+                crossed = true;
             }
+        }
+        if crossed && tie == Tie::OwnFace {
+            // On its own face and across a quad's plane from the raster's
+            // receiver: the two corrections do not compose; one ray
+            // gives the count at `p'`.
+            let mut counts = vec![0; self.groups.len()];
+            self.exact
+                .counts(p.as_vec3(), self.centre.as_vec3(), &mut counts);
+            d0 = counts[k];
         }
         let Scratch {
             chart: samples,

@@ -81,6 +81,74 @@ impl RegionBound {
         }
     }
 
+    /// A bound holding the regions of every edge inside the box
+    /// `[lo, hi]` (a cluster of edges, for culling a tile against many
+    /// edges at once): `conv(box) + cone{c_i − x_j}` over the box's
+    /// corners `c_i` holds `a + t (a − x)` for every `a` in the box. Only
+    /// valid planes are kept, not necessarily every facet (a looser bound
+    /// is still conservative). For lights of at most four bounding
+    /// corners (rects); otherwise no planes (the cost grows with the
+    /// square of the corner count).
+    pub fn around_box(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        if corners.len() > 4 || !(lo.cmple(hi).all()) {
+            return RegionBound::default();
+        }
+        let points: Vec<DVec3> = (0..8)
+            .map(|k| {
+                let pick = |b: usize, l: f64, h: f64| if k >> b & 1 == 1 { h } else { l };
+                DVec3::new(
+                    pick(0, lo.x, hi.x),
+                    pick(1, lo.y, hi.y),
+                    pick(2, lo.z, hi.z),
+                )
+            })
+            .collect();
+        let mut generators: Vec<DVec3> = Vec::with_capacity(8 * corners.len());
+        for &v in &points {
+            for &x in corners {
+                let d = v - x;
+                if d.length_squared() > 0.0 && d.is_finite() {
+                    generators.push(d.normalize());
+                }
+            }
+        }
+        let axes = [DVec3::X, DVec3::Y, DVec3::Z];
+        let mut normals: Vec<DVec3> = axes.to_vec();
+        for (k, &a) in generators.iter().enumerate() {
+            for &b in &generators[k + 1..] {
+                normals.push(a.cross(b));
+            }
+            normals.extend(axes.iter().map(|&x| x.cross(a)));
+        }
+        let mut planes: Vec<(DVec3, f64)> = Vec::new();
+        for n in normals {
+            let len = n.length();
+            if !(len > 1e-12) || !len.is_finite() {
+                continue;
+            }
+            let n = n / len;
+            for n in [n, -n] {
+                // Same tolerance as `new`; near-duplicate normals add
+                // nothing but cost.
+                if planes.iter().any(|&(m, _)| m.dot(n) > 1.0 - 1e-9)
+                    || !generators.iter().all(|d| n.dot(*d) >= -1e-9)
+                {
+                    continue;
+                }
+                let h = points
+                    .iter()
+                    .map(|&c| n.dot(c))
+                    .fold(f64::INFINITY, f64::min)
+                    - slack;
+                planes.push((n, h));
+            }
+        }
+        RegionBound {
+            planes,
+            dihedral: None,
+        }
+    }
+
     /// Also excludes receivers in front of both face planes or behind
     /// both (beyond `slack`): where the edge is not a silhouette, its
     /// multiplicity is 0 and it changes no counter.
@@ -207,6 +275,48 @@ mod tests {
         assert!(
             rejected > 150,
             "only {rejected} of 200 edges reject a far point"
+        );
+    }
+
+    /// A cluster's bound never rejects a shadow-ray point of an edge
+    /// inside its box, and does reject far points.
+    #[test]
+    fn cluster_bound_holds_its_edges_regions() {
+        let corners = [
+            DVec3::new(-1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, 1.0),
+            DVec3::new(-1.0, 5.0, 1.0),
+        ];
+        let mut s = 11u64;
+        let mut rejected = 0;
+        for _ in 0..50 {
+            let c = DVec3::new(
+                2.0 * rng(&mut s),
+                1.5 + 0.5 * rng(&mut s),
+                2.0 * rng(&mut s),
+            );
+            let r = DVec3::new(0.3, 0.2, 0.3) * (1.0 + rng(&mut s));
+            let (lo, hi) = (c - r, c + r);
+            let bound = RegionBound::around_box(lo, hi, &corners, 0.0);
+            for _ in 0..200 {
+                let u = |s: &mut u64| 0.5 * rng(s) + 0.5;
+                let a = lo + (hi - lo) * DVec3::new(u(&mut s), u(&mut s), u(&mut s));
+                let x = corners[0]
+                    .lerp(corners[1], u(&mut s))
+                    .lerp(corners[3].lerp(corners[2], u(&mut s)), u(&mut s));
+                let p = a + (a - x) * (4.0 * u(&mut s));
+                let outside = bound
+                    .planes
+                    .iter()
+                    .any(|&(n, h)| n.dot(p) < h - 1e-9 * (1.0 + p.length()));
+                assert!(!outside, "shadow ray point {p} of the box rejected");
+            }
+            rejected += usize::from(bound.excludes_point(c + DVec3::Y * 10.0));
+        }
+        assert!(
+            rejected == 50,
+            "only {rejected} of 50 boxes reject a point above"
         );
     }
 

@@ -25,59 +25,115 @@ use crate::geom::{EdgeAdjacency, SceneGeometry};
 use crate::raster::Framebuffer;
 use crate::shadow::kit::volumes::{stencil_counts, ShadowVolume};
 use glam::Vec3;
+use std::sync::OnceLock;
 
 /// Relative depth band of the tie test: 64 f32 ulps, far above the
 /// rounding difference of two coplanar triangles' depths.
 pub const DEPTH_BAND: f32 = 4e-6;
 
+/// A receiver's start count as the tie test finds it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Tie {
+    /// No volume face near the receiver: the stencil's count holds at
+    /// `p'`, and the quad correction applies.
+    None,
+    /// Only the receiver's own face passes through it, already counted
+    /// on the eye's side (the side of `p'`) by the depth test: the
+    /// stencil's count is the count at `p'`, exactly.
+    OwnFace,
+    /// Another face lies in the band: recount by a ray.
+    Tied,
+}
+
 /// Per pixel: does the count of `volume` change when the receiver moves
 /// [`DEPTH_BAND`] nearer the eye than in `counts` (the stencil's counts
 /// at the scene depth), or, with `both_sides`, when it moves that much
-/// nearer or farther? `scene_depth` is the scene's depth (its stencil is
-/// unused). Reversed Z: nearer is larger.
+/// farther by more than `own_face(i)` — the change the receiver's own
+/// face alone makes ([`own_face_change`]; `None` when it cannot be told,
+/// then any change is a tie)? `scene_depth` is the scene's depth (its
+/// stencil is unused). Reversed Z: nearer is larger.
 ///
 /// One side catches the ties the stencil resolved the wrong way for `p'`;
 /// both sides also catch receivers where a face passes between the
-/// view-ray point and `p'` (off the view ray, along the normal), at the
-/// price of flagging every receiver on an open caster's own face (the
-/// ground of most scenes), each then recounted by a ray.
+/// view-ray point and `p'` (off the view ray, along the normal). Moving
+/// farther always crosses the receiver's own face when that face is a cap
+/// of the volume (an open caster's every face, a closed caster's
+/// light-facing ones): told apart as [`Tie::OwnFace`], it no longer sends
+/// every receiver on the ground of most scenes to a ray that would
+/// recount the stencil's own value.
 pub fn tied_pixels(
     scene_depth: &Framebuffer,
     volume: &ShadowVolume,
     counts: &[i32],
     both_sides: bool,
-) -> Result<Vec<bool>> {
+    own_face: impl Fn(usize) -> Option<i32>,
+) -> Result<Vec<Tie>> {
     let shifted = |scale: f32| -> Result<Vec<i32>> {
         let mut fb = scene_depth.clone();
         fb.map_depth(|d| d * scale);
         stencil_counts(&mut fb, volume, false)
     };
     let nearer = shifted(1.0 + DEPTH_BAND)?;
-    let mut tied: Vec<bool> = nearer.iter().zip(counts).map(|(a, b)| a != b).collect();
+    let mut tied: Vec<Tie> = nearer
+        .iter()
+        .zip(counts)
+        .map(|(a, b)| if a != b { Tie::Tied } else { Tie::None })
+        .collect();
     if both_sides {
         let farther = shifted(1.0 - DEPTH_BAND)?;
-        for (t, (a, b)) in tied.iter_mut().zip(farther.iter().zip(counts)) {
-            *t |= a != b;
+        for (i, (t, (&a, &b))) in tied.iter_mut().zip(farther.iter().zip(counts)).enumerate() {
+            if *t == Tie::None && a != b {
+                *t = match own_face(i) {
+                    Some(own) if own != 0 && a == b + own => Tie::OwnFace,
+                    _ => Tie::Tied,
+                };
+            }
         }
     }
     Ok(tied)
 }
 
+/// The change of a volume's count that crossing a receiver's own face
+/// makes when the receiver moves from the eye's side of it to the other:
+/// the face adds `weight` (its stencil weight: 1 for an open caster's
+/// face, 1 for a closed caster's light-facing face, else 0) to points on
+/// its side away from the light's `centre`, so `+weight` when the eye and
+/// the centre are on the same side, `−weight` otherwise. `normal` is the
+/// face's geometric normal towards the eye, `p` the receiver; `None` when
+/// the centre is too near the face's plane to tell the side.
+pub fn own_face_change(weight: i32, normal: Vec3, p: Vec3, centre: Vec3) -> Option<i32> {
+    if weight == 0 {
+        return Some(0);
+    }
+    let (n, to_c) = (normal.as_dvec3(), (centre - p).as_dvec3());
+    let along = n.dot(to_c);
+    // The f32 normal of a triangle and p on it: a relative margin far
+    // above their rounding.
+    (along.abs() > 1e-4 * n.length() * to_c.length()).then_some(if along > 0.0 {
+        weight
+    } else {
+        -weight
+    })
+}
+
 /// No group.
 const NONE: u32 = u32::MAX;
 
-/// Exact start counts of every caster group at given points.
-pub struct ExactStart {
-    bvh: Bvh,
+/// Exact start counts of every caster group at given points. The BVH
+/// over the groups' faces is built on first use (most renders need
+/// none); it is the same whichever thread builds it.
+pub struct ExactStart<'a> {
+    geometry: &'a SceneGeometry,
+    bvh: OnceLock<Bvh>,
     /// Per scene triangle: `group << 1 | weight` (weight 1 when the face
     /// counts from the centre), or [`NONE`].
     table: Vec<u32>,
 }
 
-impl ExactStart {
+impl<'a> ExactStart<'a> {
     /// For `groups` (each: adjacency and its faces' light-facing flags
     /// from the centre).
-    pub fn new(geometry: &SceneGeometry, groups: &[(&EdgeAdjacency, &[bool])]) -> ExactStart {
+    pub fn new(geometry: &'a SceneGeometry, groups: &[(&EdgeAdjacency, &[bool])]) -> Self {
         let mut table = vec![NONE; geometry.triangles.len()];
         for (g, (adj, lit)) in groups.iter().enumerate() {
             for (slot, &f) in adj.faces.iter().enumerate() {
@@ -89,8 +145,47 @@ impl ExactStart {
                 table[f as usize] = (g as u32) << 1 | weight;
             }
         }
-        let bvh = Bvh::build(geometry, |t| table[t as usize] != NONE);
-        ExactStart { bvh, table }
+        ExactStart {
+            geometry,
+            bvh: OnceLock::new(),
+            table,
+        }
+    }
+
+    /// The BVH over the groups' faces, built on first use.
+    fn bvh(&self) -> &Bvh {
+        self.bvh
+            .get_or_init(|| Bvh::build(self.geometry, |t| self.table[t as usize] != NONE))
+    }
+
+    /// Does a cap face (a face of weight 1 in its group) other than
+    /// triangle `own` cross the segment from `p_n` — receiver `p` moved
+    /// towards the eye `eye` as far as the tie test's nearer count moved
+    /// it (depth `d (1 + DEPTH_BAND)` with `d ∝ 1 / distance`) — to the
+    /// shadow-ray origin `origin`? The segment is extended by a quarter of
+    /// its length at both ends (the extensions only ever add a `true`).
+    ///
+    /// Why this makes an own-face tie exact ([`Tie::OwnFace`]): the
+    /// nearer count is the count at `p_n` (the tie test found it equal to
+    /// the stencil's), and the count at `p'` differs from it by the signed
+    /// crossings of volume faces along the segment `p_n → p'`. Both ends
+    /// lie on the eye's side of the own face's plane, so the segment does
+    /// not cross the own face; when this is `false` it crosses no other
+    /// cap either. Side quads are the counter pass's concern (the quad
+    /// correction, or a ray where it meets an own-face tie).
+    pub fn cap_near(&self, own: u32, p: Vec3, origin: Vec3, eye: Vec3) -> bool {
+        let (p, origin, eye) = (p.as_dvec3(), origin.as_dvec3(), eye.as_dvec3());
+        let band = f64::from(DEPTH_BAND);
+        let p_n = p + (eye - p) * (band / (1.0 + band));
+        let d = origin - p_n;
+        let start = (p_n - d * 0.25).as_vec3();
+        let mut near = false;
+        self.bvh()
+            .for_each_hit(start, (d * 1.5).as_vec3(), 1.0, |h| {
+                let e = self.table[h.triangle as usize];
+                near |= h.triangle != own && e != NONE && e & 1 == 1;
+            });
+        near
     }
 
     /// The start count of each group at `origin` for the light centre
@@ -100,7 +195,7 @@ impl ExactStart {
         let dir = centre - origin;
         // Stop just short of the centre, as the reference's rays do.
         let t_max = (1.0 - crate::shadow::kit::rays::END_SHORTEN) as f32;
-        self.bvh.for_each_hit(origin, dir, t_max, |h| {
+        self.bvh().for_each_hit(origin, dir, t_max, |h| {
             let e = self.table[h.triangle as usize];
             if e != NONE {
                 if let Some(c) = out.get_mut((e >> 1) as usize) {
