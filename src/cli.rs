@@ -84,7 +84,16 @@ enum Command {
         /// error.
         #[arg(long, value_name = "K")]
         verify: Option<u64>,
+        /// Render only band I of N (whole rows of 64-pixel tiles) into the
+        /// part file -o; `merge-tiles` assembles the image.
+        #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"])]
+        tiles: Option<String>,
     },
+    /// Assemble `render --tiles` parts into the PNG (and EXR) a single
+    /// render writes, byte for byte.
+    MergeTiles(crate::cluster::tiles::MergeArgs),
+    /// Shard a compare (or a banded render) over a Slurm job array.
+    Sweep(crate::cluster::slurm::SweepArgs),
     /// Time every technique at several quality settings and measure its
     /// error against a cached ray-traced reference at the same receiver
     /// points; writes results.csv/json/md, charts, images and heat maps.
@@ -227,12 +236,13 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             timings,
             explain,
             verify,
+            tiles,
         } => {
             let aovs = aov
                 .iter()
                 .map(|s| s.trim().parse())
                 .collect::<Result<Vec<Aov>>>()?;
-            if !aovs.is_empty() && exr.is_none() {
+            if !aovs.is_empty() && exr.is_none() && tiles.is_none() {
                 return Err(Error::param(
                     "--aov",
                     "AOV layers need an EXR output (--exr)",
@@ -270,6 +280,14 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             }
             let scene = load_scene(&scene)?;
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
+            if let Some(tiles) = tiles {
+                let (i, n) = crate::cluster::tiles::parse_share("--tiles", &tiles)?;
+                with_threads(threads, || {
+                    crate::cluster::tiles::render_part(&scene, &options, i, n, &output, &progress)
+                })??;
+                progress.finish();
+                return Ok(Outcome::Success);
+            }
             let out = with_threads(threads, || render(&scene, &options, &progress))??;
             progress.finish();
             if timings || explain {
@@ -404,6 +422,14 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     }
                 }
             }
+            Ok(Outcome::Success)
+        }
+        Command::MergeTiles(args) => {
+            crate::cluster::tiles::run_merge(&args)?;
+            Ok(Outcome::Success)
+        }
+        Command::Sweep(args) => {
+            crate::cluster::slurm::run_sweep(args)?;
             Ok(Outcome::Success)
         }
         Command::Diff {
