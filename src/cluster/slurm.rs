@@ -291,6 +291,20 @@ pub fn scripts(
             args,
             references_job,
         } => {
+            // The reference cache must be shared by every task: the
+            // default (~/.cache) is not always on a shared filesystem.
+            let args = &if args
+                .iter()
+                .any(|a| a == "--cache-dir" || a.starts_with("--cache-dir="))
+            {
+                args.clone()
+            } else {
+                [
+                    args.as_slice(),
+                    &["--cache-dir".to_string(), out.join("cache").display().to_string()],
+                ]
+                .concat()
+            };
             let shards = out.join("shards");
             array.push_str(&format!(
                 "{}{} --shard {task}/{tasks} --out {}/{task}\n",
@@ -567,7 +581,7 @@ mod tests {
             "#SBATCH --mail-type=END\n",
             "#SBATCH --chdir=/w\n",
             "module load x\n",
-            "/bin/p compare 'a b.toml' --techniques dcs --threads \"${SLURM_CPUS_PER_TASK:-1}\" \
+            "/bin/p compare 'a b.toml' --techniques dcs --cache-dir /o/cache --threads \"${SLURM_CPUS_PER_TASK:-1}\" \
              --shard \"$SLURM_ARRAY_TASK_ID\"/4 --out /o/shards/\"$SLURM_ARRAY_TASK_ID\"\n",
         ] {
             assert!(a.contains(want), "{want:?} not in\n{a}");
