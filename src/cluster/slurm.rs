@@ -7,8 +7,8 @@
 //! Layout under `--out DIR` (which must be on a filesystem every node
 //! mounts at the same path): `DIR/slurm/*.sbatch` (the scripts),
 //! `DIR/logs/` (one log per task: `NAME_%A_%a.out`, the merge's
-//! `NAME-merge_%j.out`), `DIR/shards/I/` (compare shard I's partial
-//! results) or `DIR/tiles/I.part` (band I), and the merged results in
+//! `NAME-merge_%j.out`), `DIR/shards/` (every compare shard's partial result
+//! `shard-I-of-N.json`) or `DIR/tiles/I.part` (band I), and the merged results in
 //! `DIR` itself (compare) or `DIR/render.png` + `DIR/render.exr`.
 
 use crate::error::{Error, Result};
@@ -307,16 +307,15 @@ pub fn scripts(
             };
             let shards = out.join("shards");
             array.push_str(&format!(
-                "{}{} --shard {task}/{tasks} --out {}/{task}\n",
+                "{}{} --shard {task}/{tasks} --out {}\n",
                 command(penumbra, &[&["compare".to_string()], args.as_slice()].concat()),
                 threads(args),
                 quote_path(&shards),
             ));
             merge.push_str(&format!(
-                "dirs=()\nfor i in $(seq 1 {tasks}); do dirs+=({}/\"$i\"); done\n\
-                 {} --merge \"${{dirs[@]}}\" --out {}\n",
-                quote_path(&shards),
+                "{} --merge {} --out {}\n",
                 command(penumbra, &["compare".to_string()]),
+                quote_path(&shards),
                 quote_path(out),
             ));
             if *references_job {
@@ -582,11 +581,11 @@ mod tests {
             "#SBATCH --chdir=/w\n",
             "module load x\n",
             "/bin/p compare 'a b.toml' --techniques dcs --cache-dir /o/cache --threads \"${SLURM_CPUS_PER_TASK:-1}\" \
-             --shard \"$SLURM_ARRAY_TASK_ID\"/4 --out /o/shards/\"$SLURM_ARRAY_TASK_ID\"\n",
+             --shard \"$SLURM_ARRAY_TASK_ID\"/4 --out /o/shards\n",
         ] {
             assert!(a.contains(want), "{want:?} not in\n{a}");
         }
-        assert!(sc.merge.1.contains("--merge \"${dirs[@]}\" --out /o\n"), "{}", sc.merge.1);
+        assert!(sc.merge.1.contains("/bin/p compare --merge /o/shards --out /o\n"), "{}", sc.merge.1);
         assert!(!sc.merge.1.contains("--array"));
         assert!(sc.references.unwrap().1.contains("--references-only"));
         assert_eq!(sc.array.0, Path::new("/o/slurm/array.sbatch"));
