@@ -262,6 +262,9 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 .iter()
                 .map(|s| s.trim().parse())
                 .collect::<Result<Vec<Aov>>>()?;
+            let tiles = tiles
+                .map(|t| crate::cluster::tiles::parse_share("--tiles", &t))
+                .transpose()?;
             if !aovs.is_empty() && exr.is_none() && tiles.is_none() {
                 return Err(Error::param(
                     "--aov",
@@ -300,8 +303,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             }
             let scene = load_scene(&scene)?;
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
-            if let Some(tiles) = tiles {
-                let (i, n) = crate::cluster::tiles::parse_share("--tiles", &tiles)?;
+            if let Some((i, n)) = tiles {
                 with_threads(threads, || {
                     crate::cluster::tiles::render_part(&scene, &options, i, n, &output, &progress)
                 })??;

@@ -29,8 +29,14 @@ fn whole(scene: &Scene, o: &RenderOptions, dir: &Path) -> (Vec<u8>, Vec<u8>) {
     let (png, exr) = (dir.join("whole.png"), dir.join("whole.exr"));
     let mut set = OutputSet::new();
     set.png(&png, out.width, out.height, &out.radiance).unwrap();
-    set.exr(&png.with_extension("exr"), out.width, out.height, &out.radiance, &out.layers)
-        .unwrap();
+    set.exr(
+        &png.with_extension("exr"),
+        out.width,
+        out.height,
+        &out.radiance,
+        &out.layers,
+    )
+    .unwrap();
     set.commit().unwrap();
     (std::fs::read(png).unwrap(), std::fs::read(exr).unwrap())
 }
@@ -42,7 +48,9 @@ fn parts(scene: &Scene, o: &RenderOptions, n: u32, dir: &Path) -> penumbra::Resu
         .map(|i| {
             let path = dir.join(format!("{i}.part"));
             let threads = Some(if i == 1 { 1 } else { 2 });
-            with_threads(threads, || render_part(scene, o, i, n, &path, &Progress::hidden()))??;
+            with_threads(threads, || {
+                render_part(scene, o, i, n, &path, &Progress::hidden())
+            })??;
             Ok(path)
         })
         .collect()
@@ -128,11 +136,17 @@ fn merge_names_missing_duplicated_and_mismatched_bands() {
     let paths = parts(&scene, &o, 4, &dir).unwrap();
     assert_eq!(read_part(&paths[2]).unwrap().header.rows, [128, 192]);
 
-    let e = merged(&[paths[0].clone(), paths[1].clone(), paths[3].clone()], &dir)
-        .unwrap_err()
-        .to_string();
+    let e = merged(
+        &[paths[0].clone(), paths[1].clone(), paths[3].clone()],
+        &dir,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("missing band 3/4 (rows 128..192)"), "{e}");
-    assert!(!dir.join("merged.png").exists(), "a refused merge wrote output");
+    assert!(
+        !dir.join("merged.png").exists(),
+        "a refused merge wrote output"
+    );
 
     let mut dup = paths.clone();
     dup.push(paths[1].clone());
@@ -142,20 +156,37 @@ fn merge_names_missing_duplicated_and_mismatched_bands() {
     // A band of another render (another seed) is refused with the reason.
     let other = dir.join("other");
     std::fs::create_dir_all(&other).unwrap();
-    let o2 = RenderOptions { seed: 1, ..o.clone() };
+    let o2 = RenderOptions {
+        seed: 1,
+        ..o.clone()
+    };
     let p2 = parts(&scene, &o2, 4, &other).unwrap();
-    let e = merged(&[paths[0].clone(), paths[1].clone(), p2[2].clone(), paths[3].clone()], &dir)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("render options differs") && e.contains("3.part"), "{e}");
+    let e = merged(
+        &[
+            paths[0].clone(),
+            paths[1].clone(),
+            p2[2].clone(),
+            paths[3].clone(),
+        ],
+        &dir,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("render options differs") && e.contains("3.part"),
+        "{e}"
+    );
 
     // A truncated part (a copy cut short) is refused, naming the file.
     let cut = dir.join("cut.part");
     let bytes = std::fs::read(&paths[2]).unwrap();
     std::fs::write(&cut, &bytes[..bytes.len() - 4]).unwrap();
-    let e = merged(&[paths[0].clone(), paths[1].clone(), cut, paths[3].clone()], &dir)
-        .unwrap_err()
-        .to_string();
+    let e = merged(
+        &[paths[0].clone(), paths[1].clone(), cut, paths[3].clone()],
+        &dir,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("cut.part") && e.contains("truncated"), "{e}");
 
     // And the four good ones merge.
@@ -174,19 +205,44 @@ fn cli_tiles_and_merge_tiles() {
             .unwrap()
     };
     let d = |f: &str| dir.join(f).to_str().unwrap().to_string();
-    let base = ["render", "scenes/spheres.toml", "--technique", "dcs", "--samples", "4"];
+    let base = [
+        "render",
+        "scenes/spheres.toml",
+        "--technique",
+        "dcs",
+        "--samples",
+        "4",
+    ];
     let size = ["--width", "64", "--height", "128", "--aov", "mask"];
     let whole = run(&[&base[..], &size, &["-o", &d("w.png"), "--exr", &d("w.exr")]].concat());
     assert!(whole.status.success());
     for i in ["1/2", "2/2"] {
         let p = d(&format!("{}.part", &i[..1]));
         let out = run(&[&base[..], &size, &["--tiles", i, "-o", &p]].concat());
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
-    let m = run(&["merge-tiles", &d("2.part"), &d("1.part"), "-o", &d("m.png"), "--exr", &d("m.exr")]);
+    let m = run(&[
+        "merge-tiles",
+        &d("2.part"),
+        &d("1.part"),
+        "-o",
+        &d("m.png"),
+        "--exr",
+        &d("m.exr"),
+    ]);
     assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
-    assert_eq!(std::fs::read(d("m.png")).unwrap(), std::fs::read(d("w.png")).unwrap());
-    assert_eq!(std::fs::read(d("m.exr")).unwrap(), std::fs::read(d("w.exr")).unwrap());
+    assert_eq!(
+        std::fs::read(d("m.png")).unwrap(),
+        std::fs::read(d("w.png")).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(d("m.exr")).unwrap(),
+        std::fs::read(d("w.exr")).unwrap()
+    );
     let bad = run(&[&base[..], &size, &["--tiles", "3/2", "-o", &d("x.part")]].concat());
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--tiles"));

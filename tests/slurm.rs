@@ -71,12 +71,22 @@ fn wait(id: &str, logs: &Path) -> Vec<String> {
     let start = Instant::now();
     loop {
         let s = states(id);
-        if !s.is_empty() && s.iter().all(|s| !matches!(s.as_str(), "PENDING" | "RUNNING" | "CONFIGURING" | "COMPLETING")) {
+        if !s.is_empty()
+            && s.iter().all(|s| {
+                !matches!(
+                    s.as_str(),
+                    "PENDING" | "RUNNING" | "CONFIGURING" | "COMPLETING"
+                )
+            })
+        {
             return s;
         }
         if start.elapsed() > Duration::from_secs(600) {
             let _ = run("scancel", &[id]);
-            panic!("job {id} not done after 600 s: {s:?}; logs in {}", logs.display());
+            panic!(
+                "job {id} not done after 600 s: {s:?}; logs in {}",
+                logs.display()
+            );
         }
         std::thread::sleep(Duration::from_millis(500));
     }
@@ -86,7 +96,11 @@ fn logs_of(dir: &Path) -> String {
     let mut s = String::new();
     if let Ok(entries) = std::fs::read_dir(dir.join("logs")) {
         for e in entries.flatten() {
-            s += &format!("--- {}\n{}", e.path().display(), std::fs::read_to_string(e.path()).unwrap_or_default());
+            s += &format!(
+                "--- {}\n{}",
+                e.path().display(),
+                std::fs::read_to_string(e.path()).unwrap_or_default()
+            );
         }
     }
     s
@@ -99,9 +113,7 @@ fn error_figures(csv: &Path) -> Vec<String> {
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let keep: Vec<usize> = (0..header.len())
-        .filter(|&i| {
-            !header[i].ends_with("_ms") && !matches!(header[i], "host" | "pareto")
-        })
+        .filter(|&i| !header[i].ends_with("_ms") && !matches!(header[i], "host" | "pareto"))
         .collect();
     assert!(header.contains(&"rmse") && keep.len() >= 15, "{header:?}");
     let mut rows: Vec<String> = lines
@@ -136,7 +148,17 @@ const COMPARE: &[&str] = &[
 fn sweep(dir: &Path, extra: &[&str], forwarded: &[&str]) -> String {
     let d = dir.to_str().unwrap();
     let args = [
-        &["sweep", "--slurm", "--out", d, "--submit", "--time", "10", "--job-name", "pt"][..],
+        &[
+            "sweep",
+            "--slurm",
+            "--out",
+            d,
+            "--submit",
+            "--time",
+            "10",
+            "--job-name",
+            "pt",
+        ][..],
         extra,
         &["--"],
         forwarded,
@@ -157,19 +179,46 @@ fn sharded_compare_and_banded_render_match_one_machine() {
     let cache = cache.to_str().unwrap();
     // The compare: 4 shards, merged by the dependent job.
     let sw = dir.join("compare");
-    let out = sweep(&sw, &["--shards", "4", "--throttle", "4"], &[COMPARE, &["--cache-dir", cache]].concat());
+    let out = sweep(
+        &sw,
+        &["--shards", "4", "--throttle", "4"],
+        &[COMPARE, &["--cache-dir", cache]].concat(),
+    );
     let (array, merge) = (job_id(&out, "array job "), job_id(&out, "merge job "));
     // The banded render, submitted while the compare runs.
     let rd = dir.join("render");
-    let render_args = ["--technique", "dcs", "--samples", "8", "--width", "96", "--height", "256", "--aov", "depth,mask,vcoef"];
-    let rout = sweep(&rd, &["--render", "scenes/spheres.toml", "--tiles", "4"], &render_args);
+    let render_args = [
+        "--technique",
+        "dcs",
+        "--samples",
+        "8",
+        "--width",
+        "96",
+        "--height",
+        "256",
+        "--aov",
+        "depth,mask,vcoef",
+    ];
+    let rout = sweep(
+        &rd,
+        &["--render", "scenes/spheres.toml", "--tiles", "4"],
+        &render_args,
+    );
     let (rarray, rmerge) = (job_id(&rout, "array job "), job_id(&rout, "merge job "));
 
     let s = wait(&array, &sw);
-    assert!(s.len() == 4 && s.iter().all(|s| s == "COMPLETED"), "shards {s:?}\n{}", logs_of(&sw));
+    assert!(
+        s.len() == 4 && s.iter().all(|s| s == "COMPLETED"),
+        "shards {s:?}\n{}",
+        logs_of(&sw)
+    );
     assert_eq!(wait(&merge, &sw), ["COMPLETED"], "{}", logs_of(&sw));
     let s = wait(&rarray, &rd);
-    assert!(s.len() == 4 && s.iter().all(|s| s == "COMPLETED"), "bands {s:?}\n{}", logs_of(&rd));
+    assert!(
+        s.len() == 4 && s.iter().all(|s| s == "COMPLETED"),
+        "bands {s:?}\n{}",
+        logs_of(&rd)
+    );
     assert_eq!(wait(&rmerge, &rd), ["COMPLETED"], "{}", logs_of(&rd));
     // One log per task.
     let logs = std::fs::read_dir(sw.join("logs")).unwrap().count();
@@ -177,18 +226,51 @@ fn sharded_compare_and_banded_render_match_one_machine() {
 
     // The same on one machine.
     let whole = dir.join("whole");
-    let (ok, msg) = run(bin(), &[&["compare", "--out", whole.to_str().unwrap(), "--cache-dir", cache][..], COMPARE].concat());
+    let (ok, msg) = run(
+        bin(),
+        &[
+            &[
+                "compare",
+                "--out",
+                whole.to_str().unwrap(),
+                "--cache-dir",
+                cache,
+            ][..],
+            COMPARE,
+        ]
+        .concat(),
+    );
     assert!(ok, "{msg}");
-    assert_eq!(error_figures(&sw.join("results.csv")), error_figures(&whole.join("results.csv")));
+    assert_eq!(
+        error_figures(&sw.join("results.csv")),
+        error_figures(&whole.join("results.csv"))
+    );
 
     let (png, exr) = (dir.join("one.png"), dir.join("one.exr"));
     let (ok, msg) = run(
         bin(),
-        &[&["render", "scenes/spheres.toml", "-o", png.to_str().unwrap(), "--exr", exr.to_str().unwrap()][..], &render_args].concat(),
+        &[
+            &[
+                "render",
+                "scenes/spheres.toml",
+                "-o",
+                png.to_str().unwrap(),
+                "--exr",
+                exr.to_str().unwrap(),
+            ][..],
+            &render_args,
+        ]
+        .concat(),
     );
     assert!(ok, "{msg}");
-    assert!(std::fs::read(rd.join("render.png")).unwrap() == std::fs::read(&png).unwrap(), "PNG differs");
-    assert!(std::fs::read(rd.join("render.exr")).unwrap() == std::fs::read(&exr).unwrap(), "EXR differs");
+    assert!(
+        std::fs::read(rd.join("render.png")).unwrap() == std::fs::read(&png).unwrap(),
+        "PNG differs"
+    );
+    assert!(
+        std::fs::read(rd.join("render.exr")).unwrap() == std::fs::read(&exr).unwrap(),
+        "EXR differs"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -205,10 +287,19 @@ fn a_failed_shard_is_named_and_rerunning_it_completes_the_sweep() {
         allow.display()
     );
     let cache = dir.join("cache");
-    let out = sweep(&dir, &["--shards", "4", &setup], &[COMPARE, &["--cache-dir", cache.to_str().unwrap()]].concat());
+    let out = sweep(
+        &dir,
+        &["--shards", "4", &setup],
+        &[COMPARE, &["--cache-dir", cache.to_str().unwrap()]].concat(),
+    );
     let (array, merge) = (job_id(&out, "array job "), job_id(&out, "merge job "));
     let s = wait(&array, &dir);
-    assert_eq!(s.iter().filter(|s| *s == "FAILED").count(), 1, "{s:?}\n{}", logs_of(&dir));
+    assert_eq!(
+        s.iter().filter(|s| *s == "FAILED").count(),
+        1,
+        "{s:?}\n{}",
+        logs_of(&dir)
+    );
     // kill_invalid_depend: the merge is cancelled, not left pending.
     let m = wait(&merge, &dir);
     assert_eq!(m, ["CANCELLED"], "{}", logs_of(&dir));
@@ -216,9 +307,15 @@ fn a_failed_shard_is_named_and_rerunning_it_completes_the_sweep() {
     // The merge, run by hand, names the missing shard.
     let shards = dir.join("shards");
     let merge_args = |out: &Path| -> Vec<String> {
-        ["compare", "--merge", shards.to_str().unwrap(), "--out", out.to_str().unwrap()]
-            .map(String::from)
-            .to_vec()
+        [
+            "compare",
+            "--merge",
+            shards.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]
+        .map(String::from)
+        .to_vec()
     };
     let args = merge_args(&dir.join("merged"));
     let (ok, msg) = run(bin(), &args.iter().map(String::as_str).collect::<Vec<_>>());
@@ -227,12 +324,18 @@ fn a_failed_shard_is_named_and_rerunning_it_completes_the_sweep() {
     // Re-run shard 3 alone; the others' partial results stay untouched.
     let stamp = |i: usize| {
         let p = shards.join(format!("shard-{i}-of-4.json"));
-        std::fs::metadata(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display())).modified().unwrap()
+        std::fs::metadata(&p)
+            .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+            .modified()
+            .unwrap()
     };
     let before: Vec<_> = [1, 2, 4].map(stamp).into();
     std::fs::write(&allow, b"").unwrap();
     let script = dir.join("slurm").join("array.sbatch");
-    let (ok, id) = run("sbatch", &["--parsable", "--array=3", script.to_str().unwrap()]);
+    let (ok, id) = run(
+        "sbatch",
+        &["--parsable", "--array=3", script.to_str().unwrap()],
+    );
     assert!(ok, "{id}");
     let id = id.trim().split(';').next().unwrap().to_string();
     assert_eq!(wait(&id, &dir), ["COMPLETED"], "{}", logs_of(&dir));
@@ -241,8 +344,24 @@ fn a_failed_shard_is_named_and_rerunning_it_completes_the_sweep() {
     let (ok, msg) = run(bin(), &args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(ok, "{msg}");
     let whole = dir.join("whole");
-    let (ok, msg) = run(bin(), &[&["compare", "--out", whole.to_str().unwrap(), "--cache-dir", cache.to_str().unwrap()][..], COMPARE].concat());
+    let (ok, msg) = run(
+        bin(),
+        &[
+            &[
+                "compare",
+                "--out",
+                whole.to_str().unwrap(),
+                "--cache-dir",
+                cache.to_str().unwrap(),
+            ][..],
+            COMPARE,
+        ]
+        .concat(),
+    );
     assert!(ok, "{msg}");
-    assert_eq!(error_figures(&dir.join("merged").join("results.csv")), error_figures(&whole.join("results.csv")));
+    assert_eq!(
+        error_figures(&dir.join("merged").join("results.csv")),
+        error_figures(&whole.join("results.csv"))
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -145,8 +145,7 @@ pub struct Scripts {
 /// Quotes `s` for a POSIX shell (bare when nothing needs quoting).
 pub fn shell_quote(s: &str) -> String {
     let plain = !s.is_empty()
-        && s
-            .chars()
+        && s.chars()
             .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+%@".contains(c));
     if plain {
         s.to_string()
@@ -171,7 +170,14 @@ fn check_sbatch_arg(a: &str) -> Result<()> {
 }
 
 /// A job's `#SBATCH` header.
-fn header(slurm: &SlurmArgs, name: &str, log: &Path, time: Option<&str>, mem: Option<&str>, chdir: &Path) -> String {
+fn header(
+    slurm: &SlurmArgs,
+    name: &str,
+    log: &Path,
+    time: Option<&str>,
+    mem: Option<&str>,
+    chdir: &Path,
+) -> String {
     let mut h = String::from("#!/bin/bash\n");
     let mut line = |opt: String| {
         h.push_str("#SBATCH ");
@@ -209,7 +215,9 @@ fn prologue(slurm: &SlurmArgs) -> String {
         s.push_str(l);
         s.push('\n');
     }
-    s.push_str("echo \"penumbra job ${SLURM_JOB_ID:-?} task ${SLURM_ARRAY_TASK_ID:-} on $(hostname)\"\n");
+    s.push_str(
+        "echo \"penumbra job ${SLURM_JOB_ID:-?} task ${SLURM_ARRAY_TASK_ID:-} on $(hostname)\"\n",
+    );
     s
 }
 
@@ -224,7 +232,10 @@ fn command(penumbra: &Path, words: &[String]) -> String {
 
 /// `--threads "$SLURM_CPUS_PER_TASK"` unless the arguments set it.
 fn threads(args: &[String]) -> &'static str {
-    if args.iter().any(|a| a == "--threads" || a.starts_with("--threads=")) {
+    if args
+        .iter()
+        .any(|a| a == "--threads" || a.starts_with("--threads="))
+    {
         ""
     } else {
         " --threads \"${SLURM_CPUS_PER_TASK:-1}\""
@@ -254,7 +265,10 @@ pub fn scripts(
         check_sbatch_arg(a)?;
     }
     if slurm.job_name.is_empty() || slurm.job_name.contains(['\n', '/']) {
-        return Err(Error::param("--job-name", "a non-empty name without / or newlines"));
+        return Err(Error::param(
+            "--job-name",
+            "a non-empty name without / or newlines",
+        ));
     }
     let name = &slurm.job_name;
     let dir = out.join("slurm");
@@ -301,14 +315,20 @@ pub fn scripts(
             } else {
                 [
                     args.as_slice(),
-                    &["--cache-dir".to_string(), out.join("cache").display().to_string()],
+                    &[
+                        "--cache-dir".to_string(),
+                        out.join("cache").display().to_string(),
+                    ],
                 ]
                 .concat()
             };
             let shards = out.join("shards");
             array.push_str(&format!(
                 "{}{} --shard {task}/{tasks} --out {}\n",
-                command(penumbra, &[&["compare".to_string()], args.as_slice()].concat()),
+                command(
+                    penumbra,
+                    &[&["compare".to_string()], args.as_slice()].concat()
+                ),
                 threads(args),
                 quote_path(&shards),
             ));
@@ -330,7 +350,10 @@ pub fn scripts(
                 r.push_str(&prologue(slurm));
                 r.push_str(&format!(
                     "{}{} --references-only --out {}\n",
-                    command(penumbra, &[&["compare".to_string()], args.as_slice()].concat()),
+                    command(
+                        penumbra,
+                        &[&["compare".to_string()], args.as_slice()].concat()
+                    ),
                     threads(args),
                     quote_path(&out.join("references")),
                 ));
@@ -369,7 +392,11 @@ pub fn scripts(
 
 /// The job id in `sbatch --parsable`'s output (`ID` or `ID;CLUSTER`).
 pub fn parse_job_id(stdout: &str) -> Result<String> {
-    let line = stdout.lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("");
+    let line = stdout
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty())
+        .unwrap_or("");
     let id = line.split(';').next().unwrap_or("");
     if id.is_empty() || !id.chars().all(|c| c.is_ascii_digit()) {
         return Err(Error::param(
@@ -462,7 +489,9 @@ pub fn run_sweep(args: SweepArgs) -> Result<()> {
         }
     };
     if let Work::Compare { args: a, .. } = &work {
-        if a.iter().any(|w| w == "--out" || w == "--shard" || w.starts_with("--out=")) {
+        if a.iter()
+            .any(|w| w == "--out" || w == "--shard" || w.starts_with("--out="))
+        {
             return Err(Error::param(
                 "--",
                 "the forwarded compare arguments must not set --out or --shard: the sweep does",
@@ -470,7 +499,13 @@ pub fn run_sweep(args: SweepArgs) -> Result<()> {
         }
     }
     let cwd = std::env::current_dir().map_err(|e| Error::io(".", e))?;
-    let absolute = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { cwd.join(p) };
+    let absolute = |p: &Path| {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            cwd.join(p)
+        }
+    };
     let out = absolute(&args.out);
     let penumbra = match &args.penumbra {
         Some(p) => absolute(p),
@@ -488,7 +523,12 @@ pub fn run_sweep(args: SweepArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let logs = args.job.log_dir.clone().map(|p| absolute(&p)).unwrap_or_else(|| out.join("logs"));
+    let logs = args
+        .job
+        .log_dir
+        .clone()
+        .map(|p| absolute(&p))
+        .unwrap_or_else(|| out.join("logs"));
     let sub = match work {
         Work::Compare { .. } => "shards",
         Work::Render { .. } => "tiles",
@@ -565,7 +605,15 @@ mod tests {
             args: vec!["a b.toml".into(), "--techniques".into(), "dcs".into()],
             references_job: true,
         };
-        let sc = scripts(&work, 4, Path::new("/o"), Path::new("/w"), Path::new("/bin/p"), &s).unwrap();
+        let sc = scripts(
+            &work,
+            4,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/bin/p"),
+            &s,
+        )
+        .unwrap();
         let a = &sc.array.1;
         for want in [
             "#SBATCH --array=1-4%3\n",
@@ -585,7 +633,13 @@ mod tests {
         ] {
             assert!(a.contains(want), "{want:?} not in\n{a}");
         }
-        assert!(sc.merge.1.contains("/bin/p compare --merge /o/shards --out /o\n"), "{}", sc.merge.1);
+        assert!(
+            sc.merge
+                .1
+                .contains("/bin/p compare --merge /o/shards --out /o\n"),
+            "{}",
+            sc.merge.1
+        );
         assert!(!sc.merge.1.contains("--array"));
         assert!(sc.references.unwrap().1.contains("--references-only"));
         assert_eq!(sc.array.0, Path::new("/o/slurm/array.sbatch"));
@@ -598,15 +652,42 @@ mod tests {
             scene: "s.toml".into(),
             args: vec!["--threads".into(), "1".into()],
         };
-        let sc = scripts(&work, 4, Path::new("/o"), Path::new("/w"), Path::new("/p"), &s).unwrap();
+        let sc = scripts(
+            &work,
+            4,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &s,
+        )
+        .unwrap();
         assert!(sc.array.1.contains(
             "/p render s.toml --threads 1 --tiles \"$SLURM_ARRAY_TASK_ID\"/4 -o /o/tiles/\"$SLURM_ARRAY_TASK_ID\".part\n"
         ), "{}", sc.array.1);
         assert!(sc.array.1.contains("#SBATCH --array=1-4\n"));
-        assert!(sc.merge.1.contains("merge-tiles \"${parts[@]}\" -o /o/render.png --exr /o/render.exr"));
+        assert!(sc
+            .merge
+            .1
+            .contains("merge-tiles \"${parts[@]}\" -o /o/render.png --exr /o/render.exr"));
         let bad = slurm(&["--sbatch-arg=mail"]);
-        assert!(scripts(&work, 4, Path::new("/o"), Path::new("/w"), Path::new("/p"), &bad).is_err());
-        assert!(scripts(&work, 0, Path::new("/o"), Path::new("/w"), Path::new("/p"), &s).is_err());
+        assert!(scripts(
+            &work,
+            4,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &bad
+        )
+        .is_err());
+        assert!(scripts(
+            &work,
+            0,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &s
+        )
+        .is_err());
     }
 
     #[test]

@@ -37,7 +37,7 @@ use crate::error::{Error, Result};
 use crate::gbuffer::gbuffer_pass;
 use crate::geom::SceneGeometry;
 use crate::output::{write_atomically, Layer, OutputSet};
-use crate::raster::TILE_SIZE;
+use crate::raster::{MAX_SIDE, TILE_SIZE};
 use crate::render::{aov_layers, check_memory, shade, view_for, RenderOptions};
 use crate::report::Progress;
 use crate::scene::Scene;
@@ -290,8 +290,21 @@ pub fn read_part(path: &Path) -> Result<Part> {
         serde_json::from_slice(&rest[..end]).map_err(|e| bad(&e.to_string()))?;
     let data = &rest[end + 1..];
     let [y0, y1] = header.rows;
-    if !(y0 < y1 && y1 <= header.height) || header.width == 0 {
-        return Err(bad("band rows outside the image"));
+    if !(1..=MAX_SIDE).contains(&header.width) || !(1..=MAX_SIDE).contains(&header.height) {
+        return Err(bad("image size outside 1..=MAX_SIDE"));
+    }
+    match band_rows(header.height, header.index, header.count) {
+        Ok(r) if [r.start, r.end] == header.rows => {}
+        _ => {
+            return Err(Error::file(
+                path,
+                None,
+                format!(
+                    "band {}/{} holds rows {:?}, not the rows of that band of a {}-row image",
+                    header.index, header.count, header.rows, header.height
+                ),
+            ))
+        }
     }
     let n = header.width as usize * (y1 - y0) as usize;
     let channels = 3 + header.layers.iter().map(|(_, c)| c.len()).sum::<usize>();
@@ -379,17 +392,6 @@ pub fn merge_parts(paths: &[PathBuf], png: &Path, exr: Option<&Path>) -> Result<
                 "layer list",
                 &format!("{:?}", h.layers),
                 &format!("{:?}", first.layers),
-            ));
-        }
-        let expected = band_rows(h.height, h.index, h.count)?;
-        if h.index == 0 || h.index > h.count || [expected.start, expected.end] != h.rows {
-            return Err(Error::file(
-                path,
-                None,
-                format!(
-                    "band {}/{} holds rows {:?}, expected {expected:?}",
-                    h.index, h.count, h.rows
-                ),
             ));
         }
         let slot = &mut seen[h.index as usize - 1];
