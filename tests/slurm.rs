@@ -309,6 +309,7 @@ fn a_failed_shard_is_named_and_rerunning_it_completes_the_sweep() {
     let merge_args = |out: &Path| -> Vec<String> {
         [
             "compare",
+            "--no-images",
             "--merge",
             shards.to_str().unwrap(),
             "--out",

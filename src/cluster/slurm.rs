@@ -322,6 +322,9 @@ pub fn scripts(
                 ]
                 .concat()
             };
+            // What belongs to the merge: --report (a shard refuses it)
+            // and --no-images (the merge must be told the shards had none).
+            let (args, merge_words) = &split_merge_args(args);
             let shards = out.join("shards");
             array.push_str(&format!(
                 "{}{} --shard {task}/{tasks} --out {}\n",
@@ -334,7 +337,10 @@ pub fn scripts(
             ));
             merge.push_str(&format!(
                 "{} --merge {} --out {}\n",
-                command(penumbra, &["compare".to_string()]),
+                command(
+                    penumbra,
+                    &[&["compare".to_string()], merge_words.as_slice()].concat()
+                ),
                 quote_path(&shards),
                 quote_path(out),
             ));
@@ -388,6 +394,28 @@ pub fn scripts(
         array: (dir.join("array.sbatch"), array),
         merge: (dir.join("merge.sbatch"), merge),
     })
+}
+
+/// Splits forwarded compare arguments into the shards' and the extra
+/// words of the merge: `--report PATH` goes to the merge only,
+/// `--no-images` to both.
+fn split_merge_args(args: &[String]) -> (Vec<String>, Vec<String>) {
+    let (mut shard, mut merge) = (Vec::new(), Vec::new());
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        if a == "--report" {
+            merge.push(a.clone());
+            merge.extend(it.next().cloned());
+        } else if a.starts_with("--report=") {
+            merge.push(a.clone());
+        } else {
+            if a == "--no-images" {
+                merge.push(a.clone());
+            }
+            shard.push(a.clone());
+        }
+    }
+    (shard, merge)
 }
 
 /// The job id in `sbatch --parsable`'s output (`ID` or `ID;CLUSTER`).
@@ -642,6 +670,29 @@ mod tests {
         );
         assert!(!sc.merge.1.contains("--array"));
         assert!(sc.references.unwrap().1.contains("--references-only"));
+        let work = Work::Compare {
+            args: ["s.toml", "--report", "r.md", "--no-images"]
+                .map(String::from)
+                .to_vec(),
+            references_job: false,
+        };
+        let sc = scripts(
+            &work,
+            2,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &s,
+        )
+        .unwrap();
+        assert!(!sc.array.1.contains("r.md") && sc.array.1.contains("s.toml --no-images"));
+        assert!(
+            sc.merge
+                .1
+                .contains("/p compare --report r.md --no-images --merge /o/shards --out /o\n"),
+            "{}",
+            sc.merge.1
+        );
         assert_eq!(sc.array.0, Path::new("/o/slurm/array.sbatch"));
     }
 
