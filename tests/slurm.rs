@@ -106,25 +106,46 @@ fn logs_of(dir: &Path) -> String {
     s
 }
 
-/// The CSV with the columns that may differ between runs (times, host,
-/// the Pareto flag, which is decided on times) left out.
-fn error_figures(csv: &Path) -> Vec<String> {
-    let text = std::fs::read_to_string(csv).unwrap_or_else(|e| panic!("{}: {e}", csv.display()));
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let keep: Vec<usize> = (0..header.len())
-        .filter(|&i| !header[i].ends_with("_ms") && !matches!(header[i], "host" | "pareto"))
-        .collect();
-    assert!(header.contains(&"rmse") && keep.len() >= 15, "{header:?}");
-    let mut rows: Vec<String> = lines
-        .map(|l| {
-            let f: Vec<&str> = l.split(',').collect();
-            keep.iter().map(|&i| f[i]).collect::<Vec<_>>().join(",")
-        })
-        .collect();
-    rows.sort();
-    assert!(rows.len() > 8, "too few rows in {}", csv.display());
-    rows
+/// results.json without what may differ between runs of the same sweep:
+/// times, host, the Pareto flags (decided on times), cache flags and the
+/// paths of charts and images (the output directories differ). What is
+/// left are the error figures, counts and settings.
+fn error_figures(json: &Path) -> serde_json::Value {
+    const VARYING: &[&str] = &[
+        "host",
+        "median_ms",
+        "min_ms",
+        "max_ms",
+        "pareto",
+        "passes",
+        "seconds",
+        "from_cache",
+        "cache_file",
+        "chart",
+        "chart_all",
+        "heatmaps",
+        "image",
+        "path",
+    ];
+    fn strip(v: &mut serde_json::Value) -> usize {
+        match v {
+            serde_json::Value::Object(m) => {
+                m.retain(|k, _| !VARYING.contains(&k.as_str()));
+                m.values_mut().map(strip).sum::<usize>() + usize::from(m.contains_key("rmse"))
+            }
+            serde_json::Value::Array(a) => a.iter_mut().map(strip).sum(),
+            _ => 0,
+        }
+    }
+    let text = std::fs::read_to_string(json).unwrap_or_else(|e| panic!("{}: {e}", json.display()));
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let metrics = strip(&mut v);
+    assert!(
+        metrics > 50,
+        "only {metrics} error figures in {}",
+        json.display()
+    );
+    v
 }
 
 const COMPARE: &[&str] = &[
@@ -242,8 +263,8 @@ fn sharded_compare_and_banded_render_match_one_machine() {
     );
     assert!(ok, "{msg}");
     assert_eq!(
-        error_figures(&sw.join("results.csv")),
-        error_figures(&whole.join("results.csv"))
+        error_figures(&sw.join("results.json")),
+        error_figures(&whole.join("results.json"))
     );
 
     let (png, exr) = (dir.join("one.png"), dir.join("one.exr"));
@@ -361,8 +382,8 @@ fn a_failed_shard_is_named_and_rerunning_it_completes_the_sweep() {
     );
     assert!(ok, "{msg}");
     assert_eq!(
-        error_figures(&dir.join("merged").join("results.csv")),
-        error_figures(&whole.join("results.csv"))
+        error_figures(&dir.join("merged").join("results.json")),
+        error_figures(&whole.join("results.json"))
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
