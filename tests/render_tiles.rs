@@ -115,7 +115,7 @@ fn band_rows_cover_the_image_in_whole_tiles() {
                 assert_eq!(r.start, next, "h {h} band {i}/{n}");
                 assert!(r.end > r.start, "h {h} band {i}/{n} empty");
                 assert_eq!(r.start % 64, 0);
-                assert!(r.end % 64 == 0 || r.end == h);
+                assert!(r.end.is_multiple_of(64) || r.end == h);
                 sizes.push(r.end.div_ceil(64) - r.start / 64);
                 next = r.end;
             }
