@@ -1,9 +1,10 @@
 //! The command line: argument parsing and the commands' top level.
 
 use crate::compare::cache::default_cache_dir;
+use crate::compare::shard::{run_shard, unsharded_command, ShardSpec};
 use crate::compare::{
-    compare_scene, progress_steps, write_csv, write_json, write_markdown, CompareOptions,
-    SceneComparison,
+    check_verified, compare_scene, merge_partials, progress_steps, reference_only, scene_dir,
+    write_results, CompareOptions,
 };
 use crate::error::{Error, Result};
 use crate::output::{check_output, write_stderr, write_stdout, OutputSet};
@@ -17,7 +18,7 @@ use crate::shadow::kit::verify::check_verifiable;
 use crate::shadow::registry::DEFAULT_TECHNIQUE;
 use crate::shadow::{Technique, TechniqueOptions};
 use clap::{Parser, Subcommand};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// penumbra: physically based soft shadows on the CPU.
 #[derive(Debug, Parser)]
@@ -84,15 +85,43 @@ enum Command {
         /// error.
         #[arg(long, value_name = "K")]
         verify: Option<u64>,
+        /// Render only band I of N (whole rows of 64-pixel tiles) into the
+        /// part file -o; `merge-tiles` assembles the image.
+        #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"])]
+        tiles: Option<String>,
     },
+    /// Assemble `render --tiles` parts into the PNG (and EXR) a single
+    /// render writes, byte for byte.
+    MergeTiles(crate::cluster::tiles::MergeArgs),
+    /// Shard a compare (or a banded render) over a Slurm job array.
+    Sweep(crate::cluster::slurm::SweepArgs),
     /// Time every technique at several quality settings and measure its
     /// error against a cached ray-traced reference at the same receiver
     /// points; writes results.csv/json/md, charts, images and heat maps.
     Compare {
         /// Scene files (TOML); each gets its own subdirectory of --out when
         /// there are several.
-        #[arg(required = true)]
+        #[arg(required_unless_present = "merge")]
         scenes: Vec<PathBuf>,
+        /// Run only shard I of N (I in 1..=N, 1-based: map a 0-based Slurm
+        /// array index to I = index + 1) of the sweep's (scene, technique,
+        /// setting) runs, balanced by an estimate of their cost, and write
+        /// its partial result to --out as shard-I-of-N.json (with its
+        /// images). The first shard to need a scene's reference computes it
+        /// under a lock in the cache, which must be shared; the others wait
+        /// and read it. Join the shards with --merge.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<String>,
+        /// Only compute (or find in the cache) each scene's reference, for a
+        /// job the shards depend on; with --shard I/N only scenes I, I+N, ...
+        #[arg(long, conflicts_with = "merge")]
+        references_only: bool,
+        /// Merge the partial results in these directories (from --shard runs)
+        /// into --out: the tables, charts, images and heat maps of one
+        /// unsharded run. Scenes and options come from the partials; a
+        /// missing shard or a mismatch is an error that names it.
+        #[arg(long, value_name = "DIR", num_args = 1.., conflicts_with_all = ["shard", "references_only"])]
+        merge: Vec<PathBuf>,
         /// Comma-separated techniques (`penumbra techniques` lists them).
         #[arg(
             long,
@@ -227,12 +256,16 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             timings,
             explain,
             verify,
+            tiles,
         } => {
             let aovs = aov
                 .iter()
                 .map(|s| s.trim().parse())
                 .collect::<Result<Vec<Aov>>>()?;
-            if !aovs.is_empty() && exr.is_none() {
+            let tiles = tiles
+                .map(|t| crate::cluster::tiles::parse_share("--tiles", &t))
+                .transpose()?;
+            if !aovs.is_empty() && exr.is_none() && tiles.is_none() {
                 return Err(Error::param(
                     "--aov",
                     "AOV layers need an EXR output (--exr)",
@@ -270,6 +303,13 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             }
             let scene = load_scene(&scene)?;
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
+            if let Some((i, n)) = tiles {
+                with_threads(threads, || {
+                    crate::cluster::tiles::render_part(&scene, &options, i, n, &output, &progress)
+                })??;
+                progress.finish();
+                return Ok(Outcome::Success);
+            }
             let out = with_threads(threads, || render(&scene, &options, &progress))??;
             progress.finish();
             if timings || explain {
@@ -311,6 +351,9 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         }
         Command::Compare {
             scenes,
+            shard,
+            references_only,
+            merge,
             techniques,
             samples,
             reference_samples,
@@ -327,6 +370,35 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             verify,
             options: technique_options,
         } => {
+            if !merge.is_empty() {
+                if !scenes.is_empty() {
+                    return Err(Error::param(
+                        "--merge",
+                        "takes the partial results' directories only: scenes and options come from the partials",
+                    ));
+                }
+                if let Some(report) = &report {
+                    check_output(report)?;
+                }
+                let merged = merge_partials(&merge, &out, !no_images)?;
+                write_results(&out, &merged.results, report.as_deref(), &merged.command)?;
+                let runs: usize = merged.results.iter().map(|(r, _)| r.runs.len()).sum();
+                write_stderr(&format!(
+                    "merged {} partial results: {} scenes, {runs} runs; results in {}\n",
+                    merged.partials,
+                    merged.results.len(),
+                    out.display()
+                ));
+                check_verified(&merged.results)?;
+                return Ok(Outcome::Success);
+            }
+            let shard = shard.as_deref().map(ShardSpec::parse).transpose()?;
+            if shard.is_some() && report.is_some() && !references_only {
+                return Err(Error::param(
+                    "--report",
+                    "a shard writes a partial result: give --report to --merge",
+                ));
+            }
             let options = CompareOptions {
                 techniques,
                 technique_options,
@@ -354,38 +426,57 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 .iter()
                 .map(|p| load_scene(p))
                 .collect::<Result<Vec<Scene>>>()?;
+            if references_only {
+                for (i, scene) in loaded.iter().enumerate() {
+                    if shard.is_some_and(|s| i as u32 % s.count != s.index - 1) {
+                        continue;
+                    }
+                    let (file, cached) = with_threads(threads, || {
+                        reference_only(scene, &options, &Progress::hidden())
+                    })??;
+                    write_stderr(&format!(
+                        "{}: reference {} {}\n",
+                        scene.name,
+                        if cached {
+                            "already in"
+                        } else {
+                            "computed into"
+                        },
+                        file.display()
+                    ));
+                }
+                return Ok(Outcome::Success);
+            }
+            if let Some(shard) = shard {
+                let args: Vec<String> = std::env::args().skip(1).collect();
+                let summary = with_threads(threads, || {
+                    run_shard(
+                        &loaded,
+                        &options,
+                        shard,
+                        &out,
+                        &unsharded_command(&args),
+                        true,
+                    )
+                })??;
+                write_stderr(&format!(
+                    "shard {shard}: {} of the sweep's {} runs; partial result in {}\n",
+                    summary.runs,
+                    summary.sweep_runs,
+                    summary.partial.display()
+                ));
+                return Ok(Outcome::Success);
+            }
             let progress = Progress::new(progress_steps(&options) * loaded.len() as u64, true);
             let mut results = Vec::new();
             for scene in &loaded {
-                let dir = if loaded.len() > 1 {
-                    out.join(slug_of(&scene.name))
-                } else {
-                    out.clone()
-                };
+                let dir = scene_dir(&out, &scene.name, loaded.len());
                 let result =
                     with_threads(threads, || compare_scene(scene, &options, &dir, &progress))??;
                 results.push((result, dir));
             }
             progress.finish();
-            let command = command_line();
-            let comparisons: Vec<_> = results.iter().map(|(r, _)| r.clone()).collect();
-            std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-            write_csv(&out.join("results.csv"), &comparisons)?;
-            write_json(&out.join("results.json"), &comparisons)?;
-            let linked = |base: &Path| -> Vec<(SceneComparison, String)> {
-                results
-                    .iter()
-                    .map(|(r, dir)| (r.clone(), relative_path(base, dir)))
-                    .collect()
-            };
-            write_markdown(&out.join("results.md"), &linked(&out), &command)?;
-            if let Some(report) = report {
-                let base = match report.parent() {
-                    Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-                    _ => PathBuf::from("."),
-                };
-                write_markdown(&report, &linked(&base), &command)?;
-            }
+            write_results(&out, &results, report.as_deref(), &command_line())?;
             for (r, dir) in &results {
                 write_stderr(&format!(
                     "{}: {} runs; results in {}\n",
@@ -394,16 +485,15 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     dir.display()
                 ));
             }
-            // Inexact settings are expected to disagree; exact ones not.
-            for (r, _) in &results {
-                for run in &r.runs {
-                    if let Some(v) = run.verify.as_ref().filter(|v| v.declared_exact) {
-                        v.check().map_err(|e| {
-                            Error::param("--verify", format!("{} ({}): {e}", r.scene, run.setting))
-                        })?;
-                    }
-                }
-            }
+            check_verified(&results)?;
+            Ok(Outcome::Success)
+        }
+        Command::MergeTiles(args) => {
+            crate::cluster::tiles::run_merge(&args)?;
+            Ok(Outcome::Success)
+        }
+        Command::Sweep(args) => {
+            crate::cluster::slurm::run_sweep(args)?;
             Ok(Outcome::Success)
         }
         Command::Diff {
@@ -595,48 +685,6 @@ fn command_line() -> String {
         })
         .collect();
     format!("penumbra {}", quoted.join(" "))
-}
-
-/// A directory name for a scene name.
-fn slug_of(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if s.is_empty() {
-        "scene".into()
-    } else {
-        s
-    }
-}
-
-/// `target` relative to `base` (both relative to the working directory or
-/// both absolute), for links in reports.
-fn relative_path(base: &Path, target: &Path) -> String {
-    let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
-    let (base, target) = (abs(base), abs(target));
-    let b: Vec<_> = base.components().collect();
-    let t: Vec<_> = target.components().collect();
-    let common = b.iter().zip(&t).take_while(|(x, y)| x == y).count();
-    let mut rel = PathBuf::new();
-    for _ in common..b.len() {
-        rel.push("..");
-    }
-    for c in &t[common..] {
-        rel.push(c);
-    }
-    let s = rel.display().to_string();
-    if s.is_empty() {
-        ".".into()
-    } else {
-        s
-    }
 }
 
 /// The `--technique` parser: the registry's names, listed in the help and

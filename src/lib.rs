@@ -10,6 +10,7 @@
 
 pub mod allocator;
 pub mod cli;
+pub mod cluster;
 pub mod compare;
 pub mod error;
 pub mod gbuffer;

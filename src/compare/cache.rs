@@ -328,3 +328,206 @@ pub fn store(dir: &Path, key: &ReferenceKey, reference: &CachedReference) -> Res
         std::fs::write(tmp, text.as_bytes()).map_err(|e| Error::io(tmp, e))
     })
 }
+
+/// How long a waiter lets a reference lock go unchanged (no heartbeat)
+/// before it takes the lock for stale: far above [`HEARTBEAT`], so a
+/// busy or briefly stalled holder is never robbed.
+pub const STALE_AFTER: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// How often the holder of a reference lock rewrites it.
+const HEARTBEAT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// How often a waiter looks at the lock and the cache.
+const POLL: std::time::Duration = std::time::Duration::from_millis(250);
+
+/// The outcome of [`lock_reference`].
+pub enum Locked {
+    /// This process holds the lock: compute, store, then drop it.
+    Held(ReferenceLock),
+    /// Another process held it and let go (or its lock was stale and was
+    /// removed): look in the cache again.
+    Released,
+    /// No lock can be taken (e.g. a read-only cache): compute without one.
+    Unavailable(String),
+}
+
+/// A held reference lock: `<stem>.lock` in the cache directory, naming its
+/// host and pid, rewritten every [`HEARTBEAT`] by a thread; removed on
+/// drop.
+pub struct ReferenceLock {
+    path: PathBuf,
+    token: String,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for ReferenceLock {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            t.thread().unpark();
+            let _ = t.join();
+        }
+        // Only our own lock: a waiter may have judged us stale and
+        // another process may hold the lock now.
+        if lock_owner(&self.path).is_some_and(|o| o.token == self.token) {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// What a lock file says about its holder.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct LockOwner {
+    host: String,
+    pid: u32,
+    /// Tells this holder from a later one on the same host and pid.
+    token: String,
+    /// Counts heartbeats: its change is what tells a waiter the holder
+    /// lives (clocks of different hosts need not agree, so the waiter
+    /// measures the silence on its own clock).
+    beat: u64,
+}
+
+fn lock_owner(path: &Path) -> Option<LockOwner> {
+    serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()
+}
+
+/// Whether `owner` is certainly dead: a process of this host that no
+/// longer exists (`/proc` tells). Other hosts' holders are judged by
+/// their heartbeat only.
+fn owner_dead(owner: &LockOwner) -> bool {
+    owner.host == crate::compare::shard::host_name()
+        && Path::new("/proc/self").exists()
+        && !Path::new(&format!("/proc/{}", owner.pid)).exists()
+}
+
+/// Takes the lock on computing `key`'s reference in `dir`, or waits while
+/// another process holds it.
+///
+/// The lock is a file created with `create_new` (atomic on local
+/// filesystems and on NFSv3+), so of several shards only one computes a
+/// reference; the others wait and read the cache. A holder that died is
+/// noticed by its pid when on this host, otherwise by a heartbeat that
+/// stopped for [`STALE_AFTER`]; its lock is then removed and the waiter
+/// tries again. The lock saves work but is not what makes results right:
+/// a reference is the same bits whoever computes it and is stored
+/// atomically, so the rare race of two computations (a stale-lock
+/// judgement crossing a new holder) costs time, never correctness.
+pub fn lock_reference(
+    dir: &Path,
+    key: &ReferenceKey,
+    progress: &crate::report::Progress,
+) -> Result<Locked> {
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return Ok(Locked::Unavailable(format!("{}: {e}", dir.display())));
+    }
+    let path = dir.join(format!("{}.lock", key.stem()));
+    let host = crate::compare::shard::host_name();
+    let pid = std::process::id();
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    let token = format!("{:016x}", {
+        let mut h = StableHasher::default();
+        h.str(&host);
+        h.u64(pid as u64);
+        h.u64(nanos);
+        h.finish()
+    });
+    let owner = LockOwner {
+        host,
+        pid,
+        token: token.clone(),
+        beat: 0,
+    };
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&path)
+    {
+        Ok(mut file) => {
+            use std::io::Write as _;
+            let text = serde_json::to_string(&owner).unwrap_or_default();
+            if let Err(e) = file
+                .write_all(text.as_bytes())
+                .and_then(|_| file.sync_all())
+            {
+                let _ = std::fs::remove_file(&path);
+                return Ok(Locked::Unavailable(format!("{}: {e}", path.display())));
+            }
+            let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            let thread = {
+                let (stop, path, mut owner) = (stop.clone(), path.clone(), owner);
+                std::thread::spawn(move || loop {
+                    std::thread::park_timeout(HEARTBEAT);
+                    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                        return;
+                    }
+                    // Someone took the lock for stale: it is theirs now.
+                    if lock_owner(&path).is_none_or(|o| o.token != owner.token) {
+                        return;
+                    }
+                    owner.beat += 1;
+                    let text = serde_json::to_string(&owner).unwrap_or_default();
+                    let _ = std::fs::write(&path, text);
+                })
+            };
+            Ok(Locked::Held(ReferenceLock {
+                path,
+                token,
+                stop,
+                thread: Some(thread),
+            }))
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            wait_for_lock(&path, dir, key, progress);
+            Ok(Locked::Released)
+        }
+        Err(e) => Ok(Locked::Unavailable(format!("{}: {e}", path.display()))),
+    }
+}
+
+/// Waits until the lock at `path` is gone, the reference is in the cache,
+/// or the lock is stale (then removes it).
+fn wait_for_lock(path: &Path, dir: &Path, key: &ReferenceKey, progress: &crate::report::Progress) {
+    let (exr, json) = paths(dir, key);
+    let mut seen = std::fs::read(path).ok();
+    let mut since = std::time::Instant::now();
+    if let Some(o) = lock_owner(path) {
+        let what = format!(
+            "waiting for the reference ({} pid {} computes it)",
+            o.host, o.pid
+        );
+        progress.stage(&what);
+        eprintln!("penumbra: {what}: {}", path.display());
+    }
+    loop {
+        let now = std::fs::read(path).ok();
+        if now.is_none() || (exr.exists() && json.exists()) {
+            return;
+        }
+        if now != seen {
+            seen = now;
+            since = std::time::Instant::now();
+        }
+        let dead = lock_owner(path).is_some_and(|o| owner_dead(&o));
+        if dead || since.elapsed() >= STALE_AFTER {
+            // Removed only if it is still the lock judged stale.
+            if std::fs::read(path).ok() == seen {
+                eprintln!(
+                    "penumbra: warning: removing stale reference lock {} ({})",
+                    path.display(),
+                    if dead {
+                        "its process is gone"
+                    } else {
+                        "no heartbeat"
+                    }
+                );
+                let _ = std::fs::remove_file(path);
+            }
+            return;
+        }
+        std::thread::sleep(POLL);
+    }
+}

@@ -14,15 +14,18 @@
 
 pub mod cache;
 mod charts;
+mod merge;
 mod reference;
 mod results;
 mod run;
 mod settings;
+pub mod shard;
 
 pub use crate::shadow::registry::{has_semi_opaque_casters, QualitySetting};
 pub use charts::HEATMAP_SCALE;
+pub use merge::merge_partials;
 pub use reference::{NoiseFloor, ReferenceSummary};
-pub use results::{write_csv, write_json, write_markdown};
+pub use results::{check_verified, write_csv, write_json, write_markdown, write_results};
 pub use run::{PassMedian, RegionMetrics, RunResult};
 pub use settings::{progress_steps, quality_settings, CompareOptions};
 
@@ -32,6 +35,7 @@ use crate::render::{verify_render, RenderOptions};
 use crate::report::Progress;
 use crate::scene::Scene;
 use crate::shadow::kit::verify::check_verifiable;
+pub use reference::reference_only;
 use reference::{reference, NoiseFloors, ReferenceImages};
 use run::{run_result, time_setting};
 use serde::Serialize;
@@ -73,26 +77,37 @@ pub fn compare_scene(
     progress: &Progress,
 ) -> Result<SceneComparison> {
     options.validate()?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let (cached, key, from_cache) = reference(scene, options, progress)?;
-    let reference = ReferenceImages::new(&cached);
-    let floors = NoiseFloors::new(&cached, &reference);
-    let (width, height) = (key.width, key.height);
-
-    if options.images {
-        let dir = out.join("images");
-        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        write_png(
-            &dir.join("reference.png"),
-            width,
-            height,
-            &reference.radiance,
-        )?;
+    let planned = scene_runs(scene, options)?;
+    let prepared = prepare_scene(scene, options, out, progress)?;
+    let mut runs = Vec::new();
+    for run in &planned {
+        runs.push(run_planned(scene, &prepared, run, options, out, progress)?);
     }
+    finish_scene(prepared.header, runs, out)
+}
 
+/// One (technique, setting) run of a scene, before it runs.
+pub(crate) struct PlannedRun {
+    /// The setting.
+    pub setting: QualitySetting,
+    /// Its render options.
+    pub options: RenderOptions,
+}
+
+/// The runs `compare` makes on `scene`, in order: every technique's
+/// quality settings. Cheap (no rendering): shards plan with it.
+pub(crate) fn scene_runs(scene: &Scene, options: &CompareOptions) -> Result<Vec<PlannedRun>> {
+    let view = crate::render::view_for(
+        scene,
+        &RenderOptions {
+            width: options.width,
+            height: options.height,
+            ..RenderOptions::default()
+        },
+    )?;
     let base = RenderOptions {
-        width: Some(width),
-        height: Some(height),
+        width: Some(view.width),
+        height: Some(view.height),
         seed: options.seed,
         options: options.technique_options.clone(),
         ..RenderOptions::default()
@@ -107,32 +122,47 @@ pub fn compare_scene(
             semi_opaque,
             &base,
         ) {
-            let Some(timed) =
-                time_setting(scene, &setting, &setting_options, options.repeat, progress)?
-            else {
-                continue;
-            };
-            let mut result =
-                run_result(&setting, timed, &reference, options, out, (width, height))?;
-            if let Some(k) = options.verify {
-                let params = setting_options.build_params();
-                if check_verifiable(technique, &params, k).is_ok() {
-                    progress.stage(&format!("{} {} (verify)", setting.curve, setting.label));
-                    result.verify = Some(verify_render(scene, &setting_options, k)?);
-                }
-            }
-            runs.push(result);
+            runs.push(PlannedRun {
+                setting,
+                options: setting_options,
+            });
         }
     }
-    let floor = floors.vcoef_all_lights;
-    let (chart, chart_all) = charts::pareto_and_charts(
-        out,
-        &scene.name,
-        &mut runs,
-        (floor.rmse_penumbra, floor.rmse_all),
-    )?;
+    Ok(runs)
+}
 
-    Ok(SceneComparison {
+/// A scene ready for its runs: the reference images and the scene's part
+/// of the results (no runs yet).
+pub(crate) struct PreparedScene {
+    reference: ReferenceImages,
+    /// The comparison without runs or charts.
+    pub header: SceneComparison,
+}
+
+/// Computes (or reads from the cache) `scene`'s reference and, with
+/// `options.images`, writes `out/images/reference.png`.
+pub(crate) fn prepare_scene(
+    scene: &Scene,
+    options: &CompareOptions,
+    out: &Path,
+    progress: &Progress,
+) -> Result<PreparedScene> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let (cached, key, from_cache) = reference(scene, options, progress)?;
+    let reference = ReferenceImages::new(&cached);
+    let floors = NoiseFloors::new(&cached, &reference);
+    let (width, height) = (key.width, key.height);
+    if options.images {
+        let dir = out.join("images");
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        write_png(
+            &dir.join("reference.png"),
+            width,
+            height,
+            &reference.radiance,
+        )?;
+    }
+    let header = SceneComparison {
         scene: scene.name.clone(),
         path: scene.path.display().to_string(),
         width,
@@ -157,8 +187,89 @@ pub fn compare_scene(
             floor_vcoef_all_lights: floors.vcoef_all_lights,
             floor_radiance: floors.radiance,
         },
+        runs: Vec::new(),
+        chart: None,
+        chart_all: None,
+    };
+    Ok(PreparedScene { reference, header })
+}
+
+/// Times and measures one planned run of `scene` (images into `out`).
+pub(crate) fn run_planned(
+    scene: &Scene,
+    prepared: &PreparedScene,
+    run: &PlannedRun,
+    options: &CompareOptions,
+    out: &Path,
+    progress: &Progress,
+) -> Result<RunResult> {
+    let setting = &run.setting;
+    let size = (prepared.header.width, prepared.header.height);
+    let timed = time_setting(scene, setting, &run.options, options.repeat, progress)?
+        .ok_or_else(|| Error::param("--repeat", "no timed run"))?;
+    let mut result = run_result(setting, timed, &prepared.reference, options, out, size)?;
+    if let Some(k) = options.verify {
+        let params = run.options.build_params();
+        if check_verifiable(run.options.technique, &params, k).is_ok() {
+            progress.stage(&format!("{} {} (verify)", setting.curve, setting.label));
+            result.verify = Some(verify_render(scene, &run.options, k)?);
+        }
+    }
+    Ok(result)
+}
+
+/// The scene's comparison from its `header` and every run in order: marks
+/// the Pareto front and writes the charts into `out`. The one way results
+/// are completed, for a whole run and for merged shards alike.
+pub(crate) fn finish_scene(
+    header: SceneComparison,
+    mut runs: Vec<RunResult>,
+    out: &Path,
+) -> Result<SceneComparison> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    for r in &mut runs {
+        r.pareto = false;
+    }
+    let floor = header.reference.floor_vcoef_all_lights;
+    let (chart, chart_all) = charts::pareto_and_charts(
+        out,
+        &header.scene,
+        &mut runs,
+        (floor.rmse_penumbra, floor.rmse_all),
+    )?;
+    Ok(SceneComparison {
         runs,
         chart,
         chart_all,
+        ..header
     })
+}
+
+/// The directory of scene `name`'s images and charts under `out`: `out`
+/// itself for a single scene, a subdirectory per scene for several.
+pub fn scene_dir(out: &Path, name: &str, scenes: usize) -> std::path::PathBuf {
+    if scenes > 1 {
+        out.join(slug_of(name))
+    } else {
+        out.to_path_buf()
+    }
+}
+
+/// A directory name for a scene name.
+fn slug_of(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() {
+        "scene".into()
+    } else {
+        s
+    }
 }

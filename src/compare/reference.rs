@@ -250,11 +250,24 @@ pub(super) fn reference(
         seeds: options.reference_seeds(),
         version: REFERENCE_VERSION,
     };
-    if let Some(hit) = cache::load(&options.cache_dir, &key, scene.lights.len()) {
-        progress.step();
-        progress.step();
-        return Ok((hit, key, true));
-    }
+    // Shards of a sweep on a shared filesystem compute each reference
+    // once: the first to need it holds the cache's lock while the others
+    // wait and then read the cache (cache.rs explains the lock).
+    let _lock = loop {
+        if let Some(hit) = cache::load(&options.cache_dir, &key, scene.lights.len()) {
+            progress.step();
+            progress.step();
+            return Ok((hit, key, true));
+        }
+        match cache::lock_reference(&options.cache_dir, &key, progress)? {
+            cache::Locked::Held(lock) => break Some(lock),
+            cache::Locked::Released => continue,
+            cache::Locked::Unavailable(why) => {
+                eprintln!("penumbra: warning: reference computed without the cache's lock: {why}");
+                break None;
+            }
+        }
+    };
     let start = Instant::now();
     let mut halves = Vec::new();
     let mut mask = Vec::new();
@@ -300,4 +313,20 @@ pub(super) fn reference(
         eprintln!("penumbra: warning: reference not cached: {e}");
     }
     Ok((cached, key, false))
+}
+
+/// `compare --references-only`: computes (or finds in the cache) the
+/// reference of `scene` under `options` and returns its cache file and
+/// whether it was already there.
+pub fn reference_only(
+    scene: &Scene,
+    options: &CompareOptions,
+    progress: &Progress,
+) -> Result<(std::path::PathBuf, bool)> {
+    options.validate()?;
+    let (_, key, from_cache) = reference(scene, options, progress)?;
+    Ok((
+        options.cache_dir.join(format!("{}.exr", key.stem())),
+        from_cache,
+    ))
 }

@@ -6,7 +6,7 @@ use crate::error::{Error, Result};
 use crate::output::write_atomically;
 use crate::report::{ErrorMetrics, VISIBLE_ERROR};
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn write_text(path: &Path, text: &str) -> Result<()> {
     write_atomically(path, |tmp| {
@@ -23,7 +23,7 @@ fn is_common_pass(name: &str) -> bool {
 /// rows for each reference's noise floor (technique `reference-floor`).
 pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
     let mut s = String::from(
-        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,pareto,verify_checked,verify_disagreements,verify_beyond_tie,verify_max_tie\n",
+        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,host,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,pareto,verify_checked,verify_disagreements,verify_beyond_tie,verify_max_tie\n",
     );
     for sc in scenes {
         for r in &sc.runs {
@@ -36,7 +36,7 @@ pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
             let mut row = |quantity: &str, region: &str, m: &ErrorMetrics| {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{:.4},{:.4},{:.4},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{:e},{:e},{:e},{:e},{},{},{verify}",
+                    "{},{},{},{},{:.4},{:.4},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{:e},{:e},{:e},{:e},{},{},{verify}",
                     csv_field(&sc.scene),
                     csv_field(&r.technique),
                     csv_field(&r.setting),
@@ -45,6 +45,7 @@ pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
                     r.min_ms,
                     r.max_ms,
                     r.runs,
+                    csv_field(&r.host),
                     r.pass_ms(|n| n == "geometry"),
                     r.pass_ms(|n| n == "gbuffer"),
                     r.pass_ms(|n| !is_common_pass(n)),
@@ -82,7 +83,7 @@ pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
             ] {
                 let _ = writeln!(
                     s,
-                    "{},reference-floor,{} spp,{},,,,,,,,,{},{},,{:e},{:e},,,,,,,,",
+                    "{},reference-floor,{} spp,{},,,,,,,,,,{},{},,{:e},{:e},,,,,,,,",
                     csv_field(&sc.scene),
                     floor.samples,
                     floor.samples,
@@ -250,6 +251,18 @@ pub fn write_markdown(
             }
         }
         let _ = writeln!(s);
+        // A sharded sweep's times come from several machines: say which.
+        let mut hosts: Vec<&str> = sc.runs.iter().map(|r| r.host.as_str()).collect();
+        hosts.sort_unstable();
+        hosts.dedup();
+        if hosts.len() > 1 {
+            let _ = writeln!(
+                s,
+                "Times measured on {} hosts ({}); results.csv names each run's.\n",
+                hosts.len(),
+                hosts.join(", ")
+            );
+        }
         if let Some(c) = &sc.chart_all {
             let _ = writeln!(
                 s,
@@ -287,4 +300,74 @@ fn row(s: &mut String, run: &RunResult, sc: &SceneComparison) {
         err(run.radiance.penumbra.rmse, Some(fr.rmse_penumbra)),
         if run.pareto { "●" } else { "" }
     );
+}
+
+/// Writes `results.csv`, `results.json` and `results.md` into `out` and,
+/// with `report`, the markdown report there too (links relative to it).
+/// `scenes` pairs each comparison with its output directory. The one
+/// writer of `compare`'s tables, for a whole run and for merged shards.
+pub fn write_results(
+    out: &Path,
+    scenes: &[(SceneComparison, PathBuf)],
+    report: Option<&Path>,
+    command: &str,
+) -> Result<()> {
+    let comparisons: Vec<SceneComparison> = scenes.iter().map(|(r, _)| r.clone()).collect();
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    write_csv(&out.join("results.csv"), &comparisons)?;
+    write_json(&out.join("results.json"), &comparisons)?;
+    let linked = |base: &Path| -> Vec<(SceneComparison, String)> {
+        scenes
+            .iter()
+            .map(|(r, dir)| (r.clone(), relative_path(base, dir)))
+            .collect()
+    };
+    write_markdown(&out.join("results.md"), &linked(out), command)?;
+    if let Some(report) = report {
+        let base = match report.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        write_markdown(report, &linked(&base), command)?;
+    }
+    Ok(())
+}
+
+/// `--verify`: an error for the first run that declares itself exact and
+/// disagrees beyond the tie distance (inexact settings are expected to
+/// disagree).
+pub fn check_verified(scenes: &[(SceneComparison, PathBuf)]) -> Result<()> {
+    for (r, _) in scenes {
+        for run in &r.runs {
+            if let Some(v) = run.verify.as_ref().filter(|v| v.declared_exact) {
+                v.check().map_err(|e| {
+                    Error::param("--verify", format!("{} ({}): {e}", r.scene, run.setting))
+                })?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `target` relative to `base` (both relative to the working directory or
+/// both absolute), for links in reports.
+fn relative_path(base: &Path, target: &Path) -> String {
+    let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let (base, target) = (abs(base), abs(target));
+    let b: Vec<_> = base.components().collect();
+    let t: Vec<_> = target.components().collect();
+    let common = b.iter().zip(&t).take_while(|(x, y)| x == y).count();
+    let mut rel = PathBuf::new();
+    for _ in common..b.len() {
+        rel.push("..");
+    }
+    for c in &t[common..] {
+        rel.push(c);
+    }
+    let s = rel.display().to_string();
+    if s.is_empty() {
+        ".".into()
+    } else {
+        s
+    }
 }

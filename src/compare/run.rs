@@ -50,6 +50,8 @@ pub struct RunResult {
     pub max_ms: f64,
     /// Timed runs.
     pub runs: u32,
+    /// The host that timed it (sharded sweeps run on many).
+    pub host: String,
     /// Per-pass medians, in execution order.
     pub passes: Vec<PassMedian>,
     /// Vcoef error per light (`None` where the technique gives no Vcoef).
@@ -202,6 +204,7 @@ pub(super) fn run_result(
         min_ms: totals.iter().copied().fold(f64::INFINITY, f64::min),
         max_ms: totals.iter().copied().fold(0.0, f64::max),
         runs: options.repeat,
+        host: super::shard::host_name(),
         passes,
         vcoef_all_lights: reference.vcoef_all_lights(&tests, &reference.vcoef),
         vcoef,

@@ -195,6 +195,18 @@ impl GBuffer {
         Ok(())
     }
 
+    /// Makes every pixel outside `rows` background, so that a band render
+    /// (`render --tiles`, [`crate::cluster::tiles`]) shades and traces
+    /// only its own rows; the pixels inside keep their bits.
+    pub fn keep_rows(&mut self, rows: std::ops::Range<u32>) {
+        let width = self.width as usize;
+        for (y, row) in self.points.chunks_mut(width).enumerate() {
+            if !rows.contains(&(y as u32)) {
+                row.fill(GPoint::BACKGROUND);
+            }
+        }
+    }
+
     /// Number of pixels.
     #[inline]
     pub fn len(&self) -> usize {

@@ -1,0 +1,753 @@
+//! `sweep --slurm`: sbatch scripts for a sharded `compare` (or a banded
+//! `render`): one job array (one task per shard or band, `--array=1-N%K`)
+//! and a merge job that depends on it (`afterok`), optionally a
+//! references job the array depends on. Slurm distributes the work; we
+//! only write the scripts and, with `--submit`, call `sbatch`.
+//!
+//! Layout under `--out DIR` (which must be on a filesystem every node
+//! mounts at the same path): `DIR/slurm/*.sbatch` (the scripts),
+//! `DIR/logs/` (one log per task: `NAME_%A_%a.out`, the merge's
+//! `NAME-merge_%j.out`), `DIR/shards/` (every compare shard's partial result
+//! `shard-I-of-N.json`) or `DIR/tiles/I.part` (band I), and the merged results in
+//! `DIR` itself (compare) or `DIR/render.png` + `DIR/render.exr`.
+
+use crate::error::{Error, Result};
+use crate::output::{write_atomically, write_stdout};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The Slurm settings of every job the sweep writes.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SlurmArgs {
+    /// Job name (`--job-name`; the merge job gets `-merge`, the references
+    /// job `-refs` appended).
+    #[arg(long, default_value = "penumbra")]
+    pub job_name: String,
+    /// Partition (`--partition`; default: the cluster's).
+    #[arg(long)]
+    pub partition: Option<String>,
+    /// Time limit of each task (`--time`, e.g. 30, 2:00:00, 1-00:00:00).
+    #[arg(long)]
+    pub time: Option<String>,
+    /// CPUs per task (`--cpus-per-task`); penumbra runs that many threads
+    /// unless the forwarded arguments set `--threads`.
+    #[arg(long, default_value_t = 1)]
+    pub cpus_per_task: u32,
+    /// Memory per node (`--mem`, e.g. 4G).
+    #[arg(long)]
+    pub mem: Option<String>,
+    /// Account to charge (`--account`).
+    #[arg(long)]
+    pub account: Option<String>,
+    /// Quality of service (`--qos`).
+    #[arg(long)]
+    pub qos: Option<String>,
+    /// Node features required (`--constraint`).
+    #[arg(long)]
+    pub constraint: Option<String>,
+    /// At most this many array tasks at once (`--array=1-N%K`).
+    #[arg(long, value_name = "K")]
+    pub throttle: Option<u32>,
+    /// Time limit of the merge job (default: --time).
+    #[arg(long)]
+    pub merge_time: Option<String>,
+    /// Memory of the merge job (default: --mem).
+    #[arg(long)]
+    pub merge_mem: Option<String>,
+    /// Extra sbatch option for every job, as it would be typed
+    /// (`--sbatch-arg=--mail-type=END`); repeatable.
+    #[arg(long, value_name = "OPTION", allow_hyphen_values = true)]
+    pub sbatch_arg: Vec<String>,
+    /// A shell line every job runs before penumbra (e.g. `module load
+    /// gcc`); repeatable.
+    #[arg(long, value_name = "LINE")]
+    pub setup: Vec<String>,
+    /// Log directory (default: OUT/logs).
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
+}
+
+/// `penumbra sweep`: its command line.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SweepArgs {
+    /// Write Slurm batch scripts (the only scheduler supported).
+    #[arg(long = "slurm", required = true)]
+    pub use_slurm: bool,
+    /// Compare shards: one array task each (`compare --shard I/N`).
+    #[arg(long, value_name = "N", conflicts_with = "render")]
+    pub shards: Option<u32>,
+    /// Render this scene in bands instead (`render --tiles I/N`).
+    #[arg(long, value_name = "SCENE", requires = "tiles")]
+    pub render: Option<PathBuf>,
+    /// Bands of the --render image: one array task each.
+    #[arg(long, value_name = "N", requires = "render")]
+    pub tiles: Option<u32>,
+    /// Output directory on the shared filesystem (scripts, logs, partial
+    /// and merged results).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also a job computing the references first (`compare
+    /// --references-only`), which the array depends on; without it the
+    /// first shard that needs a reference computes it under the cache lock.
+    #[arg(long, conflicts_with = "render")]
+    pub references_job: bool,
+    /// Submit the scripts with sbatch (prints the job ids).
+    #[arg(long)]
+    pub submit: bool,
+    /// Print the scripts; write and submit nothing.
+    #[arg(long, conflicts_with = "submit")]
+    pub dry_run: bool,
+    /// The penumbra binary the jobs run (default: this one, by its
+    /// absolute path; it must be visible to every node).
+    #[arg(long)]
+    pub penumbra: Option<PathBuf>,
+    /// The sbatch command.
+    #[arg(long, default_value = "sbatch")]
+    pub sbatch: PathBuf,
+    #[command(flatten)]
+    pub job: SlurmArgs,
+    /// The arguments of `compare` (scenes, --techniques, ...) or `render`
+    /// (--technique, --samples, ...) every task runs with, after `--`.
+    #[arg(last = true)]
+    pub args: Vec<String>,
+}
+
+/// What the array tasks do.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Work {
+    /// `compare ARGS --shard I/N`, then `compare --merge`.
+    Compare {
+        /// Forwarded compare arguments.
+        args: Vec<String>,
+        /// Whether a references job runs first.
+        references_job: bool,
+    },
+    /// `render SCENE ARGS --tiles I/N`, then `merge-tiles`.
+    Render {
+        /// The scene.
+        scene: PathBuf,
+        /// Forwarded render arguments.
+        args: Vec<String>,
+    },
+}
+
+/// A sweep's scripts, and where they go.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scripts {
+    /// `(path, text)` of the references job, if any.
+    pub references: Option<(PathBuf, String)>,
+    /// The array job.
+    pub array: (PathBuf, String),
+    /// The merge job.
+    pub merge: (PathBuf, String),
+}
+
+/// Quotes `s` for a POSIX shell (bare when nothing needs quoting).
+pub fn shell_quote(s: &str) -> String {
+    let plain = !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+%@".contains(c));
+    if plain {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', "'\\''"))
+    }
+}
+
+fn quote_path(p: &Path) -> String {
+    shell_quote(&p.display().to_string())
+}
+
+/// One sbatch option from the user must be a single line starting `-`.
+fn check_sbatch_arg(a: &str) -> Result<()> {
+    if !a.starts_with('-') || a.contains('\n') {
+        return Err(Error::param(
+            "--sbatch-arg",
+            format!("`{a}` is not one sbatch option (such as --mail-type=END)"),
+        ));
+    }
+    Ok(())
+}
+
+/// A job's `#SBATCH` header.
+fn header(
+    slurm: &SlurmArgs,
+    name: &str,
+    log: &Path,
+    time: Option<&str>,
+    mem: Option<&str>,
+    chdir: &Path,
+) -> String {
+    let mut h = String::from("#!/bin/bash\n");
+    let mut line = |opt: String| {
+        h.push_str("#SBATCH ");
+        h.push_str(&opt);
+        h.push('\n');
+    };
+    line(format!("--job-name={}", shell_quote(name)));
+    line(format!("--output={}", quote_path(log)));
+    line(format!("--chdir={}", quote_path(chdir)));
+    line("--nodes=1".into());
+    line("--ntasks=1".into());
+    line(format!("--cpus-per-task={}", slurm.cpus_per_task));
+    for (opt, v) in [
+        ("partition", slurm.partition.as_deref()),
+        ("time", time),
+        ("mem", mem),
+        ("account", slurm.account.as_deref()),
+        ("qos", slurm.qos.as_deref()),
+        ("constraint", slurm.constraint.as_deref()),
+    ] {
+        if let Some(v) = v {
+            line(format!("--{opt}={}", shell_quote(v)));
+        }
+    }
+    for a in &slurm.sbatch_arg {
+        line(a.clone());
+    }
+    h
+}
+
+/// The shell lines every job starts with after its header.
+fn prologue(slurm: &SlurmArgs) -> String {
+    let mut s = String::from("set -euo pipefail\n");
+    for l in &slurm.setup {
+        s.push_str(l);
+        s.push('\n');
+    }
+    s.push_str(
+        "echo \"penumbra job ${SLURM_JOB_ID:-?} task ${SLURM_ARRAY_TASK_ID:-} on $(hostname)\"\n",
+    );
+    s
+}
+
+fn command(penumbra: &Path, words: &[String]) -> String {
+    let mut s = quote_path(penumbra);
+    for w in words {
+        s.push(' ');
+        s.push_str(&shell_quote(w));
+    }
+    s
+}
+
+/// `--threads "$SLURM_CPUS_PER_TASK"` unless the arguments set it.
+fn threads(args: &[String]) -> &'static str {
+    if args
+        .iter()
+        .any(|a| a == "--threads" || a.starts_with("--threads="))
+    {
+        ""
+    } else {
+        " --threads \"${SLURM_CPUS_PER_TASK:-1}\""
+    }
+}
+
+/// The scripts of a sweep of `tasks` array tasks writing under `out`
+/// (absolute), run from `chdir` with the binary `penumbra`.
+pub fn scripts(
+    work: &Work,
+    tasks: u32,
+    out: &Path,
+    chdir: &Path,
+    penumbra: &Path,
+    slurm: &SlurmArgs,
+) -> Result<Scripts> {
+    if tasks == 0 {
+        return Err(Error::param("--shards/--tiles", "at least 1 task"));
+    }
+    if slurm.cpus_per_task == 0 {
+        return Err(Error::param("--cpus-per-task", "at least 1"));
+    }
+    if slurm.throttle == Some(0) {
+        return Err(Error::param("--throttle", "at least 1 task at once"));
+    }
+    for a in &slurm.sbatch_arg {
+        check_sbatch_arg(a)?;
+    }
+    if slurm.job_name.is_empty() || slurm.job_name.contains(['\n', '/']) {
+        return Err(Error::param(
+            "--job-name",
+            "a non-empty name without / or newlines",
+        ));
+    }
+    let name = &slurm.job_name;
+    let dir = out.join("slurm");
+    let logs = slurm.log_dir.clone().unwrap_or_else(|| out.join("logs"));
+    let time = slurm.time.as_deref();
+    let mem = slurm.mem.as_deref();
+    let array_range = match slurm.throttle {
+        Some(k) => format!("1-{tasks}%{k}"),
+        None => format!("1-{tasks}"),
+    };
+    let mut array = header(
+        slurm,
+        name,
+        &logs.join(format!("{name}_%A_%a.out")),
+        time,
+        mem,
+        chdir,
+    );
+    array.push_str(&format!("#SBATCH --array={array_range}\n"));
+    array.push_str(&prologue(slurm));
+    let task = "\"$SLURM_ARRAY_TASK_ID\"";
+    let mut merge = header(
+        slurm,
+        &format!("{name}-merge"),
+        &logs.join(format!("{name}-merge_%j.out")),
+        slurm.merge_time.as_deref().or(time),
+        slurm.merge_mem.as_deref().or(mem),
+        chdir,
+    );
+    merge.push_str(&prologue(slurm));
+    let mut references = None;
+    match work {
+        Work::Compare {
+            args,
+            references_job,
+        } => {
+            // The reference cache must be shared by every task: the
+            // default (~/.cache) is not always on a shared filesystem.
+            let args = &if args
+                .iter()
+                .any(|a| a == "--cache-dir" || a.starts_with("--cache-dir="))
+            {
+                args.clone()
+            } else {
+                [
+                    args.as_slice(),
+                    &[
+                        "--cache-dir".to_string(),
+                        out.join("cache").display().to_string(),
+                    ],
+                ]
+                .concat()
+            };
+            // What belongs to the merge: --report (a shard refuses it)
+            // and --no-images (the merge must be told the shards had none).
+            let (args, merge_words) = &split_merge_args(args);
+            let shards = out.join("shards");
+            array.push_str(&format!(
+                "{}{} --shard {task}/{tasks} --out {}\n",
+                command(
+                    penumbra,
+                    &[&["compare".to_string()], args.as_slice()].concat()
+                ),
+                threads(args),
+                quote_path(&shards),
+            ));
+            merge.push_str(&format!(
+                "{} --merge {} --out {}\n",
+                command(
+                    penumbra,
+                    &[&["compare".to_string()], merge_words.as_slice()].concat()
+                ),
+                quote_path(&shards),
+                quote_path(out),
+            ));
+            if *references_job {
+                let mut r = header(
+                    slurm,
+                    &format!("{name}-refs"),
+                    &logs.join(format!("{name}-refs_%j.out")),
+                    time,
+                    mem,
+                    chdir,
+                );
+                r.push_str(&prologue(slurm));
+                r.push_str(&format!(
+                    "{}{} --references-only --out {}\n",
+                    command(
+                        penumbra,
+                        &[&["compare".to_string()], args.as_slice()].concat()
+                    ),
+                    threads(args),
+                    quote_path(&out.join("references")),
+                ));
+                references = Some((dir.join("references.sbatch"), r));
+            }
+        }
+        Work::Render { scene, args } => {
+            let tiles = out.join("tiles");
+            let words = [
+                &["render".to_string(), scene.display().to_string()],
+                args.as_slice(),
+            ]
+            .concat();
+            array.push_str(&format!(
+                "{}{} --tiles {task}/{tasks} -o {}/{task}.part\n",
+                command(penumbra, &words),
+                threads(args),
+                quote_path(&tiles),
+            ));
+            merge.push_str(&format!(
+                "parts=()\nfor i in $(seq 1 {tasks}); do parts+=({}/\"$i\".part); done\n\
+                 {} \"${{parts[@]}}\" -o {} --exr {}\n",
+                quote_path(&tiles),
+                command(penumbra, &["merge-tiles".to_string()]),
+                quote_path(&out.join("render.png")),
+                quote_path(&out.join("render.exr")),
+            ));
+        }
+    }
+    Ok(Scripts {
+        references,
+        array: (dir.join("array.sbatch"), array),
+        merge: (dir.join("merge.sbatch"), merge),
+    })
+}
+
+/// Splits forwarded compare arguments into the shards' and the extra
+/// words of the merge: `--report PATH` goes to the merge only,
+/// `--no-images` to both.
+fn split_merge_args(args: &[String]) -> (Vec<String>, Vec<String>) {
+    let (mut shard, mut merge) = (Vec::new(), Vec::new());
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        if a == "--report" {
+            merge.push(a.clone());
+            merge.extend(it.next().cloned());
+        } else if a.starts_with("--report=") {
+            merge.push(a.clone());
+        } else {
+            if a == "--no-images" {
+                merge.push(a.clone());
+            }
+            shard.push(a.clone());
+        }
+    }
+    (shard, merge)
+}
+
+/// The job id in `sbatch --parsable`'s output (`ID` or `ID;CLUSTER`).
+pub fn parse_job_id(stdout: &str) -> Result<String> {
+    let line = stdout
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty())
+        .unwrap_or("");
+    let id = line.split(';').next().unwrap_or("");
+    if id.is_empty() || !id.chars().all(|c| c.is_ascii_digit()) {
+        return Err(Error::param(
+            "--submit",
+            format!("sbatch --parsable printed {stdout:?}, not a job id"),
+        ));
+    }
+    Ok(id.to_string())
+}
+
+/// Runs `sbatch --parsable [extra] script` and returns the job id.
+pub fn sbatch(sbatch: &Path, extra: &[String], script: &Path) -> Result<String> {
+    let out = Command::new(sbatch)
+        .arg("--parsable")
+        .args(extra)
+        .arg(script)
+        .output()
+        .map_err(|e| Error::io(sbatch, e))?;
+    if !out.status.success() {
+        return Err(Error::param(
+            "--submit",
+            format!(
+                "{} {} failed ({}): {}",
+                sbatch.display(),
+                script.display(),
+                out.status,
+                String::from_utf8_lossy(&out.stderr).trim()
+            ),
+        ));
+    }
+    parse_job_id(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// Job ids of a submitted sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Submitted {
+    /// The references job.
+    pub references: Option<String>,
+    /// The array job.
+    pub array: String,
+    /// The merge job.
+    pub merge: String,
+}
+
+/// Submits `scripts` (already written): references, then the array
+/// depending on it, then the merge depending on the array (`afterok`: a
+/// failed task cancels the merge, given `kill_invalid_depend`, instead
+/// of leaving it pending).
+pub fn submit(sbatch_cmd: &Path, scripts: &Scripts) -> Result<Submitted> {
+    let references = match &scripts.references {
+        Some((path, _)) => Some(sbatch(sbatch_cmd, &[], path)?),
+        None => None,
+    };
+    let after = |id: &str| vec![format!("--dependency=afterok:{id}")];
+    let array = sbatch(
+        sbatch_cmd,
+        &references.as_deref().map(after).unwrap_or_default(),
+        &scripts.array.0,
+    )?;
+    let merge = sbatch(sbatch_cmd, &after(&array), &scripts.merge.0)?;
+    Ok(Submitted {
+        references,
+        array,
+        merge,
+    })
+}
+
+/// `penumbra sweep`.
+pub fn run_sweep(args: SweepArgs) -> Result<()> {
+    let (work, tasks) = match (&args.render, args.tiles, args.shards) {
+        (Some(scene), Some(n), None) => (
+            Work::Render {
+                scene: scene.clone(),
+                args: args.args.clone(),
+            },
+            n,
+        ),
+        (None, None, Some(n)) => (
+            Work::Compare {
+                args: args.args.clone(),
+                references_job: args.references_job,
+            },
+            n,
+        ),
+        _ => {
+            return Err(Error::param(
+                "--shards",
+                "give --shards N (a compare sweep) or --render SCENE --tiles N",
+            ))
+        }
+    };
+    if let Work::Compare { args: a, .. } = &work {
+        if a.iter()
+            .any(|w| w == "--out" || w == "--shard" || w.starts_with("--out="))
+        {
+            return Err(Error::param(
+                "--",
+                "the forwarded compare arguments must not set --out or --shard: the sweep does",
+            ));
+        }
+    }
+    let cwd = std::env::current_dir().map_err(|e| Error::io(".", e))?;
+    let absolute = |p: &Path| {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            cwd.join(p)
+        }
+    };
+    let out = absolute(&args.out);
+    let penumbra = match &args.penumbra {
+        Some(p) => absolute(p),
+        None => std::env::current_exe().map_err(|e| Error::io("penumbra", e))?,
+    };
+    let scripts = scripts(&work, tasks, &out, &cwd, &penumbra, &args.job)?;
+    let all: Vec<&(PathBuf, String)> = scripts
+        .references
+        .iter()
+        .chain([&scripts.array, &scripts.merge])
+        .collect();
+    if args.dry_run {
+        for (path, text) in &all {
+            write_stdout(&format!("# ---- {}\n{text}", path.display()))?;
+        }
+        return Ok(());
+    }
+    let logs = args
+        .job
+        .log_dir
+        .clone()
+        .map(|p| absolute(&p))
+        .unwrap_or_else(|| out.join("logs"));
+    let sub = match work {
+        Work::Compare { .. } => "shards",
+        Work::Render { .. } => "tiles",
+    };
+    for d in [out.join("slurm"), logs, out.join(sub)] {
+        std::fs::create_dir_all(&d).map_err(|e| Error::io(&d, e))?;
+    }
+    for (path, text) in &all {
+        write_atomically(path, |tmp| {
+            std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
+        })?;
+    }
+    let rerun = format!(
+        "re-run task I alone: sbatch --array=I {}; then sbatch {}\n",
+        scripts.array.0.display(),
+        scripts.merge.0.display()
+    );
+    if args.submit {
+        let ids = submit(&args.sbatch, &scripts)?;
+        let mut s = String::new();
+        if let Some(r) = &ids.references {
+            s.push_str(&format!("references job {r}\n"));
+        }
+        s.push_str(&format!(
+            "array job {} ({tasks} tasks)\nmerge job {} (afterok:{})\n{rerun}",
+            ids.array, ids.merge, ids.array
+        ));
+        write_stdout(&s)?;
+    } else {
+        let mut s = String::from("wrote");
+        for (path, _) in &all {
+            s.push_str(&format!(" {}", path.display()));
+        }
+        s.push_str(&format!(
+            "\nsubmit with --submit, or: a=$(sbatch --parsable {}) && sbatch --dependency=afterok:$a {}\n{rerun}",
+            scripts.array.0.display(),
+            scripts.merge.0.display()
+        ));
+        write_stdout(&s)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct T {
+        #[command(flatten)]
+        s: SlurmArgs,
+    }
+
+    fn slurm(args: &[&str]) -> SlurmArgs {
+        T::parse_from(std::iter::once("t").chain(args.iter().copied())).s
+    }
+
+    #[test]
+    fn array_script_carries_every_setting() {
+        let s = slurm(&[
+            "--partition=gpu",
+            "--time=1:00:00",
+            "--cpus-per-task=8",
+            "--mem=16G",
+            "--account=lab",
+            "--qos=long",
+            "--throttle=3",
+            "--job-name=sw",
+            "--sbatch-arg=--mail-type=END",
+            "--setup=module load x",
+        ]);
+        let work = Work::Compare {
+            args: vec!["a b.toml".into(), "--techniques".into(), "dcs".into()],
+            references_job: true,
+        };
+        let sc = scripts(
+            &work,
+            4,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/bin/p"),
+            &s,
+        )
+        .unwrap();
+        let a = &sc.array.1;
+        for want in [
+            "#SBATCH --array=1-4%3\n",
+            "#SBATCH --partition=gpu\n",
+            "#SBATCH --time=1:00:00\n",
+            "#SBATCH --cpus-per-task=8\n",
+            "#SBATCH --mem=16G\n",
+            "#SBATCH --account=lab\n",
+            "#SBATCH --qos=long\n",
+            "#SBATCH --job-name=sw\n",
+            "#SBATCH --output=/o/logs/sw_%A_%a.out\n",
+            "#SBATCH --mail-type=END\n",
+            "#SBATCH --chdir=/w\n",
+            "module load x\n",
+            "/bin/p compare 'a b.toml' --techniques dcs --cache-dir /o/cache --threads \"${SLURM_CPUS_PER_TASK:-1}\" \
+             --shard \"$SLURM_ARRAY_TASK_ID\"/4 --out /o/shards\n",
+        ] {
+            assert!(a.contains(want), "{want:?} not in\n{a}");
+        }
+        assert!(
+            sc.merge
+                .1
+                .contains("/bin/p compare --merge /o/shards --out /o\n"),
+            "{}",
+            sc.merge.1
+        );
+        assert!(!sc.merge.1.contains("--array"));
+        assert!(sc.references.unwrap().1.contains("--references-only"));
+        let work = Work::Compare {
+            args: ["s.toml", "--report", "r.md", "--no-images"]
+                .map(String::from)
+                .to_vec(),
+            references_job: false,
+        };
+        let sc = scripts(
+            &work,
+            2,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &s,
+        )
+        .unwrap();
+        assert!(!sc.array.1.contains("r.md") && sc.array.1.contains("s.toml --no-images"));
+        assert!(
+            sc.merge
+                .1
+                .contains("/p compare --report r.md --no-images --merge /o/shards --out /o\n"),
+            "{}",
+            sc.merge.1
+        );
+        assert_eq!(sc.array.0, Path::new("/o/slurm/array.sbatch"));
+    }
+
+    #[test]
+    fn render_sweep_and_refusals() {
+        let s = slurm(&["--cpus-per-task=2"]);
+        let work = Work::Render {
+            scene: "s.toml".into(),
+            args: vec!["--threads".into(), "1".into()],
+        };
+        let sc = scripts(
+            &work,
+            4,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &s,
+        )
+        .unwrap();
+        assert!(sc.array.1.contains(
+            "/p render s.toml --threads 1 --tiles \"$SLURM_ARRAY_TASK_ID\"/4 -o /o/tiles/\"$SLURM_ARRAY_TASK_ID\".part\n"
+        ), "{}", sc.array.1);
+        assert!(sc.array.1.contains("#SBATCH --array=1-4\n"));
+        assert!(sc
+            .merge
+            .1
+            .contains("merge-tiles \"${parts[@]}\" -o /o/render.png --exr /o/render.exr"));
+        let bad = slurm(&["--sbatch-arg=mail"]);
+        assert!(scripts(
+            &work,
+            4,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &bad
+        )
+        .is_err());
+        assert!(scripts(
+            &work,
+            0,
+            Path::new("/o"),
+            Path::new("/w"),
+            Path::new("/p"),
+            &s
+        )
+        .is_err());
+    }
+
+    #[test]
+    fn job_ids() {
+        assert_eq!(parse_job_id("1234\n").unwrap(), "1234");
+        assert_eq!(parse_job_id("77;cluster\n").unwrap(), "77");
+        assert!(parse_job_id("Submitted batch job 5\n").is_err());
+        assert!(parse_job_id("").is_err());
+        assert_eq!(shell_quote("it's"), "'it'\\''s'");
+        assert_eq!(shell_quote(""), "''");
+    }
+}
