@@ -63,22 +63,18 @@ fn sweep(scenes: &[&str], cache: &Path, extra: &[&str]) -> Vec<String> {
     a
 }
 
-fn with(mut a: Vec<String>, extra: &[&str]) -> Vec<String> {
-    a.extend(strings(extra));
-    a
-}
-
 fn ok(args: &[String]) -> String {
     let (code, msg) = run(args);
     assert_eq!(code, Some(0), "{args:?}\n{msg}");
     msg
 }
 
+/// A results.csv row's key and its cells by column.
+type Rows = BTreeMap<(String, String, String, String, String), BTreeMap<String, String>>;
+
 /// results.csv as rows keyed by (scene, technique, setting, quantity,
 /// region), each a map from column to value.
-fn csv(
-    path: &Path,
-) -> BTreeMap<(String, String, String, String, String), BTreeMap<String, String>> {
+fn csv(path: &Path) -> Rows {
     let text = std::fs::read_to_string(path).unwrap();
     let mut lines = text.lines();
     let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();

@@ -11,6 +11,14 @@
 //! against; half their difference estimates the reference's own error (its
 //! noise floor): for independent estimates `A`, `B` of variance `2σ²/M`
 //! each, `(A − B)/2` has the variance `σ²/M` of the mean `(A + B)/2`.
+//!
+//! A sweep can be sharded over machines ([`shard`], `--shard I/N`) and
+//! merged back ([`merge_partials`], `--merge`): [`compare_scene`] is
+//! `scene_runs` (the plan), `prepare_scene` (the reference),
+//! `run_planned` per run and `finish_scene` (Pareto front, charts), so
+//! shards run the same steps on their share and the merge finishes with
+//! the same code; results are deterministic, so merged errors are the
+//! unsharded run's bit for bit.
 
 pub mod cache;
 mod charts;

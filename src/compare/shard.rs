@@ -653,13 +653,19 @@ fn option_entries(options: &CompareOptions) -> Vec<(String, String)> {
     ]
 }
 
+/// The sweep every shard plans.
+pub(crate) struct Plan {
+    /// The scenes' identities.
+    pub ids: Vec<SceneId>,
+    /// Every run with its shard.
+    pub entries: Vec<PlanEntry>,
+    /// Per scene, its runs ready to run.
+    pub planned: Vec<Vec<super::PlannedRun>>,
+}
+
 /// The sweep every shard plans: scene identities and every run with its
 /// shard.
-pub(crate) fn plan(
-    scenes: &[Scene],
-    options: &CompareOptions,
-    shards: u32,
-) -> Result<(Vec<SceneId>, Vec<PlanEntry>, Vec<Vec<super::PlannedRun>>)> {
+pub(crate) fn plan(scenes: &[Scene], options: &CompareOptions, shards: u32) -> Result<Plan> {
     let mut ids = Vec::new();
     let mut entries = Vec::new();
     let mut planned = Vec::new();
@@ -697,7 +703,11 @@ pub(crate) fn plan(
     for (e, s) in entries.iter_mut().zip(assign(&costs, shards)) {
         e.shard = s;
     }
-    Ok((ids, entries, planned))
+    Ok(Plan {
+        ids,
+        entries,
+        planned,
+    })
 }
 
 fn unix_now() -> f64 {
@@ -737,7 +747,11 @@ pub fn run_shard(
     progress_bar: bool,
 ) -> Result<ShardSummary> {
     options.validate()?;
-    let (ids, plan, planned) = plan(scenes, options, shard.count)?;
+    let Plan {
+        ids,
+        entries: plan,
+        planned,
+    } = plan(scenes, options, shard.count)?;
     let mine: Vec<&PlanEntry> = plan.iter().filter(|e| e.shard == shard.index).collect();
     let entries = option_entries(options);
     let mut h = StableHasher::default();
