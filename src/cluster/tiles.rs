@@ -9,7 +9,8 @@
 //! depends on the band), and then marks every G-buffer pixel outside the
 //! band's rows (plus a margin, below) as background
 //! ([`GBuffer::keep_rows`](crate::gbuffer::GBuffer::keep_rows)) before the
-//! shadow technique runs. A technique whose result at a pixel depends only
+//! shadow technique runs: [`render_rows`], `render`'s own pipeline. A
+//! technique whose result at a pixel depends only
 //! on that pixel's G-buffer sample, the full-frame depth buffer, the scene
 //! and the per-pixel-keyed seeds then computes the same bits at every
 //! pixel of the band, and skips the work of the others (the ray-traced
@@ -34,14 +35,11 @@
 
 use crate::compare::cache::{hash_scene, StableHasher};
 use crate::error::{Error, Result};
-use crate::gbuffer::gbuffer_pass;
-use crate::geom::SceneGeometry;
 use crate::output::{write_atomically, Layer, OutputSet};
 use crate::raster::{MAX_SIDE, TILE_SIZE};
-use crate::render::{aov_layers, check_memory, shade, view_for, RenderOptions};
+use crate::render::{render_rows, view_for, RenderOptions, RenderOutput};
 use crate::report::Progress;
 use crate::scene::Scene;
-use crate::shadow::{run_technique, ShadowCache, ShadowContext};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
@@ -186,32 +184,9 @@ pub fn render_part(
     let view = view_for(scene, options)?;
     let rows = band_rows(view.height, index, count)?;
     let kept = kept_rows(options, rows.clone(), view.height)?;
-    check_memory(scene, options, &view)?;
-    // The pipeline of `render::render`, with the G-buffer cut to the band.
-    progress.stage("geometry");
-    let geometry = SceneGeometry::new(scene);
-    progress.step();
-    progress.stage("g-buffer");
-    let (mut gbuffer, depth, _) = gbuffer_pass(scene, &geometry, &view)?;
-    progress.step();
-    gbuffer.keep_rows(kept);
-    progress.stage("shadows");
-    let cache = ShadowCache::new(scene, &geometry);
-    let ctx = ShadowContext {
-        scene,
-        geometry: &geometry,
-        view: &view,
-        gbuffer: &gbuffer,
-        depth: &depth,
-        cache: &cache,
-    };
-    let shadows = run_technique(options.technique, &options.build_params(), &ctx)?;
-    progress.step();
-    progress.stage("shading");
-    let radiance = shade(scene, &view, &gbuffer, &shadows.lights);
-    progress.step();
-    let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs, scene.origin);
-    layers.extend(shadows.layers);
+    let RenderOutput {
+        radiance, layers, ..
+    } = render_rows(scene, options, progress, Some(kept))?;
 
     let width = view.width as usize;
     let cut = (rows.start as usize * width)..(rows.end as usize * width);

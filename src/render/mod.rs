@@ -205,6 +205,20 @@ pub fn check_memory(scene: &Scene, options: &RenderOptions, view: &View) -> Resu
 
 /// Renders a scene.
 pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Result<RenderOutput> {
+    render_rows(scene, options, progress, None)
+}
+
+/// Renders a scene with only the pixels of `rows` as receivers (all when
+/// `None`): the G-buffer pass still covers the whole frame, so clipping,
+/// binning and depth are the full render's, and the pixels outside `rows`
+/// become background before the shadow technique runs (`render --tiles`,
+/// [`crate::cluster::tiles`]).
+pub fn render_rows(
+    scene: &Scene,
+    options: &RenderOptions,
+    progress: &Progress,
+    rows: Option<std::ops::Range<u32>>,
+) -> Result<RenderOutput> {
     let view = view_for(scene, options)?;
     check_memory(scene, options, &view)?;
     let mut passes = Vec::new();
@@ -221,7 +235,10 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
 
     progress.stage("g-buffer");
     let t = PassTimer::start("gbuffer");
-    let (gbuffer, depth, gbuffer_stats) = gbuffer_pass(scene, &geometry, &view)?;
+    let (mut gbuffer, depth, gbuffer_stats) = gbuffer_pass(scene, &geometry, &view)?;
+    if let Some(rows) = rows {
+        gbuffer.keep_rows(rows);
+    }
     timed(t, &mut passes);
 
     progress.stage("shadows");
