@@ -16,40 +16,22 @@
 //! hard-shadow passes, `../shared/peers/glsv`) is measured in the same
 //! session by the command in docs/performance.md.
 
+mod common;
+
 use criterion::{criterion_group, criterion_main, Criterion};
-use penumbra::gbuffer::gbuffer_pass;
-use penumbra::geom::SceneGeometry;
-use penumbra::render::{view_for, RenderOptions};
 use penumbra::sampling::SamplePattern;
-use penumbra::scene::load_scene;
 use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use penumbra::shadow::reference::Reference;
-use penumbra::shadow::{ShadowContext, ShadowTechnique};
-use std::path::Path;
+use penumbra::shadow::ShadowTechnique;
 use std::time::Duration;
 
 const SIZE: u32 = 512;
 
 fn dcs(c: &mut Criterion) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml");
-    let scene = load_scene(&path).expect("shipped scene loads");
-    let options = RenderOptions {
-        width: Some(SIZE),
-        height: Some(SIZE),
-        ..RenderOptions::default()
-    };
-    let view = view_for(&scene, &options).expect("view");
-    let geometry = SceneGeometry::new(&scene);
-    let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
-    let cache = penumbra::shadow::ShadowCache::new(&scene, &geometry);
-    let ctx = ShadowContext {
-        scene: &scene,
-        geometry: &geometry,
-        view: &view,
-        gbuffer: &gbuffer,
-        depth: &depth,
-        cache: &cache,
-    };
+    let prepared = common::Prepared::new("spheres.toml", SIZE);
+    let (_scene, _geometry) = (&prepared.scene, &prepared.geometry);
+    let cache = prepared.cache();
+    let ctx = prepared.ctx(&cache);
     let technique = |silhouettes, samples| DepthComplexitySampling {
         samples,
         seed: 0,

@@ -13,40 +13,22 @@
 //! Run: `cargo bench --bench reference`. Criterion reports the throughput
 //! in elements/s = shadow rays (BVH traversals) per second.
 
+mod common;
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use penumbra::gbuffer::gbuffer_pass;
-use penumbra::geom::SceneGeometry;
-use penumbra::render::{view_for, RenderOptions};
-use penumbra::scene::load_scene;
 use penumbra::shadow::kit::rays::ShadowTracer;
 use penumbra::shadow::reference::Reference;
-use penumbra::shadow::{ShadowContext, ShadowTechnique};
-use std::path::Path;
+use penumbra::shadow::ShadowTechnique;
 use std::time::Duration;
 
 const SAMPLES: u32 = 16;
 
 fn reference(c: &mut Criterion) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml");
-    let scene = load_scene(&path).expect("shipped scene loads");
-    let options = RenderOptions {
-        width: Some(256),
-        height: Some(256),
-        ..RenderOptions::default()
-    };
-    let view = view_for(&scene, &options).expect("view");
-    let geometry = SceneGeometry::new(&scene);
-    let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
-    let cache = penumbra::shadow::ShadowCache::new(&scene, &geometry);
-    let ctx = ShadowContext {
-        scene: &scene,
-        geometry: &geometry,
-        view: &view,
-        gbuffer: &gbuffer,
-        depth: &depth,
-        cache: &cache,
-    };
-    let tracer = ShadowTracer::new(&scene, &geometry);
+    let prepared = common::Prepared::new("spheres.toml", 256);
+    let (scene, geometry) = (&prepared.scene, &prepared.geometry);
+    let cache = prepared.cache();
+    let ctx = prepared.ctx(&cache);
+    let tracer = ShadowTracer::new(scene, geometry);
     let (_, rays) = tracer.trace_light(&ctx, 0, SAMPLES, 1);
 
     let mut group = c.benchmark_group("reference_spheres_256");
@@ -62,7 +44,7 @@ fn reference(c: &mut Criterion) {
         });
         group.throughput(Throughput::Elements(geometry.triangles.len() as u64));
         group.bench_function(format!("bvh_build_{threads}t"), |b| {
-            b.iter(|| pool.install(|| ShadowTracer::new(&scene, &geometry)))
+            b.iter(|| pool.install(|| ShadowTracer::new(scene, geometry)))
         });
     }
     group.finish();

@@ -15,15 +15,15 @@
 //! `GLIBC_TUNABLES=glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=2147483647`.
 //! The multi-map group renders 4 maps per receiver pass (`multi_map::BATCH`).
 
+mod common;
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use penumbra::gbuffer::gbuffer_pass;
 use penumbra::geom::SceneGeometry;
-use penumbra::render::{view_for, RenderOptions};
 use penumbra::scene::{load_scene, Scene};
 use penumbra::shadow::kit::light_view::{caster_bounds, receiver_bounds};
 use penumbra::shadow::kit::shadow_maps::{centre_point, light_view_at, opaque_depth_map};
 use penumbra::shadow::multi_map::MultiMap;
-use penumbra::shadow::{ShadowContext, ShadowTechnique, TechniqueOptions};
+use penumbra::shadow::{ShadowTechnique, TechniqueOptions};
 use std::path::Path;
 
 fn scene(name: &str) -> Scene {
@@ -64,24 +64,9 @@ fn maps_per_second(c: &mut Criterion) {
 }
 
 fn multi_map_64(c: &mut Criterion) {
-    let scene = scene("spheres.toml");
-    let options = RenderOptions {
-        width: Some(512),
-        height: Some(512),
-        ..RenderOptions::default()
-    };
-    let view = view_for(&scene, &options).expect("view");
-    let geometry = SceneGeometry::new(&scene);
-    let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
-    let cache = penumbra::shadow::ShadowCache::new(&scene, &geometry);
-    let ctx = ShadowContext {
-        scene: &scene,
-        geometry: &geometry,
-        view: &view,
-        gbuffer: &gbuffer,
-        depth: &depth,
-        cache: &cache,
-    };
+    let prepared = common::Prepared::new("spheres.toml", 512);
+    let cache = prepared.cache();
+    let ctx = prepared.ctx(&cache);
     let mut maps = TechniqueOptions::default().shadow_map;
     maps.map_size = 512;
     let technique = MultiMap {

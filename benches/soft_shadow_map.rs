@@ -8,15 +8,12 @@
 //! Run: `cargo bench --bench soft_shadow_map`; the time against polygon
 //! count is `scripts/ssm-scaling.sh` (docs/performance.md).
 
+mod common;
+
 use criterion::{criterion_group, criterion_main, Criterion};
-use penumbra::gbuffer::gbuffer_pass;
-use penumbra::geom::SceneGeometry;
-use penumbra::render::{view_for, RenderOptions};
-use penumbra::scene::load_scene;
 use penumbra::shadow::soft_shadow_map::{SoftShadowMap, SsmOptions};
 use penumbra::shadow::wedges::PenumbraWedges;
-use penumbra::shadow::{ShadowContext, ShadowTechnique, TechniqueOptions};
-use std::path::Path;
+use penumbra::shadow::{ShadowTechnique, TechniqueOptions};
 use std::time::Duration;
 
 const SIZE: u32 = 512;
@@ -27,27 +24,9 @@ fn soft_shadow_map(c: &mut Criterion) {
         .build()
         .expect("thread pool");
     for name in ["spheres.toml", "bunny.toml"] {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes")
-            .join(name);
-        let scene = load_scene(&path).expect("shipped scene loads");
-        let options = RenderOptions {
-            width: Some(SIZE),
-            height: Some(SIZE),
-            ..RenderOptions::default()
-        };
-        let view = view_for(&scene, &options).expect("view");
-        let geometry = SceneGeometry::new(&scene);
-        let (gbuffer, depth, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
-        let cache = penumbra::shadow::ShadowCache::new(&scene, &geometry);
-        let ctx = ShadowContext {
-            scene: &scene,
-            geometry: &geometry,
-            view: &view,
-            gbuffer: &gbuffer,
-            depth: &depth,
-            cache: &cache,
-        };
+        let prepared = common::Prepared::new(name, SIZE);
+        let cache = prepared.cache();
+        let ctx = prepared.ctx(&cache);
         let mut group = c.benchmark_group(format!(
             "soft_shadow_map_{}_{SIZE}_2t",
             name.trim_end_matches(".toml")
