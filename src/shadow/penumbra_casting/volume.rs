@@ -249,6 +249,9 @@ fn cross(a: DVec3, b: DVec3) -> DVec3 {
 /// "on" a candidate plane.
 pub fn penumbra_volume(light: &LightBox, t: &[DVec3; 3], out: &mut PenumbraVolume) {
     out.planes.clear();
+    // Stale lanes must never pass `has_quads` (same chunk count, old
+    // planes): the SIMD tests read lanes only after `finish` refills them.
+    out.quads.clear();
     let lv = &light.corners;
     // The box's 12 edges: corner pairs differing in one bit.
     const EDGES: [(usize, usize); 12] = [
