@@ -552,6 +552,145 @@ fn ray_bundles_agree_with_single_rays_bit_for_bit() {
     );
 }
 
+/// (d'') The per-receiver segment hull ([`Bvh::occluded_hull`]) gives,
+/// ray by ray, exactly `occluded`'s answer, for every candidate limit
+/// (1: nearly always the rays' own walks; 4: the default; 10⁶: always the
+/// candidate leaves): bundles of 1–70 rays from random origins (a third on
+/// the bunny's surface or the ground, offset by the reference's rule,
+/// where the hull's margins and its exact "behind" rule are tight)
+/// toward random points of a random rect light.
+#[test]
+fn hull_bundles_agree_with_single_rays_bit_for_bit() {
+    use penumbra::geom::bvh::SegmentHull;
+    let scene = shipped("bunny.toml");
+    let geometry = SceneGeometry::new(&scene);
+    let bvh = Bvh::build(&geometry, |_| true);
+    let verts = &geometry.positions;
+    let (lo, hi) = verts
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| {
+            (l.min(*p), h.max(*p))
+        });
+    let size = hi - lo;
+    let mut rng = Rng(4242);
+    let mut leaves = Vec::new();
+    let (mut rays, mut hits, mut mismatches) = (0usize, 0usize, Vec::new());
+    for bundle in 0..3000 {
+        let o = if bundle % 3 == 0 {
+            // A point on a triangle, offset along its normal by the
+            // reference's rule.
+            let t =
+                &geometry.triangles[(rng.next_u64() % geometry.triangles.len() as u64) as usize];
+            let [a, b, c] = t.map(|i| verts[i as usize]);
+            let (u, v) = (rng.f64() as f32, rng.f64() as f32);
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            let p = a + (b - a) * u + (c - a) * v;
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
+            p + n * eps
+        } else {
+            lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
+                - size * 0.2
+        };
+        let center =
+            lo + Vec3::new(rng.f64() as f32, 1.2 + rng.f64() as f32, rng.f64() as f32) * size;
+        let u = Vec3::new(rng.f64() as f32, 0.0, rng.f64() as f32 * 0.2) * size.x * 0.5;
+        let v = Vec3::new(rng.f64() as f32 * 0.2, 0.0, rng.f64() as f32) * size.z * 0.5;
+        let n = 1 + (rng.next_u64() % 70) as usize;
+        let dirs: Vec<Vec3> = (0..n)
+            .map(|_| {
+                let (s, t) = (rng.f64(), rng.f64());
+                let x = (center.as_dvec3()
+                    + u.as_dvec3() * (2.0 * s - 1.0)
+                    + v.as_dvec3() * (1.0 - 2.0 * t))
+                    .as_vec3();
+                (x.as_dvec3() - o.as_dvec3()).as_vec3()
+            })
+            .collect();
+        let t_max = (1.0 - 1e-6) as f32;
+        let hull = SegmentHull::new(o, &dirs, Some((center, u, v))).expect("usable bundle");
+        for limit in [1, 4, 1_000_000] {
+            let mut out = vec![true; n];
+            bvh.occluded_hull(&hull, &dirs, t_max, &mut out, &mut leaves, limit);
+            for (i, (&d, &b)) in dirs.iter().zip(&out).enumerate() {
+                let single = bvh.occluded(o, d, t_max);
+                if limit == 4 {
+                    rays += 1;
+                    hits += single as usize;
+                }
+                if single != b {
+                    mismatches.push(format!(
+                        "bundle {bundle} ray {i} limit {limit}: o {o:?} d {d:?}: single {single}, hull {b}"
+                    ));
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{rays} rays, {hits} occluded, {} mismatches",
+        mismatches.len()
+    );
+    assert!(
+        hits > rays / 20 && hits < rays * 19 / 20,
+        "a useful mix: {hits} of {rays}"
+    );
+    assert!(
+        mismatches.is_empty(),
+        "{}",
+        mismatches[..mismatches.len().min(10)].join("\n")
+    );
+}
+
+/// (d''') The reference's images do not depend on the segment hull: the
+/// same bits with it off, at the default limit and always on, on shipped
+/// scenes with rect lights and non-opaque casters, and on spheres.toml
+/// with its light made a sphere (the hull is then the segments' box).
+#[test]
+fn hull_limit_changes_no_bit_of_the_reference() {
+    let mut sphere_lit = shipped("spheres.toml");
+    if let LightShape::Rect { center, .. } = sphere_lit.lights[0].shape {
+        sphere_lit.lights[0].shape = LightShape::Sphere {
+            center,
+            radius: 1.0,
+        };
+    }
+    let scenes = ["spheres.toml", "bunny.toml", "fence.toml", "tinted.toml"]
+        .map(shipped)
+        .into_iter()
+        .chain([sphere_lit]);
+    for scene in scenes {
+        let frame = Frame::new(&scene, 61, 47);
+        let ctx = frame.ctx(&scene);
+        let image = |limit: usize| {
+            let tracer = ShadowTracer::new(&scene, &frame.geometry).with_hull_limit(limit);
+            (0..scene.lights.len())
+                .flat_map(|k| {
+                    let (term, _) = tracer.trace_light(&ctx, k, 32, 9);
+                    let v: Vec<u32> = term.vcoef().iter().map(|x| x.to_bits()).collect();
+                    v
+                })
+                .collect::<Vec<_>>()
+        };
+        let off = image(0);
+        let name = &scene.name;
+        assert!(off.iter().any(|&b| b != 0), "{name}: empty image");
+        assert!(
+            off.iter().any(|&b| b != 0 && b != 1f32.to_bits()),
+            "{name}: no penumbra"
+        );
+        for limit in [4, 1_000_000] {
+            assert!(
+                image(limit) == off,
+                "{name}: limit {limit} changes the image"
+            );
+        }
+    }
+}
+
 // ------------------------------------------------ (d) BVH vs brute force
 
 /// (d) `occluded` and `for_each_hit` agree with a brute-force loop over all

@@ -23,7 +23,10 @@
 //!   counts as inside (inclusive), so two triangles sharing an edge never
 //!   both miss a ray through it.
 
+mod hull;
 mod packet;
+
+pub use hull::SegmentHull;
 
 pub use packet::PACKET;
 

@@ -40,10 +40,10 @@ const ALL: u32 = (1 << PACKET) - 1;
 const SCALAR_LANES: u32 = 3;
 
 /// Up to eight rays from one origin, as lanes.
-struct Packet {
+pub(super) struct Packet {
     origin: Vec3,
     /// Lanes holding a usable ray (finite, non-zero direction).
-    valid: u32,
+    pub(super) valid: u32,
     t_max: f32,
     /// The lanes' directions per axis (1 in unused lanes).
     d: [[f32; PACKET]; 3],
@@ -63,7 +63,7 @@ impl Packet {
     /// The packet of `dirs` (at most [`PACKET`]) from `origin`: lane by
     /// lane the constants `Ray::new` computes, with the same IEEE
     /// operations (divisions, the clamp, the dominant-axis rule).
-    fn new(origin: Vec3, dirs: &[Vec3], t_max: f32) -> Packet {
+    pub(super) fn new(origin: Vec3, dirs: &[Vec3], t_max: f32) -> Packet {
         let mut valid = 0;
         let mut d = [[1.0f32; PACKET]; 3];
         let rays: [Ray; PACKET] = std::array::from_fn(|lane| {
@@ -307,7 +307,7 @@ impl Bvh {
     /// The lanes of `lanes` that pass leaf `slot`'s box and hit one of its
     /// triangles.
     #[inline]
-    fn leaf_hits(&self, packet: &Packet, node: &Node, slot: usize, lanes: u32) -> u32 {
+    pub(super) fn leaf_hits(&self, packet: &Packet, node: &Node, slot: usize, lanes: u32) -> u32 {
         if node.count[slot] == 0 {
             return 0;
         }

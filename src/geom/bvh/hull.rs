@@ -1,0 +1,398 @@
+//! One receiver's whole bundle of shadow segments culled at once.
+//!
+//! Every shadow segment of a receiver starts at its origin `o` and ends
+//! in the light, so all of them lie in one convex region: for any light
+//! the bounding box of the segments `o + t · d` as traced, and for a rect
+//! light the pyramid with apex `o` over the light's parallelogram (four
+//! side planes through `o` and a cap in the light's plane). Besides, a
+//! triangle behind the origin along every ray's dominant axis cannot be
+//! hit (`SegmentHull::behind`, exact). [`Bvh::hull_leaves`] walks the tree
+//! once per receiver with that region and collects the leaves that may
+//! hold a triangle some segment could hit; [`Bvh::occluded_hull`] then
+//! tests the rays only against those leaves when there are few, none at
+//! all for a lit receiver (no ray is traced), and takes the rays' own
+//! walks otherwise.
+//!
+//! **Same answer as [`Bvh::occluded`], bit for bit.** A ray's own walk
+//! reports a hit from leaf `(node, slot)` iff the ray passes that leaf's
+//! box (then it passes every box above it: see
+//! `Bvh::packet_occluded`'s note) and the watertight test hits one of its
+//! triangles. [`Bvh::occluded_hull`] runs exactly that per lane
+//! (`Bvh::leaf_hits`) on every collected leaf. A leaf is left out only if
+//! each of its triangles lies outside one bounding plane (or box face) of
+//! the region by more than `HULL_MARGIN × R`, `R` the triangle's
+//! L1 distance from `o`. The watertight test's verdict is exact for the
+//! triangle as it sees it: the vertices minus the origin and sheared, in
+//! f32, each step rounded relative to its result (`≤ 4 ε |v − o|` per
+//! coordinate), and the ray's direction rounded (`ε |v − o|` at the
+//! vertex's distance); the plane values here are f32 dot products of the
+//! same differences (`≤ 4 ε R`); the box is that of the traced directions
+//! themselves; the pyramid's planes are widened by `4 × 10⁻⁷ |x|` because
+//! the sample points are within `2⁻²⁴ |x|` of the exact parallelogram
+//! (their f64 position rounded once) and the directions within `2⁻²⁴
+//! |x − o|` of `x − o`; the planes' f32 normals tilt by `≤ ε`. The sum is below `16 ε R ≈
+//! 2 × 10⁻⁶ R`; the margin is five times that. So a triangle left out is
+//! one no ray of the bundle can hit, and the rays' answers are those of
+//! their own walks. `tests/reference.rs` holds the two paths against each
+//! other over every receiver of the shipped scenes.
+
+use super::packet::Packet;
+use super::{Bvh, Node, Rel, STACK};
+use crate::simd::f32x4;
+use glam::{DVec3, Vec3};
+
+/// `Ray::new`'s dominant axis `kz` of `d`, times two, plus 1 when
+/// `d[kz] < 0`.
+#[inline]
+fn dominant_axis(d: Vec3) -> u32 {
+    let a = d.abs();
+    let k = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    2 * k + u32::from(d[k as usize] < 0.0)
+}
+
+/// A box or triangle is culled only when it is outside a bounding plane
+/// by more than `HULL_MARGIN × R` (`R`: its L1 distance from the apex),
+/// five times the rounding bound of the module docs.
+const HULL_MARGIN: f32 = 1e-5;
+
+/// Most bounding planes: four sides and the cap.
+const MAX_PLANES: usize = 5;
+
+/// The convex region holding every shadow segment of one receiver: the
+/// box of the origin and the sample points, and for a rect light the
+/// pyramid over the light from the origin. Coordinates are relative to the
+/// origin.
+#[derive(Debug, Clone)]
+pub struct SegmentHull {
+    origin: Vec3,
+    /// The origin splatted per axis (`Ray::org`).
+    org: [f32x4; 3],
+    /// Box of the segments minus the origin, per axis.
+    lo: [f32; 3],
+    hi: [f32; 3],
+    /// Bit `2 k + s`: some ray's dominant axis is `k` (`Ray::new`'s
+    /// rule) with direction sign `s` (1: negative).
+    axes: u32,
+    /// Plane `j`: `normal · (p − o) ≤ offset` holds on every segment.
+    normals: [Vec3; MAX_PLANES],
+    offsets: [f32; MAX_PLANES],
+    planes: usize,
+}
+
+impl SegmentHull {
+    /// The region of the segments `origin + t · dirs[i]`, `t ∈ (0, 1)`
+    /// (the rays exactly as they are traced), bounded more tightly by the
+    /// pyramid over `rect` when the samples lie in the parallelogram
+    /// `center ± u ± v` (up to the rounding of their f32 positions).
+    /// `None` when no direction is usable or the origin is not finite.
+    pub fn new(origin: Vec3, dirs: &[Vec3], rect: Option<(Vec3, Vec3, Vec3)>) -> Option<Self> {
+        if !origin.is_finite() {
+            return None;
+        }
+        let mut lo = Vec3::ZERO;
+        let mut hi = Vec3::ZERO;
+        let mut axes = 0u32;
+        for &d in dirs {
+            // `Ray::new` refuses these: they hit nothing.
+            if !(d.is_finite() && d != Vec3::ZERO) {
+                continue;
+            }
+            lo = lo.min(d);
+            hi = hi.max(d);
+            axes |= 1 << dominant_axis(d);
+        }
+        if axes == 0 {
+            return None;
+        }
+        let mut hull = SegmentHull {
+            origin,
+            org: [
+                f32x4::splat(origin.x),
+                f32x4::splat(origin.y),
+                f32x4::splat(origin.z),
+            ],
+            lo: lo.to_array(),
+            hi: hi.to_array(),
+            axes,
+            normals: [Vec3::ZERO; MAX_PLANES],
+            offsets: [0.0; MAX_PLANES],
+            planes: 0,
+        };
+        if let Some((center, u, v)) = rect {
+            hull.add_pyramid(
+                origin.as_dvec3(),
+                center.as_dvec3(),
+                u.as_dvec3(),
+                v.as_dvec3(),
+            );
+        }
+        Some(hull)
+    }
+
+    /// The pyramid over the parallelogram `c ± u ± v` from `o` (in f64):
+    /// four side planes through `o` and two neighbouring corners, and the
+    /// light's plane. None is added when `o` is (nearly) in the light's
+    /// plane, where the pyramid degenerates; the box then bounds alone.
+    fn add_pyramid(&mut self, o: DVec3, c: DVec3, u: DVec3, v: DVec3) {
+        let corners = [c + u + v, c - u + v, c - u - v, c + u - v];
+        let n = u.cross(v);
+        let size = u.length() + v.length();
+        if !(n.length() > 0.0) || !(size > 0.0) {
+            return;
+        }
+        let n = n.normalize();
+        let height = n.dot(o - c);
+        if !(height.abs() > 1e-4 * size) {
+            return;
+        }
+        // The samples' f32 positions are within 2⁻²⁴ |x| per coordinate of
+        // the exact parallelogram: widen every plane by a few times that.
+        let slack = 4e-7
+            * corners
+                .iter()
+                .map(|p| p.abs().max_element())
+                .fold(0.0, f64::max);
+        for i in 0..4 {
+            let a = corners[i] - o;
+            let b = corners[(i + 1) % 4] - o;
+            let mut side = a.cross(b);
+            let len = side.length();
+            if !(len > 0.0) {
+                return;
+            }
+            side /= len;
+            // Orient so the opposite corner is inside.
+            if side.dot(corners[(i + 2) % 4] - o) > 0.0 {
+                side = -side;
+            }
+            self.push_plane(side, slack);
+        }
+        // The cap: the side of the light's plane the origin is on.
+        let cap = if height > 0.0 { -n } else { n };
+        self.push_plane(cap, cap.dot(c - o) + slack);
+    }
+
+    fn push_plane(&mut self, normal: DVec3, offset: f64) {
+        if self.planes < MAX_PLANES {
+            self.normals[self.planes] = normal.as_vec3();
+            self.offsets[self.planes] = offset as f32;
+            self.planes += 1;
+        }
+    }
+
+    /// Bit mask of `node`'s children whose box may meet the region.
+    #[inline]
+    fn hit_boxes(&self, node: &Node) -> u32 {
+        let rel = Rel::new(node, &self.org);
+        // A box behind every ray's origin along its dominant axis holds
+        // only such vertices (`fl(v − o)` is monotone in `v`): `behind`.
+        let mut axes = self.axes;
+        let mut ahead = 0u32;
+        while axes != 0 {
+            let bit = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            let (k, negative) = (bit / 2, bit % 2 == 1);
+            ahead |= if negative {
+                rel.lo[k].cmp_lt(f32x4::ZERO).move_mask()
+            } else {
+                rel.hi[k].cmp_gt(f32x4::ZERO).move_mask()
+            };
+        }
+        // L1 distance bound of each box from the origin, and the margin.
+        let mut reach = f32x4::ZERO;
+        for axis in 0..3 {
+            reach += rel.lo[axis].abs().max(rel.hi[axis].abs());
+        }
+        let margin = reach * f32x4::splat(HULL_MARGIN);
+        let mut out = f32x4::ZERO.cmp_gt(f32x4::ZERO);
+        for axis in 0..3 {
+            out = out
+                | rel.lo[axis].cmp_gt(f32x4::splat(self.hi[axis]) + margin)
+                | rel.hi[axis].cmp_lt(f32x4::splat(self.lo[axis]) - margin);
+        }
+        for j in 0..self.planes {
+            let n = self.normals[j];
+            // The box corner with the least `n · (p − o)`.
+            let pick = |axis: usize, k: f32| {
+                let r = if k >= 0.0 { rel.lo[axis] } else { rel.hi[axis] };
+                r * f32x4::splat(k)
+            };
+            let least = pick(0, n.x) + pick(1, n.y) + pick(2, n.z);
+            out |= least.cmp_gt(f32x4::splat(self.offsets[j]) + margin);
+        }
+        // Empty slots hold the point at +∞: never kept.
+        let mut used = 0u32;
+        for slot in 0..4 {
+            if node.count[slot] > 0 || node.child[slot] != u32::MAX {
+                used |= 1 << slot;
+            }
+        }
+        !out.move_mask() & used & ahead
+    }
+
+    /// Whether every ray of the bundle sees the vertices whose `v − o`
+    /// (as the watertight test computes it, in f32) lies in `[lo, hi]` at
+    /// or behind its origin along its dominant axis. Then the test's depth
+    /// `t_scaled` (a sum of products of the edge functions, all of the
+    /// determinant's sign or 0, with those depths, all of the other sign
+    /// or 0) cannot have the determinant's sign, so no ray hits: exact, no
+    /// margin. This drops the receiver's own axis-aligned surface (a
+    /// ground plane under a light above it).
+    #[inline]
+    fn behind(&self, lo: [f32; 3], hi: [f32; 3]) -> bool {
+        let mut axes = self.axes;
+        while axes != 0 {
+            let bit = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            let (k, negative) = (bit / 2, bit % 2 == 1);
+            let behind = if negative { lo[k] >= 0.0 } else { hi[k] <= 0.0 };
+            if !behind {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Whether triangle `tri` may meet the region (see the module docs for
+    /// the margin).
+    #[inline]
+    fn may_touch(&self, tri: &[Vec3; 3]) -> bool {
+        let r = tri.map(|p| p - self.origin);
+        let reach = (r[0].abs().max(r[1].abs()).max(r[2].abs())).element_sum();
+        let margin = reach * HULL_MARGIN;
+        if !(margin.is_finite()) {
+            return true;
+        }
+        let lo = r[0].min(r[1]).min(r[2]).to_array();
+        let hi = r[0].max(r[1]).max(r[2]).to_array();
+        if self.behind(lo, hi) {
+            return false;
+        }
+        for axis in 0..3 {
+            if lo[axis] > self.hi[axis] + margin || hi[axis] < self.lo[axis] - margin {
+                return false;
+            }
+        }
+        for j in 0..self.planes {
+            let (n, d) = (self.normals[j], self.offsets[j] + margin);
+            if r.iter().all(|v| n.dot(*v) > d) {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+impl Bvh {
+    /// Collects into `leaves` (cleared first) the leaves `(node, slot)`
+    /// holding a triangle that may meet `hull`, in depth-first order.
+    /// Returns false (with `leaves` partly filled) as soon as more than
+    /// `limit` are found.
+    pub fn hull_leaves(
+        &self,
+        hull: &SegmentHull,
+        leaves: &mut Vec<(u32, u32)>,
+        limit: usize,
+    ) -> bool {
+        leaves.clear();
+        if self.nodes.is_empty() {
+            return true;
+        }
+        let mut stack = [0u32; STACK];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let index = stack[top];
+            let Some(node) = self.nodes.get(index as usize) else {
+                continue;
+            };
+            let mut mask = hull.hit_boxes(node);
+            while mask != 0 {
+                let slot = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let count = node.count[slot] as usize;
+                if count == 0 {
+                    // Cannot overflow (see `STACK`).
+                    if top < STACK {
+                        stack[top] = node.child[slot];
+                        top += 1;
+                    }
+                    continue;
+                }
+                let first = node.child[slot] as usize;
+                let Some(tris) = self.tris.get(first..first + count) else {
+                    continue;
+                };
+                if tris.iter().any(|t| hull.may_touch(t)) {
+                    if leaves.len() == limit {
+                        return false;
+                    }
+                    leaves.push((index, slot as u32));
+                }
+            }
+        }
+        true
+    }
+
+    /// [`Bvh::occluded_bundle`] for rays whose segments all lie in `hull`
+    /// (built from the same origin and the samples the directions point
+    /// at): the same answers, bit for bit (module docs), by testing only
+    /// the leaves [`Bvh::hull_leaves`] keeps, or by the whole walk when
+    /// more than `limit` are kept. `leaves` is scratch space.
+    pub fn occluded_hull(
+        &self,
+        hull: &SegmentHull,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+        leaves: &mut Vec<(u32, u32)>,
+        limit: usize,
+    ) {
+        out.fill(false);
+        if self.nodes.is_empty() || !(t_max > 0.0) {
+            return;
+        }
+        if !self.hull_leaves(hull, leaves, limit) {
+            self.occluded_bundle(hull.origin, dirs, t_max, out);
+            return;
+        }
+        if leaves.is_empty() {
+            return;
+        }
+        for (chunk, res) in dirs
+            .chunks(super::PACKET)
+            .zip(out.chunks_mut(super::PACKET))
+        {
+            let packet = Packet::new(hull.origin, chunk, t_max);
+            if packet.valid == 0 {
+                continue;
+            }
+            let mut hit = 0u32;
+            for i in 0..leaves.len() {
+                let (index, slot) = leaves[i];
+                let Some(node) = self.nodes.get(index as usize) else {
+                    continue;
+                };
+                let found = self.leaf_hits(&packet, node, slot as usize, packet.valid & !hit);
+                if found != 0 {
+                    hit |= found;
+                    // Try this leaf first next time: the order of the
+                    // leaves changes no answer, only how soon lanes stop.
+                    leaves.swap(0, i);
+                    if hit == packet.valid {
+                        break;
+                    }
+                }
+            }
+            for (lane, r) in res.iter_mut().enumerate() {
+                *r = hit >> lane & 1 == 1;
+            }
+        }
+    }
+}
