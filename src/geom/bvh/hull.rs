@@ -41,19 +41,26 @@ use super::{Bvh, Node, Rel, STACK};
 use crate::simd::f32x4;
 use glam::{DVec3, Vec3};
 
-/// `Ray::new`'s dominant axis `kz` of `d`, times two, plus 1 when
-/// `d[kz] < 0`.
+/// The (dominant axis, sign) pairs `Ray::new` may pick for directions in
+/// the box `[lo, hi]`, as bits `2 k + s` (`s` = 1: negative): one pair
+/// when the box is strictly on one side of 0 along `k` and strictly
+/// larger there in magnitude than along the others (`Ray::new`'s ties go
+/// to the lower axis, so strictness makes the pick certain), else all six
+/// (which only makes `SegmentHull::behind` stricter).
 #[inline]
-fn dominant_axis(d: Vec3) -> u32 {
-    let a = d.abs();
-    let k = if a.x >= a.y && a.x >= a.z {
-        0
-    } else if a.y >= a.z {
-        1
-    } else {
-        2
-    };
-    2 * k + u32::from(d[k as usize] < 0.0)
+fn dominant_axes(lo: Vec3, hi: Vec3) -> u32 {
+    let (lo, hi) = (lo.to_array(), hi.to_array());
+    let reach = |j: usize| lo[j].abs().max(hi[j].abs());
+    for k in 0..3 {
+        let others = (0..3).filter(|&j| j != k).map(reach).fold(0.0f32, f32::max);
+        if lo[k] > others {
+            return 1 << (2 * k);
+        }
+        if -hi[k] > others {
+            return 1 << (2 * k + 1);
+        }
+    }
+    0b11_1111
 }
 
 /// A box or triangle is culled only when it is outside a bounding plane
@@ -95,21 +102,21 @@ impl SegmentHull {
         if !origin.is_finite() {
             return None;
         }
-        let mut lo = Vec3::ZERO;
-        let mut hi = Vec3::ZERO;
-        let mut axes = 0u32;
+        // A NaN direction drops out of the min/max (it hits nothing); an
+        // infinite one makes the box infinite, which culls nothing.
+        let mut lo = Vec3::INFINITY;
+        let mut hi = Vec3::NEG_INFINITY;
         for &d in dirs {
-            // `Ray::new` refuses these: they hit nothing.
-            if !(d.is_finite() && d != Vec3::ZERO) {
-                continue;
-            }
             lo = lo.min(d);
             hi = hi.max(d);
-            axes |= 1 << dominant_axis(d);
         }
-        if axes == 0 {
+        if !(lo.is_finite() && hi.is_finite()) {
             return None;
         }
+        // The directions' own box decides the axes; the segments' box
+        // also holds the origin.
+        let axes = dominant_axes(lo, hi);
+        let (lo, hi) = (lo.min(Vec3::ZERO), hi.max(Vec3::ZERO));
         let mut hull = SegmentHull {
             origin,
             org: [
