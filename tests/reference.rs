@@ -470,6 +470,40 @@ translate = [0.0, 1.0, 0.0]
 
 // ------------------------------------------------ (d') ray bundles
 
+/// The bunny scene's geometry, a BVH over all of it, and its bounding
+/// box's low corner and size (where the bundle tests place rays).
+fn bunny_bvh() -> (SceneGeometry, Bvh, Vec3, Vec3) {
+    let scene = shipped("bunny.toml");
+    let geometry = SceneGeometry::new(&scene);
+    let bvh = Bvh::build(&geometry, |_| true);
+    let (lo, hi) = geometry
+        .positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| {
+            (l.min(*p), h.max(*p))
+        });
+    (geometry, bvh, lo, hi - lo)
+}
+
+/// No bundle answer differs from its single ray's, and the rays were a
+/// useful mix: more than `1/mix` of them occluded and more than `1/mix`
+/// clear.
+fn assert_bundle_agreement(rays: usize, hits: usize, mix: usize, mismatches: &[String]) {
+    eprintln!(
+        "{rays} rays, {hits} occluded, {} mismatches",
+        mismatches.len()
+    );
+    assert!(
+        hits > rays / mix && hits < rays - rays / mix,
+        "a useful mix: {hits} of {rays}"
+    );
+    assert!(
+        mismatches.is_empty(),
+        "{}",
+        mismatches[..mismatches.len().min(10)].join("\n")
+    );
+}
+
 /// (d') `occluded_bundle` gives, ray by ray, exactly `occluded`'s answer:
 /// bundles of 1–37 rays (partial packets) from random origins toward
 /// random points of a rectangle (coherent, like a light's samples), toward
@@ -478,16 +512,8 @@ translate = [0.0, 1.0, 0.0]
 /// zero and NaN directions mixed in and several `t_max`.
 #[test]
 fn ray_bundles_agree_with_single_rays_bit_for_bit() {
-    let scene = shipped("bunny.toml");
-    let geometry = SceneGeometry::new(&scene);
-    let bvh = Bvh::build(&geometry, |_| true);
+    let (geometry, bvh, lo, size) = bunny_bvh();
     let verts = &geometry.positions;
-    let (lo, hi) = verts
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| {
-            (l.min(*p), h.max(*p))
-        });
-    let size = hi - lo;
     let mut rng = Rng(777);
     let (mut rays, mut hits, mut mismatches) = (0usize, 0usize, Vec::new());
     for bundle in 0..3000 {
@@ -537,19 +563,7 @@ fn ray_bundles_agree_with_single_rays_bit_for_bit() {
             }
         }
     }
-    eprintln!(
-        "{rays} rays, {hits} occluded, {} mismatches",
-        mismatches.len()
-    );
-    assert!(
-        hits > rays / 10 && hits < rays * 9 / 10,
-        "a useful mix: {hits} of {rays}"
-    );
-    assert!(
-        mismatches.is_empty(),
-        "{}",
-        mismatches[..mismatches.len().min(10)].join("\n")
-    );
+    assert_bundle_agreement(rays, hits, 10, &mismatches);
 }
 
 /// (d'') The per-receiver segment hull ([`Bvh::occluded_hull`]) gives,
@@ -562,16 +576,8 @@ fn ray_bundles_agree_with_single_rays_bit_for_bit() {
 #[test]
 fn hull_bundles_agree_with_single_rays_bit_for_bit() {
     use penumbra::geom::bvh::SegmentHull;
-    let scene = shipped("bunny.toml");
-    let geometry = SceneGeometry::new(&scene);
-    let bvh = Bvh::build(&geometry, |_| true);
+    let (geometry, bvh, lo, size) = bunny_bvh();
     let verts = &geometry.positions;
-    let (lo, hi) = verts
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| {
-            (l.min(*p), h.max(*p))
-        });
-    let size = hi - lo;
     let mut rng = Rng(4242);
     let mut leaves = Vec::new();
     let (mut rays, mut hits, mut mismatches) = (0usize, 0usize, Vec::new());
@@ -630,19 +636,7 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
             }
         }
     }
-    eprintln!(
-        "{rays} rays, {hits} occluded, {} mismatches",
-        mismatches.len()
-    );
-    assert!(
-        hits > rays / 20 && hits < rays * 19 / 20,
-        "a useful mix: {hits} of {rays}"
-    );
-    assert!(
-        mismatches.is_empty(),
-        "{}",
-        mismatches[..mismatches.len().min(10)].join("\n")
-    );
+    assert_bundle_agreement(rays, hits, 20, &mismatches);
 }
 
 /// (d''') The reference's images do not depend on the segment hull: the

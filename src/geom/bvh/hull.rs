@@ -37,7 +37,7 @@
 //! other over every receiver of the shipped scenes.
 
 use super::packet::Packet;
-use super::{Bvh, Node, Rel, STACK};
+use super::{Bvh, Node, Rel};
 use crate::simd::f32x4;
 use glam::{DVec3, Vec3};
 
@@ -311,40 +311,24 @@ impl Bvh {
         if self.nodes.is_empty() {
             return true;
         }
-        let mut stack = [0u32; STACK];
-        let mut top = 1usize;
-        while top > 0 {
-            top -= 1;
-            let index = stack[top];
-            let Some(node) = self.nodes.get(index as usize) else {
-                continue;
-            };
-            let mut mask = hull.hit_boxes(node);
-            while mask != 0 {
-                let slot = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let count = node.count[slot] as usize;
-                if count == 0 {
-                    // Cannot overflow (see `STACK`).
-                    if top < STACK {
-                        stack[top] = node.child[slot];
-                        top += 1;
-                    }
-                    continue;
-                }
-                let first = node.child[slot] as usize;
-                let Some(tris) = self.tris.get(first..first + count) else {
-                    continue;
+        let mut full = false;
+        self.walk(
+            |node| hull.hit_boxes(node),
+            |index, slot, range| {
+                let Some(tris) = self.tris.get(range) else {
+                    return true;
                 };
                 if tris.iter().any(|t| hull.may_touch(t)) {
                     if leaves.len() == limit {
+                        full = true;
                         return false;
                     }
                     leaves.push((index, slot as u32));
                 }
-            }
-        }
-        true
+                true
+            },
+        );
+        !full
     }
 
     /// [`Bvh::occluded_bundle`] for rays whose segments all lie in `hull`

@@ -290,14 +290,50 @@ impl Bvh {
         let Some(ray) = Ray::new(origin, dir, t_max) else {
             return;
         };
+        self.walk(
+            |node| ray.hit_boxes(node),
+            |_, _, leaf| {
+                let (Some(tris), Some(ids)) = (self.tris.get(leaf.clone()), self.ids.get(leaf))
+                else {
+                    return true;
+                };
+                for (tri, &id) in tris.iter().zip(ids) {
+                    if let Some((t, b1, b2)) = ray.intersect(tri) {
+                        let more = on_hit(Hit {
+                            triangle: id,
+                            t,
+                            b1,
+                            b2,
+                        });
+                        if !more {
+                            return false;
+                        }
+                    }
+                }
+                true
+            },
+        );
+    }
+
+    /// The depth-first walk every single query shares: `boxes(node)` is
+    /// the mask of children to enter; `leaf(node index, slot, triangles)`
+    /// is called for each leaf child entered (its range in leaf order) and
+    /// returns false to stop the walk. Returns false when stopped.
+    #[inline(always)]
+    fn walk(
+        &self,
+        mut boxes: impl FnMut(&Node) -> u32,
+        mut leaf: impl FnMut(u32, usize, Range<usize>) -> bool,
+    ) -> bool {
         let mut stack = [0u32; STACK];
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
-            let Some(node) = self.nodes.get(stack[top] as usize) else {
+            let index = stack[top];
+            let Some(node) = self.nodes.get(index as usize) else {
                 continue;
             };
-            let mut mask = ray.hit_boxes(node);
+            let mut mask = boxes(node);
             while mask != 0 {
                 let slot = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
@@ -312,26 +348,12 @@ impl Bvh {
                     continue;
                 }
                 let first = node.child[slot] as usize;
-                let leaf = first..first + count;
-                let (Some(tris), Some(ids)) = (self.tris.get(leaf.clone()), self.ids.get(leaf))
-                else {
-                    continue;
-                };
-                for (tri, &id) in tris.iter().zip(ids) {
-                    if let Some((t, b1, b2)) = ray.intersect(tri) {
-                        let more = on_hit(Hit {
-                            triangle: id,
-                            t,
-                            b1,
-                            b2,
-                        });
-                        if !more {
-                            return;
-                        }
-                    }
+                if !leaf(index, slot, first..first + count) {
+                    return false;
                 }
             }
         }
+        true
     }
 }
 
