@@ -40,6 +40,7 @@ use crate::raster::{MAX_SIDE, TILE_SIZE};
 use crate::render::{render_rows, view_for, RenderOptions, RenderOutput};
 use crate::report::Progress;
 use crate::scene::Scene;
+use crate::shadow::registry::Bands;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
@@ -102,29 +103,17 @@ pub fn kept_rows(options: &RenderOptions, rows: Range<u32>, height: u32) -> Resu
             ),
         ))
     };
-    match technique.name() {
-        // Per-pixel results from the pixel's own sample, the full-frame
-        // depth buffer, the scene (the light views are fitted to the
-        // scene's bounds, not to the pixels seen) and per-pixel-keyed
-        // samples.
-        "reference" | "dcs" | "shadow-volumes" | "wedges" | "wedge-blend" | "shadow-map"
-        | "pcss" | "multi-map" | "soft-shadow-map" | "none" => Ok(rows),
-        // Receivers share a hierarchy per square screen chunk and the
-        // chunk's rebuild decision counts its receivers, so the
-        // `pc_leaf_triangles` layer depends on the whole chunk: keep every
-        // chunk the band touches whole.
-        "penumbra-casting" => {
-            let side = options.options.penumbra_casting.pc_chunk.max(1);
+    // Each technique says in the registry (tests/render_tiles.rs checks
+    // the claim: a band's pixels equal the whole frame's).
+    match technique.info().bands {
+        Bands::Rows => Ok(rows),
+        Bands::Chunks(side) => {
+            let side = side(&options.options).max(1);
             let first = rows.start / side * side;
             let end = rows.end.div_ceil(side).saturating_mul(side).min(height);
             Ok(first..end)
         }
-        "adaptive-maps" => refuse(
-            "its refinement tests each pixel's screen-space 1-ring and refines the \
-             maps for every receiver it sees, so a band's result depends on the pixels \
-             of the whole frame",
-        ),
-        _ => refuse("it has not been checked for band independence (tests/render_tiles.rs)"),
+        Bands::Refused(why) => refuse(why),
     }
 }
 

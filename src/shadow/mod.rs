@@ -157,6 +157,9 @@ pub static UNSHADOWED: registry::TechniqueInfo = registry::TechniqueInfo {
     },
     quality_settings: |s| vec![s.single("none", "unshadowed")],
     build: |_| Box::new(Unshadowed),
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: registry::Bands::Rows,
 };
 
 impl ShadowTechnique for Unshadowed {

@@ -26,7 +26,7 @@ use crate::gbuffer::GSample;
 use crate::sampling::{PatternSampler, SamplePattern};
 use crate::shade::LightSample;
 use crate::shadow::kit::timing::PassTimer;
-use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
 use std::time::Duration;
 
@@ -114,6 +114,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             pattern: p.pattern,
         })
     },
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 impl Reference {

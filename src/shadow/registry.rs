@@ -272,6 +272,23 @@ pub struct TechniqueInfo {
     pub quality_settings: fn(&Sweep) -> Vec<QualitySetting>,
     /// Builds it.
     pub build: fn(&BuildParams) -> Box<dyn ShadowTechnique>,
+    /// Whether a band of the frame renders on its own (`render --tiles`).
+    pub bands: Bands,
+}
+
+/// Whether a technique can render one horizontal band of the frame on its
+/// own, as `render --tiles` does ([`crate::cluster`]): the band's pixels
+/// must come out as in a whole-frame render.
+#[derive(Debug, Clone, Copy)]
+pub enum Bands {
+    /// Each pixel's result depends only on its own G-buffer sample, the
+    /// scene and per-pixel-keyed samples: a band renders its own rows.
+    Rows,
+    /// Pixels depend on the square screen chunk they lie in, of this side
+    /// in pixels with these options: a band is widened to whole chunks.
+    Chunks(fn(&TechniqueOptions) -> u32),
+    /// Cannot: a band's result depends on pixels outside it (why).
+    Refused(&'static str),
 }
 
 /// A registered technique: a cheap handle to its [`TechniqueInfo`].

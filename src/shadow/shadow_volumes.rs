@@ -13,7 +13,7 @@
 
 use super::kit::timing::timed;
 use super::kit::volumes::{build_volume, light_point, stencil_counts};
-use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use super::{LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::{Error, Result};
 use crate::output::Layer;
@@ -55,6 +55,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             zpass: p.options.shadow_volumes.zpass,
         })
     },
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 /// The hard-shadow technique.

@@ -62,7 +62,9 @@ use crate::shadow::kit::many_maps::{
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::shadow_maps::{DepthBias, ShadowMapOptions};
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Capabilities, QualitySetting, Support, TechniqueInfo, TermKind};
+use crate::shadow::registry::{
+    Bands, Capabilities, QualitySetting, Support, TechniqueInfo, TermKind,
+};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -178,6 +180,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             seed: p.seed,
         })
     },
+    bands: Bands::Refused(
+        "its refinement tests each pixel's screen-space 1-ring and refines the \
+         maps for every receiver it sees, so a band's result depends on the pixels \
+         of the whole frame",
+    ),
 };
 
 /// A quad of the light's quadtree, in units of the finest grid (`2^D`

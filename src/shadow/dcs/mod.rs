@@ -44,7 +44,7 @@ use super::kit::membership::light_start;
 use super::kit::rays::ShadowOrigin;
 use super::kit::timing::{timed, PassTimer};
 use super::kit::verify::{PixelVisibility, SampleDecisions};
-use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use super::stsv::{Filter, STriangles};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
@@ -178,6 +178,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             opacity_filter: p.options.stsv.opacity_filter,
         })
     },
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 /// The depth-complexity-sampling technique.

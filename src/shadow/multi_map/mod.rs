@@ -26,7 +26,9 @@ use crate::shadow::kit::many_maps::{
 use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Capabilities, QualitySetting, Support, TechniqueInfo, TermKind};
+use crate::shadow::registry::{
+    Bands, Capabilities, QualitySetting, Support, TechniqueInfo, TermKind,
+};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 
 /// Largest `--samples` multi-map accepts: the `u64` accumulators then hold
@@ -91,6 +93,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             options: p.options.shadow_map,
         })
     },
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 impl ShadowTechnique for MultiMap {

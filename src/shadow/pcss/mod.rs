@@ -44,7 +44,7 @@ use crate::shadow::kit::shadow_maps::{
     project_receiver, MapReceiver,
 };
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::View;
 use glam::DVec2;
@@ -155,6 +155,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             seed: p.seed,
         })
     },
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 /// Unit taps of one stage: the Poisson disk of radius 1, or the regular

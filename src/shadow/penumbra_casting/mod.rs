@@ -33,7 +33,7 @@ pub mod volume;
 use super::kit::rays::{scene_diagonal, ShadowOrigin};
 use super::kit::timing::PassTimer;
 use super::kit::verify::{PixelVisibility, SampleDecisions};
-use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use super::stsv::Filter;
 use super::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::{Error, Result};
@@ -178,6 +178,10 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             },
         })
     },
+    // Receivers share a hierarchy per square screen chunk and the chunk's
+    // rebuild decision counts its receivers, so the `pc_leaf_triangles`
+    // layer depends on the whole chunk.
+    bands: Bands::Chunks(|o| o.penumbra_casting.pc_chunk.max(1)),
 };
 
 /// The penumbra-casting technique.

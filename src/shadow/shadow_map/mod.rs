@@ -24,7 +24,7 @@ use crate::shadow::kit::shadow_maps::{
 };
 pub use crate::shadow::kit::shadow_maps::{Pcf, MAX_MAP_SIZE};
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 
 /// The hard shadow-map technique.
@@ -69,6 +69,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             seed: p.seed,
         })
     },
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 impl ShadowTechnique for ShadowMap {

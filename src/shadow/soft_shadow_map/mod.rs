@@ -42,7 +42,7 @@ use crate::shadow::kit::shadow_maps::{
     opaque_caster, per_receiver, project_receiver, DepthBias, MapReceiver,
 };
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::{Extent, View};
 use geometry::{patch_occlusion, reach};
@@ -159,6 +159,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             map: p.options.shadow_map,
         })
     },
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 /// One light's soft shadow map and what was built for it.

@@ -47,7 +47,7 @@ use crate::shadow::kit::volumes::{
 };
 use crate::shadow::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
 use crate::shadow::registry::OPAQUE_ONLY;
-use crate::shadow::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -209,6 +209,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     },
     quality_settings: |s| vec![s.single("wedge-blend", "EOAH, 4 quarters")],
     build: |_| Box::new(WedgeBlending),
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 /// The penumbra-wedge blending technique. S-triangles are shadowed by

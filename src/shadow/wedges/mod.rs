@@ -25,7 +25,7 @@ use super::kit::timing::PassTimer;
 use super::kit::volumes::silhouette_quads;
 use super::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
 use super::registry::OPAQUE_ONLY;
-use super::registry::{Capabilities, Support, TechniqueInfo, TermKind};
+use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::gbuffer::GBuffer;
@@ -57,6 +57,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     },
     quality_settings: |s| vec![s.single("wedges", "centre silhouettes")],
     build: |_| Box::new(PenumbraWedges),
+    // Per-pixel results from the pixel's own sample, the full-frame depth
+    // buffer, the scene and per-pixel-keyed samples.
+    bands: Bands::Rows,
 };
 
 /// One tile's state of the wedge pass (besides its membership counts).
