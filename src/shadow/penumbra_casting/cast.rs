@@ -12,7 +12,7 @@
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::SampleSets;
 use super::volume::{
-    chunks_left, cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane,
+    chunks_left, cone_slack, hard_bits_scalar, hard_bits_simd, light_side_of_plane,
     penumbra_volume, BoxTest, Cone, HardVolumes, PenumbraVolume,
 };
 use glam::DVec3;
@@ -40,6 +40,11 @@ pub struct Switches {
     /// the receiver through the triangle skip the kernel (and, when every
     /// chunk of a group does, its hard volumes are not built).
     pub cone: bool,
+    /// With `cone`: the cone decides each remaining sample where its
+    /// value is clear of the rounding allowance (the kernel's answer,
+    /// proved), and the kernel runs only for the samples within it (so
+    /// almost no hard volumes are built).
+    pub cone_decides: bool,
     /// Rebuild the hierarchy when more than this percentage of its
     /// receivers is in full umbra (0: never; needs `umbra`).
     pub rebuild_percent: u32,
@@ -100,8 +105,9 @@ pub struct Chunk<'a> {
     tri: [DVec3; 3],
     /// Largest coordinate magnitude of the receivers.
     pos_extent: f64,
-    /// The current triangle's cone allowance, where the prefilter holds.
-    cone_slack: Option<f64>,
+    /// The current triangle's cone allowance and the light's side of its
+    /// plane, where the prefilter holds.
+    cone_slack: Option<(f64, f64)>,
     /// What it measured.
     pub stats: ChunkStats,
 }
@@ -254,8 +260,9 @@ impl<'a> Chunk<'a> {
                     m.max(v.abs().max_element())
                 });
             let slack = cone_slack(m);
-            if slack.is_finite() && light_clear_of_plane(&self.sets.light, &t, slack) {
-                self.cone_slack = Some(slack);
+            if slack.is_finite() {
+                self.cone_slack =
+                    light_side_of_plane(&self.sets.light, &t, slack).map(|side| (slack, side));
             }
         }
     }
@@ -396,17 +403,27 @@ impl<'a> Chunk<'a> {
 
     fn point(&mut self, r: usize, c0: usize, c1: usize) {
         let sw = self.sw;
-        if self.slot[r] == NONE {
-            self.alloc(r);
-        }
         if !self.groups_built {
             self.build_groups();
         }
-        let set = self.set[r] as usize;
         let o = self.pos[r];
+        let (cone, decides) = match self.cone_slack {
+            Some((s, side)) => match Cone::new(&self.tri, o, s) {
+                // The receiver is on the light's side of the triangle's
+                // plane (by more than the allowance): the kernel's
+                // triangle plane rejects it for every sample.
+                Some(c) if sw.cone_decides && c.orientation() != side => return,
+                Some(c) => (Some(c), sw.cone_decides),
+                None => (None, false),
+            },
+            None => (None, false),
+        };
+        if self.slot[r] == NONE {
+            self.alloc(r);
+        }
+        let set = self.set[r] as usize;
         let g = self.sets.groups;
         let base = self.slot[r] as usize * g;
-        let cone = self.cone_slack.and_then(|s| Cone::new(&self.tri, o, s));
         for i in c0..c1 {
             let (k, pk) = self.stack[i];
             let k = k as usize;
@@ -429,13 +446,28 @@ impl<'a> Chunk<'a> {
                     continue;
                 }
             }
-            // The chunks of four with a sample left to test.
-            let need = chunks_left(skip);
-            let hv = self.hard_volumes(set, k, need);
-            let bits = if sw.simd {
-                hard_bits_simd(&self.hard[hv], o, skip)
-            } else {
-                hard_bits_scalar(&self.hard[hv], o, skip)
+            let bits = match &cone {
+                Some(c) if decides => {
+                    let soa = &self.sets.soa[set][k];
+                    let (sure, unsure) = if sw.simd {
+                        c.decide(soa, skip)
+                    } else {
+                        c.decide_scalar(soa, skip)
+                    };
+                    if unsure == 0 {
+                        sure
+                    } else {
+                        // Ties up to rounding: the kernel's own answer.
+                        let skip = !unsure;
+                        let hv = self.hard_volumes(set, k, chunks_left(skip));
+                        sure | self.kernel(hv, o, skip)
+                    }
+                }
+                _ => {
+                    // The chunks of four with a sample left to test.
+                    let hv = self.hard_volumes(set, k, chunks_left(skip));
+                    self.kernel(hv, o, skip)
+                }
             };
             let word = word | bits;
             self.pool[base + k] = word;
@@ -449,6 +481,15 @@ impl<'a> Chunk<'a> {
             if sw.on_demand {
                 self.release(r);
             }
+        }
+    }
+
+    #[inline(always)]
+    fn kernel(&self, hv: usize, o: [f64; 3], skip: u32) -> u32 {
+        if self.sw.simd {
+            hard_bits_simd(&self.hard[hv], o, skip)
+        } else {
+            hard_bits_scalar(&self.hard[hv], o, skip)
         }
     }
 
