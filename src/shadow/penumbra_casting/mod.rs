@@ -93,6 +93,11 @@ pub struct PenumbraCastingOptions {
     /// for the samples within it (same bits).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub pc_cone_decides: bool,
+    /// Penumbra casting: with `--pc-cone-decides`, the cone decides also
+    /// for triangles whose plane splits the light, per sample by its side
+    /// of the plane (same bits).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_cone_split: bool,
     /// Penumbra casting: skip the triangles of closed casters whose plane
     /// has the whole light strictly behind it (a segment crossing a closed
     /// surface crosses it both ways, so the light-facing crossings suffice).
@@ -135,6 +140,7 @@ impl PenumbraCastingOptions {
             pc_simd: false,
             pc_cone_prefilter: false,
             pc_cone_decides: false,
+            pc_cone_split: false,
             pc_cull_back_faces: false,
             ..self
         }
@@ -149,6 +155,7 @@ impl PenumbraCastingOptions {
             simd: self.pc_simd,
             cone: self.pc_cone_prefilter,
             cone_decides: self.pc_cone_decides,
+            cone_split: self.pc_cone_split,
             rebuild_percent: self.pc_rebuild_percent,
         }
     }
