@@ -217,13 +217,30 @@ fn each_optimisation_alone_gives_the_same_masks() {
     let base = technique(64, basic)
         .light_masks(&ctx, 0)
         .expect("basic runs");
-    let variants: [fn(&mut PenumbraCastingOptions); 6] = [
+    let variants: [fn(&mut PenumbraCastingOptions); 10] = [
         |o| o.pc_umbra_bits = true,
         |o| o.pc_active_planes = true,
         |o| o.pc_lazy_volumes = true,
         |o| o.pc_on_demand_masks = true,
         |o| o.pc_sort_blockers = true,
         |o| o.pc_simd = true,
+        |o| o.pc_cone_prefilter = true,
+        // The cone's decisions (they need its prefilter), scalar and SIMD.
+        |o| {
+            o.pc_cone_prefilter = true;
+            o.pc_cone_decides = true;
+        },
+        |o| {
+            o.pc_cone_prefilter = true;
+            o.pc_cone_decides = true;
+            o.pc_cone_split = true;
+        },
+        |o| {
+            o.pc_cone_prefilter = true;
+            o.pc_cone_decides = true;
+            o.pc_cone_split = true;
+            o.pc_simd = true;
+        },
     ];
     for (j, set) in variants.iter().enumerate() {
         let mut o = basic;

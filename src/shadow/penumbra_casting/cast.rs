@@ -12,8 +12,8 @@
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::SampleSets;
 use super::volume::{
-    chunks_left, cone_slack, hard_bits_scalar, hard_bits_simd, light_clear_of_plane,
-    penumbra_volume, BoxTest, Cone, HardVolumes, PenumbraVolume,
+    chunks_left, cone_group, cone_slack, hard_bits_scalar, hard_bits_simd, light_side_of_plane,
+    penumbra_volume, plane_sides, BoxTest, Cone, HardVolumes, PenumbraVolume,
 };
 use glam::DVec3;
 use std::time::{Duration, Instant};
@@ -40,6 +40,15 @@ pub struct Switches {
     /// the receiver through the triangle skip the kernel (and, when every
     /// chunk of a group does, its hard volumes are not built).
     pub cone: bool,
+    /// With `cone`: the cone decides each remaining sample where its
+    /// value is clear of the rounding allowance (the kernel's answer,
+    /// proved), and the kernel runs only for the samples within it (so
+    /// almost no hard volumes are built).
+    pub cone_decides: bool,
+    /// With `cone_decides`: also for triangles whose plane splits the
+    /// light, per sample by its side of the plane (the samples within the
+    /// allowance of it go to the kernel).
+    pub cone_split: bool,
     /// Rebuild the hierarchy when more than this percentage of its
     /// receivers is in full umbra (0: never; needs `umbra`).
     pub rebuild_percent: u32,
@@ -100,8 +109,13 @@ pub struct Chunk<'a> {
     tri: [DVec3; 3],
     /// Largest coordinate magnitude of the receivers.
     pos_extent: f64,
-    /// The current triangle's cone allowance, where the prefilter holds.
-    cone_slack: Option<f64>,
+    /// The current triangle's cone allowance and the light's side of its
+    /// plane (0: the plane splits the light), where the cone is used.
+    cone_slack: Option<(f64, f64)>,
+    /// Per (set, group): its samples' sides of a splitting plane, for
+    /// the current stamp.
+    sides: Vec<(u32, u32)>,
+    sides_stamp: Vec<u32>,
     /// What it measured.
     pub stats: ChunkStats,
 }
@@ -166,6 +180,8 @@ impl<'a> Chunk<'a> {
             hard: vec![HardVolumes::default(); sets.sets * g],
             hard_stamp: vec![0; sets.sets * g],
             hard_built: vec![0; sets.sets * g],
+            sides: vec![(0, 0); sets.sets * g],
+            sides_stamp: vec![0; sets.sets * g],
             stamp: 0,
             tri: [DVec3::ZERO; 3],
             stats,
@@ -206,6 +222,7 @@ impl<'a> Chunk<'a> {
         self.stamp = self.stamp.wrapping_add(1);
         if self.stamp == 0 {
             self.hard_stamp.iter_mut().for_each(|s| *s = u32::MAX);
+            self.sides_stamp.iter_mut().for_each(|s| *s = u32::MAX);
             self.stamp = 1;
         }
         self.tri = *t;
@@ -254,8 +271,13 @@ impl<'a> Chunk<'a> {
                     m.max(v.abs().max_element())
                 });
             let slack = cone_slack(m);
-            if slack.is_finite() && light_clear_of_plane(&self.sets.light, &t, slack) {
-                self.cone_slack = Some(slack);
+            if slack.is_finite() {
+                let split = self.sw.cone_decides && self.sw.cone_split;
+                self.cone_slack = match light_side_of_plane(&self.sets.light, &t, slack) {
+                    Some(side) => Some((slack, side)),
+                    None if split => Some((slack, 0.0)),
+                    None => None,
+                };
             }
         }
     }
@@ -275,6 +297,18 @@ impl<'a> Chunk<'a> {
             self.hard[i].build_chunks(&self.sets.soa[set][k], &self.tri, missing);
         }
         i
+    }
+
+    /// The samples' sides of the current triangle's plane for (set,
+    /// group k), computed on first need.
+    fn plane_sides(&mut self, set: usize, k: usize) -> (u32, u32) {
+        let i = set * self.sets.groups + k;
+        if self.sides_stamp[i] != self.stamp {
+            self.sides_stamp[i] = self.stamp;
+            let (slack, _) = self.cone_slack.expect("a cone");
+            self.sides[i] = plane_sides(&self.sets.soa[set][k], &self.tri, slack);
+        }
+        self.sides[i]
     }
 
     fn alloc(&mut self, r: usize) {
@@ -396,17 +430,27 @@ impl<'a> Chunk<'a> {
 
     fn point(&mut self, r: usize, c0: usize, c1: usize) {
         let sw = self.sw;
-        if self.slot[r] == NONE {
-            self.alloc(r);
-        }
         if !self.groups_built {
             self.build_groups();
         }
-        let set = self.set[r] as usize;
         let o = self.pos[r];
+        let (cone, decides, split) = match self.cone_slack {
+            Some((s, side)) => match Cone::new(&self.tri, o, s) {
+                // The receiver is on the light's side of the triangle's
+                // plane (by more than the allowance): the kernel's
+                // triangle plane rejects it for every sample.
+                Some(c) if sw.cone_decides && side != 0.0 && c.orientation() != side => return,
+                Some(c) => (Some(c), sw.cone_decides, side == 0.0),
+                None => (None, false, false),
+            },
+            None => (None, false, false),
+        };
+        if self.slot[r] == NONE {
+            self.alloc(r);
+        }
+        let set = self.set[r] as usize;
         let g = self.sets.groups;
         let base = self.slot[r] as usize * g;
-        let cone = self.cone_slack.and_then(|s| Cone::new(&self.tri, o, s));
         for i in c0..c1 {
             let (k, pk) = self.stack[i];
             let k = k as usize;
@@ -423,19 +467,36 @@ impl<'a> Chunk<'a> {
                 continue;
             }
             let mut skip = word | !valid;
-            if let Some(c) = &cone {
-                skip |= c.outside_chunks(&self.sets.boxes[set][k]);
-                if skip == u32::MAX {
-                    continue;
+            let bits = match &cone {
+                Some(c) if decides => {
+                    let sides = split.then(|| self.plane_sides(set, k));
+                    let (soa, boxes) = (&self.sets.soa[set][k], &self.sets.boxes[set][k]);
+                    let (sure, unsure) = cone_group(c, soa, boxes, skip, sides, sw.simd);
+                    if sure | unsure == 0 {
+                        continue;
+                    }
+                    if unsure == 0 {
+                        sure
+                    } else {
+                        // Ties up to rounding: the kernel's own answer.
+                        let skip = !unsure;
+                        let hv = self.hard_volumes(set, k, chunks_left(skip));
+                        sure | self.kernel(hv, o, skip)
+                    }
                 }
-            }
-            // The chunks of four with a sample left to test.
-            let need = chunks_left(skip);
-            let hv = self.hard_volumes(set, k, need);
-            let bits = if sw.simd {
-                hard_bits_simd(&self.hard[hv], o, skip)
-            } else {
-                hard_bits_scalar(&self.hard[hv], o, skip)
+                Some(c) => {
+                    skip |= c.outside_chunks(&self.sets.boxes[set][k]);
+                    if skip == u32::MAX {
+                        continue;
+                    }
+                    let hv = self.hard_volumes(set, k, chunks_left(skip));
+                    self.kernel(hv, o, skip)
+                }
+                None => {
+                    // The chunks of four with a sample left to test.
+                    let hv = self.hard_volumes(set, k, chunks_left(skip));
+                    self.kernel(hv, o, skip)
+                }
             };
             let word = word | bits;
             self.pool[base + k] = word;
@@ -449,6 +510,15 @@ impl<'a> Chunk<'a> {
             if sw.on_demand {
                 self.release(r);
             }
+        }
+    }
+
+    #[inline(always)]
+    fn kernel(&self, hv: usize, o: [f64; 3], skip: u32) -> u32 {
+        if self.sw.simd {
+            hard_bits_simd(&self.hard[hv], o, skip)
+        } else {
+            hard_bits_scalar(&self.hard[hv], o, skip)
         }
     }
 

@@ -87,6 +87,17 @@ pub struct PenumbraCastingOptions {
     /// bits).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub pc_cone_prefilter: bool,
+    /// Penumbra casting: with the cone prefilter, the cone decides each
+    /// remaining sample whose value is clear of the rounding allowance
+    /// (the kernel's answer, proved) and the hard volumes are built only
+    /// for the samples within it (same bits).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_cone_decides: bool,
+    /// Penumbra casting: with `--pc-cone-decides`, the cone decides also
+    /// for triangles whose plane splits the light, per sample by its side
+    /// of the plane (same bits).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub pc_cone_split: bool,
     /// Penumbra casting: skip the triangles of closed casters whose plane
     /// has the whole light strictly behind it (a segment crossing a closed
     /// surface crosses it both ways, so the light-facing crossings suffice).
@@ -128,6 +139,8 @@ impl PenumbraCastingOptions {
             pc_sort_blockers: false,
             pc_simd: false,
             pc_cone_prefilter: false,
+            pc_cone_decides: false,
+            pc_cone_split: false,
             pc_cull_back_faces: false,
             ..self
         }
@@ -141,6 +154,8 @@ impl PenumbraCastingOptions {
             on_demand: self.pc_on_demand_masks,
             simd: self.pc_simd,
             cone: self.pc_cone_prefilter,
+            cone_decides: self.pc_cone_decides,
+            cone_split: self.pc_cone_split,
             rebuild_percent: self.pc_rebuild_percent,
         }
     }

@@ -604,6 +604,7 @@ pub struct Cone {
     n: [[f64; 3]; 3],
     o: [f64; 3],
     slack: f64,
+    s: f64,
 }
 
 impl Cone {
@@ -634,6 +635,7 @@ impl Cone {
             ],
             o,
             slack,
+            s,
         })
     }
 
@@ -700,6 +702,141 @@ impl Cone {
     }
 }
 
+impl Cone {
+    /// The orientation `s` (the sign of `det(t0 − o, t1 − o, t2 − o)`):
+    /// where it differs from the light's side of the triangle's plane
+    /// ([`light_side_of_plane`]), the receiver is on the light's side
+    /// and the kernel marks no sample (its fourth plane, the triangle's,
+    /// rejects the receiver for every sample).
+    #[inline(always)]
+    pub fn orientation(&self) -> f64 {
+        self.s
+    }
+
+    /// The cone's verdict on the samples of `g` not set in `skip`:
+    /// `(sure, unsure)`. A sample whose three cone values all exceed the
+    /// allowance is marked by the kernel (`sure`); one with a value below
+    /// minus the allowance is not (in neither set); the rest (`unsure`,
+    /// a value within the allowance of 0: a tie up to rounding) must be
+    /// asked of the kernel. Valid where [`Cone::new`]'s conditions hold
+    /// and the receiver is on the far side of the triangle from the light
+    /// ([`Cone::orientation`] equals the light's side). Four samples at a
+    /// time through the SIMD facade, each value computed as
+    /// [`Cone::decide_scalar`] does (same bits).
+    #[inline]
+    pub fn decide(&self, g: &GroupSoa, skip: u32) -> (u32, u32) {
+        let (s, ns) = (f64x4::splat(self.slack), f64x4::splat(-self.slack));
+        let o = self.o;
+        let (ox, oy, oz) = (f64x4::splat(o[0]), f64x4::splat(o[1]), f64x4::splat(o[2]));
+        let n = self
+            .n
+            .map(|n| (f64x4::splat(n[0]), f64x4::splat(n[1]), f64x4::splat(n[2])));
+        let (mut sure, mut unsure) = (0u32, 0u32);
+        for c in 0..g.len.div_ceil(4) {
+            if (skip >> (4 * c)) & 0xf == 0xf {
+                continue;
+            }
+            let r = 4 * c..4 * c + 4;
+            let dx = f64x4::load(&g.x[r.clone()]) - ox;
+            let dy = f64x4::load(&g.y[r.clone()]) - oy;
+            let dz = f64x4::load(&g.z[r]) - oz;
+            let v0 = (n[0].0 * dx + n[0].1 * dy) + n[0].2 * dz;
+            let v1 = (n[1].0 * dx + n[1].1 * dy) + n[1].2 * dz;
+            let v2 = (n[2].0 * dx + n[2].1 * dy) + n[2].2 * dz;
+            let inside = (v0.cmp_gt(s) & v1.cmp_gt(s) & v2.cmp_gt(s)).move_mask();
+            let outside = (v0.cmp_lt(ns) | v1.cmp_lt(ns) | v2.cmp_lt(ns)).move_mask();
+            sure |= inside << (4 * c);
+            unsure |= (!(inside | outside) & 0xf) << (4 * c);
+        }
+        (sure & !skip, unsure & !skip)
+    }
+
+    /// [`Cone::decide`], sample by sample (its scalar twin).
+    #[inline]
+    pub fn decide_scalar(&self, g: &GroupSoa, skip: u32) -> (u32, u32) {
+        let o = self.o;
+        let (mut sure, mut unsure) = (0u32, 0u32);
+        for j in 0..g.len {
+            if (skip >> j) & 1 == 1 {
+                continue;
+            }
+            let d = [g.x[j] - o[0], g.y[j] - o[1], g.z[j] - o[2]];
+            let v = self.n.map(|n| (n[0] * d[0] + n[1] * d[1]) + n[2] * d[2]);
+            if v.iter().all(|&v| v > self.slack) {
+                sure |= 1 << j;
+            } else if !v.iter().any(|&v| v < -self.slack) {
+                unsure |= 1 << j;
+            }
+        }
+        (sure, unsure)
+    }
+}
+
+/// The sides of triangle `t`'s plane the samples of `g` are on, clear of
+/// `slack` in the unnormalised value `((t1 − t0) × (t2 − t0))·(y − t0)`
+/// ([`light_side_of_plane`]'s form): `(positive, negative)` bits. For a
+/// sample in either set the kernel's orientation and its triangle-plane
+/// side are the exact ones (the kernel computes the same value within
+/// `400 ε M³`, far below the cone's allowance).
+pub fn plane_sides(g: &GroupSoa, t: &[DVec3; 3], slack: f64) -> (u32, u32) {
+    let nt = cross(t[1] - t[0], t[2] - t[0]);
+    let (mut pos, mut neg) = (0u32, 0u32);
+    for j in 0..g.len {
+        let v = nt.dot(DVec3::new(g.x[j], g.y[j], g.z[j]) - t[0]);
+        if v > slack {
+            pos |= 1 << j;
+        } else if v < -slack {
+            neg |= 1 << j;
+        }
+    }
+    (pos, neg)
+}
+
+/// The cone's verdict on one group (`boxes` and `soa` its samples),
+/// testing the samples not set in `skip`: `(sure, unsure)` as
+/// [`Cone::decide`] (`unsure` for the kernel). `sides`: `None` where the
+/// light is clear of the triangle's plane on the receiver's far side
+/// (the caller has checked [`Cone::orientation`]); else the samples'
+/// sides ([`plane_sides`]) of a plane that splits the light: samples on
+/// the receiver's side are not marked (the kernel's triangle plane
+/// rejects the receiver), those on the far side are decided by the cone
+/// as for a clear light, and those within the allowance of the plane
+/// (whose kernel orientation is not known in advance) are `unsure`.
+/// `simd`: [`Cone::decide`] or its scalar twin (same bits).
+#[inline]
+pub fn cone_group(
+    c: &Cone,
+    soa: &GroupSoa,
+    boxes: &ChunkBoxes,
+    skip: u32,
+    sides: Option<(u32, u32)>,
+    simd: bool,
+) -> (u32, u32) {
+    let (mut skip, near) = match sides {
+        None => (skip, 0),
+        Some((pos, neg)) => {
+            let far = if c.orientation() > 0.0 { pos } else { neg };
+            let near = !(pos | neg);
+            (skip | !(far | near), near & !skip)
+        }
+    };
+    if skip | near == u32::MAX {
+        return (0, near);
+    }
+    // The cone's chunk test holds for the samples clear of the plane.
+    skip |= c.outside_chunks(boxes) & !near;
+    let skip = skip | near;
+    if skip == u32::MAX {
+        return (0, near);
+    }
+    let (sure, unsure) = if simd {
+        c.decide(soa, skip)
+    } else {
+        c.decide_scalar(soa, skip)
+    };
+    (sure, unsure | near)
+}
+
 /// Bit `c` of `m` (c < 8) spread to the nibble `4c .. 4c + 4`.
 #[inline(always)]
 pub fn nibbles(m: u32) -> u32 {
@@ -732,9 +869,22 @@ pub fn cone_slack(m: f64) -> f64 {
 /// `((t1 − t0) × (t2 − t0))·(c − t0)`: then every sample is, so the
 /// kernel's per-sample orientation (the sign of that value) is exact.
 pub fn light_clear_of_plane(light: &LightBox, t: &[DVec3; 3], slack: f64) -> bool {
+    light_side_of_plane(light, t, slack).is_some()
+}
+
+/// [`light_clear_of_plane`], with the side: `Some(1.0)` where every
+/// corner's value is `> slack`, `Some(-1.0)` where every one is
+/// `< −slack`, else `None`.
+pub fn light_side_of_plane(light: &LightBox, t: &[DVec3; 3], slack: f64) -> Option<f64> {
     let nt = cross(t[1] - t[0], t[2] - t[0]);
     let v = light.corners.map(|c| nt.dot(c - t[0]));
-    v.iter().all(|&x| x > slack) || v.iter().all(|&x| x < -slack)
+    if v.iter().all(|&x| x > slack) {
+        Some(1.0)
+    } else if v.iter().all(|&x| x < -slack) {
+        Some(-1.0)
+    } else {
+        None
+    }
 }
 
 /// One group's sample positions as lanes (padded to 32 with zeros).
@@ -883,6 +1033,177 @@ mod tests {
             }
         }
         assert!(all > 1000 && some > 300, "{all} {some}");
+    }
+
+    /// The cone's verdicts are the kernel's: every `sure` sample is
+    /// marked, every marked sample is `sure` or `unsure`, and a receiver
+    /// on the light's side gets nothing; with receivers placed on the
+    /// lines from samples through the triangle's edges (ties up to
+    /// rounding), so `unsure` samples occur.
+    #[test]
+    fn cone_decisions_are_the_kernels_bits() {
+        let mut st = 5u64;
+        let v = |s: &mut u64| DVec3::new(rng(s), rng(s), rng(s));
+        let (mut marked, mut unsure_seen, mut away, mut tested) = (0usize, 0usize, 0usize, 0usize);
+        for round in 0..400 {
+            let len = 1 + round % 32;
+            // A thin light box at y = 2 and samples inside it.
+            let e = DVec3::new(0.2 + 0.3 * rng(&mut st).abs(), 1e-9, 0.2);
+            let c = DVec3::new(0.0, 2.0, 0.0);
+            let samples: Vec<DVec3> = (0..len).map(|_| c + v(&mut st) * 2.0 * e).collect();
+            let mut corners = [DVec3::ZERO; 8];
+            for (i, k) in corners.iter_mut().enumerate() {
+                let f = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
+                *k = c + e * 1.01 * DVec3::new(f(1), f(2), f(4));
+            }
+            let light = LightBox { corners };
+            let t = [v(&mut st), v(&mut st), v(&mut st)].map(|p| p + DVec3::new(0.0, 1.0, 0.0));
+            let m = 4.0;
+            let slack = cone_slack(m);
+            let Some(side) = light_side_of_plane(&light, &t, slack) else {
+                continue;
+            };
+            let soa = GroupSoa::new(&samples);
+            let mut hv = HardVolumes::default();
+            hv.build(&soa, &t);
+            let valid = if len == 32 {
+                u32::MAX
+            } else {
+                (1u32 << len) - 1
+            };
+            for q in 0..60 {
+                let o = if q % 3 == 0 {
+                    (v(&mut st) * 2.0).to_array()
+                } else {
+                    // From a sample through a point of an edge, beyond.
+                    let y = samples[(st as usize >> 3) % len];
+                    let a = (st as usize >> 9) % 3;
+                    let mu = rng(&mut st) + 0.5;
+                    let p = t[a] + (t[(a + 1) % 3] - t[a]) * mu;
+                    let lam = 1.2 + rng(&mut st).abs() * 2.0;
+                    let tiny = if q % 3 == 1 { 0.0 } else { 1e-15 };
+                    (y + (p - y) * lam + v(&mut st) * tiny).to_array()
+                };
+                if o.iter().any(|x| x.abs() > m) {
+                    continue;
+                }
+                let Some(cone) = Cone::new(&t, o, slack) else {
+                    continue;
+                };
+                let skip = !valid | ((round as u32).wrapping_mul(0x9e37_79b9) & 0x0101_0101);
+                let k = hard_bits_simd(&hv, o, skip);
+                tested += 1;
+                if cone.orientation() != side {
+                    assert_eq!(k, 0, "round {round}: a receiver on the light's side");
+                    away += 1;
+                    continue;
+                }
+                let (sure, unsure) = cone.decide(&soa, skip);
+                assert_eq!((sure, unsure), cone.decide_scalar(&soa, skip));
+                assert_eq!(sure & !k, 0, "round {round}: sure but not marked");
+                assert_eq!(k & !(sure | unsure), 0, "round {round}: marked, not sure");
+                assert_eq!((sure | unsure) & skip, 0);
+                let fallback = hard_bits_scalar(&hv, o, !unsure);
+                assert_eq!(sure | fallback, k);
+                marked += k.count_ones() as usize;
+                unsure_seen += unsure.count_ones() as usize;
+            }
+        }
+        assert!(
+            marked > 2000 && unsure_seen > 50 && away > 100 && tested > 5000,
+            "{marked} {unsure_seen} {away} {tested}"
+        );
+    }
+
+    /// [`cone_group`] with the kernel for its `unsure` samples gives the
+    /// kernel's bits, for lights clear of the triangle's plane and for
+    /// planes splitting the light (some samples placed on the plane
+    /// itself, so the per-sample sides have ties), SIMD and scalar.
+    #[test]
+    fn cone_group_with_the_kernel_for_ties_is_the_kernel() {
+        let mut st = 17u64;
+        let v = |s: &mut u64| DVec3::new(rng(s), rng(s), rng(s));
+        let (mut marked, mut split_marked, mut near_seen, mut tested) = (0, 0, 0, 0);
+        for round in 0..600 {
+            let len = 1 + round % 32;
+            let e = DVec3::new(0.3, 1e-9, 0.2);
+            let c = DVec3::new(0.0, 2.0, 0.0);
+            let mut corners = [DVec3::ZERO; 8];
+            for (i, k) in corners.iter_mut().enumerate() {
+                let f = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
+                *k = c + e * 1.01 * DVec3::new(f(1), f(2), f(4));
+            }
+            let light = LightBox { corners };
+            // Every other triangle leans so its plane crosses the light.
+            let mut t = [v(&mut st), v(&mut st), v(&mut st)].map(|p| p + DVec3::new(0.0, 1.0, 0.0));
+            if round % 2 == 1 {
+                t[2] = c + DVec3::new(rng(&mut st) * 0.4, 0.0, 0.0);
+            }
+            let mut samples: Vec<DVec3> = (0..len).map(|_| c + v(&mut st) * 2.0 * e).collect();
+            if round % 4 == 1 && len > 2 {
+                // Samples on the plane (up to rounding): on its trace on
+                // the light through the vertex there.
+                let d = cross(t[1] - t[0], t[2] - t[0])
+                    .cross(DVec3::Y)
+                    .normalize_or_zero();
+                for s in samples.iter_mut().take(len / 3) {
+                    *s = t[2] + d * (rng(&mut st) * 0.1);
+                }
+            }
+            let m = 4.0;
+            let slack = cone_slack(m);
+            let side = light_side_of_plane(&light, &t, slack);
+            let soa = GroupSoa::new(&samples);
+            let boxes = ChunkBoxes::new(&samples);
+            let mut hv = HardVolumes::default();
+            hv.build(&soa, &t);
+            let valid = if len == 32 {
+                u32::MAX
+            } else {
+                (1u32 << len) - 1
+            };
+            let sides = side.is_none().then(|| plane_sides(&soa, &t, slack));
+            for q in 0..60 {
+                let o = if q % 3 == 0 {
+                    (v(&mut st) * 2.0).to_array()
+                } else {
+                    let y = samples[(st as usize >> 3) % len];
+                    let a = (st as usize >> 9) % 3;
+                    let mu = rng(&mut st) + 0.5;
+                    let p = t[a] + (t[(a + 1) % 3] - t[a]) * mu;
+                    let lam = 1.2 + rng(&mut st).abs() * 2.0;
+                    (y + (p - y) * lam).to_array()
+                };
+                let Some(cone) = Cone::new(&t, o, slack) else {
+                    continue;
+                };
+                let skip = !valid | ((round as u32).wrapping_mul(0x9e37_79b9) & 0x0101_0101);
+                let k = hard_bits_simd(&hv, o, skip);
+                if side.is_some_and(|s| s != cone.orientation()) {
+                    assert_eq!(k, 0);
+                    continue;
+                }
+                tested += 1;
+                let (sure, unsure) = cone_group(&cone, &soa, &boxes, skip, sides, true);
+                assert_eq!(
+                    (sure, unsure),
+                    cone_group(&cone, &soa, &boxes, skip, sides, false)
+                );
+                assert_eq!((sure | unsure) & skip, 0);
+                assert_eq!(sure & unsure, 0);
+                let got = sure | hard_bits_scalar(&hv, o, !unsure);
+                assert_eq!(got, k, "round {round} q {q}: {sure:#x} {unsure:#x}");
+                marked += k.count_ones();
+                if sides.is_some() {
+                    split_marked += k.count_ones();
+                    near_seen += (unsure & !sides.map_or(0, |(p, n)| p | n)).count_ones();
+                }
+            }
+        }
+        assert!(
+            marked > 3000 && split_marked > 1000 && near_seen > 10 && tested > 5000,
+            "{marked} {split_marked} {near_seen} {tested}"
+        );
     }
 
     #[test]
