@@ -15,6 +15,7 @@
 //! planes instead of a wedge: a receiver or a box of receivers wholly
 //! below one of them cannot be affected by the edge.
 
+use crate::simd::f64x4;
 use glam::DVec3;
 
 /// Half-spaces `n · y ≥ h` (unit `n`) whose intersection holds an edge's
@@ -22,12 +23,106 @@ use glam::DVec3;
 #[derive(Debug, Clone, Default)]
 pub struct RegionBound {
     planes: Vec<(DVec3, f64)>,
+    /// The same planes four to a group, structure-of-arrays, for the
+    /// tests ([`Planes4`]).
+    quads: Vec<Planes4>,
     /// The edge's two face planes when it only matters where they
     /// disagree (see [`RegionBound::with_dihedral`]), and the slack.
     dihedral: Option<([(DVec3, f64); 2], f64)>,
+    /// The same test in SoA lanes ([`Dihedral4`]).
+    dihedral4: Option<Dihedral4>,
+}
+
+/// Four planes of [`RegionBound::planes`] in structure-of-arrays form:
+/// lane `k` of `n[axis]` and `h` is plane `4 i + k` of the group `i`.
+/// Unused lanes have `n = 0`, `h = −∞`: they exclude nothing (`0 · x`
+/// sums to 0 or NaN, neither of which is below −∞).
+#[derive(Debug, Clone, Copy)]
+struct Planes4 {
+    n: [f64x4; 3],
+    h: f64x4,
+}
+
+/// The dihedral test's two face planes in four lanes: face 0 at the box
+/// corner least far along its normal, face 0 at the farthest, then face 1
+/// the same (for a point, every lane at the point).
+#[derive(Debug, Clone, Copy)]
+struct Dihedral4 {
+    /// Lanes `[n0, n0, n1, n1]` per axis.
+    n: [f64x4; 3],
+    /// `[h0, h0, h1, h1]`.
+    h: f64x4,
+    /// Per axis, the lanes that take the box's `hi` (a mask): the
+    /// scalar twin's `(n ≥ 0) == far`, so the farthest lanes where
+    /// `n ≥ 0` (−0 included) and the least far ones where not (NaN
+    /// included).
+    take_hi: [f64x4; 3],
+    slack: f64x4,
+    neg_slack: f64x4,
+}
+
+/// Lanes of [`Dihedral4`] at the least far corners (both faces)…
+const NEAR_LANES: u32 = 0b0101;
+/// …and at the farthest.
+const FAR_LANES: u32 = 0b1010;
+
+impl Dihedral4 {
+    fn new(faces: [(DVec3, f64); 2], slack: f64) -> Dihedral4 {
+        let lanes = |f: &dyn Fn(usize) -> f64| f64x4::new([f(0), f(0), f(1), f(1)]);
+        let mask = |f: &dyn Fn(usize) -> bool| {
+            let one = |lane: usize| if f(lane) { 1.0 } else { 0.0 };
+            f64x4::new([one(0), one(1), one(2), one(3)]).cmp_gt(f64x4::ZERO)
+        };
+        let take_hi =
+            |axis: usize| mask(&|lane: usize| (faces[lane / 2].0[axis] >= 0.0) == (lane % 2 == 1));
+        Dihedral4 {
+            n: [0, 1, 2].map(|axis| lanes(&|f| faces[f].0[axis])),
+            h: lanes(&|f| faces[f].1),
+            take_hi: [take_hi(0), take_hi(1), take_hi(2)],
+            slack: f64x4::splat(slack),
+            neg_slack: f64x4::splat(-slack),
+        }
+    }
+
+    /// The scalar twin's verdict from the lanes' signed distances `d`:
+    /// in front of both faces at their least far corners, or behind both
+    /// at their farthest.
+    #[inline(always)]
+    fn excludes(&self, d: f64x4) -> bool {
+        let front = d.cmp_gt(self.slack).move_mask() & NEAR_LANES == NEAR_LANES;
+        let behind = d.cmp_lt(self.neg_slack).move_mask() & FAR_LANES == FAR_LANES;
+        front || behind
+    }
 }
 
 impl RegionBound {
+    /// The bound of `planes`, with their SoA groups.
+    fn from_planes(planes: Vec<(DVec3, f64)>) -> RegionBound {
+        let quads = planes
+            .chunks(4)
+            .map(|group| {
+                let mut n = [[0.0; 4]; 3];
+                let mut h = [f64::NEG_INFINITY; 4];
+                for (k, &(normal, offset)) in group.iter().enumerate() {
+                    for (axis, lanes) in n.iter_mut().enumerate() {
+                        lanes[k] = normal[axis];
+                    }
+                    h[k] = offset;
+                }
+                Planes4 {
+                    n: n.map(f64x4::new),
+                    h: f64x4::new(h),
+                }
+            })
+            .collect();
+        RegionBound {
+            planes,
+            quads,
+            dihedral: None,
+            dihedral4: None,
+        }
+    }
+
     /// The bound of edge `v0 v1` against a light inside the convex hull of
     /// `corners`. `slack` (a distance) moves every plane outward, to cover
     /// rounding of the receivers' positions.
@@ -75,10 +170,7 @@ impl RegionBound {
                 }
             }
         }
-        RegionBound {
-            planes,
-            dihedral: None,
-        }
+        RegionBound::from_planes(planes)
     }
 
     /// A bound holding the regions of every edge inside the box
@@ -143,10 +235,7 @@ impl RegionBound {
                 planes.push((n, h));
             }
         }
-        RegionBound {
-            planes,
-            dihedral: None,
-        }
+        RegionBound::from_planes(planes)
     }
 
     /// Also excludes receivers in front of both face planes or behind
@@ -154,12 +243,14 @@ impl RegionBound {
     /// multiplicity is 0 and it changes no counter.
     pub fn with_dihedral(mut self, faces: [(DVec3, f64); 2], slack: f64) -> RegionBound {
         self.dihedral = Some((faces, slack));
+        self.dihedral4 = Some(Dihedral4::new(faces, slack));
         self
     }
 
     /// Whether the dihedral test excludes every point whose signed
-    /// distances to the two face planes lie in `[lo0, hi0]`, `[lo1, hi1]`.
-    #[inline]
+    /// distances to the two face planes lie in `[lo0, hi0]`, `[lo1, hi1]`
+    /// (the scalar twin of [`Dihedral4::excludes`]).
+    #[cfg(test)]
     fn dihedral_excludes(&self, d: [(f64, f64); 2]) -> bool {
         match self.dihedral {
             Some((_, slack)) => {
@@ -175,6 +266,27 @@ impl RegionBound {
     /// counters).
     #[inline]
     pub fn excludes_point(&self, p: DVec3) -> bool {
+        let p4 = [f64x4::splat(p.x), f64x4::splat(p.y), f64x4::splat(p.z)];
+        if let Some(f) = &self.dihedral4 {
+            // Per lane `n · p − h`, in `DVec3::dot`'s order.
+            let d = f.n[0] * p4[0] + f.n[1] * p4[1] + f.n[2] * p4[2] - f.h;
+            if f.excludes(d) {
+                return true;
+            }
+        }
+        // Per lane `(n_x p_x + n_y p_y) + n_z p_z`: `DVec3::dot`'s
+        // operations in its order, so the same value and decision per
+        // plane as the scalar twin below.
+        self.quads.iter().any(|q| {
+            let d = q.n[0] * p4[0] + q.n[1] * p4[1] + q.n[2] * p4[2];
+            d.cmp_lt(q.h).any()
+        })
+    }
+
+    /// [`RegionBound::excludes_point`] one plane at a time: the scalar
+    /// twin of the SoA test (the tests hold them equal).
+    #[cfg(test)]
+    fn excludes_point_scalar(&self, p: DVec3) -> bool {
         if let Some((faces, _)) = self.dihedral {
             let d = faces.map(|(n, h)| {
                 let d = n.dot(p) - h;
@@ -189,6 +301,34 @@ impl RegionBound {
 
     /// Whether the whole box `[lo, hi]` is outside the region.
     pub fn excludes_box(&self, lo: DVec3, hi: DVec3) -> bool {
+        let lo4 = [f64x4::splat(lo.x), f64x4::splat(lo.y), f64x4::splat(lo.z)];
+        let hi4 = [f64x4::splat(hi.x), f64x4::splat(hi.y), f64x4::splat(hi.z)];
+        if let Some(f) = &self.dihedral4 {
+            // Per lane its corner (the scalar twin's pick), then
+            // `n · corner − h` in `DVec3::dot`'s order.
+            let c = |axis: usize| f.take_hi[axis].blend(hi4[axis], lo4[axis]);
+            let d = f.n[0] * c(0) + f.n[1] * c(1) + f.n[2] * c(2) - f.h;
+            if f.excludes(d) {
+                return true;
+            }
+        }
+        // Per lane: the box corner furthest along `n` (`hi` on the axes
+        // where `n ≥ 0`, −0 included, `lo` elsewhere, NaN included), then
+        // `(n_x f_x + n_y f_y) + n_z f_z`: the scalar twin's selection and
+        // `DVec3::dot`'s operations in its order, so the same value and
+        // decision per plane.
+        let zero = f64x4::ZERO;
+        self.quads.iter().any(|q| {
+            let far = |axis: usize| q.n[axis].cmp_ge(zero).blend(hi4[axis], lo4[axis]);
+            let d = q.n[0] * far(0) + q.n[1] * far(1) + q.n[2] * far(2);
+            d.cmp_lt(q.h).any()
+        })
+    }
+
+    /// [`RegionBound::excludes_box`] one plane at a time (the scalar twin
+    /// of the SoA test).
+    #[cfg(test)]
+    fn excludes_box_scalar(&self, lo: DVec3, hi: DVec3) -> bool {
         let far = |n: DVec3, up: bool| {
             let pick = |c: f64, l: f64, h: f64| if (c >= 0.0) == up { h } else { l };
             DVec3::new(
@@ -357,11 +497,78 @@ mod tests {
         let plain = RegionBound::new(DVec3::ZERO, DVec3::X, &corners, 0.0);
         assert_eq!(b.excludes_point(side), plain.excludes_point(side));
         // A box straddling both planes is kept by the dihedral test.
-        let big = RegionBound {
-            planes: Vec::new(),
-            dihedral: b.dihedral,
-        };
+        let big = RegionBound::default().with_dihedral([(n0, 0.0), (n1, 0.0)], 1e-9);
         assert!(!big.excludes_box(DVec3::splat(-1.0), DVec3::splat(1.0)));
         assert!(big.excludes_box(DVec3::new(0.0, -5.0, -0.1), DVec3::new(1.0, -4.0, 0.1)));
+    }
+
+    /// The SoA tests decide exactly as their scalar twins, box by box and
+    /// point by point: random edges, clusters and dihedral bounds, random
+    /// and degenerate boxes (flat, a point, straddling zero with ±0
+    /// corners) and planes with zero normal components (axis-aligned
+    /// normals of `around_box`).
+    #[test]
+    fn soa_tests_match_the_scalar_twins() {
+        let corners = [
+            DVec3::new(-1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, 1.0),
+            DVec3::new(-1.0, 5.0, 1.0),
+        ];
+        let mut s = 23u64;
+        let (mut checked, mut excluded) = (0usize, 0usize);
+        for round in 0..300 {
+            let v0 = DVec3::new(rng(&mut s), 1.5 + 0.5 * rng(&mut s), rng(&mut s));
+            let v1 = v0 + DVec3::new(0.3 * rng(&mut s), 0.8 * rng(&mut s), 0.3 * rng(&mut s));
+            let mut bound = match round % 3 {
+                0 => RegionBound::new(v0, v1, &corners, 0.0),
+                1 => RegionBound::around_box(v0.min(v1), v0.max(v1), &corners, 1e-6),
+                _ => {
+                    let n0 = DVec3::new(rng(&mut s), 1.0, rng(&mut s)).normalize();
+                    let n1 = DVec3::new(rng(&mut s), 1.0, rng(&mut s)).normalize();
+                    RegionBound::new(v0, v1, &corners, 1e-6)
+                        .with_dihedral([(n0, n0.dot(v0)), (n1, n1.dot(v0))], 1e-9)
+                }
+            };
+            if round % 7 == 0 {
+                // Zero and negative-zero normal components.
+                bound = RegionBound::from_planes(vec![
+                    (DVec3::new(0.0, 1.0, -0.0), 0.5),
+                    (DVec3::new(-0.0, -0.0, -1.0), -0.25),
+                    (DVec3::new(0.6, -0.0, 0.8), rng(&mut s)),
+                ])
+                .with_dihedral(
+                    [
+                        (DVec3::new(0.0, 1.0, -0.0), 0.1 * rng(&mut s)),
+                        (DVec3::new(-0.0, 0.6, -0.8), 0.1 * rng(&mut s)),
+                    ],
+                    1e-9,
+                );
+            }
+            assert_eq!(bound.quads.len(), bound.planes.len().div_ceil(4));
+            for k in 0..200 {
+                let c = DVec3::new(4.0 * rng(&mut s), 3.0 * rng(&mut s), 4.0 * rng(&mut s));
+                let r = DVec3::new(rng(&mut s), rng(&mut s), rng(&mut s)).abs();
+                let (lo, hi) = match k % 5 {
+                    0 => (c, c),
+                    1 => (DVec3::new(c.x, -0.0, c.z), DVec3::new(c.x + r.x, 0.0, c.z)),
+                    2 => (-r, r),
+                    _ => (c - r, c + r),
+                };
+                let got = bound.excludes_box(lo, hi);
+                assert_eq!(got, bound.excludes_box_scalar(lo, hi), "box {lo} {hi}");
+                assert_eq!(
+                    bound.excludes_point(c),
+                    bound.excludes_point_scalar(c),
+                    "{c}"
+                );
+                checked += 1;
+                excluded += usize::from(got);
+            }
+        }
+        assert!(
+            excluded > checked / 10 && excluded < checked,
+            "{excluded} of {checked}"
+        );
     }
 }
