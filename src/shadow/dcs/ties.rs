@@ -19,8 +19,8 @@
 //! the groups' faces, with the stencil's weights (closed caster: its
 //! light-facing faces; open caster: every face).
 
+use super::faces::FaceTree;
 use crate::error::Result;
-use crate::geom::bvh::Bvh;
 use crate::geom::{EdgeAdjacency, SceneGeometry};
 use crate::raster::Framebuffer;
 use crate::shadow::kit::volumes::{stencil_counts, ShadowVolume};
@@ -119,12 +119,14 @@ pub fn own_face_change(weight: i32, normal: Vec3, p: Vec3, centre: Vec3) -> Opti
 /// No group.
 const NONE: u32 = u32::MAX;
 
-/// Exact start counts of every caster group at given points. The BVH
-/// over the groups' faces is built on first use (most renders need
+/// Exact start counts of every caster group at given points. The tree
+/// over the groups' faces ([`FaceTree`]: it reports exactly the
+/// brute-force hits of the BVH's watertight test, at a small part of the
+/// scene BVH's build cost) is built on first use (most renders need
 /// none); it is the same whichever thread builds it.
 pub struct ExactStart<'a> {
     geometry: &'a SceneGeometry,
-    bvh: OnceLock<Bvh>,
+    tree: OnceLock<FaceTree>,
     /// Per scene triangle: `group << 1 | weight` (weight 1 when the face
     /// counts from the centre), or [`NONE`].
     table: Vec<u32>,
@@ -147,15 +149,15 @@ impl<'a> ExactStart<'a> {
         }
         ExactStart {
             geometry,
-            bvh: OnceLock::new(),
+            tree: OnceLock::new(),
             table,
         }
     }
 
-    /// The BVH over the groups' faces, built on first use.
-    fn bvh(&self) -> &Bvh {
-        self.bvh
-            .get_or_init(|| Bvh::build(self.geometry, |t| self.table[t as usize] != NONE))
+    /// The tree over the groups' faces, built on first use.
+    fn tree(&self) -> &FaceTree {
+        self.tree
+            .get_or_init(|| FaceTree::build(self.geometry, |t| self.table[t as usize] != NONE))
     }
 
     /// Does a cap face (a face of weight 1 in its group) other than
@@ -180,10 +182,13 @@ impl<'a> ExactStart<'a> {
         let d = origin - p_n;
         let start = (p_n - d * 0.25).as_vec3();
         let mut near = false;
-        self.bvh()
-            .for_each_hit(start, (d * 1.5).as_vec3(), 1.0, |h| {
-                let e = self.table[h.triangle as usize];
-                near |= h.triangle != own && e != NONE && e & 1 == 1;
+        // A boolean OR over the hits: stopping at the first `true` gives
+        // the same answer.
+        self.tree()
+            .for_each_hit(start, (d * 1.5).as_vec3(), 1.0, |t| {
+                let e = self.table[t as usize];
+                near |= t != own && e != NONE && e & 1 == 1;
+                !near
             });
         near
     }
@@ -195,13 +200,15 @@ impl<'a> ExactStart<'a> {
         let dir = centre - origin;
         // Stop just short of the centre, as the reference's rays do.
         let t_max = (1.0 - crate::shadow::kit::rays::END_SHORTEN) as f32;
-        self.bvh().for_each_hit(origin, dir, t_max, |h| {
-            let e = self.table[h.triangle as usize];
+        // Integer sums over the hits: any order gives the same counts.
+        self.tree().for_each_hit(origin, dir, t_max, |t| {
+            let e = self.table[t as usize];
             if e != NONE {
                 if let Some(c) = out.get_mut((e >> 1) as usize) {
                     *c += (e & 1) as i32;
                 }
             }
+            true
         });
     }
 }
