@@ -90,8 +90,8 @@ pub struct FaceTree {
 }
 
 /// Traversal stack entries: each level pushes at most 4 and pops 1, over
-/// at most 16 levels (`4^16` faces).
-const STACK: usize = 3 * 16 + 2;
+/// at most 15 levels (node indices below 2^27, so at most 2^29 faces).
+const STACK: usize = 3 * 15 + 2;
 
 impl FaceTree {
     /// The tree over the triangles of `geometry` for which `keep` is true.
@@ -105,6 +105,9 @@ impl FaceTree {
                 (t, (a.min(b).min(c), a.max(b).max(c)))
             })
             .collect();
+        // More would overflow the stack entries' index bits (and is far
+        // beyond any scene this renderer loads).
+        assert!(faces.len() < 1 << (LEVEL_SHIFT + 2), "too many faces");
         if faces.is_empty() {
             return FaceTree::default();
         }
@@ -161,11 +164,18 @@ impl FaceTree {
     /// on `origin + t · dir`, in no particular order, until `f` returns
     /// false. A zero, infinite or NaN direction or origin, or `t_max ≤
     /// 0`, hits nothing (as in the BVH).
-    pub fn for_each_hit(
+    pub fn for_each_hit(&self, origin: Vec3, dir: Vec3, t_max: f32, f: impl FnMut(u32) -> bool) {
+        self.for_each_hit_of(origin, dir, t_max, |_| true, f);
+    }
+
+    /// [`FaceTree::for_each_hit`] over the faces for which `wanted` (given
+    /// the scene triangle index) is true: the others are not tested.
+    pub fn for_each_hit_of(
         &self,
         origin: Vec3,
         dir: Vec3,
         t_max: f32,
+        wanted: impl Fn(u32) -> bool,
         mut f: impl FnMut(u32) -> bool,
     ) {
         let Some(top) = self.levels.len().checked_sub(1) else {
@@ -180,37 +190,60 @@ impl FaceTree {
             .max((self.bounds.1 - origin).as_dvec3().abs())
             .max_element();
         let margin = f32x4::splat((MARGIN * reach) as f32);
-        let org = [0, 1, 2].map(|a| f32x4::splat(origin[a]));
+        let org = [
+            f32x4::splat(origin.x),
+            f32x4::splat(origin.y),
+            f32x4::splat(origin.z),
+        ];
         // As the BVH: a subnormal component's inverse clamped to a
         // finite value, so `0 · ∞` cannot occur.
-        let inv = [0, 1, 2].map(|a| f32x4::splat((1.0 / dir[a]).clamp(-f32::MAX, f32::MAX)));
-        let parallel = [0, 1, 2].map(|a| dir[a] == 0.0);
+        let inv = |d: f32| f32x4::splat((1.0 / d).clamp(-f32::MAX, f32::MAX));
+        let inv = [inv(dir.x), inv(dir.y), inv(dir.z)];
+        let parallel = [dir.x == 0.0, dir.y == 0.0, dir.z == 0.0];
+        let any_parallel = parallel.iter().any(|&p| p);
         let t_max4 = f32x4::splat(t_max);
+        let zero = f32x4::ZERO;
+        // Written out per axis (a loop over the axes is not unrolled).
         let hit_boxes = |node: &Node4| -> u32 {
-            let mut near = f32x4::ZERO;
-            let mut far = t_max4;
-            let mut inside = node.valid;
-            for axis in 0..3 {
-                // The enlarged box relative to the origin.
-                let lo = (node.lo[axis] - org[axis]) - margin;
-                let hi = (node.hi[axis] - org[axis]) + margin;
-                if parallel[axis] {
-                    inside &= (lo.cmp_le(f32x4::ZERO) & f32x4::ZERO.cmp_le(hi)).move_mask();
-                    continue;
+            // The enlarged boxes relative to the origin, per axis.
+            let lo = |a: usize| (node.lo[a] - org[a]) - margin;
+            let hi = |a: usize| (node.hi[a] - org[a]) + margin;
+            let (lx, ly, lz) = (lo(0), lo(1), lo(2));
+            let (hx, hy, hz) = (hi(0), hi(1), hi(2));
+            let slab = |l: f32x4, h: f32x4, a: usize| {
+                let (t0, t1) = (l * inv[a], h * inv[a]);
+                (t0.min(t1), t0.max(t1))
+            };
+            if !any_parallel {
+                let (nx, fx) = slab(lx, hx, 0);
+                let (ny, fy) = slab(ly, hy, 1);
+                let (nz, fz) = slab(lz, hz, 2);
+                let near = zero.max(nx).max(ny).max(nz);
+                let far = t_max4.min(fx).min(fy).min(fz);
+                return near.cmp_le(far).move_mask() & node.valid;
+            }
+            let (mut near, mut far, mut inside) = (zero, t_max4, node.valid);
+            for (a, (l, h)) in [(lx, hx), (ly, hy), (lz, hz)].into_iter().enumerate() {
+                if parallel[a] {
+                    inside &= (l.cmp_le(zero) & zero.cmp_le(h)).move_mask();
+                } else {
+                    let (n, f) = slab(l, h, a);
+                    near = near.max(n);
+                    far = far.min(f);
                 }
-                let t0 = lo * inv[axis];
-                let t1 = hi * inv[axis];
-                near = near.max(t0.min(t1));
-                far = far.min(t0.max(t1));
             }
             near.cmp_le(far).move_mask() & inside
         };
-        let mut stack = [(0usize, 0usize); STACK];
-        stack[0] = (top, 0);
+        // Entries `level << LEVEL_SHIFT | index`.
+        let mut stack = [0u32; STACK];
+        stack[0] = (top as u32) << LEVEL_SHIFT;
         let mut len = 1;
         while len > 0 {
             len -= 1;
-            let (level, index) = stack[len];
+            let (level, index) = (
+                (stack[len] >> LEVEL_SHIFT) as usize,
+                (stack[len] & INDEX_MASK) as usize,
+            );
             let Some(node) = self.levels.get(level).and_then(|l| l.get(index)) else {
                 continue;
             };
@@ -221,7 +254,7 @@ impl FaceTree {
                 if level > 0 {
                     // At most 4 per level below the root: within `STACK`.
                     if len < STACK {
-                        stack[len] = (level - 1, child);
+                        stack[len] = ((level - 1) as u32) << LEVEL_SHIFT | child as u32;
                         len += 1;
                     }
                     continue;
@@ -229,13 +262,17 @@ impl FaceTree {
                 let (Some(tri), Some(&id)) = (self.tris.get(child), self.ids.get(child)) else {
                     continue;
                 };
-                if intersect_triangle(origin, dir, t_max, tri).is_some() && !f(id) {
+                if wanted(id) && intersect_triangle(origin, dir, t_max, tri).is_some() && !f(id) {
                     return;
                 }
             }
         }
     }
 }
+
+/// Stack entries hold a level above this bit and a node index below.
+const LEVEL_SHIFT: u32 = 27;
+const INDEX_MASK: u32 = (1 << LEVEL_SHIFT) - 1;
 
 /// The low 10 bits of `v` spread to every third bit (Morton code).
 fn spread(v: u32) -> u32 {
@@ -319,6 +356,7 @@ mod tests {
         let corners = |t: u32| g.triangles[t as usize].map(|i| g.positions[i as usize]);
         let mut s = 77u64;
         let (mut hits, mut rays) = (0usize, 0usize);
+        let mut brute_even: Vec<u32> = Vec::new();
         for i in 0..6000 {
             let (o, d, t_max) = if i % 2 == 0 {
                 // A tiny segment across a face's point (vertex, edge
@@ -360,6 +398,21 @@ mod tests {
             walked.sort_unstable();
             ours.sort_unstable();
             assert_eq!(ours, brute, "ray {i}: {o} {d} {t_max}");
+            let mut even = Vec::new();
+            tree.for_each_hit_of(
+                o,
+                d,
+                t_max,
+                |t| t % 2 == 0,
+                |t| {
+                    even.push(t);
+                    true
+                },
+            );
+            even.sort_unstable();
+            brute_even.clear();
+            brute_even.extend(brute.iter().filter(|&&t| t % 2 == 0));
+            assert_eq!(even, brute_even, "ray {i} (even faces)");
             assert_eq!(walked, brute, "ray {i} (bvh): {o} {d} {t_max}");
             hits += usize::from(!ours.is_empty());
             rays += 1;

@@ -181,14 +181,17 @@ impl<'a> ExactStart<'a> {
         let p_n = p + (eye - p) * (band / (1.0 + band));
         let d = origin - p_n;
         let start = (p_n - d * 0.25).as_vec3();
+        // A boolean OR over the hits: only the faces that can set it are
+        // tested, and the first that does ends the walk.
         let mut near = false;
-        // A boolean OR over the hits: stopping at the first `true` gives
-        // the same answer.
+        let counts = |t: u32| {
+            let e = self.table[t as usize];
+            t != own && e != NONE && e & 1 == 1
+        };
         self.tree()
-            .for_each_hit(start, (d * 1.5).as_vec3(), 1.0, |t| {
-                let e = self.table[t as usize];
-                near |= t != own && e != NONE && e & 1 == 1;
-                !near
+            .for_each_hit_of(start, (d * 1.5).as_vec3(), 1.0, counts, |_| {
+                near = true;
+                false
             });
         near
     }
@@ -200,15 +203,18 @@ impl<'a> ExactStart<'a> {
         let dir = centre - origin;
         // Stop just short of the centre, as the reference's rays do.
         let t_max = (1.0 - crate::shadow::kit::rays::END_SHORTEN) as f32;
-        // Integer sums over the hits: any order gives the same counts.
-        self.tree().for_each_hit(origin, dir, t_max, |t| {
+        // Integer sums over the hits: any order gives the same counts, and
+        // faces of weight 0 add nothing (not tested).
+        let weighted = |t: u32| {
             let e = self.table[t as usize];
-            if e != NONE {
-                if let Some(c) = out.get_mut((e >> 1) as usize) {
-                    *c += (e & 1) as i32;
+            e != NONE && e & 1 == 1
+        };
+        self.tree()
+            .for_each_hit_of(origin, dir, t_max, weighted, |t| {
+                if let Some(c) = out.get_mut((self.table[t as usize] >> 1) as usize) {
+                    *c += 1;
                 }
-            }
-            true
-        });
+                true
+            });
     }
 }
