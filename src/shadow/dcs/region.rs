@@ -95,6 +95,53 @@ impl Dihedral4 {
     }
 }
 
+/// A cone's unit generators four to a lane group, for the facet test of
+/// a candidate normal: no generator may point below the plane (see
+/// [`RegionBound::new`]). Unused lanes are zero vectors, whose dot is 0
+/// and passes.
+struct Generators4 {
+    groups: Vec<[f64x4; 3]>,
+}
+
+impl Generators4 {
+    fn new(generators: &[DVec3]) -> Generators4 {
+        let groups = generators
+            .chunks(4)
+            .map(|g| {
+                let mut lanes = [[0.0; 4]; 3];
+                for (k, d) in g.iter().enumerate() {
+                    for (axis, lane) in lanes.iter_mut().enumerate() {
+                        lane[k] = d[axis];
+                    }
+                }
+                lanes.map(f64x4::new)
+            })
+            .collect();
+        Generators4 { groups }
+    }
+
+    /// Whether `n` and whether `−n` bound the cone: every generator `d`
+    /// has `n · d ≥ −1e-9`, respectively `(−n) · d ≥ −1e-9`. The dots are
+    /// `DVec3::dot`'s operations in its order (products commute
+    /// exactly), and `(−n) · d` is `−(n · d)` up to the sign of a zero,
+    /// so the second test is `n · d ≤ 1e-9`: the scalar twin's verdicts.
+    #[inline]
+    fn bound(&self, n: DVec3) -> (bool, bool) {
+        let (x, y, z) = (f64x4::splat(n.x), f64x4::splat(n.y), f64x4::splat(n.z));
+        let (low, high) = (f64x4::splat(-1e-9), f64x4::splat(1e-9));
+        let (mut up, mut down) = (true, true);
+        for g in &self.groups {
+            let dot = x * g[0] + y * g[1] + z * g[2];
+            up &= dot.cmp_ge(low).move_mask() == 0b1111;
+            down &= dot.cmp_le(high).move_mask() == 0b1111;
+            if !(up || down) {
+                break;
+            }
+        }
+        (up, down)
+    }
+}
+
 impl RegionBound {
     /// The bound of `planes`, with their SoA groups.
     fn from_planes(planes: Vec<(DVec3, f64)>) -> RegionBound {
@@ -126,7 +173,132 @@ impl RegionBound {
     /// The bound of edge `v0 v1` against a light inside the convex hull of
     /// `corners`. `slack` (a distance) moves every plane outward, to cover
     /// rounding of the receivers' positions.
+    ///
+    /// Candidate normals are taken and kept in the order of the scalar
+    /// twin (`new_scalar`, the code as first written), with the same
+    /// arithmetic, so the planes are the same, bit for bit; only the
+    /// facet test is faster: the dots with the generators four at a time
+    /// ([`Generators4`]), once for both `n` and `−n`.
     pub fn new(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        let mut generators: Vec<DVec3> = Vec::with_capacity(2 * corners.len());
+        for v in [v0, v1] {
+            for &x in corners {
+                let d = v - x;
+                if d.length_squared() > 0.0 && d.is_finite() {
+                    generators.push(d.normalize());
+                }
+            }
+        }
+        let along = v1 - v0;
+        let facets = Generators4::new(&generators);
+        let mut planes = Vec::new();
+        let mut consider = |n: DVec3| {
+            let len = n.length();
+            if !(len > 1e-12) || !len.is_finite() {
+                return;
+            }
+            let n = n / len;
+            let (up, down) = facets.bound(n);
+            for (n, keep) in [(n, up), (-n, down)] {
+                if keep {
+                    planes.push((n, n.dot(v0).min(n.dot(v1)) - slack));
+                }
+            }
+        };
+        // Facet normals: across two spanning directions, and (for flat
+        // cones, where the region lies in a plane) within their plane,
+        // perpendicular to either.
+        let mut span = |a: DVec3, b: DVec3| {
+            let n = a.cross(b);
+            consider(n);
+            consider(n.cross(a));
+            consider(n.cross(b));
+        };
+        for (k, &a) in generators.iter().enumerate() {
+            for &b in &generators[k + 1..] {
+                span(a, b);
+            }
+            span(along, a);
+        }
+        RegionBound::from_planes(planes)
+    }
+
+    /// A bound holding the regions of every edge inside the box
+    /// `[lo, hi]` (a cluster of edges, for culling a tile against many
+    /// edges at once): `conv(box) + cone{c_i − x_j}` over the box's
+    /// corners `c_i` holds `a + t (a − x)` for every `a` in the box. Only
+    /// valid planes are kept, not necessarily every facet (a looser bound
+    /// is still conservative). For lights of at most four bounding
+    /// corners (rects); otherwise no planes (the cost grows with the
+    /// square of the corner count). The same planes as the scalar twin
+    /// (`around_box_scalar`), bit for bit, as in [`RegionBound::new`].
+    pub fn around_box(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        if corners.len() > 4 || !(lo.cmple(hi).all()) {
+            return RegionBound::default();
+        }
+        let points: Vec<DVec3> = (0..8)
+            .map(|k| {
+                let pick = |b: usize, l: f64, h: f64| if k >> b & 1 == 1 { h } else { l };
+                DVec3::new(
+                    pick(0, lo.x, hi.x),
+                    pick(1, lo.y, hi.y),
+                    pick(2, lo.z, hi.z),
+                )
+            })
+            .collect();
+        let mut generators: Vec<DVec3> = Vec::with_capacity(8 * corners.len());
+        for &v in &points {
+            for &x in corners {
+                let d = v - x;
+                if d.length_squared() > 0.0 && d.is_finite() {
+                    generators.push(d.normalize());
+                }
+            }
+        }
+        let facets = Generators4::new(&generators);
+        let mut planes: Vec<(DVec3, f64)> = Vec::new();
+        let mut consider = |n: DVec3| {
+            let len = n.length();
+            if !(len > 1e-12) || !len.is_finite() {
+                return;
+            }
+            let n = n / len;
+            let (up, down) = facets.bound(n);
+            for (n, valid) in [(n, up), (-n, down)] {
+                // Same tolerance as `new`; near-duplicate normals add
+                // nothing but cost.
+                if !valid || planes.iter().any(|&(m, _)| m.dot(n) > 1.0 - 1e-9) {
+                    continue;
+                }
+                let h = points
+                    .iter()
+                    .map(|&c| n.dot(c))
+                    .fold(f64::INFINITY, f64::min)
+                    - slack;
+                planes.push((n, h));
+            }
+        };
+        let axes = [DVec3::X, DVec3::Y, DVec3::Z];
+        for x in axes {
+            consider(x);
+        }
+        for (k, &a) in generators.iter().enumerate() {
+            for &b in &generators[k + 1..] {
+                consider(a.cross(b));
+            }
+            for x in axes {
+                consider(x.cross(a));
+            }
+        }
+        RegionBound::from_planes(planes)
+    }
+
+    /// [`RegionBound::new`] as first written (the twin the tests hold
+    /// the fast one equal to, plane for plane and bit for bit): the bound of edge `v0 v1` against a light inside the convex hull of
+    /// `corners`. `slack` (a distance) moves every plane outward, to cover
+    /// rounding of the receivers' positions.
+    #[cfg(test)]
+    fn new_scalar(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
         let mut generators: Vec<DVec3> = Vec::with_capacity(2 * corners.len());
         for v in [v0, v1] {
             for &x in corners {
@@ -173,7 +345,7 @@ impl RegionBound {
         RegionBound::from_planes(planes)
     }
 
-    /// A bound holding the regions of every edge inside the box
+    /// [`RegionBound::around_box`] as first written (its twin): a bound holding the regions of every edge inside the box
     /// `[lo, hi]` (a cluster of edges, for culling a tile against many
     /// edges at once): `conv(box) + cone{c_i − x_j}` over the box's
     /// corners `c_i` holds `a + t (a − x)` for every `a` in the box. Only
@@ -181,7 +353,8 @@ impl RegionBound {
     /// is still conservative). For lights of at most four bounding
     /// corners (rects); otherwise no planes (the cost grows with the
     /// square of the corner count).
-    pub fn around_box(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+    #[cfg(test)]
+    fn around_box_scalar(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
         if corners.len() > 4 || !(lo.cmple(hi).all()) {
             return RegionBound::default();
         }
@@ -570,5 +743,57 @@ mod tests {
             excluded > checked / 10 && excluded < checked,
             "{excluded} of {checked}"
         );
+    }
+
+    /// The fast constructors give the scalar twins' planes, in the same
+    /// order, bit for bit: random edges (some pointing at the light),
+    /// degenerate ones, and random clusters, against rect and other
+    /// lights.
+    #[test]
+    fn constructors_match_the_scalar_twins() {
+        let bits = |b: &RegionBound| -> Vec<[u64; 4]> {
+            b.planes
+                .iter()
+                .map(|(n, h)| [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), h.to_bits()])
+                .collect()
+        };
+        let rect = [
+            DVec3::new(-1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, 1.0),
+            DVec3::new(-1.0, 5.0, 1.0),
+        ];
+        let tilted: Vec<DVec3> = rect
+            .iter()
+            .map(|c| *c + DVec3::new(0.0, 0.3 * c.x, 0.0))
+            .collect();
+        let lights: [&[DVec3]; 4] = [&rect, &tilted, &rect[..2], &rect[..1]];
+        let mut s = 31u64;
+        let mut planes = 0;
+        for round in 0..400 {
+            let corners = lights[round % lights.len()];
+            let v0 = DVec3::new(rng(&mut s), 1.5 + 0.5 * rng(&mut s), rng(&mut s));
+            let v1 = match round % 5 {
+                0 => v0,
+                1 => v0 + DVec3::Y,
+                _ => v0 + DVec3::new(0.3 * rng(&mut s), 0.8 * rng(&mut s), 0.3 * rng(&mut s)),
+            };
+            let slack = if round % 2 == 0 { 0.0 } else { 1e-6 };
+            let fast = RegionBound::new(v0, v1, corners, slack);
+            assert_eq!(
+                bits(&fast),
+                bits(&RegionBound::new_scalar(v0, v1, corners, slack))
+            );
+            planes += fast.len();
+            let (lo, hi) = (
+                v0.min(v1),
+                v0.max(v1) + DVec3::splat(0.1 * (round % 3) as f64),
+            );
+            let fast = RegionBound::around_box(lo, hi, corners, slack);
+            let twin = RegionBound::around_box_scalar(lo, hi, corners, slack);
+            assert_eq!(bits(&fast), bits(&twin), "round {round}");
+            planes += fast.len();
+        }
+        assert!(planes > 4000, "{planes} planes");
     }
 }
