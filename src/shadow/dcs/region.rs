@@ -485,15 +485,25 @@ impl RegionBound {
                 return true;
             }
         }
-        // Per lane: the box corner furthest along `n` (`hi` on the axes
-        // where `n ≥ 0`, −0 included, `lo` elsewhere, NaN included), then
-        // `(n_x f_x + n_y f_y) + n_z f_z`: the scalar twin's selection and
-        // `DVec3::dot`'s operations in its order, so the same value and
-        // decision per plane.
-        let zero = f64x4::ZERO;
+        // Per lane: `n_a f_a` with `f` the box corner furthest along `n`
+        // (the scalar twin's `hi` where `n_a ≥ 0`, −0 included, `lo`
+        // elsewhere), then `(n_x f_x + n_y f_y) + n_z f_z` in
+        // `DVec3::dot`'s order. The product is taken as `max(n_a lo_a,
+        // n_a hi_a)` (the facade's `max`: `if a > b { a } else { b }`),
+        // which for `lo_a ≤ hi_a`, neither NaN, is the twin's product bit
+        // for bit — rounded products are monotone, so for `n_a ≥ 0` (or
+        // ±0, or an infinite corner making `0 · ∞` NaN on either side)
+        // `n_a lo_a > n_a hi_a` never holds and `n_a hi_a` is returned,
+        // and for `n_a < 0` it is `n_a lo_a` unless the two are equal —
+        // the same value, apart from the sign of a zero when `lo_a = −0`,
+        // `hi_a = +0`. A zero's sign changes a rounded sum only when the
+        // sum is zero, and `−0 < h` is `+0 < h`: the verdict per plane is
+        // the twin's. (Receivers' bounds are min / max of positions,
+        // which skip NaN, so `lo ≤ hi` and neither is NaN.)
+        debug_assert!(lo.cmple(hi).all(), "box {lo} {hi}");
         self.quads.iter().any(|q| {
-            let far = |axis: usize| q.n[axis].cmp_ge(zero).blend(hi4[axis], lo4[axis]);
-            let d = q.n[0] * far(0) + q.n[1] * far(1) + q.n[2] * far(2);
+            let term = |a: usize| (q.n[a] * lo4[a]).max(q.n[a] * hi4[a]);
+            let d = term(0) + term(1) + term(2);
             d.cmp_lt(q.h).any()
         })
     }
