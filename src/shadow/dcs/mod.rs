@@ -33,6 +33,7 @@ pub mod bitfield;
 pub mod chart;
 pub mod counters;
 pub mod edges;
+pub mod faces;
 mod passes;
 mod receiver;
 pub mod region;

@@ -15,6 +15,7 @@
 //! planes instead of a wedge: a receiver or a box of receivers wholly
 //! below one of them cannot be affected by the edge.
 
+use crate::simd::f64x4;
 use glam::DVec3;
 
 /// Half-spaces `n · y ≥ h` (unit `n`) whose intersection holds an edge's
@@ -22,16 +23,282 @@ use glam::DVec3;
 #[derive(Debug, Clone, Default)]
 pub struct RegionBound {
     planes: Vec<(DVec3, f64)>,
+    /// The same planes four to a group, structure-of-arrays, for the
+    /// tests ([`Planes4`]).
+    quads: Vec<Planes4>,
     /// The edge's two face planes when it only matters where they
     /// disagree (see [`RegionBound::with_dihedral`]), and the slack.
     dihedral: Option<([(DVec3, f64); 2], f64)>,
+    /// The same test in SoA lanes ([`Dihedral4`]).
+    dihedral4: Option<Dihedral4>,
+}
+
+/// Four planes of [`RegionBound::planes`] in structure-of-arrays form:
+/// lane `k` of `n[axis]` and `h` is plane `4 i + k` of the group `i`.
+/// Unused lanes have `n = 0`, `h = −∞`: they exclude nothing (`0 · x`
+/// sums to 0 or NaN, neither of which is below −∞).
+#[derive(Debug, Clone, Copy)]
+struct Planes4 {
+    n: [f64x4; 3],
+    h: f64x4,
+}
+
+/// The dihedral test's two face planes in four lanes: face 0 at the box
+/// corner least far along its normal, face 0 at the farthest, then face 1
+/// the same (for a point, every lane at the point).
+#[derive(Debug, Clone, Copy)]
+struct Dihedral4 {
+    /// Lanes `[n0, n0, n1, n1]` per axis.
+    n: [f64x4; 3],
+    /// `[h0, h0, h1, h1]`.
+    h: f64x4,
+    /// Per axis, the lanes that take the box's `hi` (a mask): the
+    /// scalar twin's `(n ≥ 0) == far`, so the farthest lanes where
+    /// `n ≥ 0` (−0 included) and the least far ones where not (NaN
+    /// included).
+    take_hi: [f64x4; 3],
+    slack: f64x4,
+    neg_slack: f64x4,
+}
+
+/// Lanes of [`Dihedral4`] at the least far corners (both faces)…
+const NEAR_LANES: u32 = 0b0101;
+/// …and at the farthest.
+const FAR_LANES: u32 = 0b1010;
+
+impl Dihedral4 {
+    fn new(faces: [(DVec3, f64); 2], slack: f64) -> Dihedral4 {
+        let lanes = |f: &dyn Fn(usize) -> f64| f64x4::new([f(0), f(0), f(1), f(1)]);
+        let mask = |f: &dyn Fn(usize) -> bool| {
+            let one = |lane: usize| if f(lane) { 1.0 } else { 0.0 };
+            f64x4::new([one(0), one(1), one(2), one(3)]).cmp_gt(f64x4::ZERO)
+        };
+        let take_hi =
+            |axis: usize| mask(&|lane: usize| (faces[lane / 2].0[axis] >= 0.0) == (lane % 2 == 1));
+        Dihedral4 {
+            n: [0, 1, 2].map(|axis| lanes(&|f| faces[f].0[axis])),
+            h: lanes(&|f| faces[f].1),
+            take_hi: [take_hi(0), take_hi(1), take_hi(2)],
+            slack: f64x4::splat(slack),
+            neg_slack: f64x4::splat(-slack),
+        }
+    }
+
+    /// The scalar twin's verdict from the lanes' signed distances `d`:
+    /// in front of both faces at their least far corners, or behind both
+    /// at their farthest.
+    #[inline(always)]
+    fn excludes(&self, d: f64x4) -> bool {
+        let front = d.cmp_gt(self.slack).move_mask() & NEAR_LANES == NEAR_LANES;
+        let behind = d.cmp_lt(self.neg_slack).move_mask() & FAR_LANES == FAR_LANES;
+        front || behind
+    }
+}
+
+/// A cone's unit generators four to a lane group, for the facet test of
+/// a candidate normal: no generator may point below the plane (see
+/// [`RegionBound::new`]). Unused lanes are zero vectors, whose dot is 0
+/// and passes.
+struct Generators4 {
+    groups: Vec<[f64x4; 3]>,
+}
+
+impl Generators4 {
+    fn new(generators: &[DVec3]) -> Generators4 {
+        let groups = generators
+            .chunks(4)
+            .map(|g| {
+                let mut lanes = [[0.0; 4]; 3];
+                for (k, d) in g.iter().enumerate() {
+                    for (axis, lane) in lanes.iter_mut().enumerate() {
+                        lane[k] = d[axis];
+                    }
+                }
+                lanes.map(f64x4::new)
+            })
+            .collect();
+        Generators4 { groups }
+    }
+
+    /// Whether `n` and whether `−n` bound the cone: every generator `d`
+    /// has `n · d ≥ −1e-9`, respectively `(−n) · d ≥ −1e-9`. The dots are
+    /// `DVec3::dot`'s operations in its order (products commute
+    /// exactly), and `(−n) · d` is `−(n · d)` up to the sign of a zero,
+    /// so the second test is `n · d ≤ 1e-9`: the scalar twin's verdicts.
+    #[inline]
+    fn bound(&self, n: DVec3) -> (bool, bool) {
+        let (x, y, z) = (f64x4::splat(n.x), f64x4::splat(n.y), f64x4::splat(n.z));
+        let (low, high) = (f64x4::splat(-1e-9), f64x4::splat(1e-9));
+        let (mut up, mut down) = (true, true);
+        for g in &self.groups {
+            let dot = x * g[0] + y * g[1] + z * g[2];
+            up &= dot.cmp_ge(low).move_mask() == 0b1111;
+            down &= dot.cmp_le(high).move_mask() == 0b1111;
+            if !(up || down) {
+                break;
+            }
+        }
+        (up, down)
+    }
 }
 
 impl RegionBound {
+    /// The bound of `planes`, with their SoA groups.
+    fn from_planes(planes: Vec<(DVec3, f64)>) -> RegionBound {
+        let quads = planes
+            .chunks(4)
+            .map(|group| {
+                let mut n = [[0.0; 4]; 3];
+                let mut h = [f64::NEG_INFINITY; 4];
+                for (k, &(normal, offset)) in group.iter().enumerate() {
+                    for (axis, lanes) in n.iter_mut().enumerate() {
+                        lanes[k] = normal[axis];
+                    }
+                    h[k] = offset;
+                }
+                Planes4 {
+                    n: n.map(f64x4::new),
+                    h: f64x4::new(h),
+                }
+            })
+            .collect();
+        RegionBound {
+            planes,
+            quads,
+            dihedral: None,
+            dihedral4: None,
+        }
+    }
+
     /// The bound of edge `v0 v1` against a light inside the convex hull of
     /// `corners`. `slack` (a distance) moves every plane outward, to cover
     /// rounding of the receivers' positions.
+    ///
+    /// Candidate normals are taken and kept in the order of the scalar
+    /// twin (`new_scalar`, the code as first written), with the same
+    /// arithmetic, so the planes are the same, bit for bit; only the
+    /// facet test is faster: the dots with the generators four at a time
+    /// ([`Generators4`]), once for both `n` and `−n`.
     pub fn new(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        let mut generators: Vec<DVec3> = Vec::with_capacity(2 * corners.len());
+        for v in [v0, v1] {
+            for &x in corners {
+                let d = v - x;
+                if d.length_squared() > 0.0 && d.is_finite() {
+                    generators.push(d.normalize());
+                }
+            }
+        }
+        let along = v1 - v0;
+        let facets = Generators4::new(&generators);
+        let mut planes = Vec::new();
+        let mut consider = |n: DVec3| {
+            let len = n.length();
+            if !(len > 1e-12) || !len.is_finite() {
+                return;
+            }
+            let n = n / len;
+            let (up, down) = facets.bound(n);
+            for (n, keep) in [(n, up), (-n, down)] {
+                if keep {
+                    planes.push((n, n.dot(v0).min(n.dot(v1)) - slack));
+                }
+            }
+        };
+        // Facet normals: across two spanning directions, and (for flat
+        // cones, where the region lies in a plane) within their plane,
+        // perpendicular to either.
+        let mut span = |a: DVec3, b: DVec3| {
+            let n = a.cross(b);
+            consider(n);
+            consider(n.cross(a));
+            consider(n.cross(b));
+        };
+        for (k, &a) in generators.iter().enumerate() {
+            for &b in &generators[k + 1..] {
+                span(a, b);
+            }
+            span(along, a);
+        }
+        RegionBound::from_planes(planes)
+    }
+
+    /// A bound holding the regions of every edge inside the box
+    /// `[lo, hi]` (a cluster of edges, for culling a tile against many
+    /// edges at once): `conv(box) + cone{c_i − x_j}` over the box's
+    /// corners `c_i` holds `a + t (a − x)` for every `a` in the box. Only
+    /// valid planes are kept, not necessarily every facet (a looser bound
+    /// is still conservative). For lights of at most four bounding
+    /// corners (rects); otherwise no planes (the cost grows with the
+    /// square of the corner count). The same planes as the scalar twin
+    /// (`around_box_scalar`), bit for bit, as in [`RegionBound::new`].
+    pub fn around_box(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        if corners.len() > 4 || !(lo.cmple(hi).all()) {
+            return RegionBound::default();
+        }
+        let points: Vec<DVec3> = (0..8)
+            .map(|k| {
+                let pick = |b: usize, l: f64, h: f64| if k >> b & 1 == 1 { h } else { l };
+                DVec3::new(
+                    pick(0, lo.x, hi.x),
+                    pick(1, lo.y, hi.y),
+                    pick(2, lo.z, hi.z),
+                )
+            })
+            .collect();
+        let mut generators: Vec<DVec3> = Vec::with_capacity(8 * corners.len());
+        for &v in &points {
+            for &x in corners {
+                let d = v - x;
+                if d.length_squared() > 0.0 && d.is_finite() {
+                    generators.push(d.normalize());
+                }
+            }
+        }
+        let facets = Generators4::new(&generators);
+        let mut planes: Vec<(DVec3, f64)> = Vec::new();
+        let mut consider = |n: DVec3| {
+            let len = n.length();
+            if !(len > 1e-12) || !len.is_finite() {
+                return;
+            }
+            let n = n / len;
+            let (up, down) = facets.bound(n);
+            for (n, valid) in [(n, up), (-n, down)] {
+                // Same tolerance as `new`; near-duplicate normals add
+                // nothing but cost.
+                if !valid || planes.iter().any(|&(m, _)| m.dot(n) > 1.0 - 1e-9) {
+                    continue;
+                }
+                let h = points
+                    .iter()
+                    .map(|&c| n.dot(c))
+                    .fold(f64::INFINITY, f64::min)
+                    - slack;
+                planes.push((n, h));
+            }
+        };
+        let axes = [DVec3::X, DVec3::Y, DVec3::Z];
+        for x in axes {
+            consider(x);
+        }
+        for (k, &a) in generators.iter().enumerate() {
+            for &b in &generators[k + 1..] {
+                consider(a.cross(b));
+            }
+            for x in axes {
+                consider(x.cross(a));
+            }
+        }
+        RegionBound::from_planes(planes)
+    }
+
+    /// [`RegionBound::new`] as first written (the twin the tests hold
+    /// the fast one equal to, plane for plane and bit for bit): the bound of edge `v0 v1` against a light inside the convex hull of
+    /// `corners`. `slack` (a distance) moves every plane outward, to cover
+    /// rounding of the receivers' positions.
+    #[cfg(test)]
+    fn new_scalar(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
         let mut generators: Vec<DVec3> = Vec::with_capacity(2 * corners.len());
         for v in [v0, v1] {
             for &x in corners {
@@ -75,13 +342,10 @@ impl RegionBound {
                 }
             }
         }
-        RegionBound {
-            planes,
-            dihedral: None,
-        }
+        RegionBound::from_planes(planes)
     }
 
-    /// A bound holding the regions of every edge inside the box
+    /// [`RegionBound::around_box`] as first written (its twin): a bound holding the regions of every edge inside the box
     /// `[lo, hi]` (a cluster of edges, for culling a tile against many
     /// edges at once): `conv(box) + cone{c_i − x_j}` over the box's
     /// corners `c_i` holds `a + t (a − x)` for every `a` in the box. Only
@@ -89,7 +353,8 @@ impl RegionBound {
     /// is still conservative). For lights of at most four bounding
     /// corners (rects); otherwise no planes (the cost grows with the
     /// square of the corner count).
-    pub fn around_box(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+    #[cfg(test)]
+    fn around_box_scalar(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
         if corners.len() > 4 || !(lo.cmple(hi).all()) {
             return RegionBound::default();
         }
@@ -143,10 +408,7 @@ impl RegionBound {
                 planes.push((n, h));
             }
         }
-        RegionBound {
-            planes,
-            dihedral: None,
-        }
+        RegionBound::from_planes(planes)
     }
 
     /// Also excludes receivers in front of both face planes or behind
@@ -154,12 +416,14 @@ impl RegionBound {
     /// multiplicity is 0 and it changes no counter.
     pub fn with_dihedral(mut self, faces: [(DVec3, f64); 2], slack: f64) -> RegionBound {
         self.dihedral = Some((faces, slack));
+        self.dihedral4 = Some(Dihedral4::new(faces, slack));
         self
     }
 
     /// Whether the dihedral test excludes every point whose signed
-    /// distances to the two face planes lie in `[lo0, hi0]`, `[lo1, hi1]`.
-    #[inline]
+    /// distances to the two face planes lie in `[lo0, hi0]`, `[lo1, hi1]`
+    /// (the scalar twin of [`Dihedral4::excludes`]).
+    #[cfg(test)]
     fn dihedral_excludes(&self, d: [(f64, f64); 2]) -> bool {
         match self.dihedral {
             Some((_, slack)) => {
@@ -175,6 +439,27 @@ impl RegionBound {
     /// counters).
     #[inline]
     pub fn excludes_point(&self, p: DVec3) -> bool {
+        let p4 = [f64x4::splat(p.x), f64x4::splat(p.y), f64x4::splat(p.z)];
+        if let Some(f) = &self.dihedral4 {
+            // Per lane `n · p − h`, in `DVec3::dot`'s order.
+            let d = f.n[0] * p4[0] + f.n[1] * p4[1] + f.n[2] * p4[2] - f.h;
+            if f.excludes(d) {
+                return true;
+            }
+        }
+        // Per lane `(n_x p_x + n_y p_y) + n_z p_z`: `DVec3::dot`'s
+        // operations in its order, so the same value and decision per
+        // plane as the scalar twin below.
+        self.quads.iter().any(|q| {
+            let d = q.n[0] * p4[0] + q.n[1] * p4[1] + q.n[2] * p4[2];
+            d.cmp_lt(q.h).any()
+        })
+    }
+
+    /// [`RegionBound::excludes_point`] one plane at a time: the scalar
+    /// twin of the SoA test (the tests hold them equal).
+    #[cfg(test)]
+    fn excludes_point_scalar(&self, p: DVec3) -> bool {
         if let Some((faces, _)) = self.dihedral {
             let d = faces.map(|(n, h)| {
                 let d = n.dot(p) - h;
@@ -189,6 +474,44 @@ impl RegionBound {
 
     /// Whether the whole box `[lo, hi]` is outside the region.
     pub fn excludes_box(&self, lo: DVec3, hi: DVec3) -> bool {
+        let lo4 = [f64x4::splat(lo.x), f64x4::splat(lo.y), f64x4::splat(lo.z)];
+        let hi4 = [f64x4::splat(hi.x), f64x4::splat(hi.y), f64x4::splat(hi.z)];
+        if let Some(f) = &self.dihedral4 {
+            // Per lane its corner (the scalar twin's pick), then
+            // `n · corner − h` in `DVec3::dot`'s order.
+            let c = |axis: usize| f.take_hi[axis].blend(hi4[axis], lo4[axis]);
+            let d = f.n[0] * c(0) + f.n[1] * c(1) + f.n[2] * c(2) - f.h;
+            if f.excludes(d) {
+                return true;
+            }
+        }
+        // Per lane: `n_a f_a` with `f` the box corner furthest along `n`
+        // (the scalar twin's `hi` where `n_a ≥ 0`, −0 included, `lo`
+        // elsewhere), then `(n_x f_x + n_y f_y) + n_z f_z` in
+        // `DVec3::dot`'s order. The product is taken as `max(n_a lo_a,
+        // n_a hi_a)` (the facade's `max`: `if a > b { a } else { b }`),
+        // which for `lo_a ≤ hi_a`, neither NaN, is the twin's product bit
+        // for bit — rounded products are monotone, so for `n_a ≥ 0` (or
+        // ±0, or an infinite corner making `0 · ∞` NaN on either side)
+        // `n_a lo_a > n_a hi_a` never holds and `n_a hi_a` is returned,
+        // and for `n_a < 0` it is `n_a lo_a` unless the two are equal —
+        // the same value, apart from the sign of a zero when `lo_a = −0`,
+        // `hi_a = +0`. A zero's sign changes a rounded sum only when the
+        // sum is zero, and `−0 < h` is `+0 < h`: the verdict per plane is
+        // the twin's. (Receivers' bounds are min / max of positions,
+        // which skip NaN, so `lo ≤ hi` and neither is NaN.)
+        debug_assert!(lo.cmple(hi).all(), "box {lo} {hi}");
+        self.quads.iter().any(|q| {
+            let term = |a: usize| (q.n[a] * lo4[a]).max(q.n[a] * hi4[a]);
+            let d = term(0) + term(1) + term(2);
+            d.cmp_lt(q.h).any()
+        })
+    }
+
+    /// [`RegionBound::excludes_box`] one plane at a time (the scalar twin
+    /// of the SoA test).
+    #[cfg(test)]
+    fn excludes_box_scalar(&self, lo: DVec3, hi: DVec3) -> bool {
         let far = |n: DVec3, up: bool| {
             let pick = |c: f64, l: f64, h: f64| if (c >= 0.0) == up { h } else { l };
             DVec3::new(
@@ -357,11 +680,130 @@ mod tests {
         let plain = RegionBound::new(DVec3::ZERO, DVec3::X, &corners, 0.0);
         assert_eq!(b.excludes_point(side), plain.excludes_point(side));
         // A box straddling both planes is kept by the dihedral test.
-        let big = RegionBound {
-            planes: Vec::new(),
-            dihedral: b.dihedral,
-        };
+        let big = RegionBound::default().with_dihedral([(n0, 0.0), (n1, 0.0)], 1e-9);
         assert!(!big.excludes_box(DVec3::splat(-1.0), DVec3::splat(1.0)));
         assert!(big.excludes_box(DVec3::new(0.0, -5.0, -0.1), DVec3::new(1.0, -4.0, 0.1)));
+    }
+
+    /// The SoA tests decide exactly as their scalar twins, box by box and
+    /// point by point: random edges, clusters and dihedral bounds, random
+    /// and degenerate boxes (flat, a point, straddling zero with ±0
+    /// corners) and planes with zero normal components (axis-aligned
+    /// normals of `around_box`).
+    #[test]
+    fn soa_tests_match_the_scalar_twins() {
+        let corners = [
+            DVec3::new(-1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, 1.0),
+            DVec3::new(-1.0, 5.0, 1.0),
+        ];
+        let mut s = 23u64;
+        let (mut checked, mut excluded) = (0usize, 0usize);
+        for round in 0..300 {
+            let v0 = DVec3::new(rng(&mut s), 1.5 + 0.5 * rng(&mut s), rng(&mut s));
+            let v1 = v0 + DVec3::new(0.3 * rng(&mut s), 0.8 * rng(&mut s), 0.3 * rng(&mut s));
+            let mut bound = match round % 3 {
+                0 => RegionBound::new(v0, v1, &corners, 0.0),
+                1 => RegionBound::around_box(v0.min(v1), v0.max(v1), &corners, 1e-6),
+                _ => {
+                    let n0 = DVec3::new(rng(&mut s), 1.0, rng(&mut s)).normalize();
+                    let n1 = DVec3::new(rng(&mut s), 1.0, rng(&mut s)).normalize();
+                    RegionBound::new(v0, v1, &corners, 1e-6)
+                        .with_dihedral([(n0, n0.dot(v0)), (n1, n1.dot(v0))], 1e-9)
+                }
+            };
+            if round % 7 == 0 {
+                // Zero and negative-zero normal components.
+                bound = RegionBound::from_planes(vec![
+                    (DVec3::new(0.0, 1.0, -0.0), 0.5),
+                    (DVec3::new(-0.0, -0.0, -1.0), -0.25),
+                    (DVec3::new(0.6, -0.0, 0.8), rng(&mut s)),
+                ])
+                .with_dihedral(
+                    [
+                        (DVec3::new(0.0, 1.0, -0.0), 0.1 * rng(&mut s)),
+                        (DVec3::new(-0.0, 0.6, -0.8), 0.1 * rng(&mut s)),
+                    ],
+                    1e-9,
+                );
+            }
+            assert_eq!(bound.quads.len(), bound.planes.len().div_ceil(4));
+            for k in 0..200 {
+                let c = DVec3::new(4.0 * rng(&mut s), 3.0 * rng(&mut s), 4.0 * rng(&mut s));
+                let r = DVec3::new(rng(&mut s), rng(&mut s), rng(&mut s)).abs();
+                let (lo, hi) = match k % 5 {
+                    0 => (c, c),
+                    1 => (DVec3::new(c.x, -0.0, c.z), DVec3::new(c.x + r.x, 0.0, c.z)),
+                    2 => (-r, r),
+                    _ => (c - r, c + r),
+                };
+                let got = bound.excludes_box(lo, hi);
+                assert_eq!(got, bound.excludes_box_scalar(lo, hi), "box {lo} {hi}");
+                assert_eq!(
+                    bound.excludes_point(c),
+                    bound.excludes_point_scalar(c),
+                    "{c}"
+                );
+                checked += 1;
+                excluded += usize::from(got);
+            }
+        }
+        assert!(
+            excluded > checked / 10 && excluded < checked,
+            "{excluded} of {checked}"
+        );
+    }
+
+    /// The fast constructors give the scalar twins' planes, in the same
+    /// order, bit for bit: random edges (some pointing at the light),
+    /// degenerate ones, and random clusters, against rect and other
+    /// lights.
+    #[test]
+    fn constructors_match_the_scalar_twins() {
+        let bits = |b: &RegionBound| -> Vec<[u64; 4]> {
+            b.planes
+                .iter()
+                .map(|(n, h)| [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), h.to_bits()])
+                .collect()
+        };
+        let rect = [
+            DVec3::new(-1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, -1.0),
+            DVec3::new(1.0, 5.0, 1.0),
+            DVec3::new(-1.0, 5.0, 1.0),
+        ];
+        let tilted: Vec<DVec3> = rect
+            .iter()
+            .map(|c| *c + DVec3::new(0.0, 0.3 * c.x, 0.0))
+            .collect();
+        let lights: [&[DVec3]; 4] = [&rect, &tilted, &rect[..2], &rect[..1]];
+        let mut s = 31u64;
+        let mut planes = 0;
+        for round in 0..400 {
+            let corners = lights[round % lights.len()];
+            let v0 = DVec3::new(rng(&mut s), 1.5 + 0.5 * rng(&mut s), rng(&mut s));
+            let v1 = match round % 5 {
+                0 => v0,
+                1 => v0 + DVec3::Y,
+                _ => v0 + DVec3::new(0.3 * rng(&mut s), 0.8 * rng(&mut s), 0.3 * rng(&mut s)),
+            };
+            let slack = if round % 2 == 0 { 0.0 } else { 1e-6 };
+            let fast = RegionBound::new(v0, v1, corners, slack);
+            assert_eq!(
+                bits(&fast),
+                bits(&RegionBound::new_scalar(v0, v1, corners, slack))
+            );
+            planes += fast.len();
+            let (lo, hi) = (
+                v0.min(v1),
+                v0.max(v1) + DVec3::splat(0.1 * (round % 3) as f64),
+            );
+            let fast = RegionBound::around_box(lo, hi, corners, slack);
+            let twin = RegionBound::around_box_scalar(lo, hi, corners, slack);
+            assert_eq!(bits(&fast), bits(&twin), "round {round}");
+            planes += fast.len();
+        }
+        assert!(planes > 4000, "{planes} planes");
     }
 }

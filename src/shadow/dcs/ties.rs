@@ -19,8 +19,8 @@
 //! the groups' faces, with the stencil's weights (closed caster: its
 //! light-facing faces; open caster: every face).
 
+use super::faces::FaceTree;
 use crate::error::Result;
-use crate::geom::bvh::Bvh;
 use crate::geom::{EdgeAdjacency, SceneGeometry};
 use crate::raster::Framebuffer;
 use crate::shadow::kit::volumes::{stencil_counts, ShadowVolume};
@@ -119,12 +119,14 @@ pub fn own_face_change(weight: i32, normal: Vec3, p: Vec3, centre: Vec3) -> Opti
 /// No group.
 const NONE: u32 = u32::MAX;
 
-/// Exact start counts of every caster group at given points. The BVH
-/// over the groups' faces is built on first use (most renders need
+/// Exact start counts of every caster group at given points. The tree
+/// over the groups' faces ([`FaceTree`]: it reports exactly the
+/// brute-force hits of the BVH's watertight test, at a small part of the
+/// scene BVH's build cost) is built on first use (most renders need
 /// none); it is the same whichever thread builds it.
 pub struct ExactStart<'a> {
     geometry: &'a SceneGeometry,
-    bvh: OnceLock<Bvh>,
+    tree: OnceLock<FaceTree>,
     /// Per scene triangle: `group << 1 | weight` (weight 1 when the face
     /// counts from the centre), or [`NONE`].
     table: Vec<u32>,
@@ -147,15 +149,15 @@ impl<'a> ExactStart<'a> {
         }
         ExactStart {
             geometry,
-            bvh: OnceLock::new(),
+            tree: OnceLock::new(),
             table,
         }
     }
 
-    /// The BVH over the groups' faces, built on first use.
-    fn bvh(&self) -> &Bvh {
-        self.bvh
-            .get_or_init(|| Bvh::build(self.geometry, |t| self.table[t as usize] != NONE))
+    /// The tree over the groups' faces, built on first use.
+    fn tree(&self) -> &FaceTree {
+        self.tree
+            .get_or_init(|| FaceTree::build(self.geometry, |t| self.table[t as usize] != NONE))
     }
 
     /// Does a cap face (a face of weight 1 in its group) other than
@@ -179,11 +181,17 @@ impl<'a> ExactStart<'a> {
         let p_n = p + (eye - p) * (band / (1.0 + band));
         let d = origin - p_n;
         let start = (p_n - d * 0.25).as_vec3();
+        // A boolean OR over the hits: only the faces that can set it are
+        // tested, and the first that does ends the walk.
         let mut near = false;
-        self.bvh()
-            .for_each_hit(start, (d * 1.5).as_vec3(), 1.0, |h| {
-                let e = self.table[h.triangle as usize];
-                near |= h.triangle != own && e != NONE && e & 1 == 1;
+        let counts = |t: u32| {
+            let e = self.table[t as usize];
+            t != own && e != NONE && e & 1 == 1
+        };
+        self.tree()
+            .for_each_hit_of(start, (d * 1.5).as_vec3(), 1.0, counts, |_| {
+                near = true;
+                false
             });
         near
     }
@@ -195,13 +203,18 @@ impl<'a> ExactStart<'a> {
         let dir = centre - origin;
         // Stop just short of the centre, as the reference's rays do.
         let t_max = (1.0 - crate::shadow::kit::rays::END_SHORTEN) as f32;
-        self.bvh().for_each_hit(origin, dir, t_max, |h| {
-            let e = self.table[h.triangle as usize];
-            if e != NONE {
-                if let Some(c) = out.get_mut((e >> 1) as usize) {
-                    *c += (e & 1) as i32;
+        // Integer sums over the hits: any order gives the same counts, and
+        // faces of weight 0 add nothing (not tested).
+        let weighted = |t: u32| {
+            let e = self.table[t as usize];
+            e != NONE && e & 1 == 1
+        };
+        self.tree()
+            .for_each_hit_of(origin, dir, t_max, weighted, |t| {
+                if let Some(c) = out.get_mut((self.table[t as usize] >> 1) as usize) {
+                    *c += 1;
                 }
-            }
-        });
+                true
+            });
     }
 }
