@@ -142,6 +142,71 @@ impl Generators4 {
     }
 }
 
+/// The unit directions `v − x` from each light corner `x` to each of
+/// `points` (zero and non-finite ones left out): the generators of the
+/// cone whose facets bound a region.
+fn cone_generators(points: &[DVec3], corners: &[DVec3]) -> Vec<DVec3> {
+    let mut generators = Vec::with_capacity(points.len() * corners.len());
+    for &v in points {
+        for &x in corners {
+            let d = v - x;
+            if d.length_squared() > 0.0 && d.is_finite() {
+                generators.push(d.normalize());
+            }
+        }
+    }
+    generators
+}
+
+/// Whether `n` and whether `−n` bound the cone (no generator points more
+/// than 1e-9 below the plane: the two that span it give ±rounding, and a
+/// unit generator 1e-9 below tilts out of the half-space by 1e-9 per unit
+/// of length, far inside `slack` over any scene-sized distance): four
+/// generators at a time, or one at a time (the scalar twin).
+enum FacetTest<'a> {
+    Simd(Generators4),
+    Scalar(&'a [DVec3]),
+}
+
+impl<'a> FacetTest<'a> {
+    fn new(generators: &'a [DVec3], simd: bool) -> FacetTest<'a> {
+        if simd {
+            FacetTest::Simd(Generators4::new(generators))
+        } else {
+            FacetTest::Scalar(generators)
+        }
+    }
+
+    /// Of the unit normal along candidate `n` (none when `n` is nearly 0
+    /// or not finite) and its opposite, those that bound the cone, `n`
+    /// first.
+    #[inline]
+    fn facets(&self, n: DVec3) -> impl Iterator<Item = DVec3> {
+        let len = n.length();
+        let usable = len > 1e-12 && len.is_finite();
+        let n = n / len;
+        let (up, down) = if usable {
+            self.bound(n)
+        } else {
+            (false, false)
+        };
+        [(n, up), (-n, down)]
+            .into_iter()
+            .filter_map(|(n, keep)| keep.then_some(n))
+    }
+
+    #[inline]
+    fn bound(&self, n: DVec3) -> (bool, bool) {
+        match self {
+            FacetTest::Simd(g) => g.bound(n),
+            FacetTest::Scalar(g) => (
+                g.iter().all(|d| n.dot(*d) >= -1e-9),
+                g.iter().all(|d| (-n).dot(*d) >= -1e-9),
+            ),
+        }
+    }
+}
+
 impl RegionBound {
     /// The bound of `planes`, with their SoA groups.
     fn from_planes(planes: Vec<(DVec3, f64)>) -> RegionBound {
@@ -172,37 +237,27 @@ impl RegionBound {
 
     /// The bound of edge `v0 v1` against a light inside the convex hull of
     /// `corners`. `slack` (a distance) moves every plane outward, to cover
-    /// rounding of the receivers' positions.
-    ///
-    /// Candidate normals are taken and kept in the order of the scalar
-    /// twin (`new_scalar`, the code as first written), with the same
-    /// arithmetic, so the planes are the same, bit for bit; only the
-    /// facet test is faster: the dots with the generators four at a time
-    /// ([`Generators4`]), once for both `n` and `−n`.
+    /// rounding of the receivers' positions. The facet test runs four
+    /// generators at a time ([`Generators4`]), once for both `n` and `−n`;
+    /// `new_scalar` is the same constructor with the scalar facet test.
     pub fn new(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
-        let mut generators: Vec<DVec3> = Vec::with_capacity(2 * corners.len());
-        for v in [v0, v1] {
-            for &x in corners {
-                let d = v - x;
-                if d.length_squared() > 0.0 && d.is_finite() {
-                    generators.push(d.normalize());
-                }
-            }
-        }
+        Self::edge_bound(v0, v1, corners, slack, true)
+    }
+
+    /// [`RegionBound::new`] with the scalar facet test (its twin).
+    #[cfg(test)]
+    fn new_scalar(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        Self::edge_bound(v0, v1, corners, slack, false)
+    }
+
+    fn edge_bound(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64, simd: bool) -> RegionBound {
+        let generators = cone_generators(&[v0, v1], corners);
         let along = v1 - v0;
-        let facets = Generators4::new(&generators);
+        let facets = FacetTest::new(&generators, simd);
         let mut planes = Vec::new();
         let mut consider = |n: DVec3| {
-            let len = n.length();
-            if !(len > 1e-12) || !len.is_finite() {
-                return;
-            }
-            let n = n / len;
-            let (up, down) = facets.bound(n);
-            for (n, keep) in [(n, up), (-n, down)] {
-                if keep {
-                    planes.push((n, n.dot(v0).min(n.dot(v1)) - slack));
-                }
+            for n in facets.facets(n) {
+                planes.push((n, n.dot(v0).min(n.dot(v1)) - slack));
             }
         };
         // Facet normals: across two spanning directions, and (for flat
@@ -230,44 +285,38 @@ impl RegionBound {
     /// valid planes are kept, not necessarily every facet (a looser bound
     /// is still conservative). For lights of at most four bounding
     /// corners (rects); otherwise no planes (the cost grows with the
-    /// square of the corner count). The same planes as the scalar twin
-    /// (`around_box_scalar`), bit for bit, as in [`RegionBound::new`].
+    /// square of the corner count). `around_box_scalar` is its twin with
+    /// the scalar facet test.
     pub fn around_box(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        Self::box_bound(lo, hi, corners, slack, true)
+    }
+
+    /// [`RegionBound::around_box`] with the scalar facet test (its twin).
+    #[cfg(test)]
+    fn around_box_scalar(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        Self::box_bound(lo, hi, corners, slack, false)
+    }
+
+    fn box_bound(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64, simd: bool) -> RegionBound {
         if corners.len() > 4 || !(lo.cmple(hi).all()) {
             return RegionBound::default();
         }
-        let points: Vec<DVec3> = (0..8)
-            .map(|k| {
-                let pick = |b: usize, l: f64, h: f64| if k >> b & 1 == 1 { h } else { l };
-                DVec3::new(
-                    pick(0, lo.x, hi.x),
-                    pick(1, lo.y, hi.y),
-                    pick(2, lo.z, hi.z),
-                )
-            })
-            .collect();
-        let mut generators: Vec<DVec3> = Vec::with_capacity(8 * corners.len());
-        for &v in &points {
-            for &x in corners {
-                let d = v - x;
-                if d.length_squared() > 0.0 && d.is_finite() {
-                    generators.push(d.normalize());
-                }
-            }
-        }
-        let facets = Generators4::new(&generators);
+        let points: [DVec3; 8] = std::array::from_fn(|k| {
+            let pick = |b: usize, l: f64, h: f64| if k >> b & 1 == 1 { h } else { l };
+            DVec3::new(
+                pick(0, lo.x, hi.x),
+                pick(1, lo.y, hi.y),
+                pick(2, lo.z, hi.z),
+            )
+        });
+        let generators = cone_generators(&points, corners);
+        let facets = FacetTest::new(&generators, simd);
         let mut planes: Vec<(DVec3, f64)> = Vec::new();
         let mut consider = |n: DVec3| {
-            let len = n.length();
-            if !(len > 1e-12) || !len.is_finite() {
-                return;
-            }
-            let n = n / len;
-            let (up, down) = facets.bound(n);
-            for (n, valid) in [(n, up), (-n, down)] {
+            for n in facets.facets(n) {
                 // Same tolerance as `new`; near-duplicate normals add
                 // nothing but cost.
-                if !valid || planes.iter().any(|&(m, _)| m.dot(n) > 1.0 - 1e-9) {
+                if planes.iter().any(|&(m, _)| m.dot(n) > 1.0 - 1e-9) {
                     continue;
                 }
                 let h = points
@@ -288,124 +337,6 @@ impl RegionBound {
             }
             for x in axes {
                 consider(x.cross(a));
-            }
-        }
-        RegionBound::from_planes(planes)
-    }
-
-    /// [`RegionBound::new`] as first written (the twin the tests hold
-    /// the fast one equal to, plane for plane and bit for bit): the bound of edge `v0 v1` against a light inside the convex hull of
-    /// `corners`. `slack` (a distance) moves every plane outward, to cover
-    /// rounding of the receivers' positions.
-    #[cfg(test)]
-    fn new_scalar(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
-        let mut generators: Vec<DVec3> = Vec::with_capacity(2 * corners.len());
-        for v in [v0, v1] {
-            for &x in corners {
-                let d = v - x;
-                if d.length_squared() > 0.0 && d.is_finite() {
-                    generators.push(d.normalize());
-                }
-            }
-        }
-        let along = v1 - v0;
-        // Facet normals: across two spanning directions, and (for flat
-        // cones, where the region lies in a plane) within their plane,
-        // perpendicular to either.
-        let mut normals: Vec<DVec3> = Vec::new();
-        let mut span = |a: DVec3, b: DVec3| {
-            let n = a.cross(b);
-            normals.extend([n, n.cross(a), n.cross(b)]);
-        };
-        for (k, &a) in generators.iter().enumerate() {
-            for &b in &generators[k + 1..] {
-                span(a, b);
-            }
-            span(along, a);
-        }
-        let mut planes = Vec::new();
-        for n in normals {
-            let len = n.length();
-            if !(len > 1e-12) || !len.is_finite() {
-                continue;
-            }
-            let n = n / len;
-            for n in [n, -n] {
-                // A facet of the cone: no generator points below it. The
-                // two that span the plane give ±rounding, hence the
-                // tolerance: a unit generator 1e-9 below tilts out of the
-                // half-space by 1e-9 per unit of length, far inside
-                // `slack` over any scene-sized distance.
-                if generators.iter().all(|d| n.dot(*d) >= -1e-9) {
-                    let h = n.dot(v0).min(n.dot(v1)) - slack;
-                    planes.push((n, h));
-                }
-            }
-        }
-        RegionBound::from_planes(planes)
-    }
-
-    /// [`RegionBound::around_box`] as first written (its twin): a bound holding the regions of every edge inside the box
-    /// `[lo, hi]` (a cluster of edges, for culling a tile against many
-    /// edges at once): `conv(box) + cone{c_i − x_j}` over the box's
-    /// corners `c_i` holds `a + t (a − x)` for every `a` in the box. Only
-    /// valid planes are kept, not necessarily every facet (a looser bound
-    /// is still conservative). For lights of at most four bounding
-    /// corners (rects); otherwise no planes (the cost grows with the
-    /// square of the corner count).
-    #[cfg(test)]
-    fn around_box_scalar(lo: DVec3, hi: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
-        if corners.len() > 4 || !(lo.cmple(hi).all()) {
-            return RegionBound::default();
-        }
-        let points: Vec<DVec3> = (0..8)
-            .map(|k| {
-                let pick = |b: usize, l: f64, h: f64| if k >> b & 1 == 1 { h } else { l };
-                DVec3::new(
-                    pick(0, lo.x, hi.x),
-                    pick(1, lo.y, hi.y),
-                    pick(2, lo.z, hi.z),
-                )
-            })
-            .collect();
-        let mut generators: Vec<DVec3> = Vec::with_capacity(8 * corners.len());
-        for &v in &points {
-            for &x in corners {
-                let d = v - x;
-                if d.length_squared() > 0.0 && d.is_finite() {
-                    generators.push(d.normalize());
-                }
-            }
-        }
-        let axes = [DVec3::X, DVec3::Y, DVec3::Z];
-        let mut normals: Vec<DVec3> = axes.to_vec();
-        for (k, &a) in generators.iter().enumerate() {
-            for &b in &generators[k + 1..] {
-                normals.push(a.cross(b));
-            }
-            normals.extend(axes.iter().map(|&x| x.cross(a)));
-        }
-        let mut planes: Vec<(DVec3, f64)> = Vec::new();
-        for n in normals {
-            let len = n.length();
-            if !(len > 1e-12) || !len.is_finite() {
-                continue;
-            }
-            let n = n / len;
-            for n in [n, -n] {
-                // Same tolerance as `new`; near-duplicate normals add
-                // nothing but cost.
-                if planes.iter().any(|&(m, _)| m.dot(n) > 1.0 - 1e-9)
-                    || !generators.iter().all(|d| n.dot(*d) >= -1e-9)
-                {
-                    continue;
-                }
-                let h = points
-                    .iter()
-                    .map(|&c| n.dot(c))
-                    .fold(f64::INFINITY, f64::min)
-                    - slack;
-                planes.push((n, h));
             }
         }
         RegionBound::from_planes(planes)
@@ -560,16 +491,19 @@ mod tests {
         ((*state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
     }
 
+    /// The rect light most tests use: 2 × 2 at y = 5.
+    const RECT: [DVec3; 4] = [
+        DVec3::new(-1.0, 5.0, -1.0),
+        DVec3::new(1.0, 5.0, -1.0),
+        DVec3::new(1.0, 5.0, 1.0),
+        DVec3::new(-1.0, 5.0, 1.0),
+    ];
+
     /// Every point a light point sees through the edge, beyond it, is
     /// inside the bound; and the bound does reject far points.
     #[test]
     fn the_bound_holds_every_shadow_ray_and_rejects_others() {
-        let corners = [
-            DVec3::new(-1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, 1.0),
-            DVec3::new(-1.0, 5.0, 1.0),
-        ];
+        let corners = RECT;
         let mut s = 7u64;
         let mut rejected = 0;
         for _ in 0..200 {
@@ -605,12 +539,7 @@ mod tests {
     /// inside its box, and does reject far points.
     #[test]
     fn cluster_bound_holds_its_edges_regions() {
-        let corners = [
-            DVec3::new(-1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, 1.0),
-            DVec3::new(-1.0, 5.0, 1.0),
-        ];
+        let corners = RECT;
         let mut s = 11u64;
         let mut rejected = 0;
         for _ in 0..50 {
@@ -692,12 +621,7 @@ mod tests {
     /// normals of `around_box`).
     #[test]
     fn soa_tests_match_the_scalar_twins() {
-        let corners = [
-            DVec3::new(-1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, 1.0),
-            DVec3::new(-1.0, 5.0, 1.0),
-        ];
+        let corners = RECT;
         let mut s = 23u64;
         let (mut checked, mut excluded) = (0usize, 0usize);
         for round in 0..300 {
@@ -767,12 +691,7 @@ mod tests {
                 .map(|(n, h)| [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), h.to_bits()])
                 .collect()
         };
-        let rect = [
-            DVec3::new(-1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, -1.0),
-            DVec3::new(1.0, 5.0, 1.0),
-            DVec3::new(-1.0, 5.0, 1.0),
-        ];
+        let rect = RECT;
         let tilted: Vec<DVec3> = rect
             .iter()
             .map(|c| *c + DVec3::new(0.0, 0.3 * c.x, 0.0))

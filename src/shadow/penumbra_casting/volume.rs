@@ -1035,6 +1035,40 @@ mod tests {
         assert!(all > 1000 && some > 300, "{all} {some}");
     }
 
+    /// A thin light box (half extents `e`, 1 % wider) centred at `c`.
+    fn thin_light(c: DVec3, e: DVec3) -> LightBox {
+        let corners = std::array::from_fn(|i| {
+            let f = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
+            c + e * 1.01 * DVec3::new(f(1), f(2), f(4))
+        });
+        LightBox { corners }
+    }
+
+    /// The lanes of a group of `len ≤ 32` samples.
+    fn lanes(len: usize) -> u32 {
+        if len == 32 {
+            u32::MAX
+        } else {
+            (1u32 << len) - 1
+        }
+    }
+
+    /// Query `q`'s receiver: every third one random, the others on the
+    /// line from a sample through a point of a triangle edge, beyond it
+    /// (ties up to rounding), moved by `tiny` in a random direction.
+    fn receiver(st: &mut u64, q: usize, samples: &[DVec3], t: &[DVec3; 3], tiny: f64) -> [f64; 3] {
+        let v = |s: &mut u64| DVec3::new(rng(s), rng(s), rng(s));
+        if q.is_multiple_of(3) {
+            return (v(st) * 2.0).to_array();
+        }
+        let y = samples[(*st as usize >> 3) % samples.len()];
+        let a = (*st as usize >> 9) % 3;
+        let mu = rng(st) + 0.5;
+        let p = t[a] + (t[(a + 1) % 3] - t[a]) * mu;
+        let lam = 1.2 + rng(st).abs() * 2.0;
+        (y + (p - y) * lam + v(st) * tiny).to_array()
+    }
+
     /// The cone's verdicts are the kernel's: every `sure` sample is
     /// marked, every marked sample is `sure` or `unsure`, and a receiver
     /// on the light's side gets nothing; with receivers placed on the
@@ -1051,12 +1085,7 @@ mod tests {
             let e = DVec3::new(0.2 + 0.3 * rng(&mut st).abs(), 1e-9, 0.2);
             let c = DVec3::new(0.0, 2.0, 0.0);
             let samples: Vec<DVec3> = (0..len).map(|_| c + v(&mut st) * 2.0 * e).collect();
-            let mut corners = [DVec3::ZERO; 8];
-            for (i, k) in corners.iter_mut().enumerate() {
-                let f = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
-                *k = c + e * 1.01 * DVec3::new(f(1), f(2), f(4));
-            }
-            let light = LightBox { corners };
+            let light = thin_light(c, e);
             let t = [v(&mut st), v(&mut st), v(&mut st)].map(|p| p + DVec3::new(0.0, 1.0, 0.0));
             let m = 4.0;
             let slack = cone_slack(m);
@@ -1066,24 +1095,10 @@ mod tests {
             let soa = GroupSoa::new(&samples);
             let mut hv = HardVolumes::default();
             hv.build(&soa, &t);
-            let valid = if len == 32 {
-                u32::MAX
-            } else {
-                (1u32 << len) - 1
-            };
+            let valid = lanes(len);
             for q in 0..60 {
-                let o = if q % 3 == 0 {
-                    (v(&mut st) * 2.0).to_array()
-                } else {
-                    // From a sample through a point of an edge, beyond.
-                    let y = samples[(st as usize >> 3) % len];
-                    let a = (st as usize >> 9) % 3;
-                    let mu = rng(&mut st) + 0.5;
-                    let p = t[a] + (t[(a + 1) % 3] - t[a]) * mu;
-                    let lam = 1.2 + rng(&mut st).abs() * 2.0;
-                    let tiny = if q % 3 == 1 { 0.0 } else { 1e-15 };
-                    (y + (p - y) * lam + v(&mut st) * tiny).to_array()
-                };
+                let tiny = if q % 3 == 1 { 0.0 } else { 1e-15 };
+                let o = receiver(&mut st, q, &samples, &t, tiny);
                 if o.iter().any(|x| x.abs() > m) {
                     continue;
                 }
@@ -1128,12 +1143,7 @@ mod tests {
             let len = 1 + round % 32;
             let e = DVec3::new(0.3, 1e-9, 0.2);
             let c = DVec3::new(0.0, 2.0, 0.0);
-            let mut corners = [DVec3::ZERO; 8];
-            for (i, k) in corners.iter_mut().enumerate() {
-                let f = |b: usize| if i & b != 0 { 1.0 } else { -1.0 };
-                *k = c + e * 1.01 * DVec3::new(f(1), f(2), f(4));
-            }
-            let light = LightBox { corners };
+            let light = thin_light(c, e);
             // Every other triangle leans so its plane crosses the light.
             let mut t = [v(&mut st), v(&mut st), v(&mut st)].map(|p| p + DVec3::new(0.0, 1.0, 0.0));
             if round % 2 == 1 {
@@ -1157,23 +1167,10 @@ mod tests {
             let boxes = ChunkBoxes::new(&samples);
             let mut hv = HardVolumes::default();
             hv.build(&soa, &t);
-            let valid = if len == 32 {
-                u32::MAX
-            } else {
-                (1u32 << len) - 1
-            };
+            let valid = lanes(len);
             let sides = side.is_none().then(|| plane_sides(&soa, &t, slack));
             for q in 0..60 {
-                let o = if q % 3 == 0 {
-                    (v(&mut st) * 2.0).to_array()
-                } else {
-                    let y = samples[(st as usize >> 3) % len];
-                    let a = (st as usize >> 9) % 3;
-                    let mu = rng(&mut st) + 0.5;
-                    let p = t[a] + (t[(a + 1) % 3] - t[a]) * mu;
-                    let lam = 1.2 + rng(&mut st).abs() * 2.0;
-                    (y + (p - y) * lam).to_array()
-                };
+                let o = receiver(&mut st, q, &samples, &t, 0.0);
                 let Some(cone) = Cone::new(&t, o, slack) else {
                     continue;
                 };
