@@ -356,11 +356,12 @@ impl Bvh {
         if leaves.is_empty() {
             return;
         }
+        let mut packet = Packet::empty();
         for (chunk, res) in dirs
             .chunks(super::PACKET)
             .zip(out.chunks_mut(super::PACKET))
         {
-            let packet = Packet::new(hull.origin, chunk, t_max);
+            packet.load(hull.origin, chunk, t_max);
             if packet.valid == 0 {
                 continue;
             }

@@ -535,13 +535,18 @@ impl Rel {
     }
 }
 
+/// `v` splatted per axis.
+#[inline(always)]
+fn splat3(v: Vec3) -> [f32x4; 3] {
+    [f32x4::splat(v.x), f32x4::splat(v.y), f32x4::splat(v.z)]
+}
+
 /// A ray prepared for box and watertight triangle tests.
 #[derive(Clone, Copy)]
 struct Ray {
     origin: Vec3,
     t_max: f32,
-    /// Slab test: origin and inverse direction, splatted per axis.
-    org: [f32x4; 3],
+    /// Slab test: the inverse direction, splatted per axis.
     inv: [f32x4; 3],
     /// Axes along which the direction is exactly 0: there the slab is
     /// everything or nothing, decided by comparing the origin with the box.
@@ -559,7 +564,6 @@ impl Ray {
     const UNUSED: Ray = Ray {
         origin: Vec3::ZERO,
         t_max: 0.0,
-        org: [f32x4::ZERO; 3],
         inv: [f32x4::ZERO; 3],
         parallel: [false; 3],
         any_parallel: false,
@@ -594,11 +598,6 @@ impl Ray {
             origin,
             t_max,
             // Written out: `[0, 1, 2].map` is not unrolled here.
-            org: [
-                f32x4::splat(origin.x),
-                f32x4::splat(origin.y),
-                f32x4::splat(origin.z),
-            ],
             inv: [
                 f32x4::splat(inv(dir.x)),
                 f32x4::splat(inv(dir.y)),
@@ -614,11 +613,11 @@ impl Ray {
     /// Bit mask of the node's children whose box the segment may touch.
     #[inline]
     fn hit_boxes(&self, node: &Node) -> u32 {
-        self.hit_boxes_rel(node, &Rel::new(node, &self.org))
+        self.hit_boxes_rel(node, &Rel::new(node, &splat3(self.origin)))
     }
 
     /// [`Ray::hit_boxes`] given the node's bounds relative to the ray's
-    /// origin (`Rel::new(node, &self.org)`, or the same values computed
+    /// origin (`Rel::new(node, &splat3(origin))`, or the same values computed
     /// once for several rays from this origin).
     #[inline(always)]
     fn hit_boxes_rel(&self, node: &Node, rel: &Rel) -> u32 {
@@ -641,7 +640,7 @@ impl Ray {
                 // contains all of it or none (faces included).
                 let lo = f32x4::new(node.lo[axis]);
                 let hi = f32x4::new(node.hi[axis]);
-                let o = self.org[axis];
+                let o = f32x4::splat(self.origin[axis]);
                 inside &= (lo.cmp_le(o) & o.cmp_le(hi)).move_mask();
                 continue;
             }

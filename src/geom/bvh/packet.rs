@@ -11,7 +11,9 @@
 //!
 //! **Same answer as one ray at a time, bit for bit.** Every lane performs
 //! exactly the arithmetic [`Bvh::occluded`] performs for that ray: the
-//! per-ray constants come from the same `Ray::new`; a child box's slab
+//! per-ray constants are `Ray::new`'s, computed eight lanes at a time by
+//! the same IEEE operations (`Packet::load`, held to `Ray::new` bit for
+//! bit by this module's test); a child box's slab
 //! distances are `(lo − origin) · inv` with the same operands (the
 //! subtraction is shared by the lanes because the origin is); the
 //! parallel-axis rule and the conservative far scale are the same; the
@@ -26,7 +28,6 @@
 use super::{Bvh, Node, Ray, Rel, STACK};
 use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
-use std::cell::OnceCell;
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
@@ -45,60 +46,112 @@ pub(super) struct Packet {
     /// Lanes holding a usable ray (finite, non-zero direction).
     pub(super) valid: u32,
     t_max: f32,
-    /// The lanes' directions per axis (1 in unused lanes).
-    d: [[f32; PACKET]; 3],
-    /// The eight-lane triangle test's constants, built on first use (many
-    /// packets reach only leaves that few lanes reach).
-    woop: OnceCell<Woop>,
-    /// Each valid lane's own single-ray constants (`Ray::new`; invalid
-    /// lanes hold `Ray::UNUSED` and are never read): the box test
-    /// runs ray by ray against a node's four children, and leaves reached
-    /// by few lanes use the single-ray triangle test itself.
+    /// The eight-lane triangle test's constants.
+    woop: Woop,
+    /// Each valid lane's own single-ray constants (those `Ray::new`
+    /// computes; invalid lanes hold `Ray::UNUSED` and are never read): the
+    /// box test runs ray by ray against a node's four children, and leaves
+    /// reached by few lanes use the single-ray triangle test itself.
     rays: [Ray; PACKET],
-    /// The origin splatted per axis (`Ray::org` of every lane).
+    /// The origin splatted per axis.
     org: [f32x4; 3],
 }
 
 impl Packet {
-    /// The packet of `dirs` (at most [`PACKET`]) from `origin`: lane by
-    /// lane the constants `Ray::new` computes, with the same IEEE
-    /// operations (divisions, the clamp, the dominant-axis rule).
-    pub(super) fn new(origin: Vec3, dirs: &[Vec3], t_max: f32) -> Packet {
-        let mut valid = 0;
-        let mut d = [[1.0f32; PACKET]; 3];
-        let rays: [Ray; PACKET] = std::array::from_fn(|lane| {
-            // `Ray::new`'s refusal: a zero or non-finite direction or
-            // origin.
-            match dirs.get(lane).and_then(|&dir| Ray::new(origin, dir, t_max)) {
-                Some(ray) => {
-                    valid |= 1 << lane;
-                    for axis in 0..3 {
-                        d[axis][lane] = dirs[lane][axis];
-                    }
-                    ray
-                }
-                None => Ray::UNUSED,
-            }
-        });
+    /// An empty packet (no valid lane), to be filled by [`Packet::load`]:
+    /// the bundle loops reuse one packet rather than move a new one (over
+    /// a kilobyte) into place for every eight rays.
+    pub(super) fn empty() -> Packet {
         Packet {
-            origin,
-            valid,
-            t_max,
-            d,
-            woop: OnceCell::new(),
-            rays,
-            org: [
-                f32x4::splat(origin.x),
-                f32x4::splat(origin.y),
-                f32x4::splat(origin.z),
-            ],
+            origin: Vec3::ZERO,
+            valid: 0,
+            t_max: 0.0,
+            woop: Woop::new(&[[1.0; PACKET]; 3], 0),
+            rays: [Ray::UNUSED; PACKET],
+            org: [f32x4::ZERO; 3],
         }
+    }
+
+    /// Makes this the packet of `dirs` (at most [`PACKET`]) from `origin`.
+    /// Every valid lane's constants are those `Ray::new` computes for its
+    /// ray, by the same IEEE operations done eight lanes at a time
+    /// (divisions, the clamp as a max and a min, the dominant-axis rule as
+    /// compares); `tests` holds the two lane by lane on zero, subnormal,
+    /// huge and non-finite components. Invalid lanes keep stale constants,
+    /// which nothing reads.
+    pub(super) fn load(&mut self, origin: Vec3, dirs: &[Vec3], t_max: f32) {
+        let n = dirs.len().min(PACKET);
+        let mut d = [[1.0f32; PACKET]; 3];
+        for (lane, dir) in dirs.iter().take(n).enumerate() {
+            for axis in 0..3 {
+                d[axis][lane] = dir[axis];
+            }
+        }
+        let [dx, dy, dz] = d.map(f32x8::new);
+        // `Ray::new`'s refusal: a zero or non-finite direction or origin.
+        let max = f32x8::splat(f32::MAX);
+        let zero = f32x8::ZERO;
+        let finite = dx.abs().cmp_le(max) & dy.abs().cmp_le(max) & dz.abs().cmp_le(max);
+        let nonzero = !(dx.cmp_eq(zero) & dy.cmp_eq(zero) & dz.cmp_eq(zero));
+        let mut valid = (finite & nonzero).move_mask() & ((1u32 << n) - 1);
+        if !origin.is_finite() {
+            valid = 0;
+        }
+        // The slab inverses: `(1 / d).clamp(−MAX, MAX)`, no NaN (d finite).
+        let one = f32x8::splat(1.0);
+        let lowest = f32x8::splat(-f32::MAX);
+        let inv = |c: f32x8| (one / c).max(lowest).min(max);
+        let inv = [inv(dx), inv(dy), inv(dz)].map(f32x8::to_array);
+        let parallel = [dx, dy, dz].map(|c| c.cmp_eq(zero).move_mask());
+        let woop = Woop::new(&d, valid);
+        let picks = woop
+            .pick
+            .map(|[is0, is1]| [is0.move_mask(), is1.move_mask()]);
+        let shear = woop.shear.map(f32x8::to_array);
+        let mut lanes = valid;
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let axis_of = |k: usize| {
+                let [is0, is1] = picks[k];
+                if is0 >> lane & 1 == 1 {
+                    0
+                } else if is1 >> lane & 1 == 1 {
+                    1
+                } else {
+                    2
+                }
+            };
+            let par = [0, 1, 2].map(|axis| parallel[axis] >> lane & 1 == 1);
+            self.rays[lane] = Ray {
+                origin,
+                t_max,
+                inv: [
+                    f32x4::splat(inv[0][lane]),
+                    f32x4::splat(inv[1][lane]),
+                    f32x4::splat(inv[2][lane]),
+                ],
+                parallel: par,
+                any_parallel: par[0] || par[1] || par[2],
+                k: [axis_of(0), axis_of(1), axis_of(2)],
+                shear: Vec3::new(shear[0][lane], shear[1][lane], shear[2][lane]),
+            };
+        }
+        self.origin = origin;
+        self.valid = valid;
+        self.t_max = t_max;
+        self.woop = woop;
+        self.org = [
+            f32x4::splat(origin.x),
+            f32x4::splat(origin.y),
+            f32x4::splat(origin.z),
+        ];
     }
 
     /// The eight-lane triangle test's constants.
     #[inline]
     fn woop(&self) -> &Woop {
-        self.woop.get_or_init(|| Woop::new(&self.d, self.valid))
+        &self.woop
     }
 }
 
@@ -219,8 +272,9 @@ impl Bvh {
             return;
         }
         let mut last = None;
+        let mut packet = Packet::empty();
         for (chunk, res) in dirs.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
-            let packet = Packet::new(origin, chunk, t_max);
+            packet.load(origin, chunk, t_max);
             if packet.valid == 0 {
                 continue;
             }
@@ -355,5 +409,107 @@ impl Bvh {
             }
         }
         hit
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bits of everything `Ray::new` computes.
+    fn ray_bits(r: &Ray) -> Vec<u32> {
+        let mut v = vec![r.t_max.to_bits()];
+        v.extend(r.origin.to_array().map(f32::to_bits));
+        for inv in r.inv {
+            v.extend(inv.to_array().map(f32::to_bits));
+        }
+        v.extend(r.parallel.map(u32::from));
+        v.push(u32::from(r.any_parallel));
+        v.extend(r.k.map(|k| k as u32));
+        v.extend(r.shear.to_array().map(f32::to_bits));
+        v
+    }
+
+    /// Each lane of a loaded packet holds exactly `Ray::new`'s constants,
+    /// and the valid lanes are exactly those `Ray::new` accepts, on
+    /// components that are zero (both signs), subnormal, tiny, huge,
+    /// infinite or NaN, in every combination the generator reaches; the
+    /// eight-lane triangle constants agree with each lane's.
+    #[test]
+    fn packet_lanes_are_ray_new() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            1e-45,
+            -1e-45,
+            1e-38,
+            -3e-39,
+            1.0,
+            -1.0,
+            0.5,
+            -2.75,
+            3e38,
+            -f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            1e-20,
+        ];
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32
+        };
+        let mut packet = Packet::empty();
+        for round in 0..20_000 {
+            let mut comp = || {
+                let r = next();
+                if r % 3 == 0 {
+                    specials[(r / 3) as usize % specials.len()]
+                } else {
+                    (r as f32 / u32::MAX as f32 - 0.5) * 2f32.powi((r % 40) as i32 - 20)
+                }
+            };
+            let n = 1 + round % PACKET;
+            let dirs: Vec<Vec3> = (0..n).map(|_| Vec3::new(comp(), comp(), comp())).collect();
+            let origin = if round % 97 == 0 {
+                Vec3::new(f32::NAN, 0.0, 1.0)
+            } else {
+                Vec3::new(comp(), 1.5, -0.25)
+            };
+            let t_max = 0.999_999;
+            packet.load(origin, &dirs, t_max);
+            let mut valid = 0;
+            for (lane, &dir) in dirs.iter().enumerate() {
+                let Some(ray) = Ray::new(origin, dir, t_max) else {
+                    continue;
+                };
+                valid |= 1 << lane;
+                assert_eq!(
+                    ray_bits(&packet.rays[lane]),
+                    ray_bits(&ray),
+                    "lane {lane} of {dirs:?} from {origin:?}"
+                );
+                let woop = packet.woop();
+                for (axis, &k) in ray.k.iter().enumerate() {
+                    let [is0, is1] = woop.pick[axis];
+                    let picked = if is0.move_mask() >> lane & 1 == 1 {
+                        0
+                    } else if is1.move_mask() >> lane & 1 == 1 {
+                        1
+                    } else {
+                        2
+                    };
+                    assert_eq!(picked, k);
+                }
+                for axis in 0..3 {
+                    let s = woop.shear[axis].to_array()[lane];
+                    assert_eq!(s.to_bits(), ray.shear[axis].to_bits());
+                }
+            }
+            assert_eq!(packet.valid, valid, "{dirs:?} from {origin:?}");
+        }
     }
 }
