@@ -25,9 +25,16 @@
 //! which an "any hit" answer does not see. `tests/reference.rs` holds the
 //! two against each other ray by ray.
 
-use super::{Bvh, Node, Ray, Rel, STACK};
+use super::{Bvh, Node, Ray, Rel, FAR_SCALE, STACK};
 use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
+
+/// A node reached by at least this many lanes tests its four boxes
+/// against all of them at once (`Packet::hit_boxes_lanes`), box by box;
+/// fewer lanes test ray by ray. Measured (spheres and bunny, 512², 64
+/// samples, one thread, interleaved runs): 6 is 2–4 % faster than ray by
+/// ray throughout; 4 and 2 are slower (callgrind +0 % and +5 %).
+const BOX_MAJOR_LANES: u32 = 6;
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
@@ -55,6 +62,13 @@ pub(super) struct Packet {
     rays: [Ray; PACKET],
     /// The origin splatted per axis.
     org: [f32x4; 3],
+    /// The lanes' slab inverses per axis (`Ray::inv`, one lane per ray)
+    /// and `t_max` in every lane, for the box-major test.
+    inv: [f32x8; 3],
+    t_max8: f32x8,
+    /// Valid lanes with a zero direction component (`Ray::any_parallel`):
+    /// they always take the ray-by-ray test.
+    parallel: u32,
 }
 
 impl Packet {
@@ -69,6 +83,9 @@ impl Packet {
             woop: Woop::new(&[[1.0; PACKET]; 3], 0),
             rays: [Ray::UNUSED; PACKET],
             org: [f32x4::ZERO; 3],
+            inv: [f32x8::ZERO; 3],
+            t_max8: f32x8::ZERO,
+            parallel: 0,
         }
     }
 
@@ -101,8 +118,12 @@ impl Packet {
         let one = f32x8::splat(1.0);
         let lowest = f32x8::splat(-f32::MAX);
         let inv = |c: f32x8| (one / c).max(lowest).min(max);
-        let inv = [inv(dx), inv(dy), inv(dz)].map(f32x8::to_array);
+        let inv8 = [inv(dx), inv(dy), inv(dz)];
+        let inv = inv8.map(f32x8::to_array);
         let parallel = [dx, dy, dz].map(|c| c.cmp_eq(zero).move_mask());
+        self.inv = inv8;
+        self.t_max8 = f32x8::splat(t_max);
+        self.parallel = (parallel[0] | parallel[1] | parallel[2]) & valid;
         let woop = Woop::new(&d, valid);
         let picks = woop
             .pick
@@ -209,6 +230,33 @@ impl Woop {
 }
 
 impl Packet {
+    /// `Ray::hit_boxes_rel` for every lane of `lanes` at once, box by box:
+    /// byte `slot` of the result holds the lanes passing child `slot`.
+    /// Each lane's verdict is its own test's bit for bit: the same
+    /// products `(bound − origin) · inv` (the operands swapped, which IEEE
+    /// multiplication does not see), the same min / max in the same order
+    /// from the same starting values, the same far scale and compare.
+    /// Lanes with a zero direction component must not be in `lanes`.
+    #[inline]
+    fn hit_boxes_lanes(&self, rel: &Rel, lanes: u32) -> u32 {
+        let lo = rel.lo.map(f32x4::to_array);
+        let hi = rel.hi.map(f32x4::to_array);
+        let scale = f32x8::splat(FAR_SCALE);
+        let mut through = 0u32;
+        for slot in 0..4 {
+            let mut near = f32x8::ZERO;
+            let mut far = self.t_max8;
+            for axis in 0..3 {
+                let t0 = f32x8::splat(lo[axis][slot]) * self.inv[axis];
+                let t1 = f32x8::splat(hi[axis][slot]) * self.inv[axis];
+                near = near.max(t0.min(t1));
+                far = far.min(t0.max(t1));
+            }
+            through |= (near.cmp_le(far * scale).move_mask() & lanes) << (8 * slot);
+        }
+        through
+    }
+
     /// Lanes that `Ray::intersect` would find hitting `tri`.
     #[inline]
     fn hit_triangle(&self, tri: &[Vec3; 3]) -> u32 {
@@ -321,6 +369,10 @@ impl Bvh {
             // child `slot`.
             let rel = Rel::new(node, &packet.org);
             let mut through = 0u32;
+            if lanes.count_ones() >= BOX_MAJOR_LANES {
+                through = packet.hit_boxes_lanes(&rel, lanes & !packet.parallel);
+                lanes &= packet.parallel;
+            }
             while lanes != 0 {
                 let lane = lanes.trailing_zeros();
                 lanes &= lanes - 1;
@@ -428,6 +480,58 @@ mod tests {
         v.extend(r.k.map(|k| k as u32));
         v.extend(r.shear.to_array().map(f32::to_bits));
         v
+    }
+
+    /// The box-major test gives every lane its own ray-by-ray verdict, on
+    /// boxes around, through, behind and beyond the origin, flat ones,
+    /// empty slots (the point at +∞), and directions with tiny, huge and
+    /// negative components.
+    #[test]
+    fn box_major_is_ray_by_ray() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32
+        };
+        let mut unit = || next() as f32 / u32::MAX as f32 - 0.5;
+        let mut packet = Packet::empty();
+        let mut passes = 0;
+        for round in 0..20_000 {
+            let origin = Vec3::new(unit(), unit(), unit()) * 4.0;
+            let dirs: Vec<Vec3> = (0..PACKET)
+                .map(|i| {
+                    let scale = [1.0, 1e-30, 1e30, 3.0][(round + i) % 4];
+                    Vec3::new(unit(), unit(), unit()) * scale + Vec3::splat(1e-3)
+                })
+                .collect();
+            packet.load(origin, &dirs, 0.999_999);
+            let mut node = Node::EMPTY;
+            for slot in 0..(1 + round % 4) {
+                for axis in 0..3 {
+                    let (a, b) = (unit() * 6.0, unit() * 6.0);
+                    let flat = round % 7 == 0;
+                    node.lo[axis][slot] = a.min(b);
+                    node.hi[axis][slot] = if flat { a.min(b) } else { a.max(b) };
+                }
+                node.count[slot] = 1;
+            }
+            let rel = Rel::new(&node, &packet.org);
+            let lanes = packet.valid & !packet.parallel;
+            let major = packet.hit_boxes_lanes(&rel, lanes);
+            let mut by_ray = 0u32;
+            for lane in 0..PACKET {
+                if lanes >> lane & 1 == 1 {
+                    let m = packet.rays[lane].hit_boxes_rel(&node, &rel);
+                    by_ray |= ((m * 0x0020_4081) & 0x0101_0101) << lane;
+                }
+            }
+            assert_eq!(major, by_ray, "round {round}: {dirs:?} from {origin:?}");
+            passes += major.count_ones();
+        }
+        // Both verdicts occur often: the test is not vacuous.
+        assert!(passes > 20_000, "{passes}");
     }
 
     /// Each lane of a loaded packet holds exactly `Ray::new`'s constants,
