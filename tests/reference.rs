@@ -582,6 +582,7 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
     let mut leaves = Vec::new();
     let (mut rays, mut hits, mut mismatches) = (0usize, 0usize, Vec::new());
     for bundle in 0..3000 {
+        let mut tangent = None;
         let o = if bundle % 3 == 0 {
             // A point on a triangle, offset along its normal by the
             // reference's rule.
@@ -597,6 +598,7 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
             let p = a + (b - a) * u + (c - a) * v;
             let n = (b - a).cross(c - a).normalize_or_zero();
             let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
+            tangent = Some(n);
             p + n * eps
         } else {
             lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
@@ -618,7 +620,12 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
             })
             .collect();
         let t_max = (1.0 - 1e-6) as f32;
-        let hull = SegmentHull::new(o, &dirs, Some((center, u, v))).expect("usable bundle");
+        let mut hull = SegmentHull::new(o, &dirs, Some((center, u, v))).expect("usable bundle");
+        // On-surface bundles also get the receiver's tangent plane, as the
+        // reference adds it.
+        if let Some(n) = tangent {
+            hull.add_tangent_plane(n, &dirs);
+        }
         for limit in [1, 4, 1_000_000] {
             let mut out = vec![true; n];
             bvh.occluded_hull(&hull, &dirs, t_max, &mut out, &mut leaves, limit);

@@ -68,8 +68,9 @@ fn dominant_axes(lo: Vec3, hi: Vec3) -> u32 {
 /// five times the rounding bound of the module docs.
 const HULL_MARGIN: f32 = 1e-5;
 
-/// Most bounding planes: four sides and the cap.
-const MAX_PLANES: usize = 5;
+/// Most bounding planes: four sides, the cap and the receiver's tangent
+/// plane.
+const MAX_PLANES: usize = 6;
 
 /// The convex region holding every shadow segment of one receiver: the
 /// box of the origin and the sample points, and for a rect light the
@@ -183,6 +184,33 @@ impl SegmentHull {
         // The cap: the side of the light's plane the origin is on.
         let cap = if height > 0.0 { -n } else { n };
         self.push_plane(cap, cap.dot(c - o) + slack);
+    }
+
+    /// Adds the plane through the origin with normal `n` (the receiver's
+    /// geometric normal) when every direction points strictly to its
+    /// positive side: the segments `o + t d`, `t > 0`, then lie on that
+    /// side, and the receiver's own surface, through `o − ε n`, lies on the
+    /// other, so its triangles around the receiver (a facet of a convex
+    /// object facing the light, and its neighbours curving away) are
+    /// culled with the usual margin. `n · d` is decided in f64 from the
+    /// f32 values (the products are exact, the two sums round by at most
+    /// 2⁻⁵² relative), against a threshold far above that rounding; the
+    /// plane is `n` itself, as stored, so no tilt enters the margin
+    /// argument. Nothing is added when a direction fails, or `n` is zero
+    /// or not finite.
+    pub fn add_tangent_plane(&mut self, n: Vec3, dirs: &[Vec3]) {
+        if !n.is_finite() || n == Vec3::ZERO || dirs.is_empty() {
+            return;
+        }
+        let nd = n.as_dvec3();
+        let facing = dirs.iter().all(|d| {
+            let d = d.as_dvec3();
+            nd.dot(d) > 1e-12 * nd.abs().dot(d.abs())
+        });
+        if facing {
+            // `−n · (p − o) ≤ 0` on every segment.
+            self.push_plane(-nd, 0.0);
+        }
     }
 
     fn push_plane(&mut self, normal: DVec3, offset: f64) {

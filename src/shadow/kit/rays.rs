@@ -345,7 +345,13 @@ impl<'a> ShadowTracer<'a> {
         );
         occluded.resize(dirs.len(), false);
         let hull = if self.hull_limit > 0 {
-            SegmentHull::new(origin, &dirs, rect)
+            SegmentHull::new(origin, &dirs, rect).map(|mut hull| {
+                // The receiver's own surface is behind its tangent plane:
+                // culls its facet and the neighbours curving away
+                // (callgrind: −6 % instructions on spheres and bunny).
+                hull.add_tangent_plane(g.geo_normal, &dirs);
+                hull
+            })
         } else {
             None
         };
