@@ -246,18 +246,19 @@ impl LightSampler {
         let points = pattern.pixel_points(pixel);
         match *self {
             LightSampler::Rect { center, u, v, area } => {
-                out.extend((0..n).map(|k| {
-                    let (s, t) = points.point(k);
-                    LightSample {
+                out.reserve(n as usize);
+                points.for_each(n, |(s, t)| {
+                    out.push(LightSample {
                         x: (center + u * (2.0 * s - 1.0) + v * (1.0 - 2.0 * t)).as_vec3(),
                         st: Vec2::new(s as f32, t as f32),
                         inv_pdf_area: area,
-                    }
-                }));
+                    })
+                });
             }
             LightSampler::Sphere { center, radius } => {
                 if let Some(cone) = Cone::new(center, radius, p.as_dvec3()) {
-                    out.extend((0..n).map(|k| cone.sample(points.point(k))));
+                    out.reserve(n as usize);
+                    points.for_each(n, |p| out.push(cone.sample(p)));
                 }
             }
         }

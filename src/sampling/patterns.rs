@@ -704,7 +704,8 @@ impl PatternSampler {
     pub fn unit_points(&self, pixel: (u32, u32), out: &mut Vec<(f64, f64)>) {
         out.clear();
         let pts = self.pixel_points(pixel);
-        out.extend((0..self.n).map(|k| pts.point(k)));
+        out.reserve(self.n as usize);
+        pts.for_each(self.n, |p| out.push(p));
     }
 }
 

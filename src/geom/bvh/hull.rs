@@ -105,12 +105,18 @@ impl SegmentHull {
         }
         // A NaN direction drops out of the min/max (it hits nothing); an
         // infinite one makes the box infinite, which culls nothing.
-        let mut lo = Vec3::INFINITY;
-        let mut hi = Vec3::NEG_INFINITY;
-        for &d in dirs {
-            lo = lo.min(d);
-            hi = hi.max(d);
+        // Compare-and-select (one `minss` / `maxss` each, which keep the
+        // running bound when `d` is NaN) rather than `f32::min`'s NaN
+        // handling: 2 % of the reference's instructions went here.
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for d in dirs {
+            for axis in 0..3 {
+                let c = d[axis];
+                lo[axis] = if c < lo[axis] { c } else { lo[axis] };
+                hi[axis] = if c > hi[axis] { c } else { hi[axis] };
+            }
         }
+        let (lo, hi) = (Vec3::from_array(lo), Vec3::from_array(hi));
         if !(lo.is_finite() && hi.is_finite()) {
             return None;
         }

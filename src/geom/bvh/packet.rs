@@ -125,38 +125,37 @@ impl Packet {
         self.t_max8 = f32x8::splat(t_max);
         self.parallel = (parallel[0] | parallel[1] | parallel[2]) & valid;
         let woop = Woop::new(&d, valid);
+        // Each lane's axes: `k = 0` where "is 0", else 1 where "is 1",
+        // else 2 (`Ray::new`'s rule, as `Woop::new` evaluated it), or the
+        // uniform axes every valid lane shares (the usual case).
         let picks = woop
             .pick
             .map(|[is0, is1]| [is0.move_mask(), is1.move_mask()]);
         let shear = woop.shear.map(f32x8::to_array);
+        let any_parallel = parallel[0] | parallel[1] | parallel[2];
         let mut lanes = valid;
         while lanes != 0 {
             let lane = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
-            let axis_of = |k: usize| {
-                let [is0, is1] = picks[k];
-                if is0 >> lane & 1 == 1 {
-                    0
-                } else if is1 >> lane & 1 == 1 {
-                    1
-                } else {
-                    2
-                }
+            let k = match woop.uniform {
+                Some(axes) => axes,
+                None => picks.map(|[is0, is1]| {
+                    let (b0, b1) = ((is0 >> lane) & 1, (is1 >> lane) & 1);
+                    (2 - 2 * b0 - (b1 & !b0 & 1)) as usize
+                }),
             };
-            let par = [0, 1, 2].map(|axis| parallel[axis] >> lane & 1 == 1);
-            self.rays[lane] = Ray {
-                origin,
-                t_max,
-                inv: [
-                    f32x4::splat(inv[0][lane]),
-                    f32x4::splat(inv[1][lane]),
-                    f32x4::splat(inv[2][lane]),
-                ],
-                parallel: par,
-                any_parallel: par[0] || par[1] || par[2],
-                k: [axis_of(0), axis_of(1), axis_of(2)],
-                shear: Vec3::new(shear[0][lane], shear[1][lane], shear[2][lane]),
-            };
+            let ray = &mut self.rays[lane];
+            ray.origin = origin;
+            ray.t_max = t_max;
+            ray.inv = [
+                f32x4::splat(inv[0][lane]),
+                f32x4::splat(inv[1][lane]),
+                f32x4::splat(inv[2][lane]),
+            ];
+            ray.parallel = [0, 1, 2].map(|axis| (parallel[axis] >> lane) & 1 == 1);
+            ray.any_parallel = (any_parallel >> lane) & 1 == 1;
+            ray.k = k;
+            ray.shear = Vec3::new(shear[0][lane], shear[1][lane], shear[2][lane]);
         }
         self.origin = origin;
         self.valid = valid;
