@@ -1197,3 +1197,46 @@ fn technique_is_wired_into_the_renderer() {
     assert_eq!(names[0], "reference bvh");
     assert!(names[1].starts_with("reference light 0 ("), "{names:?}");
 }
+
+/// The reference traces a receiver's samples in packets of 4 × 2
+/// neighbouring strata, not in sample order: each sample's value in the
+/// bundle is still that sample's own, traced alone, on penumbra pixels of
+/// spheres.toml at 64 and 256 samples (and 48, which keeps sample order).
+#[test]
+fn bundle_order_keeps_each_sample_its_own_value() {
+    let scene = shipped("spheres.toml");
+    let frame = Frame::new(&scene, 40, 30);
+    let tracer = ShadowTracer::new(&scene, &frame.geometry);
+    let light = &scene.lights[0];
+    let (mut lit, mut dark, mut checked) = (0usize, 0usize, 0usize);
+    for n in [64u32, 256, 48] {
+        for (i, g) in frame.gbuffer.samples().enumerate().step_by(5) {
+            if !g.is_surface() {
+                continue;
+            }
+            let pixel = ((i % 40) as u32, (i / 40) as u32);
+            let samples = light_samples(light, 0, g.position, pixel, n, 11);
+            let mut bundle = vec![0.0f32; samples.len()];
+            tracer.sample_visibility(&g, &samples, &mut bundle);
+            let (l, d) = (
+                bundle.iter().filter(|&&v| v == 1.0).count(),
+                bundle.iter().filter(|&&v| v == 0.0).count(),
+            );
+            if l == 0 || d == 0 {
+                continue; // not in a penumbra: the order cannot show
+            }
+            for (k, s) in samples.iter().enumerate() {
+                let mut alone = [0.0f32];
+                tracer.sample_visibility(&g, std::slice::from_ref(s), &mut alone);
+                assert_eq!(bundle[k], alone[0], "n {n} pixel {pixel:?} sample {k}");
+            }
+            lit += l;
+            dark += d;
+            checked += 1;
+        }
+    }
+    assert!(
+        checked >= 10 && lit > 100 && dark > 100,
+        "{checked} receivers, {lit} lit, {dark} dark"
+    );
+}

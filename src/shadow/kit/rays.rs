@@ -132,6 +132,35 @@ struct Scratch {
     occluded: Vec<bool>,
     /// One receiver's candidate leaves ([`Bvh::hull_leaves`]).
     leaves: Vec<(u32, u32)>,
+    /// The order samples are traced in ([`packet_order`]), for `order.len()`
+    /// samples.
+    order: Vec<u32>,
+}
+
+/// The order in which `n` samples are traced: when they come from an
+/// `a × b` strata grid (`Strata::new(n)`) with `a` a multiple of 4 and `b`
+/// of 2, blocks of 4 × 2 neighbouring strata, so each packet of eight rays
+/// covers a compact patch of the light rather than a thin row of it;
+/// otherwise sample order. Any order gives the same answers (each ray's
+/// result is its own); this only makes packets more coherent (callgrind,
+/// 64 samples: spheres −3.4 %, bunny −0.6 %; 256: −3.8 %, −1.7 %).
+fn packet_order(n: usize, out: &mut Vec<u32>) {
+    out.clear();
+    let strata = crate::sampling::Strata::new(n as u32);
+    let (a, b) = (strata.a as usize, strata.b as usize);
+    if a * b == n && a % 4 == 0 && b % 2 == 0 {
+        for j0 in (0..b).step_by(2) {
+            for i0 in (0..a).step_by(4) {
+                for dj in 0..2 {
+                    for di in 0..4 {
+                        out.push(((j0 + dj) * a + i0 + di) as u32);
+                    }
+                }
+            }
+        }
+    } else {
+        out.extend(0..n as u32);
+    }
 }
 
 impl<'a> ShadowTracer<'a> {
@@ -337,11 +366,15 @@ impl<'a> ShadowTracer<'a> {
         let t_max = (1.0 - END_SHORTEN) as f32;
         let mut dirs = std::mem::take(&mut scratch.dirs);
         let mut occluded = std::mem::take(&mut scratch.occluded);
+        let mut order = std::mem::take(&mut scratch.order);
+        if order.len() != samples.len() {
+            packet_order(samples.len(), &mut order);
+        }
         dirs.clear();
         dirs.extend(
-            samples
+            order
                 .iter()
-                .map(|s| (s.x.as_dvec3() - origin.as_dvec3()).as_vec3()),
+                .map(|&k| (samples[k as usize].x.as_dvec3() - origin.as_dvec3()).as_vec3()),
         );
         occluded.resize(dirs.len(), false);
         let hull = if self.hull_limit > 0 {
@@ -370,20 +403,22 @@ impl<'a> ShadowTracer<'a> {
         }
         let mut rays = 0;
         let walk = self.translucent.triangle_count() > 0;
-        for (&dir, &blocked) in dirs.iter().zip(&occluded) {
-            if blocked {
-                out.push(0.0);
+        out.resize(samples.len(), 0.0);
+        for ((&dir, &blocked), &k) in dirs.iter().zip(&occluded).zip(&order) {
+            out[k as usize] = if blocked {
                 rays += 1;
+                0.0
             } else if !walk {
-                out.push(1.0);
                 rays += 1;
+                1.0
             } else {
-                out.push(self.walk(origin, dir, t_max, scratch));
                 rays += 2;
-            }
+                self.walk(origin, dir, t_max, scratch)
+            };
         }
         scratch.dirs = dirs;
         scratch.occluded = occluded;
+        scratch.order = order;
         rays
     }
 
