@@ -620,12 +620,10 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
             })
             .collect();
         let t_max = (1.0 - 1e-6) as f32;
-        let mut hull = SegmentHull::new(o, &dirs, Some((center, u, v))).expect("usable bundle");
         // On-surface bundles also get the receiver's tangent plane, as the
-        // reference adds it.
-        if let Some(n) = tangent {
-            hull.add_tangent_plane(n, &dirs);
-        }
+        // reference gives it.
+        let hull =
+            SegmentHull::new(o, &dirs, Some((center, u, v)), tangent).expect("usable bundle");
         for limit in [1, 4, 1_000_000] {
             let mut out = vec![true; n];
             bvh.occluded_hull(&hull, &dirs, t_max, &mut out, &mut leaves, limit);
@@ -1239,4 +1237,37 @@ fn bundle_order_keeps_each_sample_its_own_value() {
         checked >= 10 && lit > 100 && dark > 100,
         "{checked} receivers, {lit} lit, {dark} dark"
     );
+}
+
+/// `Strata::block_order` is a permutation of the samples whose runs of
+/// `w h` are `w × h` blocks of neighbouring strata, and sample order when
+/// the block does not divide the grid.
+#[test]
+fn strata_block_order_is_a_permutation_of_compact_blocks() {
+    let mut order = Vec::new();
+    for (n, w, h) in [
+        (64u32, 4u32, 2u32),
+        (256, 4, 2),
+        (256, 2, 4),
+        (48, 4, 2),
+        (7, 4, 2),
+    ] {
+        let strata = Strata::new(n);
+        strata.block_order(w, h, &mut order);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..n).collect::<Vec<_>>(), "n {n}");
+        if !strata.a.is_multiple_of(w) || !strata.b.is_multiple_of(h) {
+            assert_eq!(order, sorted, "n {n}: sample order");
+            continue;
+        }
+        for block in order.chunks(w as usize * h as usize) {
+            let cells: Vec<_> = block.iter().map(|&k| strata.cell(k)).collect();
+            let (i0, j0) = cells[0];
+            assert!(
+                cells.iter().all(|&(i, j)| i - i0 < w && j - j0 < h),
+                "n {n}: {cells:?}"
+            );
+        }
+    }
 }

@@ -154,6 +154,26 @@ impl Strata {
         (k % self.a, k / self.a)
     }
 
+    /// The samples `k` in blocks of `w × h` neighbouring strata (blocks
+    /// row by row, each block row by row), into `out` (cleared first): the
+    /// inverse of [`Strata::cell`] walked block-wise. Sample order when
+    /// `w` does not divide `a` or `h` does not divide `b`.
+    pub fn block_order(&self, w: u32, h: u32, out: &mut Vec<u32>) {
+        out.clear();
+        let (a, b) = (self.a, self.b);
+        if w == 0 || h == 0 || !a.is_multiple_of(w) || !b.is_multiple_of(h) {
+            out.extend(0..self.count());
+            return;
+        }
+        for j0 in (0..b).step_by(h as usize) {
+            for i0 in (0..a).step_by(w as usize) {
+                for j in j0..j0 + h {
+                    out.extend((i0..i0 + w).map(|i| j * a + i));
+                }
+            }
+        }
+    }
+
     /// The jittered point `(s, t) ∈ [0, 1)²` of sample `k` under `key`.
     #[inline]
     pub fn point(&self, key: u64, k: u32) -> (f64, f64) {

@@ -97,9 +97,27 @@ impl SegmentHull {
     /// The region of the segments `origin + t · dirs[i]`, `t ∈ (0, 1)`
     /// (the rays exactly as they are traced), bounded more tightly by the
     /// pyramid over `rect` when the samples lie in the parallelogram
-    /// `center ± u ± v` (up to the rounding of their f32 positions).
+    /// `center ± u ± v` (up to the rounding of their f32 positions), and
+    /// by the receiver's tangent plane when `normal` (its geometric
+    /// normal) is given and every direction faces it (see below).
     /// `None` when no direction is usable or the origin is not finite.
-    pub fn new(origin: Vec3, dirs: &[Vec3], rect: Option<(Vec3, Vec3, Vec3)>) -> Option<Self> {
+    ///
+    /// The tangent plane: when every `d` has `n · d > 0`, the segments lie
+    /// on the positive side of the plane through `o` with normal `n`, and
+    /// the receiver's own surface, through `o − ε n`, on the other, so its
+    /// triangles around the receiver (a facet of a convex object facing the
+    /// light, and its neighbours curving away) are culled with the usual
+    /// margin. `n · d` is decided in f64 from the f32 values (the products
+    /// are exact, the two sums round by at most 2⁻⁵² relative), against a
+    /// threshold far above that rounding; the plane is `n` itself, as
+    /// stored, so no tilt enters the margin argument. No plane when a
+    /// direction fails, or `n` is zero or not finite.
+    pub fn new(
+        origin: Vec3,
+        dirs: &[Vec3],
+        rect: Option<(Vec3, Vec3, Vec3)>,
+        normal: Option<Vec3>,
+    ) -> Option<Self> {
         if !origin.is_finite() {
             return None;
         }
@@ -109,11 +127,19 @@ impl SegmentHull {
         // running bound when `d` is NaN) rather than `f32::min`'s NaN
         // handling: 2 % of the reference's instructions went here.
         let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        let tangent = normal
+            .filter(|n| n.is_finite() && *n != Vec3::ZERO && !dirs.is_empty())
+            .map(|n| n.as_dvec3());
+        let mut facing = tangent.is_some();
         for d in dirs {
             for axis in 0..3 {
                 let c = d[axis];
                 lo[axis] = if c < lo[axis] { c } else { lo[axis] };
                 hi[axis] = if c > hi[axis] { c } else { hi[axis] };
+            }
+            if let (Some(n), true) = (tangent, facing) {
+                let d = d.as_dvec3();
+                facing = n.dot(d) > 1e-12 * n.abs().dot(d.abs());
             }
         }
         let (lo, hi) = (Vec3::from_array(lo), Vec3::from_array(hi));
@@ -145,6 +171,10 @@ impl SegmentHull {
                 u.as_dvec3(),
                 v.as_dvec3(),
             );
+        }
+        if let (Some(n), true) = (tangent, facing) {
+            // `−n · (p − o) ≤ 0` on every segment.
+            hull.push_plane(-n, 0.0);
         }
         Some(hull)
     }
@@ -190,33 +220,6 @@ impl SegmentHull {
         // The cap: the side of the light's plane the origin is on.
         let cap = if height > 0.0 { -n } else { n };
         self.push_plane(cap, cap.dot(c - o) + slack);
-    }
-
-    /// Adds the plane through the origin with normal `n` (the receiver's
-    /// geometric normal) when every direction points strictly to its
-    /// positive side: the segments `o + t d`, `t > 0`, then lie on that
-    /// side, and the receiver's own surface, through `o − ε n`, lies on the
-    /// other, so its triangles around the receiver (a facet of a convex
-    /// object facing the light, and its neighbours curving away) are
-    /// culled with the usual margin. `n · d` is decided in f64 from the
-    /// f32 values (the products are exact, the two sums round by at most
-    /// 2⁻⁵² relative), against a threshold far above that rounding; the
-    /// plane is `n` itself, as stored, so no tilt enters the margin
-    /// argument. Nothing is added when a direction fails, or `n` is zero
-    /// or not finite.
-    pub fn add_tangent_plane(&mut self, n: Vec3, dirs: &[Vec3]) {
-        if !n.is_finite() || n == Vec3::ZERO || dirs.is_empty() {
-            return;
-        }
-        let nd = n.as_dvec3();
-        let facing = dirs.iter().all(|d| {
-            let d = d.as_dvec3();
-            nd.dot(d) > 1e-12 * nd.abs().dot(d.abs())
-        });
-        if facing {
-            // `−n · (p − o) ≤ 0` on every segment.
-            self.push_plane(-nd, 0.0);
-        }
     }
 
     fn push_plane(&mut self, normal: DVec3, offset: f64) {

@@ -125,9 +125,9 @@ impl Packet {
         self.t_max8 = f32x8::splat(t_max);
         self.parallel = (parallel[0] | parallel[1] | parallel[2]) & valid;
         let woop = Woop::new(&d, valid);
-        // Each lane's axes: `k = 0` where "is 0", else 1 where "is 1",
-        // else 2 (`Ray::new`'s rule, as `Woop::new` evaluated it), or the
-        // uniform axes every valid lane shares (the usual case).
+        // Each lane's axes as `Woop::new` evaluated `Ray::new`'s rule: the
+        // uniform axes every valid lane shares (the usual case), else per
+        // lane 0 where "is 0", 1 where "is 1", 2 otherwise.
         let picks = woop
             .pick
             .map(|[is0, is1]| [is0.move_mask(), is1.move_mask()]);
@@ -140,8 +140,13 @@ impl Packet {
             let k = match woop.uniform {
                 Some(axes) => axes,
                 None => picks.map(|[is0, is1]| {
-                    let (b0, b1) = ((is0 >> lane) & 1, (is1 >> lane) & 1);
-                    (2 - 2 * b0 - (b1 & !b0 & 1)) as usize
+                    if (is0 >> lane) & 1 == 1 {
+                        0
+                    } else if (is1 >> lane) & 1 == 1 {
+                        1
+                    } else {
+                        2
+                    }
                 }),
             };
             let ray = &mut self.rays[lane];
