@@ -7,7 +7,10 @@
 //! child boxes (`Ray::hit_boxes_rel`, the bounds minus the shared origin
 //! computed once), and a leaf is tested lane by lane with the single-ray
 //! triangle test when few lanes reach it, else against all eight in
-//! `f32x8` / `f64x4` lanes.
+//! `f32x8` / `f64x4` lanes. A node's inner children are entered nearest
+//! first, by their box centres along the sum of the packet's directions:
+//! an occluded lane tends to meet its occluder sooner (callgrind, light
+//! pass at 256², 64 samples: spheres −3.1 %, bunny −3.3 %).
 //!
 //! **Same answer as one ray at a time, bit for bit.** Every lane performs
 //! exactly the arithmetic [`Bvh::occluded`] performs for that ray: the
@@ -69,6 +72,9 @@ pub(super) struct Packet {
     /// Valid lanes with a zero direction component (`Ray::any_parallel`):
     /// they always take the ray-by-ray test.
     parallel: u32,
+    /// The sum of the valid lanes' directions, splatted per axis: the
+    /// walk enters the children nearest the origin along it first.
+    mean: [f32x4; 3],
 }
 
 impl Packet {
@@ -86,6 +92,7 @@ impl Packet {
             inv: [f32x8::ZERO; 3],
             t_max8: f32x8::ZERO,
             parallel: 0,
+            mean: [f32x4::ZERO; 3],
         }
     }
 
@@ -162,6 +169,16 @@ impl Packet {
             ray.k = k;
             ray.shear = Vec3::new(shear[0][lane], shear[1][lane], shear[2][lane]);
         }
+        let mut mean = [0.0f32; 3];
+        let mut lanes = valid;
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            for axis in 0..3 {
+                mean[axis] += d[axis][lane];
+            }
+        }
+        self.mean = mean.map(f32x4::splat);
         self.origin = origin;
         self.valid = valid;
         self.t_max = t_max;
@@ -384,6 +401,12 @@ impl Bvh {
                 // Bit `s` of the 4-bit `m` to bit `8 s`.
                 through |= ((m * 0x0020_4081) & 0x0101_0101) << lane;
             }
+            let mut inner = [(0u32, 0u32, 0.0f32); 4];
+            let mut n_inner = 0;
+            let keys = ((rel.lo[0] + rel.hi[0]) * packet.mean[0]
+                + (rel.lo[1] + rel.hi[1]) * packet.mean[1]
+                + (rel.lo[2] + rel.hi[2]) * packet.mean[2])
+                .to_array();
             while through != 0 {
                 let slot = (through.trailing_zeros() / 8) as usize;
                 let pass = (through >> (8 * slot)) & ALL & !hit;
@@ -393,18 +416,30 @@ impl Bvh {
                 }
                 let count = node.count[slot] as usize;
                 if count == 0 {
-                    // Cannot overflow (see `STACK`); the check only keeps
-                    // the index provably in bounds.
-                    if top < STACK {
-                        stack[top] = (node.child[slot], pass);
-                        top += 1;
+                    // Insertion by key, farthest first: the nearest is
+                    // pushed last and popped first.
+                    let key = keys[slot];
+                    let mut i = n_inner;
+                    while i > 0 && inner[i - 1].2 < key {
+                        inner[i] = inner[i - 1];
+                        i -= 1;
                     }
+                    inner[i] = (node.child[slot], pass, key);
+                    n_inner += 1;
                     continue;
                 }
                 let found = self.triangle_hits(packet, node, slot, pass);
                 if found != 0 {
                     hit |= found;
                     *last = Some((index, slot));
+                }
+            }
+            for &(child, pass, _) in &inner[..n_inner] {
+                // Cannot overflow (see `STACK`); the check only keeps the
+                // index provably in bounds.
+                if top < STACK {
+                    stack[top] = (child, pass);
+                    top += 1;
                 }
             }
             if hit == packet.valid & ALL {
