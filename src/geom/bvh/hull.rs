@@ -372,7 +372,8 @@ impl Bvh {
     /// (built from the same origin and the samples the directions point
     /// at): the same answers, bit for bit (module docs), by testing only
     /// the leaves [`Bvh::hull_leaves`] keeps, or by the whole walk when
-    /// more than `limit` are kept. `leaves` is scratch space.
+    /// more than `limit` are kept. `leaves` is scratch space. Returns
+    /// false when the rays took the whole walk.
     pub fn occluded_hull(
         &self,
         hull: &SegmentHull,
@@ -381,17 +382,17 @@ impl Bvh {
         out: &mut [bool],
         leaves: &mut Vec<(u32, u32)>,
         limit: usize,
-    ) {
+    ) -> bool {
         out.fill(false);
         if self.nodes.is_empty() || !(t_max > 0.0) {
-            return;
+            return true;
         }
         if !self.hull_leaves(hull, leaves, limit) {
             self.occluded_bundle(hull.origin, dirs, t_max, out);
-            return;
+            return false;
         }
         if leaves.is_empty() {
-            return;
+            return true;
         }
         let mut packet = Packet::empty();
         for (chunk, res) in dirs
@@ -423,5 +424,6 @@ impl Bvh {
                 *r = hit >> lane & 1 == 1;
             }
         }
+        true
     }
 }
