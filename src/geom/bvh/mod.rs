@@ -535,6 +535,24 @@ impl Rel {
     }
 }
 
+impl Rel {
+    /// The near and far bounds per axis for rays whose direction is
+    /// positive along the axes where `positive` is set and negative along
+    /// the others (see [`Ray::hit_boxes_signed`]).
+    #[inline(always)]
+    fn signed(&self, positive: [bool; 3]) -> ([&f32x4; 3], [&f32x4; 3]) {
+        let pick = |axis: usize| {
+            if positive[axis] {
+                (&self.lo[axis], &self.hi[axis])
+            } else {
+                (&self.hi[axis], &self.lo[axis])
+            }
+        };
+        let [(n0, f0), (n1, f1), (n2, f2)] = [pick(0), pick(1), pick(2)];
+        ([n0, n1, n2], [f0, f1, f2])
+    }
+}
+
 /// `v` splatted per axis.
 #[inline(always)]
 fn splat3(v: Vec3) -> [f32x4; 3] {
@@ -614,6 +632,29 @@ impl Ray {
     #[inline]
     fn hit_boxes(&self, node: &Node) -> u32 {
         self.hit_boxes_rel(node, &Rel::new(node, &splat3(self.origin)))
+    }
+
+    /// [`Ray::hit_boxes_rel`]'s verdicts for a ray with no zero direction
+    /// component, given the bounds [`Rel::signed`] picks for the ray's
+    /// direction signs: the slab's entry distance is the near bound's
+    /// product, its exit the far bound's, so the min / max per axis fall
+    /// away. The same verdicts bit for bit: the slab inverse has the
+    /// direction's sign and is never zero, and `lo ≤ hi` (or both +∞, an
+    /// empty slot), so the rounded products are ordered as the bounds are
+    /// and `min(t0, t1)` is the near one's value; where the two are equal
+    /// only a zero's sign may differ, which neither `max`, `min` nor the
+    /// final `≤` sees. A slot whose box is inverted (`lo > hi`: only from
+    /// triangles with NaN corners, which no ray hits) may be rejected
+    /// where the general test passes it, which changes no answer.
+    #[inline(always)]
+    fn hit_boxes_signed(&self, near: [&f32x4; 3], far: [&f32x4; 3]) -> u32 {
+        let mut n = f32x4::splat(0.0);
+        let mut f = f32x4::splat(self.t_max);
+        for axis in 0..3 {
+            n = n.max(*near[axis] * self.inv[axis]);
+            f = f.min(*far[axis] * self.inv[axis]);
+        }
+        n.cmp_le(f * f32x4::splat(FAR_SCALE)).move_mask()
     }
 
     /// [`Ray::hit_boxes`] given the node's bounds relative to the ray's
