@@ -518,11 +518,21 @@ impl PixelPoints<'_> {
         match *self {
             PixelPoints::Jittered { strata, key } if strata.count() == n && n > 0 => {
                 let (a, b) = (f64::from(strata.a), f64::from(strata.b));
+                // Dividing by a power of two is multiplying by its exact
+                // inverse (the quotients here are far from subnormal): the
+                // same bits without two divisions per sample (4, 16, 64,
+                // 256, 1024 samples have power-of-two grids).
+                let scale = |x: f64, d: f64, exact: bool| if exact { x * (1.0 / d) } else { x / d };
+                let (exact_a, exact_b) = (strata.a.is_power_of_two(), strata.b.is_power_of_two());
                 let mut k = 0;
                 for j in 0..strata.b {
+                    let t_row = f64::from(j);
                     for i in 0..strata.a {
                         let (xi, xi2) = super::uniform_pair(key, k);
-                        f(((f64::from(i) + xi) / a, (f64::from(j) + xi2) / b));
+                        f((
+                            scale(f64::from(i) + xi, a, exact_a),
+                            scale(t_row + xi2, b, exact_b),
+                        ));
                         k += 1;
                     }
                 }
@@ -822,7 +832,7 @@ mod for_each_tests {
             "grid",
         ] {
             let pattern = SamplePattern::parse(pattern).unwrap();
-            for n in [1, 7, 16, 64, 100] {
+            for n in [1, 7, 12, 16, 32, 64, 100, 256] {
                 let sampler = PatternSampler::new(pattern, n, 9, 1);
                 for pixel in [(0, 0), (5, 3), (1000, 77)] {
                     let pts = sampler.pixel_points(pixel);
