@@ -27,6 +27,7 @@
 
 #![allow(non_camel_case_types)]
 
+pub mod avx;
 pub mod scalar;
 #[cfg(test)]
 mod tests;

@@ -84,6 +84,9 @@ pub(super) struct Packet {
     /// all agree with it, which take `Ray::hit_boxes_signed`.
     signs: [bool; 3],
     signed: u32,
+    /// Whether the CPU has AVX (`simd::avx::available`): the box-major
+    /// test then runs in AVX registers.
+    avx: bool,
 }
 
 impl Packet {
@@ -104,6 +107,7 @@ impl Packet {
             mean: [f32x4::ZERO; 3],
             signs: [true; 3],
             signed: 0,
+            avx: crate::simd::avx::available(),
         }
     }
 
@@ -326,6 +330,47 @@ impl Packet {
         through
     }
 
+    /// [`Packet::hit_boxes_lanes_signed`] in AVX registers: the same
+    /// operations in the same order on the same values (each `F32x8`
+    /// operation is its facade namesake's, `simd::avx`), so the same bits;
+    /// `tests` holds the two equal.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn hit_boxes_lanes_signed_avx(&self, rel: &Rel, lanes: u32) -> u32 {
+        use crate::simd::avx::F32x8;
+        let (near_rel, far_rel) = rel.signed(self.signs);
+        let near_rel = near_rel.map(|v| v.to_array());
+        let far_rel = far_rel.map(|v| v.to_array());
+        let inv = [0, 1, 2].map(|axis| F32x8::from_lanes(self.inv[axis]));
+        let t_max = F32x8::from_lanes(self.t_max8);
+        let scale = F32x8::splat(FAR_SCALE);
+        let mut through = 0u32;
+        for slot in 0..4 {
+            let mut near = F32x8::splat(0.0);
+            let mut far = t_max;
+            for axis in 0..3 {
+                near = near.max(F32x8::splat(near_rel[axis][slot]).mul(inv[axis]));
+                far = far.min(F32x8::splat(far_rel[axis][slot]).mul(inv[axis]));
+            }
+            through |= (near.le_mask(far.mul(scale)) & lanes) << (8 * slot);
+        }
+        through
+    }
+
+    /// [`Packet::hit_boxes_lanes_signed`], in AVX registers when the CPU
+    /// has AVX (same bits either way).
+    #[inline]
+    fn hit_boxes_signed_best(&self, rel: &Rel, lanes: u32) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only when `simd::avx::available()`
+            // found AVX on this CPU, the one requirement of the
+            // `target_feature` function.
+            return unsafe { self.hit_boxes_lanes_signed_avx(rel, lanes) };
+        }
+        self.hit_boxes_lanes_signed(rel, lanes)
+    }
+
     /// Lanes that `Ray::intersect` would find hitting `tri`.
     #[inline]
     fn hit_triangle(&self, tri: &[Vec3; 3]) -> u32 {
@@ -441,7 +486,7 @@ impl Bvh {
             if lanes.count_ones() >= BOX_MAJOR_LANES {
                 let major = lanes & !packet.parallel;
                 through = if major & !packet.signed == 0 {
-                    packet.hit_boxes_lanes_signed(&rel, major)
+                    packet.hit_boxes_signed_best(&rel, major)
                 } else {
                     packet.hit_boxes_lanes(&rel, major)
                 };
@@ -715,11 +760,18 @@ mod tests {
                 }
             }
             if packet.signed != 0 {
+                let signed = packet.hit_boxes_lanes_signed(&rel, packet.signed);
                 assert_eq!(
-                    packet.hit_boxes_lanes_signed(&rel, packet.signed),
+                    signed,
                     packet.hit_boxes_lanes(&rel, packet.signed),
                     "round {round}"
                 );
+                #[cfg(target_arch = "x86_64")]
+                if crate::simd::avx::available() {
+                    // SAFETY: AVX is available (checked on the line above).
+                    let avx = unsafe { packet.hit_boxes_lanes_signed_avx(&rel, packet.signed) };
+                    assert_eq!(avx, signed, "round {round}");
+                }
             }
         }
         // Both verdicts occur often: the test is not vacuous.
