@@ -640,20 +640,40 @@ mod tests {
         v
     }
 
+    /// Uniform values in `[−0.5, 0.5]` from a seeded LCG.
+    fn centred_units(seed: u64) -> impl FnMut() -> f32 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32 as f32 / u32::MAX as f32 - 0.5
+        }
+    }
+
+    /// A node with 1 to 4 random leaf boxes (flat ones every seventh
+    /// round), the other slots empty (the point at +∞).
+    fn random_node(round: usize, unit: &mut impl FnMut() -> f32) -> Node {
+        let mut node = Node::EMPTY;
+        for slot in 0..(1 + round % 4) {
+            for axis in 0..3 {
+                let (a, b) = (unit() * 6.0, unit() * 6.0);
+                let flat = round.is_multiple_of(7);
+                node.lo[axis][slot] = a.min(b);
+                node.hi[axis][slot] = if flat { a.min(b) } else { a.max(b) };
+            }
+            node.count[slot] = 1;
+        }
+        node
+    }
+
     /// The box-major test gives every lane its own ray-by-ray verdict, on
     /// boxes around, through, behind and beyond the origin, flat ones,
     /// empty slots (the point at +∞), and directions with tiny, huge and
     /// negative components.
     #[test]
     fn box_major_is_ray_by_ray() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 33) as u32
-        };
-        let mut unit = || next() as f32 / u32::MAX as f32 - 0.5;
+        let mut unit = centred_units(0x2545_f491_4f6c_dd1d);
         let mut packet = Packet::empty();
         let mut passes = 0;
         for round in 0..20_000 {
@@ -665,16 +685,7 @@ mod tests {
                 })
                 .collect();
             packet.load(origin, &dirs, 0.999_999);
-            let mut node = Node::EMPTY;
-            for slot in 0..(1 + round % 4) {
-                for axis in 0..3 {
-                    let (a, b) = (unit() * 6.0, unit() * 6.0);
-                    let flat = round % 7 == 0;
-                    node.lo[axis][slot] = a.min(b);
-                    node.hi[axis][slot] = if flat { a.min(b) } else { a.max(b) };
-                }
-                node.count[slot] = 1;
-            }
+            let node = random_node(round, &mut unit);
             let rel = Rel::new(&node, &packet.org);
             let lanes = packet.valid & !packet.parallel;
             let major = packet.hit_boxes_lanes(&rel, lanes);
@@ -700,14 +711,7 @@ mod tests {
     /// whose signs match the first lane's.
     #[test]
     fn sign_picked_slabs_are_the_general_test() {
-        let mut state = 0x6a09_e667_f3bc_c908u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 33) as u32
-        };
-        let mut unit = || next() as f32 / u32::MAX as f32 - 0.5;
+        let mut unit = centred_units(0x6a09_e667_f3bc_c908);
         let mut packet = Packet::empty();
         let (mut passes, mut fast_lanes) = (0, 0);
         for round in 0..20_000 {
@@ -734,16 +738,7 @@ mod tests {
                 }
             }
             assert_eq!(packet.signed, expect & packet.valid, "round {round}");
-            let mut node = Node::EMPTY;
-            for slot in 0..(1 + round % 4) {
-                for axis in 0..3 {
-                    let (a, b) = (unit() * 6.0, unit() * 6.0);
-                    let flat = round % 7 == 0;
-                    node.lo[axis][slot] = a.min(b);
-                    node.hi[axis][slot] = if flat { a.min(b) } else { a.max(b) };
-                }
-                node.count[slot] = 1;
-            }
+            let node = random_node(round, &mut unit);
             let rel = Rel::new(&node, &packet.org);
             let (near, far) = rel.signed(packet.signs);
             for lane in 0..PACKET {
