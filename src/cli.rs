@@ -239,6 +239,7 @@ pub enum Outcome {
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<Outcome> {
+    crate::simd::level::check_env().map_err(|e| Error::param("PENUMBRA_SIMD", e))?;
     match cli.command {
         Command::Render {
             scene,

@@ -17,6 +17,7 @@ use penumbra::shade::{LightSample, PreparedLight, SurfacePoint};
 use penumbra::shadow::kit::rays::ShadowTracer;
 use penumbra::shadow::reference::Reference;
 use penumbra::shadow::{ShadowOutput, ShadowTechnique};
+use penumbra::simd::level::Level;
 use penumbra::view::View;
 use rayon::prelude::*;
 
@@ -485,10 +486,19 @@ fn bunny_bvh() -> (SceneGeometry, Bvh, Vec3, Vec3) {
     (geometry, bvh, lo, hi - lo)
 }
 
+/// Both copies of the dispatched walks (`simd::level`): the baseline and,
+/// where this CPU has it, the x86-64-v3 one (on a CPU without it the v3
+/// request runs the baseline copy, so the test still passes, testing less:
+/// it says so).
+const LEVELS: [Level; 2] = [Level::Baseline, Level::V3];
+
 /// No bundle answer differs from its single ray's, and the rays were a
 /// useful mix: more than `1/mix` of them occluded and more than `1/mix`
 /// clear.
 fn assert_bundle_agreement(rays: usize, hits: usize, mix: usize, mismatches: &[String]) {
+    if !Level::V3.supported() {
+        eprintln!("this CPU lacks x86-64-v3: only the baseline copy was tested");
+    }
     eprintln!(
         "{rays} rays, {hits} occluded, {} mismatches",
         mismatches.len()
@@ -552,14 +562,18 @@ fn ray_bundles_agree_with_single_rays_bit_for_bit() {
             })
             .collect();
         let t_max = [1.0 - 1e-6, 2.0, 0.5, 0.0][bundle % 4];
-        let mut out = vec![true; n];
-        bvh.occluded_bundle(o, &dirs, t_max, &mut out);
-        for (i, (&d, &b)) in dirs.iter().zip(&out).enumerate() {
-            let single = bvh.occluded(o, d, t_max);
-            rays += 1;
-            hits += single as usize;
-            if single != b {
-                mismatches.push(format!("bundle {bundle} ray {i}: o {o:?} d {d:?} t_max {t_max}: single {single}, bundle {b}"));
+        for level in LEVELS {
+            let mut out = vec![true; n];
+            bvh.occluded_bundle_at(level, o, &dirs, t_max, &mut out);
+            for (i, (&d, &b)) in dirs.iter().zip(&out).enumerate() {
+                let single = bvh.occluded(o, d, t_max);
+                if level == Level::Baseline {
+                    rays += 1;
+                    hits += single as usize;
+                }
+                if single != b {
+                    mismatches.push(format!("bundle {bundle} ray {i} at {level:?}: o {o:?} d {d:?} t_max {t_max}: single {single}, bundle {b}"));
+                }
             }
         }
     }
@@ -625,18 +639,20 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
         let hull =
             SegmentHull::new(o, &dirs, Some((center, u, v)), tangent).expect("usable bundle");
         for limit in [1, 4, 1_000_000] {
-            let mut out = vec![true; n];
-            bvh.occluded_hull(&hull, &dirs, t_max, &mut out, &mut leaves, limit);
-            for (i, (&d, &b)) in dirs.iter().zip(&out).enumerate() {
-                let single = bvh.occluded(o, d, t_max);
-                if limit == 4 {
-                    rays += 1;
-                    hits += single as usize;
-                }
-                if single != b {
-                    mismatches.push(format!(
-                        "bundle {bundle} ray {i} limit {limit}: o {o:?} d {d:?}: single {single}, hull {b}"
-                    ));
+            for level in LEVELS {
+                let mut out = vec![true; n];
+                bvh.occluded_hull_at(level, &hull, &dirs, t_max, &mut out, &mut leaves, limit);
+                for (i, (&d, &b)) in dirs.iter().zip(&out).enumerate() {
+                    let single = bvh.occluded(o, d, t_max);
+                    if limit == 4 && level == Level::Baseline {
+                        rays += 1;
+                        hits += single as usize;
+                    }
+                    if single != b {
+                        mismatches.push(format!(
+                            "bundle {bundle} ray {i} limit {limit} at {level:?}: o {o:?} d {d:?}: single {single}, hull {b}"
+                        ));
+                    }
                 }
             }
         }

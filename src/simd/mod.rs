@@ -28,6 +28,7 @@
 #![allow(non_camel_case_types)]
 
 pub mod avx;
+pub mod level;
 pub mod scalar;
 #[cfg(test)]
 mod tests;

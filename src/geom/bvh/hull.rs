@@ -39,6 +39,7 @@
 use super::packet::Packet;
 use super::{Bvh, Node, Rel};
 use crate::simd::f32x4;
+use crate::simd::level::{level, Level};
 use glam::{DVec3, Vec3};
 
 /// The (dominant axis, sign) pairs `Ray::new` may pick for directions in
@@ -231,7 +232,7 @@ impl SegmentHull {
     }
 
     /// Bit mask of `node`'s children whose box may meet the region.
-    #[inline]
+    #[inline(always)]
     fn hit_boxes(&self, node: &Node) -> u32 {
         let rel = Rel::new(node, &self.org);
         // A box behind every ray's origin along its dominant axis holds
@@ -288,7 +289,7 @@ impl SegmentHull {
     /// or 0) cannot have the determinant's sign, so no ray hits: exact, no
     /// margin. This drops the receiver's own axis-aligned surface (a
     /// ground plane under a light above it).
-    #[inline]
+    #[inline(always)]
     fn behind(&self, lo: [f32; 3], hi: [f32; 3]) -> bool {
         let mut axes = self.axes;
         while axes != 0 {
@@ -305,7 +306,7 @@ impl SegmentHull {
 
     /// Whether triangle `tri` may meet the region (see the module docs for
     /// the margin).
-    #[inline]
+    #[inline(always)]
     fn may_touch(&self, tri: &[Vec3; 3]) -> bool {
         let r = tri.map(|p| p - self.origin);
         let reach = (r[0].abs().max(r[1].abs()).max(r[2].abs())).element_sum();
@@ -338,6 +339,7 @@ impl Bvh {
     /// holding a triangle that may meet `hull`, in depth-first order.
     /// Returns false (with `leaves` partly filled) as soon as more than
     /// `limit` are found.
+    #[inline(always)]
     pub fn hull_leaves(
         &self,
         hull: &SegmentHull,
@@ -374,7 +376,61 @@ impl Bvh {
     /// the leaves [`Bvh::hull_leaves`] keeps, or by the whole walk when
     /// more than `limit` are kept. `leaves` is scratch space. Returns
     /// false when the rays took the whole walk.
+    #[allow(clippy::too_many_arguments)]
     pub fn occluded_hull(
+        &self,
+        hull: &SegmentHull,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+        leaves: &mut Vec<(u32, u32)>,
+        limit: usize,
+    ) -> bool {
+        self.occluded_hull_at(level(), hull, dirs, t_max, out, leaves, limit)
+    }
+
+    /// [`Bvh::occluded_hull`] compiled for `level` (`simd::level`; the
+    /// baseline copy where this CPU lacks it): the same answers at every
+    /// level.
+    #[allow(clippy::too_many_arguments)]
+    pub fn occluded_hull_at(
+        &self,
+        level: Level,
+        hull: &SegmentHull,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+        leaves: &mut Vec<(u32, u32)>,
+        limit: usize,
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if level == Level::V3 && level.supported() {
+            // SAFETY: the CPU has every feature the v3 copy enables
+            // (`Level::supported`), its one requirement.
+            return unsafe { self.occluded_hull_v3(hull, dirs, t_max, out, leaves, limit) };
+        }
+        let _ = level;
+        self.occluded_hull_body(hull, dirs, t_max, out, leaves, limit)
+    }
+
+    /// [`Bvh::occluded_hull_body`] compiled for `Level::V3`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn occluded_hull_v3(
+        &self,
+        hull: &SegmentHull,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+        leaves: &mut Vec<(u32, u32)>,
+        limit: usize,
+    ) -> bool {
+        self.occluded_hull_body(hull, dirs, t_max, out, leaves, limit)
+    }
+
+    /// The hull walk itself, inlined into each level's copy.
+    #[inline(always)]
+    fn occluded_hull_body(
         &self,
         hull: &SegmentHull,
         dirs: &[Vec3],
@@ -388,7 +444,7 @@ impl Bvh {
             return true;
         }
         if !self.hull_leaves(hull, leaves, limit) {
-            self.occluded_bundle(hull.origin, dirs, t_max, out);
+            self.occluded_bundle_body(hull.origin, dirs, t_max, out);
             return false;
         }
         if leaves.is_empty() {

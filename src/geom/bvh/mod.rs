@@ -697,7 +697,7 @@ impl Ray {
     /// Watertight intersection with `tri` at `t ∈ (0, t_max)`:
     /// `(t, b1, b2)` with `b1`, `b2` the weights of the second and third
     /// vertex.
-    #[inline]
+    #[inline(always)]
     fn intersect(&self, tri: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
         let [kx, ky, kz] = self.k;
         let s = self.shear;

@@ -33,6 +33,7 @@
 //! two against each other ray by ray.
 
 use super::{Bvh, Node, Ray, Rel, FAR_SCALE, STACK};
+use crate::simd::level::{level, Level};
 use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
 
@@ -118,6 +119,7 @@ impl Packet {
     /// compares); `tests` holds the two lane by lane on zero, subnormal,
     /// huge and non-finite components. Invalid lanes keep stale constants,
     /// which nothing reads.
+    #[inline(always)]
     pub(super) fn load(&mut self, origin: Vec3, dirs: &[Vec3], t_max: f32) {
         let n = dirs.len().min(PACKET);
         let mut d = [[1.0f32; PACKET]; 3];
@@ -238,6 +240,7 @@ struct Woop {
 
 impl Woop {
     /// The constants of the lanes `valid` of directions `d`.
+    #[inline(always)]
     fn new(d: &[[f32; PACKET]; 3], valid: u32) -> Woop {
         let [dx, dy, dz] = d.map(f32x8::new);
         let one = f32x8::splat(1.0);
@@ -286,7 +289,7 @@ impl Packet {
     /// multiplication does not see), the same min / max in the same order
     /// from the same starting values, the same far scale and compare.
     /// Lanes with a zero direction component must not be in `lanes`.
-    #[inline]
+    #[inline(always)]
     fn hit_boxes_lanes(&self, rel: &Rel, lanes: u32) -> u32 {
         let lo = rel.lo.map(f32x4::to_array);
         let hi = rel.hi.map(f32x4::to_array);
@@ -311,7 +314,7 @@ impl Packet {
     /// are the products of the bounds [`Rel::signed`] picks, with no min /
     /// max between them; the same verdicts bit for bit, by
     /// `Ray::hit_boxes_signed`'s argument.
-    #[inline]
+    #[inline(always)]
     fn hit_boxes_lanes_signed(&self, rel: &Rel, lanes: u32) -> u32 {
         let (near_rel, far_rel) = rel.signed(self.signs);
         let near_rel = near_rel.map(|v| v.to_array());
@@ -372,7 +375,7 @@ impl Packet {
     }
 
     /// Lanes that `Ray::intersect` would find hitting `tri`.
-    #[inline]
+    #[inline(always)]
     fn hit_triangle(&self, tri: &[Vec3; 3]) -> u32 {
         let a = tri[0] - self.origin;
         let b = tri[1] - self.origin;
@@ -429,6 +432,46 @@ impl Bvh {
     /// t_max)` (see the module docs), computed [`PACKET`] rays at a time.
     /// `out` must be as long as `dirs`.
     pub fn occluded_bundle(&self, origin: Vec3, dirs: &[Vec3], t_max: f32, out: &mut [bool]) {
+        self.occluded_bundle_at(level(), origin, dirs, t_max, out);
+    }
+
+    /// [`Bvh::occluded_bundle`] compiled for `level` (`simd::level`; the
+    /// baseline copy where this CPU lacks it): the same answers at every
+    /// level.
+    pub fn occluded_bundle_at(
+        &self,
+        level: Level,
+        origin: Vec3,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if level == Level::V3 && level.supported() {
+            // SAFETY: the CPU has every feature the v3 copy enables
+            // (`Level::supported`), its one requirement.
+            return unsafe { self.occluded_bundle_v3(origin, dirs, t_max, out) };
+        }
+        let _ = level;
+        self.occluded_bundle_body(origin, dirs, t_max, out);
+    }
+
+    /// [`Bvh::occluded_bundle_body`] compiled for `Level::V3`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn occluded_bundle_v3(&self, origin: Vec3, dirs: &[Vec3], t_max: f32, out: &mut [bool]) {
+        self.occluded_bundle_body(origin, dirs, t_max, out);
+    }
+
+    /// The bundle walk itself, inlined into each level's copy.
+    #[inline(always)]
+    pub(super) fn occluded_bundle_body(
+        &self,
+        origin: Vec3,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+    ) {
         out.fill(false);
         if self.nodes.is_empty() || !(t_max > 0.0) {
             return;
@@ -454,6 +497,7 @@ impl Bvh {
     /// if it passes the leaf's own box, and then it passes every box above
     /// it (each encloses the leaf's box, and the rounded slab distances
     /// are monotone in the bounds), so its own walk would test them too.
+    #[inline(always)]
     fn packet_occluded(&self, packet: &Packet, last: &mut Option<(u32, usize)>) -> u32 {
         let mut hit = 0u32;
         if let Some((index, slot)) = *last {
@@ -560,7 +604,7 @@ impl Bvh {
 
     /// The lanes of `lanes` that pass leaf `slot`'s box and hit one of its
     /// triangles.
-    #[inline]
+    #[inline(always)]
     pub(super) fn leaf_hits(&self, packet: &Packet, node: &Node, slot: usize, lanes: u32) -> u32 {
         if node.count[slot] == 0 {
             return 0;
@@ -591,7 +635,7 @@ impl Bvh {
     }
 
     /// The lanes of `through` that hit one of leaf `slot`'s triangles.
-    #[inline]
+    #[inline(always)]
     fn triangle_hits(&self, packet: &Packet, node: &Node, slot: usize, through: u32) -> u32 {
         let first = node.child[slot] as usize;
         let count = node.count[slot] as usize;
