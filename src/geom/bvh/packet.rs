@@ -478,12 +478,16 @@ impl Bvh {
         }
         let mut last = None;
         let mut packet = Packet::empty();
+        // One stack for the bundle's packets: zeroing its 1.7 kB for every
+        // packet was 0.8 % of the reference's instructions (each walk
+        // writes an entry before reading it).
+        let mut stack = [(0u32, 0u32); STACK];
         for (chunk, res) in dirs.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
             packet.load(origin, chunk, t_max);
             if packet.valid == 0 {
                 continue;
             }
-            let hit = self.packet_occluded(&packet, &mut last);
+            let hit = self.packet_occluded(&packet, &mut last, &mut stack);
             for (lane, r) in res.iter_mut().enumerate() {
                 *r = hit >> lane & 1 == 1;
             }
@@ -497,8 +501,14 @@ impl Bvh {
     /// if it passes the leaf's own box, and then it passes every box above
     /// it (each encloses the leaf's box, and the rounded slab distances
     /// are monotone in the bounds), so its own walk would test them too.
+    /// `stack` is scratch space.
     #[inline(always)]
-    fn packet_occluded(&self, packet: &Packet, last: &mut Option<(u32, usize)>) -> u32 {
+    fn packet_occluded(
+        &self,
+        packet: &Packet,
+        last: &mut Option<(u32, usize)>,
+        stack: &mut [(u32, u32); STACK],
+    ) -> u32 {
         let mut hit = 0u32;
         if let Some((index, slot)) = *last {
             if let Some(node) = self.nodes.get(index as usize) {
@@ -508,7 +518,6 @@ impl Bvh {
                 }
             }
         }
-        let mut stack = [(0u32, 0u32); STACK];
         stack[0] = (0, packet.valid & !hit);
         let mut top = 1usize;
         while top > 0 {
@@ -650,8 +659,14 @@ impl Bvh {
                 let lane = lanes.trailing_zeros();
                 lanes &= lanes - 1;
                 let ray = &packet.rays[lane as usize];
-                if tris.iter().any(|tri| ray.intersect(tri).is_some()) {
-                    hit |= 1 << lane;
+                // A plain loop rather than `Iterator::any`, which is not
+                // inlined and so would run at the baseline level in the v3
+                // copy (`simd::level`).
+                for tri in tris {
+                    if ray.intersect(tri).is_some() {
+                        hit |= 1 << lane;
+                        break;
+                    }
                 }
             }
             return hit;
