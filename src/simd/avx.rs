@@ -118,6 +118,57 @@ impl F32x8 {
         F32x8(_mm256_min_ps(self.0, o.0))
     }
 
+    /// Lanes `a`, in order (an unaligned 256-bit load).
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn load(a: &[f32; 8]) -> Self {
+        // SAFETY: `a` is eight `f32` (32 bytes), exactly what an unaligned
+        // 256-bit load reads.
+        F32x8(unsafe { _mm256_loadu_ps(a.as_ptr()) })
+    }
+
+    /// IEEE difference per lane.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn sub(self, o: Self) -> Self {
+        F32x8(_mm256_sub_ps(self.0, o.0))
+    }
+
+    /// `t` where the mask `self` (lanes all ones or all zeros) is set, `f`
+    /// elsewhere, as [`super::f32x8::blend`].
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn blend(self, t: Self, f: Self) -> Self {
+        F32x8(_mm256_blendv_ps(f.0, t.0, self.0))
+    }
+
+    /// Lanes 0–3 and 4–7 converted to `f64` (exactly), as
+    /// [`super::f32x8::widen`].
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn widen(self) -> [F64x4; 2] {
+        [
+            F64x4(_mm256_cvtps_pd(_mm256_castps256_ps128(self.0))),
+            F64x4(_mm256_cvtps_pd(_mm256_extractf128_ps::<1>(self.0))),
+        ]
+    }
+
     /// Bit `k` set where lane `k` has `self ≤ o` (false on NaN), as
     /// `cmp_le(..).move_mask()` of the facade.
     ///
@@ -128,6 +179,166 @@ impl F32x8 {
     #[target_feature(enable = "avx")]
     pub fn le_mask(self, o: Self) -> u32 {
         _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0)) as u32
+    }
+}
+
+/// Four `f64` lanes in a `__m256d`. Only constructible inside AVX code.
+/// Compares return masks of the same type (lanes all ones or all zeros).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub struct F64x4(__m256d);
+
+#[cfg(target_arch = "x86_64")]
+impl F64x4 {
+    /// Every lane `v`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn splat(v: f64) -> Self {
+        F64x4(_mm256_set1_pd(v))
+    }
+
+    /// Lanes `a`, in order (an unaligned 256-bit load).
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn load(a: &[f64; 4]) -> Self {
+        // SAFETY: `a` is four `f64` (32 bytes), exactly what an unaligned
+        // 256-bit load reads.
+        F64x4(unsafe { _mm256_loadu_pd(a.as_ptr()) })
+    }
+
+    /// The lanes as an array.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn to_array(self) -> [f64; 4] {
+        let mut out = [0.0f64; 4];
+        // SAFETY: `out` is four `f64` (32 bytes), exactly what an
+        // unaligned 256-bit store writes.
+        unsafe { _mm256_storeu_pd(out.as_mut_ptr(), self.0) };
+        out
+    }
+
+    /// IEEE sum per lane.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn add(self, o: Self) -> Self {
+        F64x4(_mm256_add_pd(self.0, o.0))
+    }
+
+    /// IEEE difference per lane.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn sub(self, o: Self) -> Self {
+        F64x4(_mm256_sub_pd(self.0, o.0))
+    }
+
+    /// IEEE product per lane.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn mul(self, o: Self) -> Self {
+        F64x4(_mm256_mul_pd(self.0, o.0))
+    }
+
+    /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn lt(self, o: Self) -> Self {
+        F64x4(_mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0))
+    }
+
+    /// Mask of `self > o` (false on NaN), as the facade's `cmp_gt`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn gt(self, o: Self) -> Self {
+        F64x4(_mm256_cmp_pd::<_CMP_GT_OQ>(self.0, o.0))
+    }
+
+    /// Bitwise and.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn and(self, o: Self) -> Self {
+        F64x4(_mm256_and_pd(self.0, o.0))
+    }
+
+    /// Bitwise or.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn or(self, o: Self) -> Self {
+        F64x4(_mm256_or_pd(self.0, o.0))
+    }
+
+    /// `self & !o`, bitwise.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn and_not(self, o: Self) -> Self {
+        F64x4(_mm256_andnot_pd(o.0, self.0))
+    }
+
+    /// `t` where the mask `self` is set, `f` elsewhere, as the facade's
+    /// `blend`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn blend(self, t: Self, f: Self) -> Self {
+        F64x4(_mm256_blendv_pd(f.0, t.0, self.0))
+    }
+
+    /// Bit `k` set where lane `k`'s top bit is, as the facade's
+    /// `move_mask`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn move_mask(self) -> u32 {
+        _mm256_movemask_pd(self.0) as u32
     }
 }
 
@@ -209,6 +420,127 @@ mod tests {
             assert_eq!(bits(min), bits(sa.min(sb).to_array()), "{a:?} {b:?}");
             assert_eq!(le, sa.cmp_le(sb).move_mask(), "{a:?} {b:?}");
             assert_eq!(bits(splat), [a[3].to_bits(); 8]);
+        }
+    }
+
+    #[target_feature(enable = "avx")]
+    #[allow(clippy::type_complexity)]
+    fn run_f32_more(a: [f32; 8], b: [f32; 8]) -> ([f32; 8], [f32; 8], [[f64; 4]; 2]) {
+        let (x, y) = (F32x8::load(&a), F32x8::load(&b));
+        let mask =
+            F32x8::from_lanes(super::super::f32x8::new(b).cmp_lt(super::super::f32x8::new(a)));
+        let w = x.widen();
+        (
+            x.sub(y).to_array(),
+            mask.blend(x, y).to_array(),
+            [w[0].to_array(), w[1].to_array()],
+        )
+    }
+
+    #[target_feature(enable = "avx")]
+    #[allow(clippy::type_complexity)]
+    fn run_f64(a: [f64; 4], b: [f64; 4]) -> ([[f64; 4]; 3], [u32; 2], [[f64; 4]; 4], u32) {
+        let (x, y) = (F64x4::load(&a), F64x4::load(&b));
+        let (lt, gt) = (x.lt(y), x.gt(y));
+        (
+            [
+                x.add(y).to_array(),
+                x.sub(y).to_array(),
+                x.mul(y).to_array(),
+            ],
+            [lt.move_mask(), gt.move_mask()],
+            [
+                lt.and(gt.or(lt)).to_array(),
+                lt.or(gt).to_array(),
+                lt.and_not(gt).to_array(),
+                lt.blend(x, y).to_array(),
+            ],
+            x.move_mask(),
+        )
+    }
+
+    /// The lane operations added for the triangle test, against the scalar
+    /// twin: `f32` difference, blend and widening; `f64` sum, difference,
+    /// product (NaN results as NaN: their payload is not fixed), compares,
+    /// mask logic, blend and sign mask, bit for bit.
+    #[test]
+    fn avx_triangle_lanes_match_the_scalar_twin() {
+        use super::super::scalar::{f32x8 as S32, f64x4 as S64};
+        if !available() {
+            eprintln!("no AVX on this CPU: nothing to check");
+            return;
+        }
+        let mut state = 0x510e_527f_ade6_82d1u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            state
+        };
+        let specials = [
+            0.0f64,
+            -0.0,
+            f64::NAN,
+            f64::INFINITY,
+            -f64::INFINITY,
+            5e-324,
+            1.0,
+            -2.5,
+        ];
+        let same32 = |x: f32, y: f32| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan());
+        let same64 = |x: f64, y: f64| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan());
+        for _ in 0..50_000 {
+            let mut lane32 = || {
+                let r = next();
+                if r % 5 == 0 {
+                    specials[(r >> 8) as usize % specials.len()] as f32
+                } else {
+                    f32::from_bits((r >> 32) as u32)
+                }
+            };
+            let a: [f32; 8] = std::array::from_fn(|_| lane32());
+            let b: [f32; 8] = std::array::from_fn(|_| lane32());
+            // SAFETY: AVX is available (checked above).
+            let (sub, blend, wide) = unsafe { run_f32_more(a, b) };
+            let (sa, sb) = (S32::new(a), S32::new(b));
+            let twin = (sa - sb).to_array();
+            assert!((0..8).all(|k| same32(sub[k], twin[k])), "{a:?} {b:?}");
+            let pick = sb.cmp_lt(sa).blend(sa, sb).to_array();
+            assert_eq!(
+                blend.map(f32::to_bits),
+                pick.map(f32::to_bits),
+                "{a:?} {b:?}"
+            );
+            let w = sa.widen();
+            for h in 0..2 {
+                assert_eq!(wide[h].map(f64::to_bits), w[h].to_array().map(f64::to_bits));
+            }
+            let mut lane64 = || {
+                let r = next();
+                if r % 5 == 0 {
+                    specials[(r >> 8) as usize % specials.len()]
+                } else if r % 5 == 1 {
+                    (r >> 11) as f64 * 1e-3 - 4e12
+                } else {
+                    f64::from_bits(next())
+                }
+            };
+            let x: [f64; 4] = std::array::from_fn(|_| lane64());
+            let mut y: [f64; 4] = std::array::from_fn(|_| lane64());
+            y[3] = x[3];
+            // SAFETY: AVX is available (checked above).
+            let (arith, masks, logic, sign) = unsafe { run_f64(x, y) };
+            let (sx, sy) = (S64::new(x), S64::new(y));
+            for (got, want) in arith.iter().zip([sx + sy, sx - sy, sx * sy]) {
+                let want = want.to_array();
+                assert!((0..4).all(|k| same64(got[k], want[k])), "{x:?} {y:?}");
+            }
+            let (lt, gt) = (sx.cmp_lt(sy), sx.cmp_gt(sy));
+            assert_eq!(masks, [lt.move_mask(), gt.move_mask()], "{x:?} {y:?}");
+            let bits = |v: S64| v.to_array().map(f64::to_bits);
+            let want = [lt & (gt | lt), lt | gt, lt & !gt, lt.blend(sx, sy)].map(bits);
+            assert_eq!(logic.map(|v| v.map(f64::to_bits)), want, "{x:?} {y:?}");
+            assert_eq!(sign, sx.move_mask(), "{x:?}");
         }
     }
 }
