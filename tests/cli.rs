@@ -423,3 +423,53 @@ fn huge_sphere_is_refused_before_allocating() {
         started.elapsed()
     );
 }
+
+/// `PENUMBRA_SIMD` picks the level of the run-time dispatched routines:
+/// `baseline` and `v3` give the default's bits (the reference, whose walks
+/// are dispatched, on a scene with penumbrae), a bad value or a level
+/// this CPU lacks is an error naming the variable.
+#[test]
+fn simd_level_from_the_environment() {
+    use penumbra::simd::level::Level;
+    let dir = common::scratch_dir("cli-simd-level");
+    let run = |level: Option<&str>, name: &str| {
+        let exr = dir.join(format!("{name}.exr"));
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_penumbra"));
+        cmd.args(["render", "scenes/spheres.toml", "--technique", "reference"])
+            .args(["--samples", "16", "--width", "80", "--height", "60"])
+            .args(["-o", dir.join(format!("{name}.png")).to_str().unwrap()])
+            .args(["--exr", exr.to_str().unwrap()])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .env_remove("PENUMBRA_SIMD");
+        if let Some(level) = level {
+            cmd.env("PENUMBRA_SIMD", level);
+        }
+        let out = cmd.output().expect("run penumbra");
+        let text = String::from_utf8_lossy(&out.stderr).into_owned();
+        (out.status.success(), text, std::fs::read(exr).ok())
+    };
+    let (ok, msg, default) = run(None, "default");
+    assert!(ok, "{msg}");
+    let (ok, msg, baseline) = run(Some("baseline"), "baseline");
+    assert!(ok, "{msg}");
+    assert!(
+        default.is_some() && baseline == default,
+        "baseline changes bits"
+    );
+    let (ok, msg, v3) = run(Some("v3"), "v3");
+    if Level::V3.supported() {
+        assert!(ok, "{msg}");
+        assert!(v3 == default, "v3 changes bits");
+    } else {
+        assert!(
+            !ok && msg.contains("PENUMBRA_SIMD") && msg.contains("lacks"),
+            "{msg}"
+        );
+    }
+    let (ok, msg, _) = run(Some("avx9"), "bad");
+    assert!(!ok, "a bad level is accepted");
+    assert!(
+        msg.contains("PENUMBRA_SIMD") && msg.contains("avx9"),
+        "{msg}"
+    );
+}
