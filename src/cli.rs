@@ -323,6 +323,8 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 write_stderr(&format!("penumbra: warning: {w}\n"));
             }
             if explain {
+                let simd = crate::simd::level::describe();
+                write_stderr(&format!("simd: {simd} (PENUMBRA_SIMD)\n"));
                 write_stderr("buffers:\n");
                 for b in &out.buffers {
                     let size = if b.bytes == 0 {

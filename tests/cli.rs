@@ -424,8 +424,8 @@ fn huge_sphere_is_refused_before_allocating() {
     );
 }
 
-/// `PENUMBRA_SIMD` picks the level of the run-time dispatched routines:
-/// `baseline` and `v3` give the default's bits (the reference, whose walks
+/// `PENUMBRA_SIMD` picks the level of the run-time dispatched routines
+/// (`--explain` names it): `baseline` and `v3` give the default's bits (the reference, whose walks
 /// are dispatched, on a scene with penumbrae), a bad value or a level
 /// this CPU lacks is an error naming the variable.
 #[test]
@@ -438,7 +438,7 @@ fn simd_level_from_the_environment() {
         cmd.args(["render", "scenes/spheres.toml", "--technique", "reference"])
             .args(["--samples", "16", "--width", "80", "--height", "60"])
             .args(["-o", dir.join(format!("{name}.png")).to_str().unwrap()])
-            .args(["--exr", exr.to_str().unwrap()])
+            .args(["--exr", exr.to_str().unwrap(), "--explain"])
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .env_remove("PENUMBRA_SIMD");
         if let Some(level) = level {
@@ -452,13 +452,21 @@ fn simd_level_from_the_environment() {
     assert!(ok, "{msg}");
     let (ok, msg, baseline) = run(Some("baseline"), "baseline");
     assert!(ok, "{msg}");
+    // `--explain` says which level ran.
+    assert!(
+        msg.contains("simd: dispatched routines at baseline") && msg.contains("AVX kernels off"),
+        "{msg}"
+    );
     assert!(
         default.is_some() && baseline == default,
         "baseline changes bits"
     );
     let (ok, msg, v3) = run(Some("v3"), "v3");
     if Level::V3.supported() {
-        assert!(ok, "{msg}");
+        assert!(
+            ok && msg.contains("simd: dispatched routines at v3"),
+            "{msg}"
+        );
         assert!(v3 == default, "v3 changes bits");
     } else {
         assert!(

@@ -109,6 +109,30 @@ pub fn level() -> Level {
     })
 }
 
+/// One line for `--explain`: the level the dispatched routines run at,
+/// whether the AVX kernels run, and the features the build itself targets.
+pub fn describe() -> String {
+    let level = level();
+    let features = match level {
+        Level::Baseline => "the build's own features",
+        Level::V3 => "AVX, AVX2, BMI1, BMI2, LZCNT, POPCNT",
+    };
+    let built = if cfg!(target_feature = "avx512f") {
+        "AVX-512"
+    } else if cfg!(target_feature = "avx2") {
+        "AVX2"
+    } else if cfg!(target_feature = "sse4.2") {
+        "SSE4.2"
+    } else {
+        "baseline"
+    };
+    format!(
+        "dispatched routines at {} ({features}), AVX kernels {}, build targets {built}",
+        level.name(),
+        if super::avx::available() { "on" } else { "off" },
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
