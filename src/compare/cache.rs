@@ -330,7 +330,7 @@ pub fn store(dir: &Path, key: &ReferenceKey, reference: &CachedReference) -> Res
 }
 
 /// How long a waiter lets a reference lock go unchanged (no heartbeat)
-/// before it takes the lock for stale: far above [`HEARTBEAT`], so a
+/// before it takes the lock for stale: far above `HEARTBEAT`, so a
 /// busy or briefly stalled holder is never robbed.
 pub const STALE_AFTER: std::time::Duration = std::time::Duration::from_secs(60);
 
@@ -352,7 +352,7 @@ pub enum Locked {
 }
 
 /// A held reference lock: `<stem>.lock` in the cache directory, naming its
-/// host and pid, rewritten every [`HEARTBEAT`] by a thread; removed on
+/// host and pid, rewritten every `HEARTBEAT` by a thread; removed on
 /// drop.
 pub struct ReferenceLock {
     path: PathBuf,

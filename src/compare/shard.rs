@@ -1,6 +1,6 @@
 //! `compare --shard I/N`: one share of a sweep's (scene, technique,
 //! setting) runs, written as a partial result that `compare --merge`
-//! ([`merge`](super::merge)) joins with the others.
+//! (`merge`) joins with the others.
 //!
 //! The assignment is a function of the sweep alone (scenes, options, N):
 //! every shard computes the same plan, runs its part, and records the

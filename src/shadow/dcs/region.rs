@@ -238,7 +238,7 @@ impl RegionBound {
     /// The bound of edge `v0 v1` against a light inside the convex hull of
     /// `corners`. `slack` (a distance) moves every plane outward, to cover
     /// rounding of the receivers' positions. The facet test runs four
-    /// generators at a time ([`Generators4`]), once for both `n` and `−n`;
+    /// generators at a time (`Generators4`), once for both `n` and `−n`;
     /// `new_scalar` is the same constructor with the scalar facet test.
     pub fn new(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
         Self::edge_bound(v0, v1, corners, slack, true)

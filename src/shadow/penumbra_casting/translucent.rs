@@ -13,7 +13,7 @@
 //!   as DCS counts them) through the same hard shadow volumes as the
 //!   opaque pass: each relation it holds (and that no opaque triangle
 //!   blocks) counts one more layer `n_g`;
-//! - an **S-triangle** (the kit's [`STriangles`]) through the
+//! - an **S-triangle** ([`STriangles`](crate::shadow::stsv::STriangles)) through the
 //!   [`SampleProjector`] of soft textured shadow volumes: the segment's
 //!   crossing barycentrics, the opacity `d × map_d(uv)` there (nearest or
 //!   bilinear, `--opacity-filter`), and its optical depth
