@@ -36,6 +36,26 @@ pub fn available() -> bool {
     })
 }
 
+/// Two-operand lane operations, each one AVX intrinsic on the two
+/// registers.
+#[cfg(target_arch = "x86_64")]
+macro_rules! binary_ops {
+    ($($(#[$doc:meta])* $name:ident => $intrinsic:expr;)*) => {
+        $(
+            $(#[$doc])*
+            ///
+            /// # Safety
+            ///
+            /// Outside AVX code, call only where [`available`] is true.
+            #[inline]
+            #[target_feature(enable = "avx")]
+            pub fn $name(self, o: Self) -> Self {
+                Self($intrinsic(self.0, o.0))
+            }
+        )*
+    };
+}
+
 /// Eight `f32` lanes in a `__m256`. Only constructible inside AVX code.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
@@ -43,6 +63,19 @@ pub struct F32x8(__m256);
 
 #[cfg(target_arch = "x86_64")]
 impl F32x8 {
+    binary_ops! {
+        /// IEEE product per lane.
+        mul => _mm256_mul_ps;
+        /// `if self > o { self } else { o }` per lane (`maxps`), as
+        /// [`super::f32x8::max`].
+        max => _mm256_max_ps;
+        /// `if self < o { self } else { o }` per lane (`minps`), as
+        /// [`super::f32x8::min`].
+        min => _mm256_min_ps;
+        /// IEEE difference per lane.
+        sub => _mm256_sub_ps;
+    }
+
     /// Every lane `v`.
     ///
     /// # Safety
@@ -83,41 +116,6 @@ impl F32x8 {
         out
     }
 
-    /// IEEE product per lane.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn mul(self, o: Self) -> Self {
-        F32x8(_mm256_mul_ps(self.0, o.0))
-    }
-
-    /// `if self > o { self } else { o }` per lane (`maxps`), as
-    /// [`super::f32x8::max`].
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn max(self, o: Self) -> Self {
-        F32x8(_mm256_max_ps(self.0, o.0))
-    }
-
-    /// `if self < o { self } else { o }` per lane (`minps`), as
-    /// [`super::f32x8::min`].
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn min(self, o: Self) -> Self {
-        F32x8(_mm256_min_ps(self.0, o.0))
-    }
-
     /// Lanes `a`, in order (an unaligned 256-bit load).
     ///
     /// # Safety
@@ -129,17 +127,6 @@ impl F32x8 {
         // SAFETY: `a` is eight `f32` (32 bytes), exactly what an unaligned
         // 256-bit load reads.
         F32x8(unsafe { _mm256_loadu_ps(a.as_ptr()) })
-    }
-
-    /// IEEE difference per lane.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn sub(self, o: Self) -> Self {
-        F32x8(_mm256_sub_ps(self.0, o.0))
     }
 
     /// `t` where the mask `self` (lanes all ones or all zeros) is set, `f`
@@ -190,6 +177,23 @@ pub struct F64x4(__m256d);
 
 #[cfg(target_arch = "x86_64")]
 impl F64x4 {
+    binary_ops! {
+        /// IEEE sum per lane.
+        add => _mm256_add_pd;
+        /// IEEE difference per lane.
+        sub => _mm256_sub_pd;
+        /// IEEE product per lane.
+        mul => _mm256_mul_pd;
+        /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
+        lt => _mm256_cmp_pd::<_CMP_LT_OQ>;
+        /// Mask of `self > o` (false on NaN), as the facade's `cmp_gt`.
+        gt => _mm256_cmp_pd::<_CMP_GT_OQ>;
+        /// Bitwise and.
+        and => _mm256_and_pd;
+        /// Bitwise or.
+        or => _mm256_or_pd;
+    }
+
     /// Every lane `v`.
     ///
     /// # Safety
@@ -227,83 +231,6 @@ impl F64x4 {
         // unaligned 256-bit store writes.
         unsafe { _mm256_storeu_pd(out.as_mut_ptr(), self.0) };
         out
-    }
-
-    /// IEEE sum per lane.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn add(self, o: Self) -> Self {
-        F64x4(_mm256_add_pd(self.0, o.0))
-    }
-
-    /// IEEE difference per lane.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn sub(self, o: Self) -> Self {
-        F64x4(_mm256_sub_pd(self.0, o.0))
-    }
-
-    /// IEEE product per lane.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn mul(self, o: Self) -> Self {
-        F64x4(_mm256_mul_pd(self.0, o.0))
-    }
-
-    /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn lt(self, o: Self) -> Self {
-        F64x4(_mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0))
-    }
-
-    /// Mask of `self > o` (false on NaN), as the facade's `cmp_gt`.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn gt(self, o: Self) -> Self {
-        F64x4(_mm256_cmp_pd::<_CMP_GT_OQ>(self.0, o.0))
-    }
-
-    /// Bitwise and.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn and(self, o: Self) -> Self {
-        F64x4(_mm256_and_pd(self.0, o.0))
-    }
-
-    /// Bitwise or.
-    ///
-    /// # Safety
-    ///
-    /// Outside AVX code, call only where [`available`] is true.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn or(self, o: Self) -> Self {
-        F64x4(_mm256_or_pd(self.0, o.0))
     }
 
     /// `self & !o`, bitwise.

@@ -7,7 +7,11 @@
 //! `#[inline(always)]` function called once from a plain wrapper and once
 //! from a `#[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]`
 //! wrapper (the x86-64-v3 features that change no arithmetic: no FMA),
-//! and pick the copy by [`level`]. Both copies are the same Rust code on
+//! and pick the copy by [`level`]. (A shared `run_at(level, || body())`
+//! with one generic `target_feature` wrapper was measured and dropped:
+//! LLVM did not inline the closure into it, so the "v3" copy ran the
+//! baseline body through a call, +13 % instructions on the reference's
+//! light pass; hence one explicit wrapper per routine.) Both copies are the same Rust code on
 //! the facade's lane types, whose every operation is a fixed IEEE
 //! operation, and Rust never contracts `a * b + c` into a fused
 //! multiply-add, so the copies give the same bits; each routine's tests
