@@ -274,6 +274,17 @@ mod tests {
     use super::super::scalar;
     use super::*;
 
+    /// The tests' random source: a 64-bit LCG from `seed`.
+    fn lcg(seed: u64) -> impl FnMut() -> u64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            state
+        }
+    }
+
     #[target_feature(enable = "avx")]
     fn run(a: [f32; 8], b: [f32; 8]) -> ([f32; 8], [f32; 8], [f32; 8], u32, [f32; 8]) {
         let (x, y) = (
@@ -310,13 +321,8 @@ mod tests {
             -1.0,
             f32::MAX,
         ];
-        let mut state = 0x3c6e_f372_fe94_f82bu64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 32) as u32
-        };
+        let mut lcg = lcg(0x3c6e_f372_fe94_f82b);
+        let mut next = || (lcg() >> 32) as u32;
         for _ in 0..100_000 {
             let mut lane = || {
                 let r = next();
@@ -397,13 +403,7 @@ mod tests {
             eprintln!("no AVX on this CPU: nothing to check");
             return;
         }
-        let mut state = 0x510e_527f_ade6_82d1u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            state
-        };
+        let mut next = lcg(0x510e_527f_ade6_82d1);
         let specials = [
             0.0f64,
             -0.0,
@@ -419,7 +419,7 @@ mod tests {
         for _ in 0..50_000 {
             let mut lane32 = || {
                 let r = next();
-                if r % 5 == 0 {
+                if r.is_multiple_of(5) {
                     specials[(r >> 8) as usize % specials.len()] as f32
                 } else {
                     f32::from_bits((r >> 32) as u32)
@@ -444,7 +444,7 @@ mod tests {
             }
             let mut lane64 = || {
                 let r = next();
-                if r % 5 == 0 {
+                if r.is_multiple_of(5) {
                     specials[(r >> 8) as usize % specials.len()]
                 } else if r % 5 == 1 {
                     (r >> 11) as f64 * 1e-3 - 4e12
