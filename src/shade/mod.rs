@@ -20,6 +20,7 @@
 //! approximation.
 
 mod brdf;
+mod estimate;
 mod rect;
 mod sphere;
 
@@ -29,6 +30,7 @@ pub use brdf::brdf;
 
 use crate::scene::{Light, LightShape, Texture};
 use brdf::{lobe_cells, to_vec3, Lobe};
+use estimate::estimate;
 use glam::{DVec3, Vec2, Vec3};
 use rect::{Grid, RectGeom};
 
@@ -287,88 +289,6 @@ fn light_texture<'a>(light: &Light, textures: &'a [Texture]) -> Option<&'a Textu
         // Version 1 of the contract has no sphere textures.
         LightShape::Sphere { .. } => None,
     }
-}
-
-fn estimate(
-    light: &Light,
-    texture: Option<&Texture>,
-    sp: &SurfacePoint,
-    samples: &[LightSample],
-    visibility: &[f32],
-) -> Vec3 {
-    assert_eq!(
-        samples.len(),
-        visibility.len(),
-        "direct_from_samples: one visibility per sample"
-    );
-    if samples.is_empty() {
-        return Vec3::ZERO;
-    }
-    let lobe = Lobe::new(sp);
-    let p = sp.p.as_dvec3();
-    let radiance = light.radiance.as_dvec3();
-    // Per-shape emitter normal at x (None: x emits nothing toward p).
-    enum Emitter {
-        Rect { normal: DVec3, two_sided: bool },
-        Sphere { center: DVec3, inv_radius: f64 },
-    }
-    let emitter = match light.shape {
-        LightShape::Rect {
-            u, v, two_sided, ..
-        } => Emitter::Rect {
-            normal: u.as_dvec3().cross(v.as_dvec3()).normalize_or_zero(),
-            two_sided,
-        },
-        LightShape::Sphere { center, radius } => {
-            let c = center.as_dvec3();
-            if c.distance(p) <= f64::from(radius) {
-                return Vec3::ZERO;
-            }
-            Emitter::Sphere {
-                center: c,
-                inv_radius: 1.0 / f64::from(radius),
-            }
-        }
-    };
-    let mut sum = DVec3::ZERO;
-    for (s, &vis) in samples.iter().zip(visibility) {
-        if vis.is_nan() || vis <= 0.0 {
-            continue;
-        }
-        let d = s.x.as_dvec3() - p;
-        let r2 = d.length_squared();
-        if r2.is_nan() || r2 <= 0.0 {
-            continue;
-        }
-        let w = d / r2.sqrt();
-        let cos_p = lobe.n.dot(w);
-        if cos_p.is_nan() || cos_p <= 0.0 {
-            continue;
-        }
-        let cos_x = match emitter {
-            Emitter::Rect { normal, two_sided } => {
-                let c = -normal.dot(w);
-                if two_sided {
-                    c.abs()
-                } else {
-                    c.max(0.0)
-                }
-            }
-            Emitter::Sphere { center, inv_radius } => {
-                (-(s.x.as_dvec3() - center).dot(w) * inv_radius).max(0.0)
-            }
-        };
-        if cos_x == 0.0 {
-            continue;
-        }
-        let le = match texture {
-            Some(t) => radiance * texel_at(t, s.st),
-            None => radiance,
-        };
-        let g = cos_p * cos_x / r2 * f64::from(s.inv_pdf_area) * f64::from(vis);
-        sum += le * lobe.eval(w) * g;
-    }
-    to_vec3(sum / samples.len() as f64)
 }
 
 /// Nearest texel at light coordinates `st` (clamped to the texture).
