@@ -266,13 +266,18 @@ impl LightSampler {
         let points = pattern.pixel_points(pixel);
         match *self {
             LightSampler::Rect { center, u, v, area } => {
-                out.reserve(n as usize);
+                // Written in place rather than pushed: `push` re-reads the
+                // vector's length and capacity around every store.
+                out.resize(n as usize, LightSample::default());
+                let mut slots = out.iter_mut();
                 points.for_each(n, |(s, t)| {
-                    out.push(LightSample {
-                        x: (center + u * (2.0 * s - 1.0) + v * (1.0 - 2.0 * t)).as_vec3(),
-                        st: Vec2::new(s as f32, t as f32),
-                        inv_pdf_area: area,
-                    })
+                    if let Some(slot) = slots.next() {
+                        *slot = LightSample {
+                            x: (center + u * (2.0 * s - 1.0) + v * (1.0 - 2.0 * t)).as_vec3(),
+                            st: Vec2::new(s as f32, t as f32),
+                            inv_pdf_area: area,
+                        };
+                    }
                 });
             }
             LightSampler::Sphere { center, radius } => {

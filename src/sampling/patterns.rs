@@ -517,24 +517,18 @@ impl PixelPoints<'_> {
     pub(crate) fn for_each(&self, n: u32, mut f: impl FnMut((f64, f64))) {
         match *self {
             PixelPoints::Jittered { strata, key } if strata.count() == n && n > 0 => {
-                let (a, b) = (f64::from(strata.a), f64::from(strata.b));
                 // Dividing by a power of two is multiplying by its exact
                 // inverse (the quotients here are far from subnormal): the
                 // same bits without two divisions per sample (4, 16, 64,
-                // 256, 1024 samples have power-of-two grids).
-                let scale = |x: f64, d: f64, exact: bool| if exact { x * (1.0 / d) } else { x / d };
-                let (exact_a, exact_b) = (strata.a.is_power_of_two(), strata.b.is_power_of_two());
-                let mut k = 0;
-                for j in 0..strata.b {
-                    let t_row = f64::from(j);
-                    for i in 0..strata.a {
-                        let (xi, xi2) = super::uniform_pair(key, k);
-                        f((
-                            scale(f64::from(i) + xi, a, exact_a),
-                            scale(t_row + xi2, b, exact_b),
-                        ));
-                        k += 1;
-                    }
+                // 256, 1024 samples have power-of-two grids). The choice is
+                // made once per pixel, as a type parameter: a run-time flag
+                // in the loop had the compiler compute the division anyway
+                // and select.
+                match (strata.a.is_power_of_two(), strata.b.is_power_of_two()) {
+                    (true, true) => jittered::<true, true>(strata, key, f),
+                    (true, false) => jittered::<true, false>(strata, key, f),
+                    (false, true) => jittered::<false, true>(strata, key, f),
+                    (false, false) => jittered::<false, false>(strata, key, f),
                 }
             }
             _ => (0..n).for_each(|k| f(self.point(k))),
@@ -565,6 +559,32 @@ impl PixelPoints<'_> {
                 let (i, j) = strata.cell(k);
                 (grid_coordinate(i, strata.a), grid_coordinate(j, strata.b))
             }
+        }
+    }
+}
+
+/// The jittered points of `strata` under `key` in sample order, row by row
+/// (no division of `k`); `EXACT_A` / `EXACT_B`: the column / row count is
+/// a power of two, so dividing by it is multiplying by its inverse.
+#[inline(always)]
+fn jittered<const EXACT_A: bool, const EXACT_B: bool>(
+    strata: Strata,
+    key: u64,
+    mut f: impl FnMut((f64, f64)),
+) {
+    let (a, b) = (f64::from(strata.a), f64::from(strata.b));
+    let (inv_a, inv_b) = (1.0 / a, 1.0 / b);
+    let mut k = 0;
+    for j in 0..strata.b {
+        let t_row = f64::from(j);
+        for i in 0..strata.a {
+            let (xi, xi2) = super::uniform_pair(key, k);
+            let (s, t) = (f64::from(i) + xi, t_row + xi2);
+            f((
+                if EXACT_A { s * inv_a } else { s / a },
+                if EXACT_B { t * inv_b } else { t / b },
+            ));
+            k += 1;
         }
     }
 }

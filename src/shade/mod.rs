@@ -57,7 +57,7 @@ pub struct SurfacePoint {
 }
 
 /// One sample point on a light, for [`direct_from_samples`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LightSample {
     /// The point on the light's surface.
     pub x: Vec3,
