@@ -147,18 +147,35 @@ fn mean_lanes(
     let [nx, ny, nz] = splat3(lobe.n);
     let zero = f64x4::ZERO;
     let mut sum = DVec3::ZERO;
-    for (group, vis) in samples.chunks(LANES).zip(visibility.chunks(LANES)) {
-        // Lanes past the end get visibility 0: skipped as the scalar loop
+    // The lanes take the samples with visibility > 0 only, in sample
+    // order (the scalar loop skips the others before any arithmetic, and
+    // occluded samples come in runs): an umbra costs no division.
+    let mut next = 0;
+    loop {
+        let mut group = [0usize; LANES];
+        let mut count = 0;
+        while count < LANES && next < visibility.len() {
+            if visibility[next] > 0.0 {
+                group[count] = next;
+                count += 1;
+            }
+            next += 1;
+        }
+        if count == 0 {
+            break;
+        }
+        // Lanes past `count` get visibility 0: skipped as the scalar loop
         // skips an unlit sample.
         let mut xs = [[0.0f64; LANES]; 3];
         let mut inv_pdf = [0.0f64; LANES];
         let mut v = [0.0f64; LANES];
-        for (i, (s, &vt)) in group.iter().zip(vis).enumerate() {
+        for (i, &k) in group[..count].iter().enumerate() {
+            let s = &samples[k];
             xs[0][i] = f64::from(s.x.x);
             xs[1][i] = f64::from(s.x.y);
             xs[2][i] = f64::from(s.x.z);
             inv_pdf[i] = f64::from(s.inv_pdf_area);
-            v[i] = f64::from(vt);
+            v[i] = f64::from(visibility[k]);
         }
         let [sx, sy, sz] = xs.map(f64x4::new);
         let v = f64x4::new(v);
@@ -196,7 +213,7 @@ fn mean_lanes(
         // The scalar loop's skips: visibility NaN or ≤ 0, r² NaN or ≤ 0,
         // cos_p NaN or ≤ 0, cos_x = 0.
         let lit = v.cmp_gt(zero) & r2.cmp_gt(zero) & cos_p.cmp_gt(zero) & lit_x;
-        let mut mask = lit.move_mask() & ((1 << group.len()) - 1);
+        let mut mask = lit.move_mask() & ((1 << count) - 1);
         if mask == 0 {
             continue;
         }
@@ -215,7 +232,7 @@ fn mean_lanes(
                     let i = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
                     let le = match texture {
-                        Some(t) => radiance * texel_at(t, group[i].st),
+                        Some(t) => radiance * texel_at(t, samples[group[i]].st),
                         None => radiance,
                     };
                     sum += le * lobe.eval(DVec3::new(wx[i], wy[i], wz[i])) * g[i];
