@@ -2,15 +2,19 @@
 //! [`direct_from_samples`](super::direct_from_samples), four samples at a
 //! time.
 //!
-//! Per sample it takes a square root and four divisions in `f64` (the unit
-//! direction and the geometry term), the costliest part of the reference's
-//! per-sample work after the shadow ray itself: on bunny.toml at 1024², 64
-//! samples, the scalar loop was 15 % of the light pass's instructions. The
-//! lane version computes those for four samples at once on the facade's
-//! `f64x4`, every lane the scalar loop's own IEEE operations in the same
-//! order, and then adds the samples' contributions to the sum one by one
-//! in sample order, so the estimate is the scalar one bit for bit (the
-//! scalar twin is kept for the tests, which hold the two equal). The lane
+//! Per sample the geometry term `cos_p cos_x / r²` is the costliest part
+//! of the reference's per-sample work after the shadow ray itself. For a
+//! rect light it is computed as `(n·d)(−m·d) / (r²)²` with `d = x − p`
+//! (`m` the light's normal): one division, where the unit direction
+//! `w = d/|d|` took a square root and four (on bunny.toml at 1024², 64
+//! samples, that scalar loop was 15 % of the light pass's instructions).
+//! Sphere lights keep the unit direction, as `inv_pdf_area` does (see the
+//! sampling module: the product of the two is `Ω` to one rounding even at
+//! the cone's edge). The lane version computes the term for four samples
+//! with visibility > 0 at once on the facade's `f64x4`, every lane the
+//! scalar twin's own IEEE operations in the same order, then adds the
+//! samples' contributions to the sum one by one in sample order, so the
+//! two give the same bits (the tests hold them equal in `f64`). The lane
 //! body is compiled at both `simd::level` levels.
 
 use super::brdf::{to_vec3, Lobe};
@@ -179,40 +183,49 @@ fn mean_lanes(
         }
         let [sx, sy, sz] = xs.map(f64x4::new);
         let v = f64x4::new(v);
-        // The scalar loop's `d = x − p`, `r2 = d·d`, `w = d / √r2`,
-        // `cos_p = n·w` (glam's dot: `(x x' + y y') + z z'`).
+        // `d = x − p`, `r2 = d·d` (glam's dot: `(x x' + y y') + z z'`).
         let (dx, dy, dz) = (sx - px, sy - py, sz - pz);
         let r2 = dx * dx + dy * dy + dz * dz;
-        let len = r2.sqrt();
-        let (wx, wy, wz) = (dx / len, dy / len, dz / len);
-        let cos_p = nx * wx + ny * wy + nz * wz;
-        // `cos_x` and whether it is non-zero. `zero − a` is `−a` for every
-        // `a ≠ +0`; where `a = +0` the lane is skipped either way.
-        let (cos_x, lit_x) = match emitter {
+        let unit = || {
+            let len = r2.sqrt();
+            (dx / len, dy / len, dz / len)
+        };
+        // The geometry term `cos_p cos_x / r²`, whether `cos_p` and `cos_x`
+        // are non-zero, and the unit direction where it was needed.
+        // `zero − a` is `−a` for every `a ≠ +0`; where `a = +0` the lane is
+        // skipped either way.
+        let (geometry, lit_geometry, w) = match emitter {
             Emitter::Rect { normal, two_sided } => {
+                // `(n·d)(−m·d) / r2²`: the cosines' `1/|d|` folded into the
+                // one division (no square root, one division instead of
+                // five per sample).
                 let [mx, my, mz] = splat3(normal);
-                let dot = mx * wx + my * wy + mz * wz;
-                if two_sided {
-                    // `|−dot| = |dot|`; NaN is not 0, as in `c.abs() == 0`.
-                    let c = dot.abs();
-                    (c, c.cmp_ne(zero))
-                } else {
-                    // `max(−dot, 0) == 0` exactly when `−dot > 0` fails.
-                    let c = zero - dot;
-                    (c, c.cmp_gt(zero))
-                }
+                let nd = nx * dx + ny * dy + nz * dz;
+                let md = mx * dx + my * dy + mz * dz;
+                let c = if two_sided { md.abs() } else { zero - md };
+                let lit_x = c.cmp_gt(zero);
+                (nd * c / (r2 * r2), nd.cmp_gt(zero) & lit_x, None)
             }
             Emitter::Sphere { center, inv_radius } => {
+                // In the unit direction, as `inv_pdf_area` computes `cos_x`
+                // (their product is then `Ω` to one rounding even where
+                // `cos_x` is tiny, at the cone's edge).
+                let (wx, wy, wz) = unit();
+                let cos_p = nx * wx + ny * wy + nz * wz;
                 let [cx, cy, cz] = splat3(center);
                 let dot = (sx - cx) * wx + (sy - cy) * wy + (sz - cz) * wz;
                 let c = (zero - dot) * f64x4::splat(inv_radius);
-                (c, c.cmp_gt(zero))
+                (
+                    cos_p * c / r2,
+                    cos_p.cmp_gt(zero) & c.cmp_gt(zero),
+                    Some((wx, wy, wz)),
+                )
             }
         };
-        let g = cos_p * cos_x / r2 * f64x4::new(inv_pdf) * v;
-        // The scalar loop's skips: visibility NaN or ≤ 0, r² NaN or ≤ 0,
-        // cos_p NaN or ≤ 0, cos_x = 0.
-        let lit = v.cmp_gt(zero) & r2.cmp_gt(zero) & cos_p.cmp_gt(zero) & lit_x;
+        let g = geometry * f64x4::new(inv_pdf) * v;
+        // The skips: visibility NaN or ≤ 0, r² NaN or ≤ 0, cos_p or cos_x
+        // NaN or 0 (or, one-sided, negative).
+        let lit = v.cmp_gt(zero) & r2.cmp_gt(zero) & lit_geometry;
         let mut mask = lit.move_mask() & ((1 << count) - 1);
         if mask == 0 {
             continue;
@@ -227,6 +240,13 @@ fn mean_lanes(
                 }
             }
             None => {
+                // The lobe needs the unit direction; without one `eval`
+                // ignores it.
+                let (wx, wy, wz) = match w {
+                    Some(w) => w,
+                    None if lobe.has_spec => unit(),
+                    None => (zero, zero, zero),
+                };
                 let (wx, wy, wz) = (wx.to_array(), wy.to_array(), wz.to_array());
                 while mask != 0 {
                     let i = mask.trailing_zeros() as usize;
@@ -274,31 +294,30 @@ fn mean_scalar(
             continue;
         }
         let w = d / r2.sqrt();
-        let cos_p = lobe.n.dot(w);
-        if cos_p.is_nan() || cos_p <= 0.0 {
-            continue;
-        }
-        let cos_x = match emitter {
+        let geometry = match emitter {
             Emitter::Rect { normal, two_sided } => {
-                let c = -normal.dot(w);
-                if two_sided {
-                    c.abs()
-                } else {
-                    c.max(0.0)
+                let nd = lobe.n.dot(d);
+                let md = normal.dot(d);
+                let c = if two_sided { md.abs() } else { -md };
+                if !(nd > 0.0) || !(c > 0.0) {
+                    continue;
                 }
+                nd * c / (r2 * r2)
             }
             Emitter::Sphere { center, inv_radius } => {
-                (-(s.x.as_dvec3() - center).dot(w) * inv_radius).max(0.0)
+                let cos_p = lobe.n.dot(w);
+                let cos_x = -(s.x.as_dvec3() - center).dot(w) * inv_radius;
+                if !(cos_p > 0.0) || !(cos_x > 0.0) {
+                    continue;
+                }
+                cos_p * cos_x / r2
             }
         };
-        if cos_x == 0.0 {
-            continue;
-        }
         let le = match texture {
             Some(t) => radiance * texel_at(t, s.st),
             None => radiance,
         };
-        let g = cos_p * cos_x / r2 * f64::from(s.inv_pdf_area) * f64::from(vis);
+        let g = geometry * f64::from(s.inv_pdf_area) * f64::from(vis);
         sum += le * lobe.eval(w) * g;
     }
     sum / samples.len() as f64
