@@ -519,11 +519,15 @@ impl<'a> ShadowTracer<'a> {
                         continue;
                     }
                     rays += self.gsample_bundle(&g, &samples, rect, &mut vts, &mut scratch);
+                    // Sized once and written in place: with `push` (which
+                    // may reallocate) the running sum went through memory
+                    // on every sample.
                     vis.clear();
+                    vis.resize(vts.len(), 0.0f32);
                     let mut sum = 0.0f64;
-                    for &vt in &vts {
+                    for (o, &vt) in vis.iter_mut().zip(&vts) {
                         sum += vt;
-                        vis.push(vt as f32);
+                        *o = vt as f32;
                     }
                     *v = (sum / samples.len() as f64) as f32;
                     *r = prepared.direct_from_samples(
