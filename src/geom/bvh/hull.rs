@@ -113,6 +113,7 @@ impl SegmentHull {
     /// threshold far above that rounding; the plane is `n` itself, as
     /// stored, so no tilt enters the margin argument. No plane when a
     /// direction fails, or `n` is zero or not finite.
+    #[inline(always)]
     pub fn new(
         origin: Vec3,
         dirs: &[Vec3],

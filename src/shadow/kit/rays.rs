@@ -18,6 +18,8 @@ use crate::scene::{LightShape, Scene};
 use crate::shade::surface_point;
 use crate::shade::{LightSample, PreparedLight};
 use crate::shadow::{LightTerm, ShadowContext};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::level::{level, Level};
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -334,6 +336,42 @@ impl<'a> ShadowTracer<'a> {
     /// samples come from a rect light: the segments' pyramid then culls
     /// the tree first ([`Bvh::occluded_hull`], same bits).
     fn gsample_bundle(
+        &self,
+        g: &GSample,
+        samples: &[LightSample],
+        rect: Option<(Vec3, Vec3, Vec3)>,
+        out: &mut Vec<f64>,
+        scratch: &mut Scratch,
+    ) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        if level() == Level::V3 && Level::V3.supported() {
+            // SAFETY: the CPU has every feature the v3 copy enables
+            // (`Level::supported`), its one requirement.
+            return unsafe { self.gsample_bundle_v3(g, samples, rect, out, scratch) };
+        }
+        self.gsample_bundle_body(g, samples, rect, out, scratch)
+    }
+
+    /// [`ShadowTracer::gsample_bundle_body`] compiled for `Level::V3`
+    /// (`simd::level`): the per-sample directions and the segment hull's
+    /// bounds; the walks dispatch on their own.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn gsample_bundle_v3(
+        &self,
+        g: &GSample,
+        samples: &[LightSample],
+        rect: Option<(Vec3, Vec3, Vec3)>,
+        out: &mut Vec<f64>,
+        scratch: &mut Scratch,
+    ) -> u64 {
+        self.gsample_bundle_body(g, samples, rect, out, scratch)
+    }
+
+    /// [`ShadowTracer::gsample_bundle`] itself, inlined into each level's
+    /// copy.
+    #[inline(always)]
+    fn gsample_bundle_body(
         &self,
         g: &GSample,
         samples: &[LightSample],
