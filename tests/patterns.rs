@@ -113,44 +113,6 @@ fn stratified_is_bit_identical_to_the_historical_samples() {
     }
 }
 
-/// Both run-time SIMD levels of `samples_with` give the same samples, for
-/// every pattern, rect and sphere lights.
-#[test]
-fn samples_are_the_same_at_every_simd_level() {
-    use penumbra::simd::level::Level;
-    let levels: Vec<Level> = [Level::Baseline, Level::V3]
-        .into_iter()
-        .filter(|l| l.supported())
-        .collect();
-    let (mut base, mut other) = (Vec::new(), Vec::new());
-    for light in [rect_light(), sphere_light()] {
-        let ls = LightSampler::new(&light);
-        for pattern in [
-            "stratified",
-            "correlated",
-            "rotated",
-            "poisson",
-            "sobol",
-            "interleaved:3",
-            "grid",
-        ] {
-            let pattern = SamplePattern::parse(pattern).unwrap();
-            for n in [1u32, 7, 12, 64, 100] {
-                let ps = PatternSampler::new(pattern, n, 5, 0);
-                for px in [(0u32, 0u32), (17, 9)] {
-                    let p = Vec3::new(0.1, 0.2, 0.3);
-                    ls.samples_with_at(Level::Baseline, &ps, p, px, &mut base);
-                    assert_eq!(base.len(), n as usize);
-                    for &level in &levels {
-                        ls.samples_with_at(level, &ps, p, px, &mut other);
-                        assert_eq!(base, other, "{level:?} {n} {px:?}");
-                    }
-                }
-            }
-        }
-    }
-}
-
 fn frame_ctx<R>(scene: &Scene, w: u32, h: u32, f: impl FnOnce(&ShadowContext) -> R) -> R {
     let options = RenderOptions {
         width: Some(w),

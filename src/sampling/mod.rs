@@ -63,7 +63,6 @@ use glam::{DVec3, Vec2, Vec3};
 use std::f64::consts::PI;
 
 use crate::shade::LightSample;
-use crate::simd::level::{level, Level};
 
 mod patterns;
 
@@ -256,52 +255,6 @@ impl LightSampler {
     /// give no samples for a receiver inside or on the sphere, or one that
     /// is not finite. `pattern` must have been built for this light.
     pub fn samples_with(
-        &self,
-        pattern: &PatternSampler,
-        p: Vec3,
-        pixel: (u32, u32),
-        out: &mut Vec<LightSample>,
-    ) {
-        self.samples_with_at(level(), pattern, p, pixel, out);
-    }
-
-    /// [`LightSampler::samples_with`] compiled for `level` (`simd::level`;
-    /// the baseline copy where this CPU lacks it): the same samples at
-    /// every level.
-    pub fn samples_with_at(
-        &self,
-        level: Level,
-        pattern: &PatternSampler,
-        p: Vec3,
-        pixel: (u32, u32),
-        out: &mut Vec<LightSample>,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if level == Level::V3 && level.supported() {
-            // SAFETY: the CPU has every feature the v3 copy enables
-            // (`Level::supported`), its one requirement.
-            return unsafe { self.samples_with_v3(pattern, p, pixel, out) };
-        }
-        let _ = level;
-        self.samples_with_body(pattern, p, pixel, out);
-    }
-
-    /// [`LightSampler::samples_with_body`] compiled for `Level::V3`.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
-    fn samples_with_v3(
-        &self,
-        pattern: &PatternSampler,
-        p: Vec3,
-        pixel: (u32, u32),
-        out: &mut Vec<LightSample>,
-    ) {
-        self.samples_with_body(pattern, p, pixel, out);
-    }
-
-    /// The sampling itself, inlined into each level's copy.
-    #[inline(always)]
-    fn samples_with_body(
         &self,
         pattern: &PatternSampler,
         p: Vec3,

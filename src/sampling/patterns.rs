@@ -513,7 +513,7 @@ impl PixelPoints<'_> {
     /// Calls `f` with points `0..n` in order, the same values as
     /// [`PixelPoints::point`] gives, walking the strata row by row instead
     /// of dividing `k` for each (the hot path of per-pixel sampling).
-    #[inline(always)]
+    #[inline]
     pub(crate) fn for_each(&self, n: u32, mut f: impl FnMut((f64, f64))) {
         match *self {
             PixelPoints::Jittered { strata, key } if strata.count() == n && n > 0 => {
