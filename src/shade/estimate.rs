@@ -159,10 +159,10 @@ fn mean_lanes(
         let mut group = [0usize; LANES];
         let mut count = 0;
         while count < LANES && next < visibility.len() {
-            if visibility[next] > 0.0 {
-                group[count] = next;
-                count += 1;
-            }
+            // Without a branch: in a penumbra lit and blocked samples
+            // alternate.
+            group[count] = next;
+            count += usize::from(visibility[next] > 0.0);
             next += 1;
         }
         if count == 0 {
