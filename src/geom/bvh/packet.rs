@@ -633,7 +633,10 @@ impl Bvh {
                 // Bit `s` of the 4-bit `m` to bit `8 s`.
                 through |= ((m * 0x0020_4081) & 0x0101_0101) << lane;
             }
-            let mut inner = [(0u32, 0u32, 0.0f32); 4];
+            // Inner children to enter: `(child << 32 | lanes)` and the
+            // sort key; empty slots keep key −∞, below every real key.
+            let mut inner = [0u64; 4];
+            let mut inner_keys = [f32::NEG_INFINITY; 4];
             let mut n_inner = 0;
             let keys = ((rel.lo[0] + rel.hi[0]) * packet.mean[0]
                 + (rel.lo[1] + rel.hi[1]) * packet.mean[1]
@@ -648,15 +651,10 @@ impl Bvh {
                 }
                 let count = node.count[slot] as usize;
                 if count == 0 {
-                    // Insertion by key, farthest first: the nearest is
-                    // pushed last and popped first.
-                    let key = keys[slot];
-                    let mut i = n_inner;
-                    while i > 0 && inner[i - 1].2 < key {
-                        inner[i] = inner[i - 1];
-                        i -= 1;
-                    }
-                    inner[i] = (node.child[slot], pass, key);
+                    // Sorted below; a NaN key counts as the lowest real
+                    // one, so it never falls behind an empty slot.
+                    inner[n_inner] = u64::from(node.child[slot]) << 32 | u64::from(pass);
+                    inner_keys[n_inner] = keys[slot].max(f32::MIN);
                     n_inner += 1;
                     continue;
                 }
@@ -666,7 +664,24 @@ impl Bvh {
                     *last = Some((index, slot));
                 }
             }
-            for &(child, pass, _) in &inner[..n_inner] {
+            if n_inner > 1 {
+                // Farthest first, so the nearest is pushed last and popped
+                // first: a five-comparator network with selects instead of
+                // an insertion loop, whose exits the branch predictor
+                // missed (the order only changes the time, never an
+                // answer).
+                for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+                    let swap = inner_keys[a] < inner_keys[b];
+                    let (ka, kb) = (inner_keys[a], inner_keys[b]);
+                    let (ia, ib) = (inner[a], inner[b]);
+                    inner_keys[a] = if swap { kb } else { ka };
+                    inner_keys[b] = if swap { ka } else { kb };
+                    inner[a] = if swap { ib } else { ia };
+                    inner[b] = if swap { ia } else { ib };
+                }
+            }
+            for &entry in &inner[..n_inner] {
+                let (child, pass) = ((entry >> 32) as u32, entry as u32);
                 // Cannot overflow (see `STACK`); the check only keeps the
                 // index provably in bounds.
                 if top < STACK {
