@@ -56,6 +56,30 @@ fn emitter(light: &Light, p: DVec3) -> Option<Emitter> {
     }
 }
 
+/// The per-receiver constants both versions of the estimate start from.
+struct Receiver {
+    lobe: Lobe,
+    p: DVec3,
+    radiance: DVec3,
+    emitter: Emitter,
+}
+
+/// `None` when the estimate is 0 before any sample: no samples, or a
+/// receiver inside or on a sphere light.
+#[inline(always)]
+fn receiver(light: &Light, sp: &SurfacePoint, samples: &[LightSample]) -> Option<Receiver> {
+    if samples.is_empty() {
+        return None;
+    }
+    let p = sp.p.as_dvec3();
+    Some(Receiver {
+        lobe: Lobe::new(sp),
+        p,
+        radiance: light.radiance.as_dvec3(),
+        emitter: emitter(light, p)?,
+    })
+}
+
 /// `(1/N) Σ Le f_r cos_p cos_x / r² · inv_pdf_area · visibility` over the
 /// samples (see [`direct_from_samples`](super::direct_from_samples)), at
 /// the run-time SIMD level.
@@ -133,13 +157,13 @@ fn mean_lanes(
     samples: &[LightSample],
     visibility: &[f32],
 ) -> DVec3 {
-    if samples.is_empty() {
-        return DVec3::ZERO;
-    }
-    let lobe = Lobe::new(sp);
-    let p = sp.p.as_dvec3();
-    let radiance = light.radiance.as_dvec3();
-    let Some(emitter) = emitter(light, p) else {
+    let Some(Receiver {
+        lobe,
+        p,
+        radiance,
+        emitter,
+    }) = receiver(light, sp, samples)
+    else {
         return DVec3::ZERO;
     };
     // `Le f_r` when it depends on no sample (no texture, no lobe): the
@@ -274,13 +298,13 @@ fn mean_scalar(
     visibility: &[f32],
 ) -> DVec3 {
     assert_eq!(samples.len(), visibility.len());
-    if samples.is_empty() {
-        return DVec3::ZERO;
-    }
-    let lobe = Lobe::new(sp);
-    let p = sp.p.as_dvec3();
-    let radiance = light.radiance.as_dvec3();
-    let Some(emitter) = emitter(light, p) else {
+    let Some(Receiver {
+        lobe,
+        p,
+        radiance,
+        emitter,
+    }) = receiver(light, sp, samples)
+    else {
         return DVec3::ZERO;
     };
     let mut sum = DVec3::ZERO;
