@@ -192,8 +192,7 @@ fn mean_lanes(
         if count == 0 {
             break;
         }
-        // Lanes past `count` get visibility 0: skipped as the scalar loop
-        // skips an unlit sample.
+        // Lanes past `count` are zeros, masked off below.
         let mut xs = [[0.0f64; LANES]; 3];
         let mut inv_pdf = [0.0f64; LANES];
         let mut v = [0.0f64; LANES];
@@ -247,9 +246,10 @@ fn mean_lanes(
             }
         };
         let g = geometry * f64x4::new(inv_pdf) * v;
-        // The skips: visibility NaN or ≤ 0, r² NaN or ≤ 0, cos_p or cos_x
-        // NaN or 0 (or, one-sided, negative).
-        let lit = v.cmp_gt(zero) & r2.cmp_gt(zero) & lit_geometry;
+        // The skips (visibility NaN or ≤ 0 never entered the lanes): r²
+        // NaN or ≤ 0, cos_p or cos_x NaN or 0 (or, one-sided, negative),
+        // and the lanes past `count`.
+        let lit = r2.cmp_gt(zero) & lit_geometry;
         let mut mask = lit.move_mask() & ((1 << count) - 1);
         if mask == 0 {
             continue;
