@@ -261,6 +261,10 @@ pub struct DcsLightReport {
     pub unbounded_pairs: usize,
     /// Receivers that needed per-sample counters.
     pub sampled_pixels: usize,
+    /// Receivers whose start count was recounted by a ray because a
+    /// quad's plane passes between the raster's receiver and the
+    /// shadow-ray origin.
+    pub quad_recounts: usize,
 }
 
 impl DepthComplexitySampling {
@@ -281,7 +285,7 @@ impl DepthComplexitySampling {
         let (ties, exact) = recount_ties(ctx, k, point, &mut starts, self.silhouettes, passes)?;
         let (groups, wedges) = timed(passes, format!("wedge build light {k}"), || {
             let groups = candidate_edges(light, point, self, starts);
-            let wedges = build_wedges(ctx, &bound, point, &groups);
+            let wedges = build_wedges(ctx, &bound, point, &groups, self.silhouettes);
             (groups, wedges)
         });
         let grid = framebuffer.grid();
@@ -465,7 +469,7 @@ impl DepthComplexitySampling {
                     "{} candidate edges in {} caster group(s) ({} silhouettes, {} without a \
                      bounded wedge), {} wedge triangles; (pixel, edge) pairs as u64, {} \
                      receivers sampled, {} outside every wedge with no per-sample work; {} \
-                     (pixel, unbounded edge) pairs",
+                     (pixel, unbounded edge) pairs; {} start counts recounted across a quad",
                     report.candidate_edges,
                     1 + report.semi_opaque_groups,
                     self.silhouettes.name(),
@@ -474,6 +478,7 @@ impl DepthComplexitySampling {
                     report.sampled_pixels,
                     pixels as usize - report.sampled_pixels,
                     report.unbounded_pairs,
+                    report.quad_recounts,
                 ),
                 bytes: report.pairs as u64 * 8,
             });

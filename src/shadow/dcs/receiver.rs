@@ -7,7 +7,7 @@
 use super::bitfield::CoverageTables;
 use super::chart::ReceiverChart;
 use super::counters::{add_covered, ChartSamples, OrientedEdge};
-use super::edges::{side_of, CandidateEdges};
+use super::edges::{side_of, CandidateEdge, CandidateEdges};
 use super::ties::{ExactStart, Tie};
 use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::sampling::{LightSampler, PatternSampler};
@@ -27,6 +27,9 @@ pub(super) struct PixelResult {
     pub(super) max_dc: f32,
     pub(super) mean_dc: f32,
     pub(super) edges: f32,
+    /// Whether a quad's plane between the raster's receiver and the
+    /// shadow-ray origin had its start count recounted by a ray.
+    pub(super) recounted: bool,
 }
 
 /// Per-worker buffers of the counter pass.
@@ -47,10 +50,26 @@ pub(super) struct Scratch {
     positions: SamplePositions,
     /// One S-triangle's opacity per sample.
     opacities: Vec<f32>,
-    /// Per recorded edge of the group being counted: the centre's side of
-    /// the plane through the receiver and the edge.
-    sides: Vec<i8>,
+    /// The receiver's effective edges, group after group: each projected
+    /// edge that covers part of the light, with its signed change of `D`.
+    effective: Vec<(OrientedEdge, i32)>,
+    /// Per group: its start count at the shadow-ray origin and its run of
+    /// `effective`.
+    spans: Vec<GroupSpan>,
     visibility: Vec<f32>,
+}
+
+/// One group's edges at one receiver ([`LightPass::group_edges`]).
+#[derive(Debug, Clone, Copy)]
+struct GroupSpan {
+    /// `D(O)` (or the layer count) at the shadow-ray origin.
+    start: i32,
+    /// Its edges in [`Scratch::effective`].
+    first: usize,
+    end: usize,
+    /// Whether it had recorded edges at all (a group without keeps its
+    /// start for every sample).
+    recorded: bool,
 }
 
 /// One caster group's state for a light: its candidate edges, its
@@ -167,6 +186,7 @@ impl LightPass<'_, '_> {
                 max_dc: d0.max(0) as f32,
                 mean_dc: d0.max(0) as f32,
                 edges: 0.0,
+                recounted: false,
             };
         }
         let width = gbuffer.width as usize;
@@ -191,6 +211,7 @@ impl LightPass<'_, '_> {
         // rounds it): receivers on an occluder's own surface then see its
         // edges from the same side of its faces as the reference's rays.
         let p = self.origin.of(g.position, g.geo_normal).as_dvec3();
+        let raster = g.position.as_dvec3();
         let chart = match ReceiverChart::new(&self.bound, p) {
             Some(c) if rect || !scratch.samples.is_empty() => c,
             // Inside a sphere light: no defined Vcoef (as the reference).
@@ -202,6 +223,67 @@ impl LightPass<'_, '_> {
                 }
             }
         };
+        // Every group's start count and effective edges first: a receiver
+        // none of whose recorded edges covers part of the light needs no
+        // per-sample work.
+        let (mut ti, mut xi) = (0, 0);
+        let mut recounted = false;
+        scratch.effective.clear();
+        scratch.spans.clear();
+        for (k, group) in self.groups.iter().enumerate() {
+            let end = group.end_edge();
+            let t_end = ti + tags[ti..].partition_point(|&t| ((t >> 1) as u32) < end);
+            let x_end = xi + extra[xi..].partition_point(|&e| e < end);
+            let (group_tags, group_extra) = (&tags[ti..t_end], &extra[xi..x_end]);
+            (ti, xi) = (t_end, x_end);
+            let first = scratch.effective.len();
+            let recorded = k == 0 || !group_tags.is_empty() || !group_extra.is_empty();
+            let start = if recorded {
+                let (start, recount) = self.group_edges(
+                    k,
+                    i,
+                    (raster, p),
+                    &chart,
+                    (group_tags, group_extra),
+                    &mut scratch.effective,
+                );
+                recounted |= recount;
+                start
+            } else {
+                group.start[i]
+            };
+            scratch.spans.push(GroupSpan {
+                start,
+                first,
+                end: scratch.effective.len(),
+                recorded,
+            });
+        }
+        let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
+        let edge_count = (tags.len() + extra.len()) as f32;
+        if scratch.effective.is_empty()
+            && !semi_opaque
+            && !direct
+            && !self.prepared.is_textured()
+            && inspect.is_none()
+        {
+            // Every sample keeps the start count: the per-sample path's
+            // results without the samples (its sums of 0 and 1 over the
+            // samples are exact, so the same bits).
+            let d = scratch.spans[0].start.max(0) as f32;
+            return PixelResult {
+                vcoef: if scratch.spans[0].start <= 0 {
+                    1.0
+                } else {
+                    0.0
+                },
+                radiance: Vec3::ZERO,
+                max_dc: d,
+                mean_dc: d,
+                edges: edge_count,
+                recounted,
+            };
+        }
         if rect {
             scratch.chart.clear();
             self.pattern
@@ -216,43 +298,54 @@ impl LightPass<'_, '_> {
                 .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
         }
         let count = scratch.chart.len();
-        let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
         scratch.attenuation.clear();
         if semi_opaque {
             scratch.attenuation.resize(count, 0.0);
         }
-        // Tags and extras are sorted by global edge id, and each group's
-        // ids are contiguous: split them group by group.
-        let (mut ti, mut xi) = (0, 0);
-        for (k, group) in self.groups.iter().enumerate() {
-            let end = group.end_edge();
-            let t_end = ti + tags[ti..].partition_point(|&t| ((t >> 1) as u32) < end);
-            let x_end = xi + extra[xi..].partition_point(|&e| e < end);
-            let (group_tags, group_extra) = (&tags[ti..t_end], &extra[xi..x_end]);
-            (ti, xi) = (t_end, x_end);
-            if k == 0 {
-                self.count_group(k, i, p, &chart, group_tags, group_extra, scratch, false);
-                continue;
+        let table = match self.tables {
+            [] => None,
+            [one] => Some(one),
+            many => {
+                let set = self.pattern.interleaved_set(pixel).unwrap_or(0) as usize;
+                many.get(set)
             }
-            if group_tags.is_empty() && group_extra.is_empty() {
-                let layers = group.start[i];
-                if layers > 0 {
-                    let add = f64::from(layers) * group.per_layer;
-                    scratch.attenuation.iter_mut().for_each(|a| *a += add);
-                }
-                continue;
-            }
-            self.count_group(k, i, p, &chart, group_tags, group_extra, scratch, true);
+        };
+        {
             let Scratch {
+                chart: samples,
+                counters,
                 layers,
                 attenuation,
+                effective,
+                spans,
                 ..
-            } = scratch;
-            for (a, &n) in attenuation.iter_mut().zip(&layers[..count]) {
-                // Counts are exact; a negative one is a tie at an edge
-                // and means no layer.
-                if n > 0 {
-                    *a += f64::from(n) * group.per_layer;
+            } = &mut *scratch;
+            for (k, (span, group)) in spans.iter().zip(self.groups).enumerate() {
+                let opaque = k == 0;
+                if !span.recorded {
+                    if span.start > 0 {
+                        let add = f64::from(span.start) * group.per_layer;
+                        attenuation.iter_mut().for_each(|a| *a += add);
+                    }
+                    continue;
+                }
+                let counts = if opaque { &mut *counters } else { &mut *layers };
+                counts.clear();
+                counts.resize(samples.padded(), span.start);
+                for (edge, delta) in &effective[span.first..span.end] {
+                    match table {
+                        Some(t) => t.add_covered(counts, edge, *delta),
+                        None => add_covered(counts, samples, edge, *delta),
+                    }
+                }
+                if !opaque {
+                    for (a, &n) in attenuation.iter_mut().zip(&layers[..count]) {
+                        // Counts are exact; a negative one is a tie at an
+                        // edge and means no layer.
+                        if n > 0 {
+                            *a += f64::from(n) * group.per_layer;
+                        }
+                    }
                 }
             }
         }
@@ -342,96 +435,34 @@ impl LightPass<'_, '_> {
             radiance,
             max_dc: max_dc as f32,
             mean_dc: (sum_dc as f64 / count as f64) as f32,
-            edges: tags.len() as f32,
+            edges: edge_count,
+            recounted,
         }
     }
 
-    /// Counts one group at receiver `p'` (`p`) of pixel `i` into
-    /// `scratch.counters` (opaque) or `scratch.layers` (semi-opaque):
-    /// the start count, moved across the quads that pass between the
-    /// raster's receiver and `p'`, plus every edge's signed change over
-    /// the samples it covers.
-    #[allow(clippy::too_many_arguments)]
-    fn count_group(
+    /// One group's start count at the shadow-ray origin `p'` (`p`) of
+    /// pixel `i`, and whether a ray recounted it: the stencil decided
+    /// `D(O)` at the raster's receiver; where a quad's plane passes
+    /// between the two, the count moves across that quad (+m entering
+    /// the volume, −m leaving it) or, where that does not compose with
+    /// the own-face rule, one ray gives it. Every recorded edge (`tags`,
+    /// then `extra`) whose projection covers part of the light goes to
+    /// `effective` with its signed change of `D`.
+    fn group_edges(
         &self,
         k: usize,
         i: usize,
-        p: DVec3,
+        (raster, p): (DVec3, DVec3),
         chart: &ReceiverChart,
-        tags: &[u64],
-        extra: &[u32],
-        scratch: &mut Scratch,
-        layers: bool,
-    ) {
+        (tags, extra): (&[u64], &[u32]),
+        effective: &mut Vec<(OrientedEdge, i32)>,
+    ) -> (i32, bool) {
         let group = &self.groups[k];
         let edges = &group.candidates.edges;
         let local = |global: u32| (global - group.first_edge) as usize;
-        // The stencil decided `D(O)` at the raster's receiver `p`; the
-        // counters follow the shadow-ray origin `p'`. Where a quad's
-        // plane passes between them (a receiver on the occluder, at its
-        // terminator) move the constant across that quad: +m entering the
-        // volume, −m leaving it.
-        // Each tag's side is computed once, here, and reused below.
-        let mut d0 = group.start[i];
-        let tie = self.ties[i];
-        let mut crossed = false;
-        scratch.sides.clear();
-        for &t in tags {
-            let e = &edges[local((t >> 1) as u32)];
-            let geometric = side_of(p, e.v0, e.v1, self.centre);
-            scratch.sides.push(geometric as i8);
-            if e.quad_sign == 0 || tie == Tie::Tied {
-                continue;
-            }
-            let outer = t & 1 == 1;
-            let raster = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
-            if geometric != 0 && geometric != raster {
-                let m = e.quad_weight as i32;
-                d0 += if outer { m } else { -m };
-                crossed = true;
-            }
-        }
-        if crossed && tie == Tie::OwnFace {
-            // On its own face and across a quad's plane from the raster's
-            // receiver: the two corrections do not compose; one ray
-            // gives the count at `p'`.
-            let mut counts = vec![0; self.groups.len()];
-            self.exact
-                .counts(p.as_vec3(), self.centre.as_vec3(), &mut counts);
-            d0 = counts[k];
-        }
-        let Scratch {
-            chart: samples,
-            counters,
-            layers: layer_counts,
-            sides,
-            ..
-        } = scratch;
-        let counters = if layers { layer_counts } else { counters };
-        let table = match self.tables {
-            [] => None,
-            [one] => Some(one),
-            many => {
-                let width = self.ctx.gbuffer.width as usize;
-                let pixel = ((i % width) as u32, (i / width) as u32);
-                let set = self.pattern.interleaved_set(pixel).unwrap_or(0) as usize;
-                many.get(set)
-            }
-        };
-        counters.clear();
-        counters.resize(samples.padded(), d0);
-        let from_wedges = tags
-            .iter()
-            .zip(sides.iter())
-            .map(|(&t, &side)| ((t >> 1) as u32, Some(side)));
-        for (id, side) in from_wedges.chain(extra.iter().map(|&id| (id, None))) {
-            let e = &edges[local(id)];
-            let side = match side {
-                Some(side) => i32::from(side),
-                None => side_of(p, e.v0, e.v1, self.centre),
-            };
+        let mut push = |e: &CandidateEdge, side: i32| {
             if side == 0 {
-                continue;
+                return;
             }
             // Whole-light silhouettes: the exact change (see `edges`).
             // Centre silhouettes: the thesis's rule, ±m by the half the
@@ -447,17 +478,62 @@ impl LightPass<'_, '_> {
                 SilhouetteMode::Centre => group.candidates.multiplicity_from(e, p),
             };
             if mu == 0 {
+                return;
+            }
+            let oriented = chart
+                .edge(e.v0, e.v1)
+                .and_then(|(a, b)| OrientedEdge::new(a, b));
+            if let Some(oriented) = oriented {
+                effective.push((oriented, side * mu));
+            }
+        };
+        let mut d0 = group.start[i];
+        let tie = self.ties[i];
+        let mut crossed = false;
+        // Edges drawn as wedges: the raster's half is the side of the
+        // quad's plane the stencil saw the receiver on.
+        for &t in tags {
+            let e = &edges[local((t >> 1) as u32)];
+            let geometric = side_of(p, e.v0, e.v1, self.centre);
+            push(e, geometric);
+            if e.quad_sign == 0 || tie == Tie::Tied {
                 continue;
             }
-            let Some((a, b)) = chart.edge(e.v0, e.v1) else {
-                continue;
-            };
-            if let Some(oriented) = OrientedEdge::new(a, b) {
-                match table {
-                    Some(t) => t.add_covered(counters, &oriented, side * mu),
-                    None => add_covered(counters, samples, &oriented, side * mu),
-                }
+            let outer = t & 1 == 1;
+            let stencil_side = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
+            if geometric != 0 && geometric != stencil_side {
+                let m = e.quad_weight as i32;
+                d0 += if outer { m } else { -m };
+                crossed = true;
             }
         }
+        // On its own face and across a quad's plane from the raster's
+        // receiver, the two corrections do not compose.
+        let mut recount = crossed && tie == Tie::OwnFace;
+        // Edges found by their region: the stencil's side of the quad's
+        // plane is its sign at the raster's receiver. A receiver the tie
+        // test did not flag has no volume face within the tie band
+        // (4e-6 of its depth) along its view ray, far above f64's
+        // rounding of this sign, so the raster decided the same.
+        for &id in extra {
+            let e = &edges[local(id)];
+            let geometric = side_of(p, e.v0, e.v1, self.centre);
+            push(e, geometric);
+            if e.quad_sign != 0
+                && tie != Tie::Tied
+                && geometric != 0
+                && side_of(raster, e.v0, e.v1, self.centre) != geometric
+            {
+                recount = true;
+            }
+        }
+        if recount {
+            // One ray gives the count at `p'`.
+            let mut counts = vec![0; self.groups.len()];
+            self.exact
+                .counts(p.as_vec3(), self.centre.as_vec3(), &mut counts);
+            d0 = counts[k];
+        }
+        (d0, recount)
     }
 }
