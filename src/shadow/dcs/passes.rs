@@ -22,7 +22,7 @@ use super::chart::ReceiverChart;
 use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
 use super::receiver::{GroupPass, LightPass, PixelResult, Scratch};
-use super::region::RegionBound;
+use super::region::{ReceiverBlock, RegionBound};
 use super::ties::{own_face_change, tied_pixels, ExactStart, Tie};
 use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
 use crate::error::{Error, Result};
@@ -585,16 +585,17 @@ pub(super) fn count_tiles(
 
 /// The unbounded edges that may apply to receivers of `tile`, and per
 /// inner block (row-major, [`PER_ROW`] per row) the indices into them of
-/// those that may apply to its receivers: receivers' bounding boxes,
-/// tile, then 16² and 4² blocks, against each edge's screen rectangle and
-/// world-space region, so that per pixel only the edges of its 4² block
-/// are tested.
+/// those that may apply to its receivers, each with the mask of those
+/// receivers: receivers' bounding boxes of the tile, then of 16² and 4²
+/// blocks, against each edge's screen rectangle and world-space region,
+/// then the sixteen receivers of a 4² block against the region at once
+/// ([`RegionBound::admits`]).
 fn unbounded_near<'u>(
     ctx: &ShadowContext,
     grid: TileGrid,
     tile: usize,
     (unbounded, clusters): (&'u [UnboundedEdge], &[EdgeCluster]),
-) -> (Vec<&'u UnboundedEdge>, Vec<Vec<u32>>) {
+) -> (Vec<&'u UnboundedEdge>, Vec<BlockEdges>) {
     let (width, height) = (grid.width as usize, grid.height as usize);
     let (ox, oy) = grid.tile_origin(tile);
     let (ox, oy) = (ox as usize, oy as usize);
@@ -623,7 +624,7 @@ fn unbounded_near<'u>(
             && r[3] > y0
             && !u.region.excludes_box(b.0, b.1)
     };
-    let mut block_edges: Vec<Vec<u32>> = vec![Vec::new(); PER_ROW * PER_ROW];
+    let mut block_edges: Vec<BlockEdges> = vec![Vec::new(); PER_ROW * PER_ROW];
     // The clusters the tile keeps, each with its run of `near`.
     let mut kept: Vec<(&EdgeCluster, std::ops::Range<u32>)> = Vec::new();
     if !on_screen.is_empty() {
@@ -675,17 +676,55 @@ fn unbounded_near<'u>(
                     let Some(b) = bbox(x1, y1, INNER) else {
                         continue;
                     };
+                    let receivers = receiver_block(ctx, x1, y1);
                     let cell = (y1 - oy) / INNER * PER_ROW + (x1 - ox) / INNER;
                     block_edges[cell] = outer
                         .iter()
                         .copied()
                         .filter(|&k| keeps(near[k as usize], x1, y1, INNER, b))
+                        .filter_map(|k| {
+                            let u = near[k as usize];
+                            let mask = rect_mask(u.rect, x1, y1) & u.region.admits(&receivers);
+                            (mask != 0).then_some((k, mask))
+                        })
                         .collect();
                 }
             }
         }
     }
     (near, block_edges)
+}
+
+/// One 4² block's unbounded edges that may apply: indices into the tile's
+/// near edges, each with the mask of the block's receivers it may affect.
+type BlockEdges = Vec<(u32, u16)>;
+
+/// The receivers of the [`INNER`]² block at pixel `(x0, y0)`.
+fn receiver_block(ctx: &ShadowContext, x0: usize, y0: usize) -> ReceiverBlock {
+    let (width, height) = (ctx.gbuffer.width as usize, ctx.gbuffer.height as usize);
+    let points: [Option<DVec3>; INNER * INNER] = std::array::from_fn(|k| {
+        let (x, y) = (x0 + k % INNER, y0 + k / INNER);
+        let i = y * width + x;
+        (x < width && y < height && ctx.gbuffer.is_surface(i))
+            .then(|| ctx.gbuffer.sample(i).position.as_dvec3())
+    });
+    ReceiverBlock::new(&points)
+}
+
+/// Of the [`INNER`]² block at pixel `(x0, y0)`, the pixels inside the
+/// screen rectangle `rect` (bit `k` for pixel `k`, row by row).
+fn rect_mask(rect: [usize; 4], x0: usize, y0: usize) -> u16 {
+    let inside = |v: usize, lo: usize, hi: usize| v >= lo && v < hi;
+    let columns = (0..INNER).fold(0u16, |m, c| {
+        m | (u16::from(inside(x0 + c, rect[0], rect[2])) << c)
+    });
+    (0..INNER).fold(0u16, |m, r| {
+        m | if inside(y0 + r, rect[1], rect[3]) {
+            columns << (INNER * r)
+        } else {
+            0
+        }
+    })
 }
 
 /// One tile's receivers: each surface pixel's sorted (pixel, edge) pairs
@@ -739,23 +778,13 @@ fn tile_counters(
         extra.clear();
         let (lx, ly) = local_xy(local);
         let cell = ly / INNER * PER_ROW + lx / INNER;
-        if !block_edges[cell].is_empty() {
-            let q = gbuffer.sample(i).position.as_dvec3();
-            extra.extend(
-                block_edges[cell]
-                    .iter()
-                    .map(|&k| near[k as usize])
-                    .filter(|u| {
-                        let r = u.rect;
-                        x >= r[0]
-                            && x < r[2]
-                            && y >= r[1]
-                            && y < r[3]
-                            && !u.region.excludes_point(q)
-                    })
-                    .map(|u| u.id),
-            );
-        }
+        let bit = (ly % INNER) * INNER + lx % INNER;
+        extra.extend(
+            block_edges[cell]
+                .iter()
+                .filter(|&&(_, mask)| mask >> bit & 1 == 1)
+                .map(|&(k, _)| near[k as usize].id),
+        );
         sampled += usize::from(!tags.is_empty() || !extra.is_empty() || !here.is_empty());
         unbounded_pairs += extra.len();
         *r = pass.pixel(i, tags, &extra, &here, scratch);

@@ -95,6 +95,41 @@ impl Dihedral4 {
     }
 }
 
+/// Sixteen receivers (a 4 × 4 block of pixels, row by row) in four lane
+/// groups of four, structure-of-arrays, for testing one region against
+/// all of them at once ([`RegionBound::admits`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ReceiverBlock {
+    x: [f64x4; 4],
+    y: [f64x4; 4],
+    z: [f64x4; 4],
+    /// Bit `k` set where receiver `k` exists (a surface pixel).
+    valid: u16,
+}
+
+impl ReceiverBlock {
+    /// The block of `points` (`None` where a pixel has no receiver).
+    pub fn new(points: &[Option<DVec3>; 16]) -> ReceiverBlock {
+        let lanes = |axis: usize| {
+            std::array::from_fn(|g| {
+                f64x4::new(std::array::from_fn(|k| {
+                    points[4 * g + k].map_or(0.0, |p| p[axis])
+                }))
+            })
+        };
+        let valid = points
+            .iter()
+            .enumerate()
+            .fold(0u16, |m, (k, p)| m | (u16::from(p.is_some()) << k));
+        ReceiverBlock {
+            x: lanes(0),
+            y: lanes(1),
+            z: lanes(2),
+            valid,
+        }
+    }
+}
+
 /// A cone's unit generators four to a lane group, for the facet test of
 /// a candidate normal: no generator may point below the plane (see
 /// [`RegionBound::new`]). Unused lanes are zero vectors, whose dot is 0
@@ -387,6 +422,41 @@ impl RegionBound {
         })
     }
 
+    /// The receivers of `block` the region may hold, as a mask (bit `k`
+    /// for receiver `k`): per receiver the verdict of
+    /// [`RegionBound::excludes_point`], from the same operations in the
+    /// same order, but four receivers per vector instead of four planes,
+    /// so one region's data serves sixteen receivers.
+    #[inline(always)]
+    pub fn admits(&self, block: &ReceiverBlock) -> u16 {
+        let mut keep = block.valid;
+        for g in 0..4 {
+            if (keep >> (4 * g)) & 0xF == 0 {
+                continue;
+            }
+            let (x, y, z) = (block.x[g], block.y[g], block.z[g]);
+            let dot =
+                |n: DVec3| f64x4::splat(n.x) * x + f64x4::splat(n.y) * y + f64x4::splat(n.z) * z;
+            let mut out = 0;
+            if let Some((faces, slack)) = &self.dihedral {
+                let d0 = dot(faces[0].0) - f64x4::splat(faces[0].1);
+                let d1 = dot(faces[1].0) - f64x4::splat(faces[1].1);
+                let (up, down) = (f64x4::splat(*slack), f64x4::splat(-*slack));
+                let front = d0.cmp_gt(up) & d1.cmp_gt(up);
+                let behind = d0.cmp_lt(down) & d1.cmp_lt(down);
+                out = (front | behind).move_mask();
+            }
+            for &(n, h) in &self.planes {
+                if out == 0xF {
+                    break;
+                }
+                out |= dot(n).cmp_lt(f64x4::splat(h)).move_mask();
+            }
+            keep &= !((out as u16) << (4 * g));
+        }
+        keep
+    }
+
     /// [`RegionBound::excludes_point`] one plane at a time: the scalar
     /// twin of the SoA test (the tests hold them equal).
     #[cfg(test)]
@@ -623,7 +693,7 @@ mod tests {
     fn soa_tests_match_the_scalar_twins() {
         let corners = RECT;
         let mut s = 23u64;
-        let (mut checked, mut excluded) = (0usize, 0usize);
+        let (mut checked, mut excluded, mut admitted) = (0usize, 0usize, 0usize);
         for round in 0..300 {
             let v0 = DVec3::new(rng(&mut s), 1.5 + 0.5 * rng(&mut s), rng(&mut s));
             let v1 = v0 + DVec3::new(0.3 * rng(&mut s), 0.8 * rng(&mut s), 0.3 * rng(&mut s));
@@ -669,6 +739,18 @@ mod tests {
                     bound.excludes_point_scalar(c),
                     "{c}"
                 );
+                // Sixteen receivers around `c`, some missing.
+                let points: [Option<DVec3>; 16] = std::array::from_fn(|j| {
+                    let q =
+                        c + DVec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) * (0.1 * j as f64);
+                    (j % 5 != 3).then_some(q)
+                });
+                let mask = bound.admits(&ReceiverBlock::new(&points));
+                for (j, q) in points.iter().enumerate() {
+                    let want = q.is_some_and(|q| !bound.excludes_point_scalar(q));
+                    assert_eq!(mask >> j & 1 == 1, want, "receiver {j} {q:?}");
+                    admitted += usize::from(want);
+                }
                 checked += 1;
                 excluded += usize::from(got);
             }
@@ -676,6 +758,11 @@ mod tests {
         assert!(
             excluded > checked / 10 && excluded < checked,
             "{excluded} of {checked}"
+        );
+        assert!(
+            admitted > 10_000 && admitted < 12 * checked,
+            "{admitted} of {} receivers",
+            16 * checked
         );
     }
 
