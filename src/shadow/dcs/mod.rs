@@ -283,10 +283,11 @@ impl DepthComplexitySampling {
         let (bound, point) = (start.bound, start.point);
         let (mut starts, mut framebuffer) = group_starts(ctx, k, start, casters.partial, passes)?;
         let (ties, exact) = recount_ties(ctx, k, point, &mut starts, self.silhouettes, passes)?;
-        let (groups, wedges) = timed(passes, format!("wedge build light {k}"), || {
-            let groups = candidate_edges(light, point, self, starts);
-            let wedges = build_wedges(ctx, &bound, point, &groups, self.silhouettes);
-            (groups, wedges)
+        let groups = timed(passes, format!("candidate edges light {k}"), || {
+            candidate_edges(light, point, self, starts)
+        });
+        let wedges = timed(passes, format!("wedge build light {k}"), || {
+            build_wedges(ctx, &bound, point, &groups, self.silhouettes)
         });
         let grid = framebuffer.grid();
         let mut tiles = timed(passes, format!("wedge membership light {k}"), || {

@@ -313,9 +313,36 @@ pub(super) fn build_wedges(
     // offset (≤ 1e-5 relative): a generous slack keeps the test
     // conservative.
     let slack = 1e-4 * scene_diagonal(ctx.scene, ctx.geometry);
+    let region_of = |e: &CandidateEdge, dihedral: Option<[(DVec3, f64); 2]>| {
+        let region = RegionBound::new(e.v0, e.v1, &corners, slack);
+        let region = match dihedral {
+            Some(faces) => region.with_dihedral(faces, slack),
+            None => region,
+        };
+        (fallback_rect(ctx.view, e, bound), region)
+    };
     for group in groups {
         let candidates = &group.candidates;
-        for (id, e) in (group.first_edge..).zip(&candidates.edges) {
+        // In whole-light mode an edge matters only where it is a
+        // silhouette from the receiver: the dihedral region of its two
+        // faces, inside its wedge. A world-space test of that region
+        // finds those receivers far more cheaply than rasterizing a full
+        // wedge per edge (most of a centre silhouette's wedge lies
+        // outside it: 58 % of the wedge pairs on `bunny.toml`), so every
+        // manifold edge takes it. The centre mode counts a centre
+        // silhouette at every receiver of its wedge (the thesis's rule),
+        // so there only the other edges do. Those regions are built in
+        // parallel (each edge's alone), the wedges in order.
+        let by_region: Vec<_> = candidates
+            .edges
+            .par_iter()
+            .map(|e| {
+                let wanted = silhouettes == SilhouetteMode::WholeLight || e.quad_sign == 0;
+                let dihedral = wanted.then(|| candidates.dihedral(e)).flatten();
+                dihedral.map(|faces| region_of(e, Some(faces)))
+            })
+            .collect();
+        for ((id, e), regional) in (group.first_edge..).zip(&candidates.edges).zip(by_region) {
             // The quad as the stencil pass drew it, or (no quad) any
             // order.
             let (q0, q1) = if e.quad_sign < 0 {
@@ -328,27 +355,13 @@ pub(super) fn build_wedges(
                 q1: q1.as_vec3(),
                 weight: e.quad_weight,
             };
-            // In whole-light mode an edge matters only where it is a
-            // silhouette from the receiver: the dihedral region of its two
-            // faces, inside its wedge. A world-space test of that region
-            // finds those receivers far more cheaply than rasterizing a
-            // full wedge per edge (most of a centre silhouette's wedge
-            // lies outside it: 58 % of the wedge pairs on `bunny.toml`),
-            // so every manifold edge takes it. The centre mode counts a
-            // centre silhouette at every receiver of its wedge (the
-            // thesis's rule), so there only the other edges do.
-            let by_region = silhouettes == SilhouetteMode::WholeLight || e.quad_sign == 0;
-            let dihedral = by_region.then(|| candidates.dihedral(e)).flatten();
-            if dihedral.is_some() || !wedges.add(ctx.view, bound, point, quad, None) {
-                let mut region = RegionBound::new(e.v0, e.v1, &corners, slack);
-                if let Some(faces) = dihedral {
-                    region = region.with_dihedral(faces, slack);
-                }
-                unbounded.push(UnboundedEdge {
-                    id,
-                    rect: fallback_rect(ctx.view, e, bound),
-                    region,
-                });
+            let regional = match regional {
+                Some(r) => Some(r),
+                None if !wedges.add(ctx.view, bound, point, quad, None) => Some(region_of(e, None)),
+                None => None,
+            };
+            if let Some((rect, region)) = regional {
+                unbounded.push(UnboundedEdge { id, rect, region });
                 ends.push((e.v0, e.v1));
                 continue;
             }
@@ -356,9 +369,10 @@ pub(super) fn build_wedges(
             zpass_edge.resize(wedges.zpass.halves.len(), id);
         }
     }
-    let clusters = (0..unbounded.len())
-        .step_by(CLUSTER)
-        .map(|first| {
+    let clusters = (0..unbounded.len().div_ceil(CLUSTER))
+        .into_par_iter()
+        .map(|k| {
+            let first = k * CLUSTER;
             let edges = first..(first + CLUSTER).min(unbounded.len());
             let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
             let mut rect = [usize::MAX, usize::MAX, 0, 0];
