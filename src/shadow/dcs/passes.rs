@@ -571,6 +571,9 @@ pub(super) struct TileResult {
 const OUTER: usize = 16;
 /// Side of the blocks whose edge lists the pixels test.
 const INNER: usize = 4;
+
+/// Side of the blocks between [`OUTER`] and [`INNER`].
+const MIDDLE: usize = 8;
 /// Inner blocks per tile row.
 const PER_ROW: usize = TILE_SIZE / INNER;
 
@@ -600,8 +603,8 @@ pub(super) fn count_tiles(
 /// The unbounded edges that may apply to receivers of `tile`, and per
 /// inner block (row-major, [`PER_ROW`] per row) the indices into them of
 /// those that may apply to its receivers, each with the mask of those
-/// receivers: receivers' bounding boxes of the tile, then of 16² and 4²
-/// blocks, against each edge's screen rectangle and world-space region,
+/// receivers: receivers' bounding boxes of the tile, then of 16², 8² and
+/// 4² blocks, against each edge's screen rectangle and world-space region,
 /// then the sixteen receivers of a 4² block against the region at once
 /// ([`RegionBound::admits`]).
 fn unbounded_near<'u>(
@@ -684,24 +687,45 @@ fn unbounded_near<'u>(
             if outer.is_empty() {
                 continue;
             }
-            for sy in 0..OUTER / INNER {
-                for sx in 0..OUTER / INNER {
-                    let (x1, y1) = (x0 + sx * INNER, y0 + sy * INNER);
-                    let Some(b) = bbox(x1, y1, INNER) else {
+            // 8² blocks, then their 4² blocks: halving the side twice
+            // instead of once tests ~40 % fewer boxes (on `spheres.toml`
+            // half of a 16² block's edges reach its 4² blocks, a fifth of
+            // those pass).
+            for my in 0..OUTER / MIDDLE {
+                for mx in 0..OUTER / MIDDLE {
+                    let (xm, ym) = (x0 + mx * MIDDLE, y0 + my * MIDDLE);
+                    let Some(b) = bbox(xm, ym, MIDDLE) else {
                         continue;
                     };
-                    let receivers = receiver_block(ctx, x1, y1);
-                    let cell = (y1 - oy) / INNER * PER_ROW + (x1 - ox) / INNER;
-                    block_edges[cell] = outer
+                    let middle: Vec<u32> = outer
                         .iter()
                         .copied()
-                        .filter(|&k| keeps(near[k as usize], x1, y1, INNER, b))
-                        .filter_map(|k| {
-                            let u = near[k as usize];
-                            let mask = rect_mask(u.rect, x1, y1) & u.region.admits(&receivers);
-                            (mask != 0).then_some((k, mask))
-                        })
+                        .filter(|&k| keeps(near[k as usize], xm, ym, MIDDLE, b))
                         .collect();
+                    if middle.is_empty() {
+                        continue;
+                    }
+                    for sy in 0..MIDDLE / INNER {
+                        for sx in 0..MIDDLE / INNER {
+                            let (x1, y1) = (xm + sx * INNER, ym + sy * INNER);
+                            let Some(b) = bbox(x1, y1, INNER) else {
+                                continue;
+                            };
+                            let receivers = receiver_block(ctx, x1, y1);
+                            let cell = (y1 - oy) / INNER * PER_ROW + (x1 - ox) / INNER;
+                            block_edges[cell] = middle
+                                .iter()
+                                .copied()
+                                .filter(|&k| keeps(near[k as usize], x1, y1, INNER, b))
+                                .filter_map(|k| {
+                                    let u = near[k as usize];
+                                    let mask =
+                                        rect_mask(u.rect, x1, y1) & u.region.admits(&receivers);
+                                    (mask != 0).then_some((k, mask))
+                                })
+                                .collect();
+                        }
+                    }
                 }
             }
         }
