@@ -242,6 +242,11 @@ impl<'a> FacetTest<'a> {
     }
 }
 
+thread_local! {
+    /// [`RegionBound::new`]'s plane buffer, kept between calls.
+    static PLANES: std::cell::Cell<Vec<(DVec3, f64)>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
 impl RegionBound {
     /// The bound of `planes`, with their SoA groups.
     fn from_planes(planes: Vec<(DVec3, f64)>) -> RegionBound {
@@ -289,7 +294,11 @@ impl RegionBound {
         let generators = cone_generators(&[v0, v1], corners);
         let along = v1 - v0;
         let facets = FacetTest::new(&generators, simd);
-        let mut planes = Vec::new();
+        // Dozens of planes per edge, for tens of thousands of edges: grown
+        // in a per-thread buffer and copied once, not reallocated as they
+        // come (the allocator was a fifth of the wedge build).
+        let mut planes = PLANES.take();
+        planes.clear();
         let mut consider = |n: DVec3| {
             for n in facets.facets(n) {
                 planes.push((n, n.dot(v0).min(n.dot(v1)) - slack));
@@ -310,7 +319,9 @@ impl RegionBound {
             }
             span(along, a);
         }
-        RegionBound::from_planes(planes)
+        let bound = RegionBound::from_planes(planes.clone());
+        PLANES.set(planes);
+        bound
     }
 
     /// A bound holding the regions of every edge inside the box
