@@ -301,6 +301,15 @@ impl RegionBound {
         planes.clear();
         let mut consider = |n: DVec3| {
             for n in facets.facets(n) {
+                // The same plane comes from several pairs (the edge and
+                // its two generators towards one light corner span one
+                // plane): keep it once.
+                if planes
+                    .iter()
+                    .any(|&(m, _): &(DVec3, f64)| m.dot(n) > 1.0 - 1e-12)
+                {
+                    continue;
+                }
                 planes.push((n, n.dot(v0).min(n.dot(v1)) - slack));
             }
         };
@@ -318,6 +327,30 @@ impl RegionBound {
                 span(a, b);
             }
             span(along, a);
+        }
+        // A supporting plane that touches the region along one line only
+        // (a cone's edge) adds nothing to its facets but a test: keep the
+        // planes holding two independent directions of the region (its
+        // generators, the edge). Dropping a plane only loosens the bound,
+        // so this is safe whatever the tolerance; a flat region (both
+        // sides of one plane bound it) keeps all, its sides being such
+        // planes. (36 planes per edge on average on `spheres.toml` before,
+        // 26 without duplicates, 6 after.)
+        let flat = planes
+            .iter()
+            .any(|&(n, _)| planes.iter().any(|&(m, _)| m.dot(n) < -1.0 + 1e-12));
+        if !flat {
+            let along = along.normalize_or_zero();
+            planes.retain(|&(n, _)| {
+                let mut on = generators
+                    .iter()
+                    .chain(std::iter::once(&along))
+                    .filter(|d| **d != DVec3::ZERO && n.dot(**d).abs() <= 1e-7);
+                let Some(first) = on.next() else {
+                    return false;
+                };
+                on.any(|d| first.cross(*d).length_squared() > 1e-14)
+            });
         }
         let bound = RegionBound::from_planes(planes.clone());
         PLANES.set(planes);
