@@ -33,6 +33,7 @@ pub(super) struct PixelResult {
     pub(super) radiance: Vec3,
     pub(super) max_dc: f32,
     pub(super) mean_dc: f32,
+    /// Edges that change `D` over part of the light (the AOV).
     pub(super) edges: f32,
     /// Whether a quad's plane between the raster's receiver and the
     /// shadow-ray origin had its start count recounted by a ray.
@@ -269,7 +270,9 @@ impl LightPass<'_, '_> {
             });
         }
         let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
-        let edge_count = (tags.len() + extra.len()) as f32;
+        // The edges that change `D` over part of the light: what the
+        // receiver's shadow depends on, whatever the culling let through.
+        let edge_count = scratch.effective.len() as f32;
         if scratch.effective.is_empty()
             && !semi_opaque
             && !direct
