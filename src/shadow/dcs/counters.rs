@@ -269,15 +269,24 @@ impl SectorSamples {
             angle(edge.lo) - SECTOR_MARGIN,
             angle(edge.hi) + SECTOR_MARGIN,
         );
-        let sector =
-            |t: f64| ((t.rem_euclid(4.0) * (SECTORS as f64 / 4.0)) as usize).min(SECTORS - 1);
+        // `a` and `b` lie within the margin of `[0, 4)`: one step wraps
+        // them (what `rem_euclid` gives there, without its `fmod`).
+        let wrap = |t: f64| {
+            if t < 0.0 {
+                t + 4.0
+            } else if t >= 4.0 {
+                t - 4.0
+            } else {
+                t
+            }
+        };
+        let sector = |t: f64| ((wrap(t) * (SECTORS as f64 / 4.0)) as usize).min(SECTORS - 1);
         let (first, last) = (sector(a), sector(b));
         let run = |from: usize, to: usize| (self.start[from] as usize, self.start[to + 1] as usize);
         // `lo → hi` turns by less than π (two units); with the margins it
         // wraps past 0 exactly when the sectors come out reversed, or
         // when it starts and ends in one sector but spans nearly all.
-        let span = (b - a).rem_euclid(4.0);
-        if first < last || (first == last && span < 1.0) {
+        if first < last || (first == last && (b - a).rem_euclid(4.0) < 1.0) {
             [run(first, last), (0, 0)]
         } else if first == last {
             all
