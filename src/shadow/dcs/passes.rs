@@ -663,6 +663,17 @@ fn unbounded_near<'u>(
     if near.is_empty() {
         return (near, block_edges);
     }
+    // Of `list`, the edges that may apply to the `size`² block at
+    // `(x, y)`; none when the block has no receiver.
+    let narrow = |list: &[u32], x: usize, y: usize, size: usize| -> Vec<u32> {
+        let Some(b) = bbox(x, y, size) else {
+            return Vec::new();
+        };
+        list.iter()
+            .copied()
+            .filter(|&k| keeps(near[k as usize], x, y, size, b))
+            .collect()
+    };
     for by in 0..TILE_SIZE / OUTER {
         for bx in 0..TILE_SIZE / OUTER {
             let (x0, y0) = (ox + bx * OUTER, oy + by * OUTER);
@@ -694,24 +705,19 @@ fn unbounded_near<'u>(
             for my in 0..OUTER / MIDDLE {
                 for mx in 0..OUTER / MIDDLE {
                     let (xm, ym) = (x0 + mx * MIDDLE, y0 + my * MIDDLE);
-                    let Some(b) = bbox(xm, ym, MIDDLE) else {
-                        continue;
-                    };
-                    let middle: Vec<u32> = outer
-                        .iter()
-                        .copied()
-                        .filter(|&k| keeps(near[k as usize], xm, ym, MIDDLE, b))
-                        .collect();
+                    let middle = narrow(&outer, xm, ym, MIDDLE);
                     if middle.is_empty() {
                         continue;
                     }
                     for sy in 0..MIDDLE / INNER {
                         for sx in 0..MIDDLE / INNER {
                             let (x1, y1) = (xm + sx * INNER, ym + sy * INNER);
-                            let Some(b) = bbox(x1, y1, INNER) else {
+                            // One read of the block's receivers gives both
+                            // their box and their lanes.
+                            let receivers = receiver_block(ctx, x1, y1);
+                            let Some(b) = receivers.bounds() else {
                                 continue;
                             };
-                            let receivers = receiver_block(ctx, x1, y1);
                             let cell = (y1 - oy) / INNER * PER_ROW + (x1 - ox) / INNER;
                             block_edges[cell] = middle
                                 .iter()

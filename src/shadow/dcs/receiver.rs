@@ -11,7 +11,7 @@ use super::edges::{side_of, CandidateEdge, CandidateEdges};
 use super::ties::{ExactStart, Tie};
 use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::sampling::{LightSampler, PatternSampler};
-use crate::shade::{surface_point, LightSample, PreparedLight};
+use crate::shade::{surface_point, LightSample, PreparedLight, SurfacePoint};
 use crate::shadow::kit::groups::Attenuation;
 use crate::shadow::kit::rays::ShadowOrigin;
 use crate::shadow::kit::wedge_geometry::LightBound;
@@ -156,6 +156,37 @@ impl LightPass<'_, '_> {
         self.technique.transmittance.transmittance(acc)
     }
 
+    /// The results of pixel `i` when every sample sees the opaque start
+    /// count `d0` and the semi-opaque groups' start counts (`sp` gives
+    /// its surface point, read only for a radiance).
+    fn uniform(
+        &self,
+        i: usize,
+        d0: i32,
+        sp: impl Fn() -> SurfacePoint,
+        edges: usize,
+        recounted: bool,
+    ) -> PixelResult {
+        let t = if d0 <= 0 {
+            self.constant_transmittance(i)
+        } else {
+            0.0
+        };
+        let needs_radiance = self.technique.mode == DcsMode::Direct || self.prepared.is_textured();
+        PixelResult {
+            vcoef: t as f32,
+            radiance: if needs_radiance && t > 0.0 {
+                self.prepared.unshadowed_direct(&sp()) * t as f32
+            } else {
+                Vec3::ZERO
+            },
+            max_dc: d0.max(0) as f32,
+            mean_dc: d0.max(0) as f32,
+            edges: edges as f32,
+            recounted,
+        }
+    }
+
     /// The results of global pixel `i` with its recorded `(edge, outer)`
     /// pairs (sorted, no duplicates) and the unbounded edges `extra`
     /// (sorted) that apply to it; edge ids are global over the groups.
@@ -180,24 +211,7 @@ impl LightPass<'_, '_> {
         if tags.is_empty() && extra.is_empty() && s_triangles.is_empty() && inspect.is_none() {
             // Outside every wedge: D = D(O) and the layer counts are the
             // start counts for every sample.
-            let t = if d0 <= 0 {
-                self.constant_transmittance(i)
-            } else {
-                0.0
-            };
-            let needs_radiance = direct || self.prepared.is_textured();
-            return PixelResult {
-                vcoef: t as f32,
-                radiance: if needs_radiance && t > 0.0 {
-                    self.prepared.unshadowed_direct(&sp()) * t as f32
-                } else {
-                    Vec3::ZERO
-                },
-                max_dc: d0.max(0) as f32,
-                mean_dc: d0.max(0) as f32,
-                edges: 0.0,
-                recounted: false,
-            };
+            return self.uniform(i, d0, sp, 0, false);
         }
         let width = gbuffer.width as usize;
         let pixel = ((i % width) as u32, (i / width) as u32);
@@ -279,22 +293,12 @@ impl LightPass<'_, '_> {
             && !self.prepared.is_textured()
             && inspect.is_none()
         {
-            // Every sample keeps the start count: the per-sample path's
-            // results without the samples (its sums of 0 and 1 over the
+            // Every sample keeps the (corrected) start count: the
+            // per-sample path's results without the samples (with one
+            // opaque group and no radiance, its sums of 0 and 1 over the
             // samples are exact, so the same bits).
-            let d = scratch.spans[0].start.max(0) as f32;
-            return PixelResult {
-                vcoef: if scratch.spans[0].start <= 0 {
-                    1.0
-                } else {
-                    0.0
-                },
-                radiance: Vec3::ZERO,
-                max_dc: d,
-                mean_dc: d,
-                edges: edge_count,
-                recounted,
-            };
+            let d = scratch.spans[0].start;
+            return self.uniform(i, d, sp, scratch.effective.len(), recounted);
         }
         if rect {
             scratch.chart.clear();

@@ -45,7 +45,7 @@ struct Planes4 {
 
 /// The dihedral test's two face planes in four lanes: face 0 at the box
 /// corner least far along its normal, face 0 at the farthest, then face 1
-/// the same (for a point, every lane at the point).
+/// the same.
 #[derive(Debug, Clone, Copy)]
 struct Dihedral4 {
     /// Lanes `[n0, n0, n1, n1]` per axis.
@@ -105,6 +105,8 @@ pub struct ReceiverBlock {
     z: [f64x4; 4],
     /// Bit `k` set where receiver `k` exists (a surface pixel).
     valid: u16,
+    /// The receivers' bounding box, when there is one.
+    bounds: Option<(DVec3, DVec3)>,
 }
 
 impl ReceiverBlock {
@@ -121,12 +123,22 @@ impl ReceiverBlock {
             .iter()
             .enumerate()
             .fold(0u16, |m, (k, p)| m | (u16::from(p.is_some()) << k));
+        let bounds = points.iter().flatten().fold(None, |b, &p| match b {
+            None => Some((p, p)),
+            Some((lo, hi)) => Some((p.min(lo), p.max(hi))),
+        });
         ReceiverBlock {
             x: lanes(0),
             y: lanes(1),
             z: lanes(2),
             valid,
+            bounds,
         }
+    }
+
+    /// The receivers' bounding box (`None` without receivers).
+    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        self.bounds
     }
 }
 
@@ -445,32 +457,12 @@ impl RegionBound {
         }
     }
 
-    /// Whether `p` is outside the region (then the edge cannot change its
-    /// counters).
-    #[inline]
-    pub fn excludes_point(&self, p: DVec3) -> bool {
-        let p4 = [f64x4::splat(p.x), f64x4::splat(p.y), f64x4::splat(p.z)];
-        if let Some(f) = &self.dihedral4 {
-            // Per lane `n · p − h`, in `DVec3::dot`'s order.
-            let d = f.n[0] * p4[0] + f.n[1] * p4[1] + f.n[2] * p4[2] - f.h;
-            if f.excludes(d) {
-                return true;
-            }
-        }
-        // Per lane `(n_x p_x + n_y p_y) + n_z p_z`: `DVec3::dot`'s
-        // operations in its order, so the same value and decision per
-        // plane as the scalar twin below.
-        self.quads.iter().any(|q| {
-            let d = q.n[0] * p4[0] + q.n[1] * p4[1] + q.n[2] * p4[2];
-            d.cmp_lt(q.h).any()
-        })
-    }
-
     /// The receivers of `block` the region may hold, as a mask (bit `k`
-    /// for receiver `k`): per receiver the verdict of
-    /// [`RegionBound::excludes_point`], from the same operations in the
-    /// same order, but four receivers per vector instead of four planes,
-    /// so one region's data serves sixteen receivers.
+    /// for receiver `k`): per receiver, not in front of both face planes
+    /// or behind both (beyond the slack) and above every plane — the
+    /// one-plane-at-a-time test of the tests' `excludes_point`, from the
+    /// same operations in the same order, four receivers per vector, so
+    /// one region's data serves sixteen receivers.
     #[inline(always)]
     pub fn admits(&self, block: &ReceiverBlock) -> u16 {
         let mut keep = block.valid;
@@ -501,10 +493,10 @@ impl RegionBound {
         keep
     }
 
-    /// [`RegionBound::excludes_point`] one plane at a time: the scalar
-    /// twin of the SoA test (the tests hold them equal).
+    /// Whether `p` is outside the region, one plane at a time: the
+    /// definition [`RegionBound::admits`] is tested against.
     #[cfg(test)]
-    fn excludes_point_scalar(&self, p: DVec3) -> bool {
+    fn excludes_point(&self, p: DVec3) -> bool {
         if let Some((faces, _)) = self.dihedral {
             let d = faces.map(|(n, h)| {
                 let d = n.dot(p) - h;
@@ -778,11 +770,6 @@ mod tests {
                 };
                 let got = bound.excludes_box(lo, hi);
                 assert_eq!(got, bound.excludes_box_scalar(lo, hi), "box {lo} {hi}");
-                assert_eq!(
-                    bound.excludes_point(c),
-                    bound.excludes_point_scalar(c),
-                    "{c}"
-                );
                 // Sixteen receivers around `c`, some missing.
                 let points: [Option<DVec3>; 16] = std::array::from_fn(|j| {
                     let q =
@@ -791,7 +778,7 @@ mod tests {
                 });
                 let mask = bound.admits(&ReceiverBlock::new(&points));
                 for (j, q) in points.iter().enumerate() {
-                    let want = q.is_some_and(|q| !bound.excludes_point_scalar(q));
+                    let want = q.is_some_and(|q| !bound.excludes_point(q));
                     assert_eq!(mask >> j & 1 == 1, want, "receiver {j} {q:?}");
                     admitted += usize::from(want);
                 }
