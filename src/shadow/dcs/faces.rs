@@ -13,20 +13,20 @@
 //!   `spheres.toml`, nearly all of the faces' cost; this one is a few %).
 //! - **Boxes**: f32 (the corners' own bounds, exact), tested four at a
 //!   time (`simd::f32x4` slabs on the boxes relative to the ray's
-//!   origin), each enlarged at query time by [`MARGIN`] × the largest
-//!   coordinate distance from the ray's origin to the faces' bounds. The
-//!   watertight
-//!   test works on the corners translated to the origin and sheared, in
-//!   f32: a triangle it accepts lies within about 20 f32 roundings
-//!   (≈ 1.2e-6) of that distance of a point of the segment `t ∈ [0,
-//!   t_max]` (the shear's factors are at most 1 in magnitude, so the
-//!   errors of the sheared corners map back to world space without
-//!   growth). [`MARGIN`] is ~100× that, far above the f32 rounding of the
-//!   slab test itself (a few roundings of distances at most that large:
-//!   the margin is added after subtracting the origin, so a scene far
-//!   from the world origin keeps it), so no box on the way to an accepted
-//!   triangle is
-//!   ever rejected: the reported set is the brute-force set, whatever the
+//!   origin), each enlarged at query time by [`MARGIN`] × its *reach*,
+//!   the largest coordinate distance from the ray's origin to the box.
+//!   The watertight test works on the corners translated to the origin
+//!   and sheared, in f32: a triangle it accepts lies within about 20 f32
+//!   roundings (≈ 1.2e-6) of its corners' largest distance from the
+//!   origin of a point of the segment `t ∈ [0, t_max]` (the shear's
+//!   factors are at most 1 in magnitude, so the errors of the sheared
+//!   corners map back to world space without growth), and a box's reach
+//!   bounds that distance for every face below it. [`MARGIN`] is ~100×
+//!   that, far above the f32 rounding of the slab test itself (a few
+//!   roundings of distances at most that large: the margin is added
+//!   after subtracting the origin, so a scene far from the world origin
+//!   keeps it), so no box on the way to an accepted triangle is ever
+//!   rejected: the reported set is the brute-force set, whatever the
 //!   tree's shape. (The scene BVH's f32 slab test is conservative for the
 //!   exact segment, Ize 2013, without a margin for the triangle test's
 //!   own rounding; the two agree unless a triangle is accepted only
@@ -85,8 +85,6 @@ pub struct FaceTree {
     /// those of nodes `4i..4i + 4` of `levels[k − 1]`. The last level has
     /// one node (the root).
     levels: Vec<Vec<Node4>>,
-    /// Bounds of all faces.
-    bounds: (Vec3, Vec3),
 }
 
 /// Traversal stack entries: each level pushes at most 4 and pops 1, over
@@ -146,12 +144,7 @@ impl FaceTree {
             }
             boxes = up;
         }
-        FaceTree {
-            ids,
-            tris,
-            levels,
-            bounds,
-        }
+        FaceTree { ids, tris, levels }
     }
 
     /// Number of faces.
@@ -184,12 +177,6 @@ impl FaceTree {
         if !(t_max > 0.0 && dir.is_finite() && origin.is_finite() && dir != Vec3::ZERO) {
             return;
         }
-        let reach = (self.bounds.0 - origin)
-            .as_dvec3()
-            .abs()
-            .max((self.bounds.1 - origin).as_dvec3().abs())
-            .max_element();
-        let margin = f32x4::splat((MARGIN * reach) as f32);
         let org = [
             f32x4::splat(origin.x),
             f32x4::splat(origin.y),
@@ -206,10 +193,17 @@ impl FaceTree {
         // Written out per axis (a loop over the axes is not unrolled).
         let hit_boxes = |node: &Node4| -> u32 {
             // The enlarged boxes relative to the origin, per axis.
-            let lo = |a: usize| (node.lo[a] - org[a]) - margin;
-            let hi = |a: usize| (node.hi[a] - org[a]) + margin;
-            let (lx, ly, lz) = (lo(0), lo(1), lo(2));
-            let (hx, hy, hz) = (hi(0), hi(1), hi(2));
+            let l = [0, 1, 2].map(|a| node.lo[a] - org[a]);
+            let h = [0, 1, 2].map(|a| node.hi[a] - org[a]);
+            // The node's own reach bounds every face's below it.
+            let reach = [0, 1, 2]
+                .map(|a| l[a].abs().max(h[a].abs()))
+                .into_iter()
+                .reduce(f32x4::max)
+                .unwrap_or(zero);
+            let margin = reach * f32x4::splat(MARGIN as f32);
+            let (lx, ly, lz) = (l[0] - margin, l[1] - margin, l[2] - margin);
+            let (hx, hy, hz) = (h[0] + margin, h[1] + margin, h[2] + margin);
             let slab = |l: f32x4, h: f32x4, a: usize| {
                 let (t0, t1) = (l * inv[a], h * inv[a]);
                 (t0.min(t1), t0.max(t1))
@@ -268,6 +262,118 @@ impl FaceTree {
             }
         }
     }
+}
+
+impl FaceTree {
+    /// Whether any face `wanted` accepts comes within twice the margin
+    /// [`for_each_hit_of`](Self::for_each_hit_of) gives a segment with
+    /// its origin anywhere in `[lo, hi]` of that box: its box overlaps
+    /// the box so enlarged, and so does the face itself
+    /// ([`triangle_meets_box`]).
+    ///
+    /// A superset test of those walks: a segment inside `[lo, hi]` that
+    /// hits a face crosses its enlarged box, so that box overlaps
+    /// `[lo, hi]`; the doubled margin covers the f32 rounding of the
+    /// walk's own slab test (a few roundings of distances the margin is
+    /// 10⁴ times); and the face itself lies within far less than the
+    /// margin of the segment (the module doc). `false` therefore proves
+    /// that no such segment hits a wanted face.
+    pub fn any_box_near(&self, lo: Vec3, hi: Vec3, wanted: impl Fn(u32) -> bool) -> bool {
+        let Some(top) = self.levels.len().checked_sub(1) else {
+            return false;
+        };
+        if !(lo.is_finite() && hi.is_finite()) {
+            return true;
+        }
+        let lo4 = [lo.x, lo.y, lo.z].map(f32x4::splat);
+        let hi4 = [hi.x, hi.y, hi.z].map(f32x4::splat);
+        let twice = f32x4::splat((2.0 * MARGIN) as f32);
+        let overlaps = |node: &Node4| -> u32 {
+            // The walk's margin for an origin anywhere in the box: the
+            // node's reach from the farthest of the box's corners.
+            let reach = [0, 1, 2]
+                .map(|a| {
+                    let (l, h) = (node.lo[a], node.hi[a]);
+                    (l - lo4[a])
+                        .abs()
+                        .max((l - hi4[a]).abs())
+                        .max((h - lo4[a]).abs())
+                        .max((h - hi4[a]).abs())
+                })
+                .into_iter()
+                .reduce(f32x4::max)
+                .unwrap_or(f32x4::ZERO);
+            let margin = reach * twice;
+            let mut mask = node.valid;
+            for a in 0..3 {
+                let below = (node.lo[a] - margin).cmp_le(hi4[a]);
+                let above = lo4[a].cmp_le(node.hi[a] + margin);
+                mask &= (below & above).move_mask();
+            }
+            mask
+        };
+        let mut stack = [0u32; STACK];
+        stack[0] = (top as u32) << LEVEL_SHIFT;
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let (level, index) = (
+                (stack[len] >> LEVEL_SHIFT) as usize,
+                (stack[len] & INDEX_MASK) as usize,
+            );
+            let Some(node) = self.levels.get(level).and_then(|l| l.get(index)) else {
+                continue;
+            };
+            let mut mask = overlaps(node);
+            while mask != 0 {
+                let child = 4 * index + mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if level > 0 {
+                    if len < STACK {
+                        stack[len] = ((level - 1) as u32) << LEVEL_SHIFT | child as u32;
+                        len += 1;
+                    }
+                } else if let (Some(&id), Some(tri)) = (self.ids.get(child), self.tris.get(child)) {
+                    let reach = tri
+                        .iter()
+                        .map(|&c| (c - lo).abs().max((c - hi).abs()).max_element())
+                        .fold(0.0, f32::max);
+                    if wanted(id)
+                        && triangle_meets_box(tri, lo, hi, 2.0 * MARGIN * f64::from(reach))
+                    {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+}
+
+/// Whether triangle `tri` meets the box `[lo, hi]` enlarged by `margin`
+/// on every side: the separating-axis test (the box's three axes, the
+/// triangle's normal, the nine crossings of its edges with the box's
+/// axes; Akenine-Möller 2001) in f64, whose rounding on f32 inputs is
+/// ~10⁻¹⁶ of their size, far below any margin it is given here.
+/// Conservative: `false` only when an axis separates them.
+pub fn triangle_meets_box(tri: &[Vec3; 3], lo: Vec3, hi: Vec3, margin: f64) -> bool {
+    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+    let centre = (lo + hi) * 0.5;
+    let half = (hi - lo) * 0.5 + DVec3::splat(margin);
+    let v = tri.map(|c| c.as_dvec3() - centre);
+    let separated = |axis: DVec3| {
+        let p = v.map(|c| c.dot(axis));
+        let r = half.dot(axis.abs());
+        p[0].min(p[1]).min(p[2]) > r || p[0].max(p[1]).max(p[2]) < -r
+    };
+    let edges = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+    let boxes = [DVec3::X, DVec3::Y, DVec3::Z];
+    if boxes.iter().any(|&u| separated(u)) || separated(edges[0].cross(edges[1])) {
+        return false;
+    }
+    !edges
+        .iter()
+        .any(|e| boxes.iter().any(|&u| separated(e.cross(u))))
 }
 
 /// Stack entries hold a level above this bit and a node index below.
@@ -445,5 +551,92 @@ mod tests {
             true
         });
         assert!(!any);
+    }
+
+    #[test]
+    fn box_queries_cover_every_walk_inside_the_box() {
+        let g = geometry();
+        let keep = |t: u32| t % 7 != 3;
+        let tree = FaceTree::build(&g, keep);
+        let kept: Vec<u32> = (0..g.triangles.len() as u32).filter(|&t| keep(t)).collect();
+        let corners = |t: u32| g.triangles[t as usize].map(|i| g.positions[i as usize]);
+        let mut s = 91u64;
+        let (mut cleared, mut hit_groups) = (0, 0);
+        for i in 0..3000 {
+            // A cluster of short segments along the normal of one face
+            // (as the own-face segments of a pixel block), some at its
+            // edges and corners where the neighbours come near.
+            let own = kept[(rng(&mut s) * kept.len() as f32) as usize % kept.len()];
+            let [a, b, c] = corners(own);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            let spread = [0.02, 0.2, 1.0][i % 3];
+            let segments: Vec<(Vec3, Vec3)> = (0..6)
+                .map(|_| {
+                    let (mut u, mut v) = (rng(&mut s) * spread, rng(&mut s) * spread);
+                    if u + v > 1.0 {
+                        (u, v) = (1.0 - u, 1.0 - v);
+                    }
+                    let p = a + (b - a) * u + (c - a) * v;
+                    let d = n * (1e-4 * (0.5 + rng(&mut s)));
+                    (p - d * 0.25, d * 1.5)
+                })
+                .collect();
+            let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+            for &(o, d) in &segments {
+                lo = lo.min(o).min(o + d);
+                hi = hi.max(o).max(o + d);
+            }
+            let wanted = |t: u32| t != own;
+            let any_hit = segments.iter().any(|&(o, d)| {
+                let mut hit = false;
+                tree.for_each_hit_of(o, d, 1.0, wanted, |_| {
+                    hit = true;
+                    false
+                });
+                hit
+            });
+            let near = tree.any_box_near(lo, hi, wanted);
+            assert!(
+                near || !any_hit,
+                "cluster {i}: a walk hits but the box query clears it"
+            );
+            cleared += usize::from(!near);
+            hit_groups += usize::from(any_hit);
+        }
+        // Both answers occur: the query clears most clusters, and some
+        // clusters do hit another face.
+        assert!(
+            cleared > 1000 && hit_groups > 0,
+            "{cleared} cleared, {hit_groups} hit"
+        );
+    }
+
+    #[test]
+    fn triangle_box_test_is_conservative_and_separates() {
+        let mut s = 3u64;
+        let mut v = || Vec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) * 2.0 - 1.0;
+        let (mut met, mut apart) = (0, 0);
+        for _ in 0..20000 {
+            let tri = [v(), v(), v()];
+            let (c, e) = (v(), v().abs() * 0.3);
+            let (lo, hi) = (c - e, c + e);
+            let meets = triangle_meets_box(&tri, lo, hi, 0.0);
+            // A point of the triangle inside the box forces `true`.
+            for k in 0..64 {
+                let (mut u, mut w) = ((k % 8) as f32 / 7.0, (k / 8) as f32 / 7.0);
+                if u + w > 1.0 {
+                    (u, w) = (1.0 - u, 1.0 - w);
+                }
+                let p = tri[0] + (tri[1] - tri[0]) * u + (tri[2] - tri[0]) * w;
+                if p.cmpge(lo).all() && p.cmple(hi).all() {
+                    assert!(meets, "{tri:?} has {p} inside [{lo}, {hi}]");
+                }
+            }
+            met += usize::from(meets);
+            apart += usize::from(!meets);
+            // A margin only ever adds a `true`.
+            assert!(!meets || triangle_meets_box(&tri, lo, hi, 0.1));
+        }
+        assert!(met > 1000 && apart > 1000, "{met} met, {apart} apart");
     }
 }

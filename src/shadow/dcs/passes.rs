@@ -23,7 +23,7 @@ use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
 use super::receiver::{GroupPass, LightPass, PixelResult, Scratch};
 use super::region::{ReceiverBlock, RegionBound};
-use super::ties::{own_face_change, tied_pixels, ExactStart, Tie};
+use super::ties::{cap_segment, own_face_change, tied_pixels, ExactStart, Tie};
 use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
@@ -110,6 +110,10 @@ pub(super) fn group_starts<'a>(
 /// (whole-light silhouettes), where per-sample counts are meant to equal
 /// ray casting; the fast centre mode keeps the thesis's approximations
 /// and the stencil's constant.
+/// Side of the square pixel blocks whose own-face receivers share one
+/// test for other caps near their segments (`recount_ties`).
+const CAP_BLOCK: usize = 8;
+
 pub(super) fn recount_ties<'a>(
     ctx: &ShadowContext<'a>,
     k: usize,
@@ -164,16 +168,47 @@ pub(super) fn recount_ties<'a>(
     // (644, 446)) lies across the normal offset but off the view ray,
     // where the depth-shifted counts cannot see it.
     let eye = ctx.view.eye.as_vec3();
-    let own_faces: Vec<usize> = (0..tied.len())
-        .filter(|&i| tied[i] == Tie::OwnFace && ctx.gbuffer.is_surface(i))
-        .collect();
-    let demoted: Vec<usize> = own_faces
-        .par_iter()
-        .copied()
-        .filter(|&i| {
-            let g = ctx.gbuffer.sample(i);
-            let p_ray = origin.of(g.position, g.geo_normal);
-            exact.cap_near(g.triangle, g.position, p_ray, eye)
+    let width = ctx.gbuffer.width as usize;
+    let height = ctx.gbuffer.len() / width.max(1);
+    let blocks_x = width.div_ceil(CAP_BLOCK);
+    let demoted: Vec<usize> = (0..blocks_x * height.div_ceil(CAP_BLOCK))
+        .into_par_iter()
+        .flat_map_iter(|b| {
+            let (bx, by) = (b % blocks_x * CAP_BLOCK, b / blocks_x * CAP_BLOCK);
+            let mut block: Vec<(usize, u32, Vec3, Vec3)> = Vec::new();
+            for y in by..(by + CAP_BLOCK).min(height) {
+                for x in bx..(bx + CAP_BLOCK).min(width) {
+                    let i = y * width + x;
+                    if tied[i] == Tie::OwnFace && ctx.gbuffer.is_surface(i) {
+                        let g = ctx.gbuffer.sample(i);
+                        let p_ray = origin.of(g.position, g.geo_normal);
+                        block.push((i, g.triangle, g.position, p_ray));
+                    }
+                }
+            }
+            // One walk for the receivers of the block on one face, where
+            // no other cap comes near any of their segments (most
+            // receivers of a ground): then none is near one.
+            block.sort_unstable_by_key(|r| (r.1, r.0));
+            let mut near = Vec::new();
+            for on_face in block.chunk_by(|a, b| a.1 == b.1) {
+                let own = on_face[0].1;
+                let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+                for &(_, _, p, p_ray) in on_face {
+                    let (start, dir) = cap_segment(p, p_ray, eye);
+                    lo = lo.min(start).min(start + dir);
+                    hi = hi.max(start).max(start + dir);
+                }
+                if on_face.len() > 1 && !exact.cap_maybe_near(own, lo, hi) {
+                    continue;
+                }
+                for &(i, own, p, p_ray) in on_face {
+                    if exact.cap_near(own, p, p_ray, eye) {
+                        near.push(i);
+                    }
+                }
+            }
+            near
         })
         .collect();
     for &i in &demoted {

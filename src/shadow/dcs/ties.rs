@@ -116,6 +116,19 @@ pub fn own_face_change(weight: i32, normal: Vec3, p: Vec3, centre: Vec3) -> Opti
     })
 }
 
+/// The segment [`ExactStart::cap_near`] tests for receiver `p` with
+/// shadow-ray origin `origin` seen from `eye`, as `(start, direction)`
+/// (`t ∈ [0, 1]`): from `p_n`, `p` moved towards the eye as far as the tie
+/// test's nearer count moved it, to `origin`, extended by a quarter of its
+/// length at both ends.
+pub fn cap_segment(p: Vec3, origin: Vec3, eye: Vec3) -> (Vec3, Vec3) {
+    let (p, origin, eye) = (p.as_dvec3(), origin.as_dvec3(), eye.as_dvec3());
+    let band = f64::from(DEPTH_BAND);
+    let p_n = p + (eye - p) * (band / (1.0 + band));
+    let d = origin - p_n;
+    ((p_n - d * 0.25).as_vec3(), (d * 1.5).as_vec3())
+}
+
 /// No group.
 const NONE: u32 = u32::MAX;
 
@@ -176,24 +189,35 @@ impl<'a> ExactStart<'a> {
     /// cap either. Side quads are the counter pass's concern (the quad
     /// correction, or a ray where it meets an own-face tie).
     pub fn cap_near(&self, own: u32, p: Vec3, origin: Vec3, eye: Vec3) -> bool {
-        let (p, origin, eye) = (p.as_dvec3(), origin.as_dvec3(), eye.as_dvec3());
-        let band = f64::from(DEPTH_BAND);
-        let p_n = p + (eye - p) * (band / (1.0 + band));
-        let d = origin - p_n;
-        let start = (p_n - d * 0.25).as_vec3();
+        let (start, dir) = cap_segment(p, origin, eye);
         // A boolean OR over the hits: only the faces that can set it are
         // tested, and the first that does ends the walk.
         let mut near = false;
-        let counts = |t: u32| {
-            let e = self.table[t as usize];
-            t != own && e != NONE && e & 1 == 1
-        };
-        self.tree()
-            .for_each_hit_of(start, (d * 1.5).as_vec3(), 1.0, counts, |_| {
+        self.tree().for_each_hit_of(
+            start,
+            dir,
+            1.0,
+            |t| self.is_cap(t, own),
+            |_| {
                 near = true;
                 false
-            });
+            },
+        );
         near
+    }
+
+    /// Whether `cap_near` could be `true` for any receiver on triangle
+    /// `own` whose segment ([`cap_segment`]) lies in the box `[lo, hi]`:
+    /// `false` proves it `false` for all of them, with one walk of the
+    /// tree instead of one per receiver ([`FaceTree::any_box_near`]).
+    pub fn cap_maybe_near(&self, own: u32, lo: Vec3, hi: Vec3) -> bool {
+        self.tree().any_box_near(lo, hi, |t| self.is_cap(t, own))
+    }
+
+    /// A cap face (weight 1 in its group) other than `own`.
+    fn is_cap(&self, t: u32, own: u32) -> bool {
+        let e = self.table[t as usize];
+        t != own && e != NONE && e & 1 == 1
     }
 
     /// The start count of each group at `origin` for the light centre
