@@ -69,6 +69,28 @@ impl ChartSamples {
         self.ys.resize(padded, 0.0);
     }
 
+    /// Replaces the samples by at most `n` points, which `f` writes in
+    /// order through the [`ChartWriter`] it is given: into the padded
+    /// lanes in place, with none of a push's length and capacity
+    /// bookkeeping per sample.
+    pub fn fill(&mut self, n: usize, f: impl FnOnce(&mut ChartWriter)) {
+        let padded = n.div_ceil(LANES) * LANES;
+        self.xs.clear();
+        self.ys.clear();
+        self.xs.resize(padded, 0.0);
+        self.ys.resize(padded, 0.0);
+        let mut writer = ChartWriter {
+            xs: &mut self.xs[..n],
+            ys: &mut self.ys[..n],
+            written: 0,
+        };
+        f(&mut writer);
+        let written = writer.written;
+        self.n = written;
+        self.xs.truncate(written.div_ceil(LANES) * LANES);
+        self.ys.truncate(written.div_ceil(LANES) * LANES);
+    }
+
     /// Number of (unpadded) samples.
     pub fn len(&self) -> usize {
         self.n
@@ -87,6 +109,26 @@ impl ChartSamples {
     /// Sample `k`'s chart coordinates as tested.
     pub fn get(&self, k: usize) -> [f32; 2] {
         [self.xs[k], self.ys[k]]
+    }
+}
+
+/// Writes [`ChartSamples::fill`]'s points in order; points past the
+/// promised count are dropped.
+pub struct ChartWriter<'a> {
+    xs: &'a mut [f32],
+    ys: &'a mut [f32],
+    written: usize,
+}
+
+impl ChartWriter<'_> {
+    /// Appends a sample.
+    #[inline(always)]
+    pub fn push(&mut self, [x, y]: [f64; 2]) {
+        let k = self.written;
+        if let (Some(sx), Some(sy)) = (self.xs.get_mut(k), self.ys.get_mut(k)) {
+            (*sx, *sy) = (x as f32, y as f32);
+            self.written = k + 1;
+        }
     }
 }
 

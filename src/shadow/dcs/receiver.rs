@@ -301,13 +301,11 @@ impl LightPass<'_, '_> {
             return self.uniform(i, d, sp, scratch.effective.len(), recounted);
         }
         if rect {
-            scratch.chart.clear();
-            self.pattern
-                .pixel_points(pixel)
-                .for_each(self.pattern.len(), |(s, t)| {
-                    scratch.chart.push([2.0 * s - 1.0, 1.0 - 2.0 * t])
-                });
-            scratch.chart.finish();
+            let n = self.pattern.len();
+            let points = self.pattern.pixel_points(pixel);
+            scratch.chart.fill(n as usize, |w| {
+                points.for_each(n, |(s, t)| w.push([2.0 * s - 1.0, 1.0 - 2.0 * t]))
+            });
         } else {
             scratch
                 .chart
@@ -424,16 +422,24 @@ impl LightPass<'_, '_> {
                 },
             );
         }
-        scratch.visibility.clear();
-        scratch
-            .visibility
-            .extend(counters.iter().map(|&c| if c <= 0 { 1.0 } else { 0.0 }));
-        if semi_opaque {
-            for (v, &t) in scratch.visibility.iter_mut().zip(&scratch.transmittance) {
-                *v *= t as f32;
+        let weighted = semi_opaque || direct || self.prepared.is_textured() || count > 1 << 24;
+        let visible: f32 = if weighted {
+            scratch.visibility.clear();
+            scratch
+                .visibility
+                .extend(counters.iter().map(|&c| if c <= 0 { 1.0 } else { 0.0 }));
+            if semi_opaque {
+                for (v, &t) in scratch.visibility.iter_mut().zip(&scratch.transmittance) {
+                    *v *= t as f32;
+                }
             }
-        }
-        let visible: f32 = scratch.visibility.iter().sum();
+            scratch.visibility.iter().sum()
+        } else {
+            // Visibilities of 0 and 1 sum exactly in f32 (up to 2²⁴
+            // samples) in any order: the count gives the same bits
+            // without the serial chain of float adds.
+            counters.iter().filter(|&&c| c <= 0).count() as f32
+        };
         let radiance = if direct {
             self.prepared
                 .direct_from_samples(&sp(), &scratch.samples, &scratch.visibility)
