@@ -639,6 +639,17 @@ impl PatternSampler {
         self.pattern
     }
 
+    /// When `pixel`'s points are jittered strata (stratified, correlated,
+    /// interleaved): the strata and the key, so that point `k = j a + i`
+    /// is `((i + ξ) / a, (j + ξ') / b)` with `(ξ, ξ') =
+    /// uniform_pair(key, k)`, made one by one in any order.
+    pub fn jittered(&self, pixel: (u32, u32)) -> Option<(Strata, u64)> {
+        match self.pixel_points(pixel) {
+            PixelPoints::Jittered { strata, key } => Some((strata, key)),
+            _ => None,
+        }
+    }
+
     /// Points per pixel, `N`.
     pub fn len(&self) -> u32 {
         self.n

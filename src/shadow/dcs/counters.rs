@@ -190,7 +190,13 @@ pub fn add_covered(counters: &mut [i32], samples: &ChartSamples, edge: &Oriented
 /// [`add_covered`] over the samples `xs`, `ys` (a multiple of [`LANES`])
 /// and their counters.
 #[inline]
-fn add_covered_in(counters: &mut [i32], xs: &[f32], ys: &[f32], edge: &OrientedEdge, delta: i32) {
+pub(super) fn add_covered_in(
+    counters: &mut [i32],
+    xs: &[f32],
+    ys: &[f32],
+    edge: &OrientedEdge,
+    delta: i32,
+) {
     let (lo, hi) = (edge.lo, edge.hi);
     let (lx, ly) = (f32x8::splat(lo[0]), f32x8::splat(lo[1]));
     let (hx, hy) = (f32x8::splat(hi[0]), f32x8::splat(hi[1]));

@@ -30,6 +30,7 @@
 //! receiver's counting in `receiver.rs`.
 
 pub mod bitfield;
+pub mod blocks;
 pub mod chart;
 pub mod counters;
 pub mod edges;
@@ -52,6 +53,7 @@ use crate::error::Result;
 use crate::output::Layer;
 use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::shade::{LightSample, PreparedLight};
+use blocks::BlockGrid;
 pub use edges::SilhouetteMode;
 use passes::{
     assemble, build_wedges, candidate_edges, count_tiles, coverage_tables, gather, group_starts,
@@ -308,6 +310,12 @@ impl DepthComplexitySampling {
             prepared: PreparedLight::new(light, &ctx.scene.textures),
             groups: &groups,
             tables: &tables,
+            blocks: {
+                let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
+                pattern
+                    .jittered((0, 0))
+                    .and_then(|(strata, _)| BlockGrid::new(strata, self.samples))
+            },
             s_triangles: (!s_triangles.is_empty()).then_some(s_triangles),
             ties: &ties,
             exact: &exact,
