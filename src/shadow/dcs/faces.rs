@@ -279,6 +279,22 @@ impl FaceTree {
     /// margin of the segment (the module doc). `false` therefore proves
     /// that no such segment hits a wanted face.
     pub fn any_box_near(&self, lo: Vec3, hi: Vec3, wanted: impl Fn(u32) -> bool) -> bool {
+        self.faces_near(lo, hi, wanted, |_| false)
+    }
+
+    /// The faces [`any_box_near`](Self::any_box_near) finds near the box
+    /// `[lo, hi]` (a superset of those any walk of a segment inside it
+    /// can report), each given to `f` as its index in this tree, until
+    /// `f` returns `false`; whether `f` stopped it (or the box is not
+    /// finite: nothing can be ruled out). [`hits_any`](Self::hits_any)
+    /// then tests segments against them alone.
+    pub fn faces_near(
+        &self,
+        lo: Vec3,
+        hi: Vec3,
+        wanted: impl Fn(u32) -> bool,
+        mut f: impl FnMut(u32) -> bool,
+    ) -> bool {
         let Some(top) = self.levels.len().checked_sub(1) else {
             return false;
         };
@@ -340,6 +356,7 @@ impl FaceTree {
                         .fold(0.0, f32::max);
                     if wanted(id)
                         && triangle_meets_box(tri, lo, hi, 2.0 * MARGIN * f64::from(reach))
+                        && !f(child as u32)
                     {
                         return true;
                     }
@@ -347,6 +364,25 @@ impl FaceTree {
             }
         }
         false
+    }
+}
+
+impl FaceTree {
+    /// Whether the segment `origin + t dir`, `t ∈ [0, t_max]`, hits one
+    /// of the faces `near` (indices in this tree, from
+    /// [`faces_near`](Self::faces_near) on a box holding the segment):
+    /// the walk's own triangle test on each, so the same answer as a walk
+    /// over the faces those stand for — the walk's box tests only prune
+    /// faces the triangle test rejects.
+    pub fn hits_any(&self, near: &[u32], origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        if !(t_max > 0.0 && dir.is_finite() && origin.is_finite() && dir != Vec3::ZERO) {
+            return false;
+        }
+        near.iter().any(|&c| {
+            self.tris
+                .get(c as usize)
+                .is_some_and(|tri| intersect_triangle(origin, dir, t_max, tri).is_some())
+        })
     }
 }
 

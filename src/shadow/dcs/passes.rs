@@ -114,6 +114,10 @@ pub(super) fn group_starts<'a>(
 /// test for other caps near their segments (`recount_ties`).
 const CAP_BLOCK: usize = 8;
 
+/// Most faces near one face's receivers of a block tested directly;
+/// beyond, each receiver walks the tree.
+const CAP_LIST: usize = 16;
+
 pub(super) fn recount_ties<'a>(
     ctx: &ShadowContext<'a>,
     k: usize,
@@ -182,28 +186,36 @@ pub(super) fn recount_ties<'a>(
                     if tied[i] == Tie::OwnFace && ctx.gbuffer.is_surface(i) {
                         let g = ctx.gbuffer.sample(i);
                         let p_ray = origin.of(g.position, g.geo_normal);
-                        block.push((i, g.triangle, g.position, p_ray));
+                        let (start, dir) = cap_segment(g.position, p_ray, eye);
+                        block.push((i, g.triangle, start, dir));
                     }
                 }
             }
-            // One walk for the receivers of the block on one face, where
-            // no other cap comes near any of their segments (most
-            // receivers of a ground): then none is near one.
+            // One query for the receivers of the block on one face: the
+            // cap faces other than their own that come near any of their
+            // segments (none on most of a ground, a handful of neighbours
+            // on a mesh), then each segment against those alone.
             block.sort_unstable_by_key(|r| (r.1, r.0));
             let mut near = Vec::new();
+            let mut caps = Vec::new();
             for on_face in block.chunk_by(|a, b| a.1 == b.1) {
                 let own = on_face[0].1;
                 let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-                for &(_, _, p, p_ray) in on_face {
-                    let (start, dir) = cap_segment(p, p_ray, eye);
+                for &(_, _, start, dir) in on_face {
                     lo = lo.min(start).min(start + dir);
                     hi = hi.max(start).max(start + dir);
                 }
-                if on_face.len() > 1 && !exact.cap_maybe_near(own, lo, hi) {
+                let listed = exact.caps_near(own, lo, hi, CAP_LIST, &mut caps);
+                if listed && caps.is_empty() {
                     continue;
                 }
-                for &(i, own, p, p_ray) in on_face {
-                    if exact.cap_near(own, p, p_ray, eye) {
+                for &(i, own, start, dir) in on_face {
+                    let hit = if listed {
+                        exact.cap_near_among(&caps, (start, dir))
+                    } else {
+                        exact.cap_near_segment(own, (start, dir))
+                    };
+                    if hit {
                         near.push(i);
                     }
                 }

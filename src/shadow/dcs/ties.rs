@@ -189,7 +189,12 @@ impl<'a> ExactStart<'a> {
     /// cap either. Side quads are the counter pass's concern (the quad
     /// correction, or a ray where it meets an own-face tie).
     pub fn cap_near(&self, own: u32, p: Vec3, origin: Vec3, eye: Vec3) -> bool {
-        let (start, dir) = cap_segment(p, origin, eye);
+        self.cap_near_segment(own, cap_segment(p, origin, eye))
+    }
+
+    /// [`cap_near`](Self::cap_near) of the receiver whose segment
+    /// ([`cap_segment`]) is `(start, dir)`.
+    pub fn cap_near_segment(&self, own: u32, (start, dir): (Vec3, Vec3)) -> bool {
         // A boolean OR over the hits: only the faces that can set it are
         // tested, and the first that does ends the walk.
         let mut near = false;
@@ -206,12 +211,38 @@ impl<'a> ExactStart<'a> {
         near
     }
 
-    /// Whether `cap_near` could be `true` for any receiver on triangle
-    /// `own` whose segment ([`cap_segment`]) lies in the box `[lo, hi]`:
-    /// `false` proves it `false` for all of them, with one walk of the
-    /// tree instead of one per receiver ([`FaceTree::any_box_near`]).
-    pub fn cap_maybe_near(&self, own: u32, lo: Vec3, hi: Vec3) -> bool {
-        self.tree().any_box_near(lo, hi, |t| self.is_cap(t, own))
+    /// The cap faces other than `own` that may cross the segment
+    /// ([`cap_segment`]) of a receiver on triangle `own` lying in the box
+    /// `[lo, hi]` ([`FaceTree::faces_near`]), into `near` (cleared first);
+    /// `false` when there are more than `limit` (or the box is not
+    /// finite), and then per-receiver walks are the cheaper test.
+    pub fn caps_near(
+        &self,
+        own: u32,
+        lo: Vec3,
+        hi: Vec3,
+        limit: usize,
+        near: &mut Vec<u32>,
+    ) -> bool {
+        near.clear();
+        let stopped = self.tree().faces_near(
+            lo,
+            hi,
+            |t| self.is_cap(t, own),
+            |c| {
+                near.push(c);
+                near.len() <= limit
+            },
+        );
+        !stopped
+    }
+
+    /// [`cap_near`](Self::cap_near) of the receiver whose segment
+    /// ([`cap_segment`]) is `(start, dir)`, with the faces the walk could
+    /// report given by [`caps_near`](Self::caps_near) on a box holding
+    /// that segment: the same answer, with no walk.
+    pub fn cap_near_among(&self, near: &[u32], (start, dir): (Vec3, Vec3)) -> bool {
+        !near.is_empty() && self.tree().hits_any(near, start, dir, 1.0)
     }
 
     /// A cap face (weight 1 in its group) other than `own`.
