@@ -327,3 +327,35 @@ fn zpass_stands_in_for_zfail_only_with_the_same_counts() {
         );
     }
 }
+
+/// The depth-shift counts (one setup, tests only where a face lies
+/// between the two depths) equal, pixel for pixel, the counts of a
+/// depth-scaled copy minus the framebuffer's own, for both z-pass and
+/// z-fail, on tiny shifts (the tie band of depth complexity sampling,
+/// where faces on the receivers flip) and large ones (where many do).
+#[test]
+fn depth_shift_counts_equal_the_difference_of_two_passes() {
+    use penumbra::shadow::kit::volumes::stencil_count_shifts;
+    for name in ["bunny.toml", "spheres.toml", "quad.toml"] {
+        let f = frame(shipped(name), 192, 160);
+        let adj = caster_adjacency(&f.scene, &f.geometry);
+        let volume = build_volume(&adj, &f.view, light_point(&f.scene.lights[0].shape));
+        for zpass in [false, true] {
+            let mut fb = f.depth.clone();
+            let base = stencil_counts(&mut fb, &volume, zpass).expect("stencil");
+            let scales = [1.0 + 4e-6, 1.0 - 4e-6, 1.01, 0.99];
+            let mut fb = f.depth.clone();
+            let shifts = stencil_count_shifts(&mut fb, &volume, zpass, &scales).expect("shifts");
+            let mut changed = 0;
+            for (scale, got) in scales.iter().zip(&shifts) {
+                let mut copy = f.depth.clone();
+                copy.map_depth(|d| d * scale);
+                let shifted = stencil_counts(&mut copy, &volume, zpass).expect("stencil");
+                let want: Vec<i32> = shifted.iter().zip(&base).map(|(a, b)| a - b).collect();
+                assert_eq!(got, &want, "{name}, zpass {zpass}, scale {scale}");
+                changed += want.iter().filter(|&&c| c != 0).count();
+            }
+            assert!(changed > 100, "{name}: only {changed} pixels change");
+        }
+    }
+}

@@ -246,6 +246,9 @@ pub(crate) struct CountingPass {
     pub(super) back: i32,
     /// Count where the depth test fails (z-fail) rather than passes.
     pub(super) on_depth_fail: bool,
+    /// Count instead the change of the count when each stored depth is
+    /// scaled by this ([`super::draw_depth_shift_counts`]).
+    pub(super) depth_shift: Option<f32>,
 }
 
 impl CountingPass {
@@ -274,12 +277,14 @@ impl CountingPass {
                 front: front_fail,
                 back: back_fail,
                 on_depth_fail: true,
+                depth_shift: None,
             })
         } else if front_fail == 0 && back_fail == 0 {
             Some(CountingPass {
                 front: front_pass,
                 back: back_pass,
                 on_depth_fail: false,
+                depth_shift: None,
             })
         } else {
             None
@@ -318,6 +323,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let last = TILE_SIZE as i32 - 1;
         // Counted lanes are `pass ^ flip`: the failing ones for z-fail.
         let flip = i32x8::splat(if c.on_depth_fail { -1 } else { 0 });
+        let shift = c.depth_shift.map(f32x8::splat);
         // Depth bounds of the tile's blocks, made on first use: a pass
         // that counts does not write depth, so they hold for the whole
         // pass. Only the volumes' test (Greater) uses them.
@@ -369,7 +375,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 }
                 let b = bounds.get_or_insert_with(|| DepthBounds::of(depth));
                 let rect = [xl - tx, rows.0 - ty, xh - tx, rows.1 - ty];
-                pair = b.verdict(&plane, plane2.as_ref(), self.origin, rect, c.on_depth_fail);
+                pair = b.verdict_shift(&plane, plane2.as_ref(), self.origin, rect, c);
                 if pair == Verdict::Skip {
                     continue;
                 }
@@ -393,8 +399,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                         continue;
                     }
                     let rect = [xl - tx, band.0 - ty, xh - tx, band.1 - ty];
-                    verdict =
-                        b.verdict(&plane, plane2.as_ref(), self.origin, rect, c.on_depth_fail);
+                    verdict = b.verdict_shift(&plane, plane2.as_ref(), self.origin, rect, c);
                     if verdict == Verdict::Skip {
                         continue;
                     }
@@ -448,7 +453,26 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                             let frag = frag.max(f32x8::splat(0.0)).min(f32x8::splat(1.0));
                             let stored: &[f32; LANES] =
                                 depth[local..local + LANES].try_into().expect("8 lanes");
-                            (test(frag, f32x8::new(*stored)) ^ flip) & live
+                            let stored = f32x8::new(*stored);
+                            if let Some(shift) = shift {
+                                // +delta where the shifted depth counts
+                                // and the stored one did not, −delta the
+                                // other way.
+                                let now = (test(frag, stored) ^ flip) & live;
+                                let then = (test(frag, stored * shift) ^ flip) & live;
+                                let s: &mut [i32; LANES] = (&mut stencil[local..local + LANES])
+                                    .try_into()
+                                    .expect("8 lanes");
+                                *s = (i32x8::new(*s) + (then & delta) - (now & delta)).to_array();
+                                if left <= BLOCK {
+                                    break;
+                                }
+                                left -= BLOCK;
+                                x += BLOCK;
+                                local += LANES;
+                                continue;
+                            }
+                            (test(frag, stored) ^ flip) & live
                         } else {
                             live
                         };

@@ -4,6 +4,7 @@
 //! writing it (counting passes, wedge passes): every pixel passes, every
 //! pixel fails, or test.
 
+use super::counting::CountingPass;
 use super::framebuffer::TILE_SIZE;
 use super::setup::Plane;
 use super::simd::LANES;
@@ -85,6 +86,67 @@ impl DepthBounds {
     /// `origin`), the test being `Greater` and the counted pixels the
     /// failing ones when `on_fail`.
     #[inline]
+    /// [`DepthBounds::verdict`] for a counting pass `c`; with a depth
+    /// shift, whether any fragment's test can differ between the stored
+    /// depth `d` and `d × shift` (`Skip` when the rectangle passes, or
+    /// fails, at both throughout; never `CountAll`).
+    pub(super) fn verdict_shift(
+        &self,
+        plane: &Plane,
+        plane2: Option<&Plane>,
+        origin: (i32, i32),
+        rect: [i32; 4],
+        c: CountingPass,
+    ) -> Verdict {
+        let Some(shift) = c.depth_shift else {
+            return self.verdict(plane, plane2, origin, rect, c.on_depth_fail);
+        };
+        let (lo, hi) = self.range(rect);
+        // The shifted depths lie between the products of the bounds (a
+        // monotone f32 product, rounded the same way per pixel).
+        let (lo, hi) = (lo.min(lo * shift), hi.max(hi * shift));
+        let screen = [
+            rect[0] + origin.0,
+            rect[1] + origin.1,
+            rect[2] + origin.0,
+            rect[3] + origin.1,
+        ];
+        let all_fail = plane_bound(plane, screen, true) <= lo
+            && plane2.is_none_or(|p| plane_bound(p, screen, true) <= lo);
+        let all_pass = plane_bound(plane, screen, false) > hi
+            && plane2.is_none_or(|p| plane_bound(p, screen, false) > hi);
+        if all_fail || all_pass {
+            Verdict::Skip
+        } else {
+            Verdict::Test
+        }
+    }
+
+    /// Smallest and largest stored depth over the blocks of `rect`.
+    fn range(&self, rect: [i32; 4]) -> (f32, f32) {
+        let [bx0, by0, bx1, by1] = rect.map(|v| (v / BLOCK) as usize);
+        let kx = (usize::BITS - 1 - (bx1 - bx0 + 1).leading_zeros()) as usize;
+        let ky = (usize::BITS - 1 - (by1 - by0 + 1).leading_zeros()) as usize;
+        let level = ky * 4 + kx;
+        let (bx2, by2) = (bx1 + 1 - (1 << kx), by1 + 1 - (1 << ky));
+        let corners = [
+            by0 * BLOCKS + bx0,
+            by0 * BLOCKS + bx2,
+            by2 * BLOCKS + bx0,
+            by2 * BLOCKS + bx2,
+        ];
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for k in corners {
+            if self.min[level][k] < lo {
+                lo = self.min[level][k];
+            }
+            if self.max[level][k] > hi {
+                hi = self.max[level][k];
+            }
+        }
+        (lo, hi)
+    }
+
     pub(super) fn verdict(
         &self,
         plane: &Plane,

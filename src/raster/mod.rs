@@ -23,7 +23,7 @@ pub use fragment::{FragmentBatch, FragmentStage, NoFragmentStage};
 pub use framebuffer::{
     DepthStencilTile, Framebuffer, TileGrid, TiledTarget, FAR_DEPTH, TILE_PIXELS, TILE_SIZE,
 };
-pub use pipeline::{draw, draw_numbered, DrawStats};
+pub use pipeline::{draw, draw_depth_shift_counts, draw_numbered, DrawStats};
 pub use setup::{
     EdgeFunction, Plane, QuadExtra, SetupTriangle, Viewport, GUARD_BAND, MAX_SIDE, NO_QUAD,
     SUBPIXEL_BITS,

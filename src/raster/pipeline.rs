@@ -4,6 +4,7 @@ use super::bin::{tile_pairs, TileBins};
 use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
 use super::counting::CountingPass;
 use super::fragment::FragmentStage;
+use super::fragment::NoFragmentStage;
 use super::framebuffer::Framebuffer;
 use super::setup::{setup_polygon, setup_quad, QuadExtra, SetupTriangle, Viewport, NO_QUAD};
 use super::state::{CullMode, RasterState};
@@ -71,6 +72,75 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
     triangles: &[[u32; 3]],
     first_primitive: u32,
     stage: &S,
+) -> Result<DrawStats> {
+    draw_inner(
+        framebuffer,
+        targets,
+        state,
+        vertices,
+        triangles,
+        first_primitive,
+        stage,
+        &[None],
+        |_| {},
+    )
+}
+
+/// A counting stencil pass (`state` must have a counting form: an
+/// always-passing stencil adding ±1 on depth fail or on depth pass, no
+/// depth write; otherwise a parameter error) that gives, for each of
+/// `scales`, each pixel's *change* of count when its stored depth `d` is
+/// replaced by `d × scale` (the f32 product): the fragments whose depth
+/// test flips, signed, i.e. the count a depth-scaled copy would get
+/// minus the framebuffer's own, exactly. The triangles are set up and
+/// binned once for all scales, and rectangles where no fragment's test
+/// can flip (the volume in front of or behind both depths throughout)
+/// are skipped by the depth bounds. The stencil is left holding the last
+/// scale's changes.
+pub fn draw_depth_shift_counts(
+    framebuffer: &mut Framebuffer,
+    state: &RasterState,
+    vertices: &[ClipVertex<0>],
+    triangles: &[[u32; 3]],
+    scales: &[f32],
+) -> Result<Vec<Vec<i32>>> {
+    let grid = framebuffer.grid();
+    let mut none = vec![(); grid.tile_count()];
+    if CountingPass::of::<0, NoFragmentStage>(state).is_none()
+        || scales.iter().any(|s| !s.is_finite())
+    {
+        return Err(Error::param(
+            "state",
+            "a depth-shift count needs a counting stencil pass and finite scales",
+        ));
+    }
+    let shifts: Vec<Option<f32>> = scales.iter().map(|&s| Some(s)).collect();
+    let mut images = Vec::with_capacity(scales.len());
+    draw_inner(
+        framebuffer,
+        &mut none,
+        state,
+        vertices,
+        triangles,
+        0,
+        &NoFragmentStage,
+        &shifts,
+        |fb| images.push(fb.stencil_image()),
+    )?;
+    Ok(images)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn draw_inner<const N: usize, S: FragmentStage<N>>(
+    framebuffer: &mut Framebuffer,
+    targets: &mut [S::Target],
+    state: &RasterState,
+    vertices: &[ClipVertex<N>],
+    triangles: &[[u32; 3]],
+    first_primitive: u32,
+    stage: &S,
+    shifts: &[Option<f32>],
+    mut each: impl FnMut(&Framebuffer),
 ) -> Result<DrawStats> {
     let grid = framebuffer.grid();
     if targets.len() != grid.tile_count() {
@@ -195,28 +265,38 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
     }
     let bins = TileBins::from_pairs(&grid, &runs);
 
-    let stats = framebuffer
-        .tiles_mut()
-        .par_iter_mut()
-        .zip(targets.par_iter_mut())
-        .enumerate()
-        .map(|(tile, (ds, target))| {
-            let job = TileJob {
-                tile,
-                origin: grid.tile_origin(tile),
-                triangles: &setup,
-                quads: &quads,
-                bin: bins.tile(tile),
-                state,
-                stage,
-                counting,
-            };
-            job.run(ds, target)
-        })
-        .reduce(TileStats::default, |a, b| TileStats {
-            fragments: a.fragments + b.fragments,
-            passed: a.passed + b.passed,
-        });
+    let mut stats = TileStats::default();
+    for (k, &depth_shift) in shifts.iter().enumerate() {
+        if k > 0 {
+            framebuffer.clear_stencil(0);
+        }
+        let counting = counting.map(|c| CountingPass { depth_shift, ..c });
+        let run = framebuffer
+            .tiles_mut()
+            .par_iter_mut()
+            .zip(targets.par_iter_mut())
+            .enumerate()
+            .map(|(tile, (ds, target))| {
+                let job = TileJob {
+                    tile,
+                    origin: grid.tile_origin(tile),
+                    triangles: &setup,
+                    quads: &quads,
+                    bin: bins.tile(tile),
+                    state,
+                    stage,
+                    counting,
+                };
+                job.run(ds, target)
+            })
+            .reduce(TileStats::default, |a, b| TileStats {
+                fragments: a.fragments + b.fragments,
+                passed: a.passed + b.passed,
+            });
+        stats.fragments += run.fragments;
+        stats.passed += run.passed;
+        each(framebuffer);
+    }
 
     Ok(DrawStats {
         triangles: triangles.len(),

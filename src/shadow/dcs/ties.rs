@@ -23,8 +23,9 @@ use super::faces::FaceTree;
 use crate::error::Result;
 use crate::geom::{EdgeAdjacency, SceneGeometry};
 use crate::raster::Framebuffer;
-use crate::shadow::kit::volumes::{stencil_counts, ShadowVolume};
+use crate::shadow::kit::volumes::{stencil_count_shifts, ShadowVolume};
 use glam::Vec3;
+use rayon::prelude::*;
 use std::sync::OnceLock;
 
 /// Relative depth band of the tie test: 64 f32 ulps, far above the
@@ -66,30 +67,37 @@ pub fn tied_pixels(
     volume: &ShadowVolume,
     counts: &[i32],
     both_sides: bool,
-    own_face: impl Fn(usize) -> Option<i32>,
+    own_face: impl Fn(usize) -> Option<i32> + Sync,
 ) -> Result<Vec<Tie>> {
-    let shifted = |scale: f32| -> Result<Vec<i32>> {
-        let mut fb = scene_depth.clone();
-        fb.map_depth(|d| d * scale);
-        stencil_counts(&mut fb, volume, false)
+    // The depth-shifted counts minus the stencil's (`counts`), from one
+    // setup of the volume's faces, tested only between the two depths.
+    let mut fb = scene_depth.clone();
+    let scales = if both_sides {
+        vec![1.0 + DEPTH_BAND, 1.0 - DEPTH_BAND]
+    } else {
+        vec![1.0 + DEPTH_BAND]
     };
-    let nearer = shifted(1.0 + DEPTH_BAND)?;
-    let mut tied: Vec<Tie> = nearer
+    let changes = stencil_count_shifts(&mut fb, volume, false, &scales)?;
+    let mut tied: Vec<Tie> = changes[0]
         .iter()
-        .zip(counts)
-        .map(|(a, b)| if a != b { Tie::Tied } else { Tie::None })
+        .map(|&change| if change != 0 { Tie::Tied } else { Tie::None })
         .collect();
-    if both_sides {
-        let farther = shifted(1.0 - DEPTH_BAND)?;
-        for (i, (t, (&a, &b))) in tied.iter_mut().zip(farther.iter().zip(counts)).enumerate() {
-            if *t == Tie::None && a != b {
-                *t = match own_face(i) {
-                    Some(own) if own != 0 && a == b + own => Tie::OwnFace,
-                    _ => Tie::Tied,
-                };
-            }
-        }
+    if let Some(farther) = changes.get(1) {
+        // Own-face changes need the G-buffer: in parallel.
+        tied.par_iter_mut()
+            .zip(farther.par_iter())
+            .enumerate()
+            .with_min_len(4096)
+            .for_each(|(i, (t, &change))| {
+                if *t == Tie::None && change != 0 {
+                    *t = match own_face(i) {
+                        Some(own) if own != 0 && change == own => Tie::OwnFace,
+                        _ => Tie::Tied,
+                    };
+                }
+            });
     }
+    debug_assert_eq!(counts.len(), tied.len());
     Ok(tied)
 }
 

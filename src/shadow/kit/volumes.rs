@@ -8,8 +8,8 @@ use crate::error::Result;
 use crate::geom::silhouette::faces_point;
 use crate::geom::EdgeAdjacency;
 use crate::raster::{
-    draw, ClipVertex, CompareFunc, CullMode, Framebuffer, NoFragmentStage, RasterState,
-    StencilFace, StencilOp, StencilState,
+    draw, draw_depth_shift_counts, ClipVertex, CompareFunc, CullMode, Framebuffer, NoFragmentStage,
+    RasterState, StencilFace, StencilOp, StencilState,
 };
 use crate::scene::{LightShape, Scene};
 use crate::view::View;
@@ -308,6 +308,28 @@ pub fn stencil_counts(
         &volume.vertices,
         &volume.triangles,
         zpass || volume.eye_outside,
+    )
+}
+
+/// Per pixel, for each of `scales`: how much the stencil count of
+/// `volume` changes when the framebuffer's stored depth `d` is replaced
+/// by `d × scale` (the f32 product, as a depth-scaled copy would hold):
+/// that copy's [`stencil_counts`] minus the framebuffer's, exactly, with
+/// the volume set up once and tested only where a face comes between the
+/// two depths ([`draw_depth_shift_counts`]).
+pub fn stencil_count_shifts(
+    framebuffer: &mut Framebuffer,
+    volume: &ShadowVolume,
+    zpass: bool,
+    scales: &[f32],
+) -> Result<Vec<Vec<i32>>> {
+    framebuffer.clear_stencil(0);
+    draw_depth_shift_counts(
+        framebuffer,
+        &stencil_state(zpass || volume.eye_outside),
+        &volume.vertices,
+        &volume.triangles,
+        scales,
     )
 }
 
