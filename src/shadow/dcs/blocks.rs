@@ -208,26 +208,30 @@ impl BlockSamples {
         let made = union.count_ones() as usize * len;
         self.xs.clear();
         self.ys.clear();
+        self.xs.resize(made, 0.0);
+        self.ys.resize(made, 0.0);
         self.offsets.clear();
         self.offsets.resize(grid.count, usize::MAX);
         let (a, inv) = (grid.a, 1.0 / f64::from(grid.a));
         let mut bits = union;
+        let mut at = 0;
         while bits != 0 {
             let b = bits.trailing_zeros();
             bits &= bits - 1;
-            self.offsets[b as usize] = self.xs.len();
+            self.offsets[b as usize] = at;
             let (i0, j0) = (b % grid.per_row * grid.bw, b / grid.per_row * grid.bh);
-            for j in j0..j0 + grid.bh {
-                for i in i0..i0 + grid.bw {
-                    // As the sampling module's jittered walk makes sample
-                    // `j a + i` (the cells' scale `1 / a` is exact), then
-                    // the rect chart `(2 s − 1, 1 − 2 t)`.
-                    let (xi, xi2) = uniform_pair(key, j * a + i);
-                    let (s, t) = ((f64::from(i) + xi) * inv, (f64::from(j) + xi2) * inv);
-                    self.xs.push((2.0 * s - 1.0) as f32);
-                    self.ys.push((1.0 - 2.0 * t) as f32);
-                }
+            let (xs, ys) = (&mut self.xs[at..at + len], &mut self.ys[at..at + len]);
+            let cells = (j0..j0 + grid.bh).flat_map(|j| (i0..i0 + grid.bw).map(move |i| (i, j)));
+            for ((x, y), (i, j)) in xs.iter_mut().zip(ys.iter_mut()).zip(cells) {
+                // As the sampling module's jittered walk makes sample
+                // `j a + i` (the cells' scale `1 / a` is exact), then
+                // the rect chart `(2 s − 1, 1 − 2 t)`.
+                let (xi, xi2) = uniform_pair(key, j * a + i);
+                let (s, t) = ((f64::from(i) + xi) * inv, (f64::from(j) + xi2) * inv);
+                *x = (2.0 * s - 1.0) as f32;
+                *y = (1.0 - 2.0 * t) as f32;
             }
+            at += len;
         }
         self.counters.clear();
         self.counters.resize(made, d0);
