@@ -842,6 +842,9 @@ fn tile_counters(
     let mut recounted = 0;
     let mut e = 0;
     let (near, block_edges) = unbounded_near(pass.ctx, grid, tile, unbounded);
+    // The ids alone, contiguous: reading them through the edges (each
+    // behind its region bound) missed the cache once per pair.
+    let near_ids: Vec<u32> = near.iter().map(|u| u.id).collect();
     let mut extra = Vec::new();
     let (mut si, mut here) = (0, Vec::new());
     for (local, r) in out.iter_mut().enumerate() {
@@ -874,7 +877,7 @@ fn tile_counters(
             block_edges[cell]
                 .iter()
                 .filter(|&&(_, mask)| mask >> bit & 1 == 1)
-                .map(|&(k, _)| near[k as usize].id),
+                .map(|&(k, _)| near_ids[k as usize]),
         );
         sampled += usize::from(!tags.is_empty() || !extra.is_empty() || !here.is_empty());
         unbounded_pairs += extra.len();
