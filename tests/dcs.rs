@@ -260,3 +260,65 @@ fn bitfield_coverage_is_close_to_exact_and_refused_where_invalid() {
     let message = refused.expect_err("stratified is refused").to_string();
     assert!(message.contains("--coverage"), "{message}");
 }
+
+/// The counter pass's shortcuts for the opaque Vcoef (samples made only
+/// in the blocks some edge may cover, the angular sectors, the integer
+/// count of visible samples) give, pixel for pixel, the Vcoef and depth
+/// complexity AOVs of the full per-sample counters the inspector sees
+/// (which run the plain path: every sample tested against every edge),
+/// at 256 samples, where the blocks apply.
+#[test]
+fn shortcuts_equal_the_full_counters() {
+    use penumbra::shadow::ShadowTechnique;
+    for (name, w, h) in [("spheres.toml", 96, 80), ("bunny.toml", 96, 96)] {
+        let scene = common::shipped(name);
+        let frame = common::Frame::new(&scene, w, h);
+        let ctx = frame.ctx(&scene);
+        let n = 256;
+        let dcs = DepthComplexitySampling {
+            samples: n,
+            seed: 5,
+            silhouettes: SilhouetteMode::WholeLight,
+            mode: DcsMode::Vcoef,
+            pattern: SamplePattern::Stratified,
+            transmittance: TransmittanceMode::Exact,
+            coverage: Default::default(),
+            opacity_filter: Default::default(),
+        };
+        let out = dcs.compute(&ctx).expect("dcs runs");
+        let vcoef = out.lights[0].vcoef();
+        let layer = |prefix: &str| -> Vec<f32> {
+            let l = out
+                .layers
+                .iter()
+                .find(|l| l.name.starts_with(prefix))
+                .unwrap_or_else(|| panic!("layer {prefix}"));
+            l.channels[0].1.clone()
+        };
+        let (dc_max, dc_mean) = (layer("dc_max"), layer("dc_mean"));
+        let seen: Mutex<Vec<(usize, Vec<i32>)>> = Mutex::new(Vec::new());
+        dcs.inspect_light(&ctx, 0, &|i, px| {
+            seen.lock().unwrap().push((i, px.counters.to_vec()));
+        })
+        .expect("dcs runs");
+        let mut partial = 0;
+        for (i, counters) in seen.into_inner().unwrap() {
+            let visible = counters.iter().filter(|&&c| c <= 0).count();
+            let max = counters.iter().copied().max().unwrap_or(0).max(0);
+            let sum: i64 = counters.iter().map(|&c| i64::from(c.max(0))).sum();
+            assert_eq!(
+                vcoef[i],
+                visible as f32 / n as f32,
+                "{name} pixel {i}: vcoef"
+            );
+            assert_eq!(dc_max[i], max as f32, "{name} pixel {i}: dc_max");
+            assert_eq!(
+                dc_mean[i],
+                (sum as f64 / f64::from(n)) as f32,
+                "{name} pixel {i}"
+            );
+            partial += usize::from(visible > 0 && visible < n as usize);
+        }
+        assert!(partial > 100, "{name}: only {partial} penumbra pixels");
+    }
+}
