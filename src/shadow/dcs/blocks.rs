@@ -112,6 +112,7 @@ impl BlockGrid {
     }
 
     /// Bit `b`: block `b` may hold a sample `edge`'s test counts.
+    #[inline(always)]
     pub fn mask(&self, edge: &OrientedEdge) -> u64 {
         let (lo, hi) = (edge.lo(), edge.hi());
         let f = |v: f32| f64::from(v);
@@ -194,6 +195,7 @@ impl BlockSamples {
     /// The counts over all `grid` samples of the pixel with sample key
     /// `key` (the stratified pattern's), start count `d0` and effective
     /// `edges` (each with its signed change of `D`).
+    #[inline(always)]
     pub fn count(
         &mut self,
         grid: &BlockGrid,

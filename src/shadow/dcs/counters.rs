@@ -73,6 +73,7 @@ impl ChartSamples {
     /// order through the [`ChartWriter`] it is given: into the padded
     /// lanes in place, with none of a push's length and capacity
     /// bookkeeping per sample.
+    #[inline(always)]
     pub fn fill(&mut self, n: usize, f: impl FnOnce(&mut ChartWriter)) {
         let padded = n.div_ceil(LANES) * LANES;
         self.xs.clear();
@@ -269,6 +270,7 @@ impl SectorSamples {
     /// instead) when a non-zero sample is so close to the centre that
     /// its products could underflow. (The origin, padding included, is
     /// never counted, so it may sit in any sector.)
+    #[inline(always)]
     pub fn set(&mut self, samples: &ChartSamples) -> bool {
         let n = samples.len();
         self.keys.clear();
@@ -306,6 +308,7 @@ impl SectorSamples {
 
     /// The runs of sorted samples `edge`'s sector can hold (one, or two
     /// where it wraps past the +x axis), as `[from, to)`.
+    #[inline(always)]
     fn runs(&self, edge: &OrientedEdge) -> [(usize, usize); 2] {
         let all = [(0, self.start[SECTORS] as usize), (0, 0)];
         let tiny = |v: [f32; 2]| v[0].abs().max(v[1].abs()) < TINY;
@@ -345,6 +348,7 @@ impl SectorSamples {
 
     /// [`add_covered`] on the sorted samples: `delta` to the counter (in
     /// sorted order) of every sample `edge` covers.
+    #[inline(always)]
     pub fn add_covered(&self, counters: &mut [i32], edge: &OrientedEdge, delta: i32) {
         // Whole steps of `LANES` samples; a wrapping sector's two runs
         // (the last sectors, then the first) merge where their steps

@@ -43,6 +43,7 @@ use crate::shadow::stsv::{
     membership as stsv_membership, STriangles, ShadowOrigin, StsvMembership,
 };
 use crate::shadow::{PassTiming, ShadowContext};
+use crate::simd::level::{level, Level};
 use crate::view::View;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -654,6 +655,7 @@ pub(super) fn count_tiles(
 /// 4² blocks, against each edge's screen rectangle and world-space region,
 /// then the sixteen receivers of a 4² block against the region at once
 /// ([`RegionBound::admits`]).
+#[inline(always)]
 fn unbounded_near<'u>(
     ctx: &ShadowContext,
     grid: TileGrid,
@@ -823,6 +825,46 @@ fn rect_mask(rect: [usize; 4], x0: usize, y0: usize) -> u16 {
 /// S-triangles of `stsv_entries` (sorted by local pixel), counted by
 /// `pass`.
 fn tile_counters(
+    pass: &LightPass,
+    grid: TileGrid,
+    tile: usize,
+    entries: Vec<u64>,
+    unbounded: (&[UnboundedEdge], &[EdgeCluster]),
+    stsv_entries: &[u64],
+    scratch: &mut Scratch,
+) -> TileResult {
+    #[cfg(target_arch = "x86_64")]
+    if level() == Level::V3 && Level::V3.supported() {
+        // SAFETY: the CPU has every feature the v3 copy enables
+        // (`Level::supported`), its one requirement.
+        return unsafe {
+            tile_counters_v3(pass, grid, tile, entries, unbounded, stsv_entries, scratch)
+        };
+    }
+    tile_counters_body(pass, grid, tile, entries, unbounded, stsv_entries, scratch)
+}
+
+/// [`tile_counters`] compiled for `Level::V3` (`simd::level`): the same
+/// code and bits, with the x86-64-v3 instructions that change no
+/// arithmetic (no FMA).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+fn tile_counters_v3(
+    pass: &LightPass,
+    grid: TileGrid,
+    tile: usize,
+    entries: Vec<u64>,
+    unbounded: (&[UnboundedEdge], &[EdgeCluster]),
+    stsv_entries: &[u64],
+    scratch: &mut Scratch,
+) -> TileResult {
+    tile_counters_body(pass, grid, tile, entries, unbounded, stsv_entries, scratch)
+}
+
+/// [`tile_counters`] itself, inlined into each level's copy (with the
+/// per-receiver and per-edge routines it calls).
+#[inline(always)]
+fn tile_counters_body(
     pass: &LightPass,
     grid: TileGrid,
     tile: usize,

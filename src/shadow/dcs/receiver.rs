@@ -197,6 +197,7 @@ impl LightPass<'_, '_> {
     /// The results of global pixel `i` with its recorded `(edge, outer)`
     /// pairs (sorted, no duplicates) and the unbounded edges `extra`
     /// (sorted) that apply to it; edge ids are global over the groups.
+    #[inline(always)]
     pub(super) fn pixel(
         &self,
         i: usize,
@@ -513,6 +514,7 @@ impl LightPass<'_, '_> {
     /// the own-face rule, one ray gives it. Every recorded edge (`tags`,
     /// then `extra`) whose projection covers part of the light goes to
     /// `effective` with its signed change of `D`.
+    #[inline(always)]
     fn group_edges(
         &self,
         k: usize,

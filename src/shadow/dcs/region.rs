@@ -543,6 +543,7 @@ impl RegionBound {
     }
 
     /// Whether the whole box `[lo, hi]` is outside the region.
+    #[inline(always)]
     pub fn excludes_box(&self, lo: DVec3, hi: DVec3) -> bool {
         let lo4 = [f64x4::splat(lo.x), f64x4::splat(lo.y), f64x4::splat(lo.z)];
         let hi4 = [f64x4::splat(hi.x), f64x4::splat(hi.y), f64x4::splat(hi.z)];

@@ -184,6 +184,7 @@ impl RectProjection {
 /// receiver, not beyond the light) and to the square `|S|, |T| ≤ W`, as
 /// `(s, t)` endpoints; `None` when nothing is left. Unclipped ends are
 /// returned bit-exact (see below).
+#[inline(always)]
 pub fn clip_to_square(a: [f64; 3], b: [f64; 3], w_max: f64) -> Option<([f64; 2], [f64; 2])> {
     let h = |v: [f64; 3]| Homogeneous {
         s: v[0],
