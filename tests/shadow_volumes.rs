@@ -343,11 +343,23 @@ fn depth_shift_counts_equal_the_difference_of_two_passes() {
         for zpass in [false, true] {
             let mut fb = f.depth.clone();
             let base = stencil_counts(&mut fb, &volume, zpass).expect("stencil");
-            let scales = [1.0 + 4e-6, 1.0 - 4e-6, 1.01, 0.99];
+            // `None`: the plain counts, from the same setup.
+            let scales = [
+                Some(1.0 + 4e-6),
+                Some(1.0 - 4e-6),
+                None,
+                Some(1.01),
+                Some(0.99),
+            ];
             let mut fb = f.depth.clone();
             let shifts = stencil_count_shifts(&mut fb, &volume, zpass, &scales).expect("shifts");
+            assert_eq!(shifts.len(), scales.len());
             let mut changed = 0;
             for (scale, got) in scales.iter().zip(&shifts) {
+                let Some(scale) = scale else {
+                    assert_eq!(got, &base, "{name}, zpass {zpass}: plain counts");
+                    continue;
+                };
                 let mut copy = f.depth.clone();
                 copy.map_depth(|d| d * scale);
                 let shifted = stencil_counts(&mut copy, &volume, zpass).expect("stencil");
@@ -356,6 +368,8 @@ fn depth_shift_counts_equal_the_difference_of_two_passes() {
                 changed += want.iter().filter(|&&c| c != 0).count();
             }
             assert!(changed > 100, "{name}: only {changed} pixels change");
+            // The stencil is left holding the last entry's image.
+            assert_eq!(fb.stencil_image(), shifts[scales.len() - 1]);
         }
     }
 }

@@ -88,33 +88,34 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
 
 /// A counting stencil pass (`state` must have a counting form: an
 /// always-passing stencil adding ±1 on depth fail or on depth pass, no
-/// depth write; otherwise a parameter error) that gives, for each of
-/// `scales`, each pixel's *change* of count when its stored depth `d` is
-/// replaced by `d × scale` (the f32 product): the fragments whose depth
-/// test flips, signed, i.e. the count a depth-scaled copy would get
-/// minus the framebuffer's own, exactly. The triangles are set up and
-/// binned once for all scales, and rectangles where no fragment's test
-/// can flip (the volume in front of or behind both depths throughout)
-/// are skipped by the depth bounds. The stencil is left holding the last
-/// scale's changes.
+/// depth write; otherwise a parameter error) run once per entry of
+/// `scales` over one setup and binning of the triangles, the stencil
+/// cleared before each: `None` gives the plain counts, `Some(scale)` each
+/// pixel's *change* of count when its stored depth `d` is replaced by
+/// `d × scale` (the f32 product): the fragments whose depth test flips,
+/// signed, i.e. the count a depth-scaled copy would get minus the
+/// framebuffer's own, exactly. For a change, rectangles where no
+/// fragment's test can flip (the volume in front of or behind both
+/// depths throughout) are skipped by the depth bounds. The stencil is
+/// left holding the last entry's image.
 pub fn draw_depth_shift_counts(
     framebuffer: &mut Framebuffer,
     state: &RasterState,
     vertices: &[ClipVertex<0>],
     triangles: &[[u32; 3]],
-    scales: &[f32],
+    scales: &[Option<f32>],
 ) -> Result<Vec<Vec<i32>>> {
     let grid = framebuffer.grid();
     let mut none = vec![(); grid.tile_count()];
     if CountingPass::of::<0, NoFragmentStage>(state).is_none()
-        || scales.iter().any(|s| !s.is_finite())
+        || scales.iter().flatten().any(|s| !s.is_finite())
     {
         return Err(Error::param(
             "state",
             "a depth-shift count needs a counting stencil pass and finite scales",
         ));
     }
-    let shifts: Vec<Option<f32>> = scales.iter().map(|&s| Some(s)).collect();
+    framebuffer.clear_stencil(0);
     let mut images = Vec::with_capacity(scales.len());
     draw_inner(
         framebuffer,
@@ -124,7 +125,7 @@ pub fn draw_depth_shift_counts(
         triangles,
         0,
         &NoFragmentStage,
-        &shifts,
+        scales,
         |fb| images.push(fb.stencil_image()),
     )?;
     Ok(images)

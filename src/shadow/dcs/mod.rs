@@ -42,7 +42,7 @@ pub mod ties;
 
 use super::kit::groups::Attenuation;
 pub use super::kit::groups::TransmittanceMode;
-use super::kit::membership::light_start;
+use super::kit::membership::{light_start, light_start_shifted};
 use super::kit::rays::ShadowOrigin;
 use super::kit::timing::{timed, PassTimer};
 use super::kit::verify::{PixelVisibility, SampleDecisions};
@@ -61,6 +61,7 @@ use passes::{
 };
 use receiver::LightPass;
 pub use receiver::{CounterInspector, InspectedPixel};
+use ties::depth_shifts;
 
 /// What the counters are turned into.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -281,9 +282,15 @@ impl DepthComplexitySampling {
         inspect: Option<(&CounterInspector, Option<&[usize]>)>,
     ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
         let light = &ctx.scene.lights[k];
-        let start = light_start(ctx, k, passes)?;
+        // The exact mode's tie test needs the counts under two depth
+        // shifts: made with the stencil pass, from one setup of the volume.
+        let (start, changes) = match self.silhouettes {
+            SilhouetteMode::WholeLight => light_start_shifted(ctx, k, passes, depth_shifts(true))?,
+            SilhouetteMode::Centre => (light_start(ctx, k, passes)?, Vec::new()),
+        };
         let (bound, point) = (start.bound, start.point);
-        let (mut starts, mut framebuffer) = group_starts(ctx, k, start, casters.partial, passes)?;
+        let (mut starts, mut framebuffer) =
+            group_starts(ctx, k, (start, changes), casters.partial, passes)?;
         let (ties, exact) = recount_ties(ctx, k, point, &mut starts, self.silhouettes, passes)?;
         let groups = timed(passes, format!("candidate edges light {k}"), || {
             candidate_edges(light, point, self, starts)

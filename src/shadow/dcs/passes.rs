@@ -23,7 +23,7 @@ use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
 use super::receiver::{GroupPass, LightPass, PixelResult, Scratch};
 use super::region::{ReceiverBlock, RegionBound};
-use super::ties::{cap_segment, own_face_change, tied_pixels, ExactStart, Tie};
+use super::ties::{cap_segment, own_face_change, tied_from_changes, tied_pixels, ExactStart, Tie};
 use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
@@ -59,6 +59,10 @@ pub(super) struct GroupStart<'a> {
     pub counts: Vec<i32>,
     /// The hard shadow volume the counts came from.
     pub volume: ShadowVolume,
+    /// The counts' changes under the tie test's depth shifts
+    /// ([`ties::depth_shifts`](super::ties::depth_shifts)), when the
+    /// stencil pass made them; empty otherwise.
+    pub shift_changes: Vec<Vec<i32>>,
 }
 
 /// Every caster group's start for light `k`: the opaque group's from the
@@ -68,7 +72,7 @@ pub(super) struct GroupStart<'a> {
 pub(super) fn group_starts<'a>(
     ctx: &ShadowContext,
     k: usize,
-    start: LightStart<'a>,
+    (start, shift_changes): (LightStart<'a>, Vec<Vec<i32>>),
     partial: &'a [(Attenuation, EdgeAdjacency)],
     passes: &mut Vec<PassTiming>,
 ) -> Result<(Vec<GroupStart<'a>>, Framebuffer)> {
@@ -86,6 +90,7 @@ pub(super) fn group_starts<'a>(
         adj,
         counts,
         volume,
+        shift_changes,
     }];
     for (attenuation, adj) in partial {
         let volume = build_volume(adj, ctx.view, point);
@@ -95,6 +100,7 @@ pub(super) fn group_starts<'a>(
             adj,
             counts,
             volume,
+            shift_changes: Vec::new(),
         });
     }
     if groups.len() > 1 {
@@ -154,7 +160,11 @@ pub(super) fn recount_ties<'a>(
                     _ => Some(0),
                 }
             };
-            let group_tied = tied_pixels(ctx.depth, &group.volume, &group.counts, true, own_face)?;
+            let group_tied = if group.shift_changes.is_empty() {
+                tied_pixels(ctx.depth, &group.volume, &group.counts, true, own_face)?
+            } else {
+                tied_from_changes(&group.shift_changes, &group.counts, own_face)?
+            };
             for (a, b) in tied.iter_mut().zip(group_tied) {
                 *a = (*a).max(b);
             }

@@ -72,13 +72,35 @@ pub fn tied_pixels(
     // The depth-shifted counts minus the stencil's (`counts`), from one
     // setup of the volume's faces, tested only between the two depths.
     let mut fb = scene_depth.clone();
-    let scales = if both_sides {
-        vec![1.0 + DEPTH_BAND, 1.0 - DEPTH_BAND]
-    } else {
-        vec![1.0 + DEPTH_BAND]
-    };
+    let scales: Vec<Option<f32>> = depth_shifts(both_sides).iter().map(|&s| Some(s)).collect();
     let changes = stencil_count_shifts(&mut fb, volume, false, &scales)?;
-    let mut tied: Vec<Tie> = changes[0]
+    tied_from_changes(&changes, counts, own_face)
+}
+
+/// The depth scales of the tie test: nearer, then (`both_sides`)
+/// farther.
+pub fn depth_shifts(both_sides: bool) -> &'static [f32] {
+    const BOTH: [f32; 2] = [1.0 + DEPTH_BAND, 1.0 - DEPTH_BAND];
+    if both_sides {
+        &BOTH
+    } else {
+        &BOTH[..1]
+    }
+}
+
+/// [`tied_pixels`] from the changes of the counts under
+/// [`depth_shifts`] (one image per scale, as
+/// [`stencil_count_shifts`] gives them), e.g. made with the stencil pass
+/// itself ([`crate::shadow::kit::membership::light_start_shifted`]).
+pub fn tied_from_changes(
+    changes: &[Vec<i32>],
+    counts: &[i32],
+    own_face: impl Fn(usize) -> Option<i32> + Sync,
+) -> Result<Vec<Tie>> {
+    let Some(nearer) = changes.first() else {
+        return Ok(vec![Tie::None; counts.len()]);
+    };
+    let mut tied: Vec<Tie> = nearer
         .iter()
         .map(|&change| if change != 0 { Tie::Tied } else { Tie::None })
         .collect();

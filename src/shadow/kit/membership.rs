@@ -15,7 +15,9 @@ use crate::scene::LightShape;
 use crate::shadow::kit::light_frame::RectFrame;
 use crate::shadow::kit::tiles::local_xy;
 use crate::shadow::kit::timing::PassTimer;
-use crate::shadow::kit::volumes::{build_volume, light_point, stencil_counts, ShadowVolume};
+use crate::shadow::kit::volumes::{
+    build_volume, light_point, stencil_count_shifts, stencil_counts, ShadowVolume,
+};
 use crate::shadow::kit::wedge_geometry::{LightBound, WedgePrimitive, WedgeSet, Wedges};
 use crate::shadow::{PassTiming, ShadowContext};
 use rayon::prelude::*;
@@ -262,22 +264,53 @@ pub fn light_start<'a>(
     k: usize,
     passes: &mut Vec<PassTiming>,
 ) -> Result<LightStart<'a>> {
+    Ok(light_start_shifted(ctx, k, passes, &[])?.0)
+}
+
+/// [`light_start`], and from the same setup of the volume the change of
+/// its counts under each depth scale of `shifts`
+/// ([`stencil_count_shifts`]).
+pub fn light_start_shifted<'a>(
+    ctx: &ShadowContext<'a>,
+    k: usize,
+    passes: &mut Vec<PassTiming>,
+    shifts: &[f32],
+) -> Result<(LightStart<'a>, Vec<Vec<i32>>)> {
     let light = &ctx.scene.lights[k];
     let point = light_point(&light.shape);
     let adj = ctx.cache.casters();
     let t = PassTimer::start(format!("shadow volumes light {k}"));
     let volume = build_volume(adj, ctx.view, point);
     let mut framebuffer = ctx.depth.clone();
-    let counts = stencil_counts(&mut framebuffer, &volume, false)?;
+    let (counts, changes) = if shifts.is_empty() {
+        (
+            stencil_counts(&mut framebuffer, &volume, false)?,
+            Vec::new(),
+        )
+    } else {
+        // The plain counts last, so that the stencil is left holding
+        // them, as a plain pass leaves it.
+        let scales: Vec<Option<f32>> = shifts
+            .iter()
+            .map(|&s| Some(s))
+            .chain(std::iter::once(None))
+            .collect();
+        let mut changes = stencil_count_shifts(&mut framebuffer, &volume, false, &scales)?;
+        let counts = changes.pop().unwrap_or_default();
+        (counts, changes)
+    };
     t.finish(passes);
-    Ok(LightStart {
-        adj,
-        bound: light_bound(&light.shape),
-        point,
-        counts,
-        framebuffer,
-        volume,
-    })
+    Ok((
+        LightStart {
+            adj,
+            bound: light_bound(&light.shape),
+            point,
+            counts,
+            framebuffer,
+            volume,
+        },
+        changes,
+    ))
 }
 
 /// The light's shape for wedge construction and integration.

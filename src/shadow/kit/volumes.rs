@@ -311,19 +311,19 @@ pub fn stencil_counts(
     )
 }
 
-/// Per pixel, for each of `scales`: how much the stencil count of
-/// `volume` changes when the framebuffer's stored depth `d` is replaced
-/// by `d × scale` (the f32 product, as a depth-scaled copy would hold):
-/// that copy's [`stencil_counts`] minus the framebuffer's, exactly, with
-/// the volume set up once and tested only where a face comes between the
-/// two depths ([`draw_depth_shift_counts`]).
+/// Per pixel, for each of `scales`, from one setup of the volume
+/// ([`draw_depth_shift_counts`]): `None`, its [`stencil_counts`];
+/// `Some(scale)`, how much that count changes when the framebuffer's
+/// stored depth `d` is replaced by `d × scale` (the f32 product, as a
+/// depth-scaled copy would hold: that copy's counts minus the
+/// framebuffer's, exactly), tested only where a face comes between the
+/// two depths.
 pub fn stencil_count_shifts(
     framebuffer: &mut Framebuffer,
     volume: &ShadowVolume,
     zpass: bool,
-    scales: &[f32],
+    scales: &[Option<f32>],
 ) -> Result<Vec<Vec<i32>>> {
-    framebuffer.clear_stencil(0);
     draw_depth_shift_counts(
         framebuffer,
         &stencil_state(zpass || volume.eye_outside),
