@@ -30,6 +30,21 @@ struct Exactness {
     worst_tie: f64,
 }
 
+/// Exact DCS (whole-light silhouettes, exact transmittance) in Vcoef
+/// mode with stratified samples: the configuration held to ray casting.
+fn exact_dcs(samples: u32, seed: u64) -> DepthComplexitySampling {
+    DepthComplexitySampling {
+        samples,
+        seed,
+        silhouettes: SilhouetteMode::WholeLight,
+        mode: DcsMode::Vcoef,
+        pattern: SamplePattern::Stratified,
+        transmittance: TransmittanceMode::Exact,
+        coverage: Default::default(),
+        opacity_filter: Default::default(),
+    }
+}
+
 /// One pixel's samples and counters.
 type Inspected = (usize, Vec<LightSample>, Vec<i32>);
 
@@ -37,16 +52,7 @@ fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
     let frame = common::Frame::new(scene, w, h);
     let ctx = frame.ctx(scene);
     let tracer = ShadowTracer::new(scene, &frame.geometry);
-    let dcs = DepthComplexitySampling {
-        samples: n,
-        seed: 11,
-        silhouettes: SilhouetteMode::WholeLight,
-        mode: DcsMode::Vcoef,
-        pattern: SamplePattern::Stratified,
-        transmittance: TransmittanceMode::Exact,
-        coverage: Default::default(),
-        opacity_filter: Default::default(),
-    };
+    let dcs = exact_dcs(n, 11);
     let seen: Mutex<Vec<Inspected>> = Mutex::new(Vec::new());
     dcs.inspect_light(&ctx, 0, &|i, px| {
         seen.lock()
@@ -175,16 +181,7 @@ translate = [0.3, 1.5, 0.0]
     let frame = common::Frame::new(&scene, 64, 64);
     let ctx = frame.ctx(&scene);
     let n = 256;
-    let dcs = DepthComplexitySampling {
-        samples: n,
-        seed: 3,
-        silhouettes: SilhouetteMode::WholeLight,
-        mode: DcsMode::Vcoef,
-        pattern: SamplePattern::Stratified,
-        transmittance: TransmittanceMode::Exact,
-        coverage: Default::default(),
-        opacity_filter: Default::default(),
-    };
+    let dcs = exact_dcs(n, 3);
     let ours = dcs.compute(&ctx).expect("dcs runs");
     let reference = Reference::new(n, 3).compute(&ctx).expect("reference runs");
     let term = &ours.lights[0];
@@ -275,16 +272,7 @@ fn shortcuts_equal_the_full_counters() {
         let frame = common::Frame::new(&scene, w, h);
         let ctx = frame.ctx(&scene);
         let n = 256;
-        let dcs = DepthComplexitySampling {
-            samples: n,
-            seed: 5,
-            silhouettes: SilhouetteMode::WholeLight,
-            mode: DcsMode::Vcoef,
-            pattern: SamplePattern::Stratified,
-            transmittance: TransmittanceMode::Exact,
-            coverage: Default::default(),
-            opacity_filter: Default::default(),
-        };
+        let dcs = exact_dcs(n, 5);
         let out = dcs.compute(&ctx).expect("dcs runs");
         let vcoef = out.lights[0].vcoef();
         let layer = |prefix: &str| -> Vec<f32> {

@@ -436,7 +436,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                         // past the tile row (padding or the next row) are
                         // loaded and stored back unchanged.
                         let live = i32x8::splat(left).cmp_gt(OFFSETS_I32);
-                        let counted = if tested {
+                        let added = if tested {
                             // Plane::lanes_on_row with the per-triangle
                             // splats hoisted: the same operations, the
                             // same bits.
@@ -454,32 +454,24 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                             let stored: &[f32; LANES] =
                                 depth[local..local + LANES].try_into().expect("8 lanes");
                             let stored = f32x8::new(*stored);
-                            if let Some(shift) = shift {
+                            let now = (test(frag, stored) ^ flip) & live;
+                            match shift {
                                 // +delta where the shifted depth counts
                                 // and the stored one did not, −delta the
                                 // other way.
-                                let now = (test(frag, stored) ^ flip) & live;
-                                let then = (test(frag, stored * shift) ^ flip) & live;
-                                let s: &mut [i32; LANES] = (&mut stencil[local..local + LANES])
-                                    .try_into()
-                                    .expect("8 lanes");
-                                *s = (i32x8::new(*s) + (then & delta) - (now & delta)).to_array();
-                                if left <= BLOCK {
-                                    break;
+                                Some(shift) => {
+                                    let then = (test(frag, stored * shift) ^ flip) & live;
+                                    (then & delta) - (now & delta)
                                 }
-                                left -= BLOCK;
-                                x += BLOCK;
-                                local += LANES;
-                                continue;
+                                None => now & delta,
                             }
-                            (test(frag, stored) ^ flip) & live
                         } else {
-                            live
+                            live & delta
                         };
                         let s: &mut [i32; LANES] = (&mut stencil[local..local + LANES])
                             .try_into()
                             .expect("8 lanes");
-                        *s = (i32x8::new(*s) + (counted & delta)).to_array();
+                        *s = (i32x8::new(*s) + added).to_array();
                         if left <= BLOCK {
                             break;
                         }

@@ -86,10 +86,35 @@ impl DepthBounds {
     /// `origin`), the test being `Greater` and the counted pixels the
     /// failing ones when `on_fail`.
     #[inline]
+    pub(super) fn verdict(
+        &self,
+        plane: &Plane,
+        plane2: Option<&Plane>,
+        origin: (i32, i32),
+        rect: [i32; 4],
+        on_fail: bool,
+    ) -> Verdict {
+        let (lo, hi) = self.range(rect);
+        let (all_fail, all_pass) = judge(plane, plane2, origin, rect, lo, hi);
+        let (skip, count) = if on_fail {
+            (all_pass, all_fail)
+        } else {
+            (all_fail, all_pass)
+        };
+        if skip {
+            Verdict::Skip
+        } else if count {
+            Verdict::CountAll
+        } else {
+            Verdict::Test
+        }
+    }
+
     /// [`DepthBounds::verdict`] for a counting pass `c`; with a depth
     /// shift, whether any fragment's test can differ between the stored
     /// depth `d` and `d × shift` (`Skip` when the rectangle passes, or
     /// fails, at both throughout; never `CountAll`).
+    #[inline]
     pub(super) fn verdict_shift(
         &self,
         plane: &Plane,
@@ -105,16 +130,7 @@ impl DepthBounds {
         // The shifted depths lie between the products of the bounds (a
         // monotone f32 product, rounded the same way per pixel).
         let (lo, hi) = (lo.min(lo * shift), hi.max(hi * shift));
-        let screen = [
-            rect[0] + origin.0,
-            rect[1] + origin.1,
-            rect[2] + origin.0,
-            rect[3] + origin.1,
-        ];
-        let all_fail = plane_bound(plane, screen, true) <= lo
-            && plane2.is_none_or(|p| plane_bound(p, screen, true) <= lo);
-        let all_pass = plane_bound(plane, screen, false) > hi
-            && plane2.is_none_or(|p| plane_bound(p, screen, false) > hi);
+        let (all_fail, all_pass) = judge(plane, plane2, origin, rect, lo, hi);
         if all_fail || all_pass {
             Verdict::Skip
         } else {
@@ -124,37 +140,6 @@ impl DepthBounds {
 
     /// Smallest and largest stored depth over the blocks of `rect`.
     fn range(&self, rect: [i32; 4]) -> (f32, f32) {
-        let [bx0, by0, bx1, by1] = rect.map(|v| (v / BLOCK) as usize);
-        let kx = (usize::BITS - 1 - (bx1 - bx0 + 1).leading_zeros()) as usize;
-        let ky = (usize::BITS - 1 - (by1 - by0 + 1).leading_zeros()) as usize;
-        let level = ky * 4 + kx;
-        let (bx2, by2) = (bx1 + 1 - (1 << kx), by1 + 1 - (1 << ky));
-        let corners = [
-            by0 * BLOCKS + bx0,
-            by0 * BLOCKS + bx2,
-            by2 * BLOCKS + bx0,
-            by2 * BLOCKS + bx2,
-        ];
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for k in corners {
-            if self.min[level][k] < lo {
-                lo = self.min[level][k];
-            }
-            if self.max[level][k] > hi {
-                hi = self.max[level][k];
-            }
-        }
-        (lo, hi)
-    }
-
-    pub(super) fn verdict(
-        &self,
-        plane: &Plane,
-        plane2: Option<&Plane>,
-        origin: (i32, i32),
-        rect: [i32; 4],
-        on_fail: bool,
-    ) -> Verdict {
         let [bx0, by0, bx1, by1] = rect.map(|v| (v / BLOCK) as usize);
         // Largest powers of two within the extents: four squares.
         let kx = (usize::BITS - 1 - (bx1 - bx0 + 1).leading_zeros()) as usize;
@@ -176,37 +161,37 @@ impl DepthBounds {
                 hi = self.max[level][k];
             }
         }
-        let screen = [
-            rect[0] + origin.0,
-            rect[1] + origin.1,
-            rect[2] + origin.0,
-            rect[3] + origin.1,
-        ];
-        // Every pixel fails when even the nearest fragment is not in
-        // front of the farthest stored depth; every one passes when the
-        // farthest fragment is in front of the nearest stored depth.
-        // A quad's pixels take one of its two planes: both must agree.
-        let all_fail = || {
-            plane_bound(plane, screen, true) <= lo
-                && plane2.is_none_or(|p| plane_bound(p, screen, true) <= lo)
-        };
-        let all_pass = || {
-            plane_bound(plane, screen, false) > hi
-                && plane2.is_none_or(|p| plane_bound(p, screen, false) > hi)
-        };
-        let (skip, count) = if on_fail {
-            (all_pass(), all_fail())
-        } else {
-            (all_fail(), all_pass())
-        };
-        if skip {
-            Verdict::Skip
-        } else if count {
-            Verdict::CountAll
-        } else {
-            Verdict::Test
-        }
+        (lo, hi)
     }
+}
+
+/// Whether every pixel of tile-local `rect` fails, and whether every one
+/// passes, the `Greater` test of a triangle with depth `plane` (and
+/// `plane2`, a merged quad's second) against stored depths within
+/// `[lo, hi]`. Every pixel fails when even the nearest fragment is not in
+/// front of the farthest stored depth; every one passes when the
+/// farthest fragment is in front of the nearest stored depth. A quad's
+/// pixels take one of its two planes: both must agree.
+#[inline]
+fn judge(
+    plane: &Plane,
+    plane2: Option<&Plane>,
+    origin: (i32, i32),
+    rect: [i32; 4],
+    lo: f32,
+    hi: f32,
+) -> (bool, bool) {
+    let screen = [
+        rect[0] + origin.0,
+        rect[1] + origin.1,
+        rect[2] + origin.0,
+        rect[3] + origin.1,
+    ];
+    let all_fail = plane_bound(plane, screen, true) <= lo
+        && plane2.is_none_or(|p| plane_bound(p, screen, true) <= lo);
+    let all_pass = plane_bound(plane, screen, false) > hi
+        && plane2.is_none_or(|p| plane_bound(p, screen, false) > hi);
+    (all_fail, all_pass)
 }
 
 /// Largest (`max`) or smallest depth the rasterizer gives any pixel of

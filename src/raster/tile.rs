@@ -332,27 +332,28 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             let lanes = mask & if c.on_depth_fail { !pass } else { pass };
             let delta = if t.front_facing { c.front } else { c.back };
             stats.fragments += POPCOUNT[mask as usize] as u64;
-            if let Some(shift) = c.depth_shift {
-                // The change of the count at the shifted depth.
+            // With a depth shift, the change of the count: + where the
+            // shifted depth counts, − where the stored one did.
+            let shifted = c.depth_shift.map_or(0, |shift| {
                 let pass = compare_f32(
                     self.state.depth_func,
                     depth,
                     stored_depth * f32x8::splat(shift),
                 );
-                let shifted = mask & if c.on_depth_fail { !pass } else { pass };
-                if (lanes != 0 || shifted != 0) && delta != 0 {
-                    let stored = i32x8::load(&stencil[local..]);
-                    let zero = i32x8::splat(0);
-                    let d = i32x8::splat(delta);
-                    let next = stored + select_i32(shifted, d, zero) - select_i32(lanes, d, zero);
-                    stencil[local..local + LANES].copy_from_slice(&next.to_array());
-                }
-                return;
-            }
-            if lanes != 0 && delta != 0 {
+                mask & if c.on_depth_fail { !pass } else { pass }
+            });
+            let (plus, minus) = match c.depth_shift {
+                Some(_) => (shifted, lanes),
+                None => (lanes, 0),
+            };
+            if (plus | minus) != 0 && delta != 0 {
                 let stored = i32x8::load(&stencil[local..]);
-                let add = select_i32(lanes, i32x8::splat(delta), i32x8::splat(0));
-                stencil[local..local + LANES].copy_from_slice(&(stored + add).to_array());
+                let (d, zero) = (i32x8::splat(delta), i32x8::splat(0));
+                let mut next = stored + select_i32(plus, d, zero);
+                if minus != 0 {
+                    next -= select_i32(minus, d, zero);
+                }
+                stencil[local..local + LANES].copy_from_slice(&next.to_array());
             }
             return;
         }

@@ -171,9 +171,6 @@ impl FaceTree {
         wanted: impl Fn(u32) -> bool,
         mut f: impl FnMut(u32) -> bool,
     ) {
-        let Some(top) = self.levels.len().checked_sub(1) else {
-            return;
-        };
         if !(t_max > 0.0 && dir.is_finite() && origin.is_finite() && dir != Vec3::ZERO) {
             return;
         }
@@ -228,6 +225,22 @@ impl FaceTree {
             }
             near.cmp_le(far).move_mask() & inside
         };
+        self.walk(hit_boxes, |child| {
+            let (Some(tri), Some(&id)) = (self.tris.get(child), self.ids.get(child)) else {
+                return true;
+            };
+            !(wanted(id) && intersect_triangle(origin, dir, t_max, tri).is_some() && !f(id))
+        });
+    }
+
+    /// Depth-first over the nodes whose child boxes `boxes` lets through
+    /// (a lane mask per node), calling `leaf` with the tree index of each
+    /// face reached until it returns `false`; whether it did.
+    #[inline(always)]
+    fn walk(&self, boxes: impl Fn(&Node4) -> u32, mut leaf: impl FnMut(usize) -> bool) -> bool {
+        let Some(top) = self.levels.len().checked_sub(1) else {
+            return false;
+        };
         // Entries `level << LEVEL_SHIFT | index`.
         let mut stack = [0u32; STACK];
         stack[0] = (top as u32) << LEVEL_SHIFT;
@@ -241,7 +254,7 @@ impl FaceTree {
             let Some(node) = self.levels.get(level).and_then(|l| l.get(index)) else {
                 continue;
             };
-            let mut mask = hit_boxes(node);
+            let mut mask = boxes(node);
             while mask != 0 {
                 let child = 4 * index + mask.trailing_zeros() as usize;
                 mask &= mask - 1;
@@ -251,43 +264,31 @@ impl FaceTree {
                         stack[len] = ((level - 1) as u32) << LEVEL_SHIFT | child as u32;
                         len += 1;
                     }
-                    continue;
-                }
-                let (Some(tri), Some(&id)) = (self.tris.get(child), self.ids.get(child)) else {
-                    continue;
-                };
-                if wanted(id) && intersect_triangle(origin, dir, t_max, tri).is_some() && !f(id) {
-                    return;
+                } else if !leaf(child) {
+                    return true;
                 }
             }
         }
+        false
     }
-}
 
-impl FaceTree {
-    /// Whether any face `wanted` accepts comes within twice the margin
+    /// The faces `wanted` accepts that come within twice the margin
     /// [`for_each_hit_of`](Self::for_each_hit_of) gives a segment with
-    /// its origin anywhere in `[lo, hi]` of that box: its box overlaps
-    /// the box so enlarged, and so does the face itself
-    /// ([`triangle_meets_box`]).
+    /// its origin anywhere in `[lo, hi]` of that box (their boxes overlap
+    /// the box so enlarged, and so do the faces themselves,
+    /// [`triangle_meets_box`]), each given to `f` as its index in this
+    /// tree until `f` returns `false`; whether `f` stopped it (or the box
+    /// is not finite: nothing can be ruled out).
+    /// [`hits_any`](Self::hits_any) then tests segments against them
+    /// alone.
     ///
-    /// A superset test of those walks: a segment inside `[lo, hi]` that
-    /// hits a face crosses its enlarged box, so that box overlaps
+    /// A superset of what those walks report: a segment inside `[lo, hi]`
+    /// that hits a face crosses its enlarged box, so that box overlaps
     /// `[lo, hi]`; the doubled margin covers the f32 rounding of the
     /// walk's own slab test (a few roundings of distances the margin is
     /// 10⁴ times); and the face itself lies within far less than the
-    /// margin of the segment (the module doc). `false` therefore proves
-    /// that no such segment hits a wanted face.
-    pub fn any_box_near(&self, lo: Vec3, hi: Vec3, wanted: impl Fn(u32) -> bool) -> bool {
-        self.faces_near(lo, hi, wanted, |_| false)
-    }
-
-    /// The faces [`any_box_near`](Self::any_box_near) finds near the box
-    /// `[lo, hi]` (a superset of those any walk of a segment inside it
-    /// can report), each given to `f` as its index in this tree, until
-    /// `f` returns `false`; whether `f` stopped it (or the box is not
-    /// finite: nothing can be ruled out). [`hits_any`](Self::hits_any)
-    /// then tests segments against them alone.
+    /// margin of the segment (the module doc). No face found therefore
+    /// proves that no such segment hits a wanted face.
     pub fn faces_near(
         &self,
         lo: Vec3,
@@ -295,9 +296,6 @@ impl FaceTree {
         wanted: impl Fn(u32) -> bool,
         mut f: impl FnMut(u32) -> bool,
     ) -> bool {
-        let Some(top) = self.levels.len().checked_sub(1) else {
-            return false;
-        };
         if !(lo.is_finite() && hi.is_finite()) {
             return true;
         }
@@ -328,46 +326,20 @@ impl FaceTree {
             }
             mask
         };
-        let mut stack = [0u32; STACK];
-        stack[0] = (top as u32) << LEVEL_SHIFT;
-        let mut len = 1;
-        while len > 0 {
-            len -= 1;
-            let (level, index) = (
-                (stack[len] >> LEVEL_SHIFT) as usize,
-                (stack[len] & INDEX_MASK) as usize,
-            );
-            let Some(node) = self.levels.get(level).and_then(|l| l.get(index)) else {
-                continue;
+        self.walk(overlaps, |child| {
+            let (Some(&id), Some(tri)) = (self.ids.get(child), self.tris.get(child)) else {
+                return true;
             };
-            let mut mask = overlaps(node);
-            while mask != 0 {
-                let child = 4 * index + mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if level > 0 {
-                    if len < STACK {
-                        stack[len] = ((level - 1) as u32) << LEVEL_SHIFT | child as u32;
-                        len += 1;
-                    }
-                } else if let (Some(&id), Some(tri)) = (self.ids.get(child), self.tris.get(child)) {
-                    let reach = tri
-                        .iter()
-                        .map(|&c| (c - lo).abs().max((c - hi).abs()).max_element())
-                        .fold(0.0, f32::max);
-                    if wanted(id)
-                        && triangle_meets_box(tri, lo, hi, 2.0 * MARGIN * f64::from(reach))
-                        && !f(child as u32)
-                    {
-                        return true;
-                    }
-                }
-            }
-        }
-        false
+            let reach = tri
+                .iter()
+                .map(|&c| (c - lo).abs().max((c - hi).abs()).max_element())
+                .fold(0.0, f32::max);
+            !(wanted(id)
+                && triangle_meets_box(tri, lo, hi, 2.0 * MARGIN * f64::from(reach))
+                && !f(child as u32))
+        })
     }
-}
 
-impl FaceTree {
     /// Whether the segment `origin + t dir`, `t ∈ [0, t_max]`, hits one
     /// of the faces `near` (indices in this tree, from
     /// [`faces_near`](Self::faces_near) on a box holding the segment):
@@ -631,7 +603,7 @@ mod tests {
                 });
                 hit
             });
-            let near = tree.any_box_near(lo, hi, wanted);
+            let near = tree.faces_near(lo, hi, wanted, |_| false);
             assert!(
                 near || !any_hit,
                 "cluster {i}: a walk hits but the box query clears it"

@@ -224,7 +224,7 @@ pub(super) fn recount_ties<'a>(
                     let hit = if listed {
                         exact.cap_near_among(&caps, (start, dir))
                     } else {
-                        exact.cap_near_segment(own, (start, dir))
+                        exact.cap_near(own, (start, dir))
                     };
                     if hit {
                         near.push(i);

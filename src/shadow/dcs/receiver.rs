@@ -292,15 +292,12 @@ impl LightPass<'_, '_> {
             });
         }
         let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
+        // Whether anything but the opaque counts is read per sample.
+        let per_sample = semi_opaque || direct || self.prepared.is_textured() || inspect.is_some();
         // The edges that change `D` over part of the light: what the
         // receiver's shadow depends on, whatever the culling let through.
         let edge_count = scratch.effective.len() as f32;
-        if scratch.effective.is_empty()
-            && !semi_opaque
-            && !direct
-            && !self.prepared.is_textured()
-            && inspect.is_none()
-        {
+        if scratch.effective.is_empty() && !per_sample {
             // Every sample keeps the (corrected) start count: the
             // per-sample path's results without the samples (with one
             // opaque group and no radiance, its sums of 0 and 1 over the
@@ -308,12 +305,7 @@ impl LightPass<'_, '_> {
             let d = scratch.spans[0].start;
             return self.uniform(i, d, sp, scratch.effective.len(), recounted);
         }
-        let plain = rect
-            && !semi_opaque
-            && !direct
-            && !self.prepared.is_textured()
-            && inspect.is_none()
-            && self.tables.is_empty();
+        let plain = rect && !per_sample && self.tables.is_empty();
         // From SECTOR_MIN edges on, the sectors do better (counter pass
         // at 256 samples on bunny.toml: 653 ms with blocks for all
         // receivers, 623 ms with sectors above).
@@ -361,7 +353,6 @@ impl LightPass<'_, '_> {
         };
         // Only counts are read back where nothing else is per sample, so
         // the counters may follow the sectors' order there.
-        let per_sample = semi_opaque || direct || self.prepared.is_textured() || inspect.is_some();
         let sorted = !per_sample
             && table.is_none()
             && scratch.effective.len() >= SECTOR_MIN

@@ -204,11 +204,11 @@ impl<'a> ExactStart<'a> {
     }
 
     /// Does a cap face (a face of weight 1 in its group) other than
-    /// triangle `own` cross the segment from `p_n` — receiver `p` moved
-    /// towards the eye `eye` as far as the tie test's nearer count moved
-    /// it (depth `d (1 + DEPTH_BAND)` with `d ∝ 1 / distance`) — to the
-    /// shadow-ray origin `origin`? The segment is extended by a quarter of
-    /// its length at both ends (the extensions only ever add a `true`).
+    /// triangle `own` cross a receiver's segment `(start, dir)`
+    /// ([`cap_segment`]: from `p_n`, the receiver `p` moved towards the
+    /// eye as far as the tie test's nearer count moved it, to the
+    /// shadow-ray origin `p'`, extended by a quarter of its length at both
+    /// ends; the extensions only ever add a `true`)?
     ///
     /// Why this makes an own-face tie exact ([`Tie::OwnFace`]): the
     /// nearer count is the count at `p_n` (the tie test found it equal to
@@ -218,13 +218,7 @@ impl<'a> ExactStart<'a> {
     /// not cross the own face; when this is `false` it crosses no other
     /// cap either. Side quads are the counter pass's concern (the quad
     /// correction, or a ray where it meets an own-face tie).
-    pub fn cap_near(&self, own: u32, p: Vec3, origin: Vec3, eye: Vec3) -> bool {
-        self.cap_near_segment(own, cap_segment(p, origin, eye))
-    }
-
-    /// [`cap_near`](Self::cap_near) of the receiver whose segment
-    /// ([`cap_segment`]) is `(start, dir)`.
-    pub fn cap_near_segment(&self, own: u32, (start, dir): (Vec3, Vec3)) -> bool {
+    pub fn cap_near(&self, own: u32, (start, dir): (Vec3, Vec3)) -> bool {
         // A boolean OR over the hits: only the faces that can set it are
         // tested, and the first that does ends the walk.
         let mut near = false;
