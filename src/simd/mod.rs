@@ -391,6 +391,12 @@ bit_casts!(f32x4, cast_u32, u32x4, cast_f32);
 bit_casts!(f32x4, cast_i32, i32x4, cast_f32);
 
 impl f32x8 {
+    /// Truncation toward zero as `as i32`: saturating, NaN to 0.
+    #[inline(always)]
+    pub fn trunc_int(self) -> i32x8 {
+        i32x8(self.0.trunc_int())
+    }
+
     /// The eight lanes widened to `f64` (exact): lanes 0–3 and 4–7.
     #[inline(always)]
     pub fn widen(self) -> [f64x4; 2] {

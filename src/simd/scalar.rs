@@ -362,6 +362,11 @@ bit_casts!(f32x4, cast_u32, u32x4, u32, cast_f32, f32);
 bit_casts!(f32x4, cast_i32, i32x4, i32, cast_f32, f32);
 
 impl f32x8 {
+    /// Truncation toward zero as `as i32`: saturating, NaN to 0.
+    pub fn trunc_int(self) -> i32x8 {
+        i32x8(self.0.map(|v| v as i32))
+    }
+
     /// The eight lanes widened to `f64` (exact): lanes 0–3 and 4–7.
     pub fn widen(self) -> [f64x4; 2] {
         [0, 4].map(|k| f64x4(std::array::from_fn(|i| f64::from(self.0[k + i]))))

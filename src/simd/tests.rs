@@ -405,6 +405,21 @@ fn conversions_agree() {
         for h in 0..2 {
             same("f32x8 widen", i, wv[h].to_array(), ws[h].to_array(), false);
         }
+        // Saturating, NaN to 0: `as i32`.
+        same(
+            "f32x8 trunc_int",
+            i,
+            v.trunc_int().to_array(),
+            s.trunc_int().to_array(),
+            false,
+        );
+        same(
+            "f32x8 trunc_int is as",
+            i,
+            s.trunc_int().to_array(),
+            a.map(|x| x as i32),
+            false,
+        );
         let back = v.cast_i32().cast_f32().to_array();
         same("f32x8 cast round trip", i, back, a, false);
         let bits = s.cast_i32().to_array();
@@ -508,4 +523,8 @@ fn twin_semantics_at_the_edges() {
     // Saturating truncation.
     let t = f32x4::new([nan, 3e9, -3e9, -1.9]).trunc_int().to_array();
     assert_eq!(t, [0, i32::MAX, i32::MIN, -1]);
+    let t = f32x8::new([nan, 3e9, -3e9, -1.9, 2.5, -0.0, 1e-30, -nan]).trunc_int();
+    assert_eq!(t.to_array(), [0, i32::MAX, i32::MIN, -1, 2, 0, 0, 0]);
+    let v = super::f32x8::new([nan, 3e9, -3e9, -1.9, 2.5, -0.0, 1e-30, -nan]).trunc_int();
+    assert_eq!(v.to_array(), t.to_array());
 }
