@@ -74,6 +74,12 @@ impl F32x8 {
         min => _mm256_min_ps;
         /// IEEE difference per lane.
         sub => _mm256_sub_ps;
+        /// Mask of `self ≥ o` (false on NaN), as the facade's `cmp_ge`.
+        ge => _mm256_cmp_ps::<_CMP_GE_OQ>;
+        /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
+        lt => _mm256_cmp_ps::<_CMP_LT_OQ>;
+        /// Bitwise and.
+        and => _mm256_and_ps;
     }
 
     /// Every lane `v`.
@@ -166,6 +172,88 @@ impl F32x8 {
     #[target_feature(enable = "avx")]
     pub fn le_mask(self, o: Self) -> u32 {
         _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0)) as u32
+    }
+}
+
+/// Eight `i32` lanes in a `__m256i`, with AVX2's integer arithmetic.
+/// Only constructible inside AVX2 code.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub struct I32x8(__m256i);
+
+#[cfg(target_arch = "x86_64")]
+impl I32x8 {
+    /// Every lane `v`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn splat(v: i32) -> Self {
+        I32x8(_mm256_set1_epi32(v))
+    }
+
+    /// Lanes `a`, in order (an unaligned 256-bit load).
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn load(a: &[i32; 8]) -> Self {
+        // SAFETY: `a` is eight `i32` (32 bytes), exactly what an unaligned
+        // 256-bit load reads.
+        I32x8(unsafe { _mm256_loadu_si256(a.as_ptr().cast()) })
+    }
+
+    /// Writes the lanes to `a`, in order (an unaligned 256-bit store).
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn store(self, a: &mut [i32; 8]) {
+        // SAFETY: `a` is eight `i32` (32 bytes), exactly what an unaligned
+        // 256-bit store writes.
+        unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast(), self.0) }
+    }
+
+    /// Wrapping sum per lane, as the facade's `i32x8` `+`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn add(self, o: Self) -> Self {
+        I32x8(_mm256_add_epi32(self.0, o.0))
+    }
+
+    /// The lanes where the mask `m` (lanes all ones or all zeros) is set,
+    /// 0 elsewhere: the facade's `m.cast_i32() & self`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn masked(self, m: F32x8) -> Self {
+        I32x8(_mm256_and_si256(_mm256_castps_si256(m.0), self.0))
+    }
+
+    /// The lanes as an array.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn to_array(self) -> [i32; 8] {
+        let mut out = [0; 8];
+        self.store(&mut out);
+        out
     }
 }
 
@@ -468,6 +556,56 @@ mod tests {
             let want = [lt & (gt | lt), lt | gt, lt & !gt, lt.blend(sx, sy)].map(bits);
             assert_eq!(logic.map(|v| v.map(f64::to_bits)), want, "{x:?} {y:?}");
             assert_eq!(sign, sx.move_mask(), "{x:?}");
+        }
+    }
+
+    #[target_feature(enable = "avx,avx2")]
+    fn run_counts(a: [f32; 8], b: [f32; 8], c: [i32; 8], d: i32) -> (u32, u32, [i32; 8]) {
+        let (x, y) = (F32x8::load(&a), F32x8::load(&b));
+        let (ge, lt) = (x.ge(y), x.lt(y));
+        let both = ge.and(lt.blend(ge, lt));
+        let sum = I32x8::load(&c).add(I32x8::splat(d).masked(ge));
+        (
+            _mm256_movemask_ps(ge.0) as u32 | (_mm256_movemask_ps(lt.0) as u32) << 8,
+            _mm256_movemask_ps(both.0) as u32,
+            sum.to_array(),
+        )
+    }
+
+    /// The counting kernel's operations against the scalar twin: `≥` and
+    /// `<` masks (false on NaN), mask `and`, and the masked wrapping
+    /// integer sum.
+    #[test]
+    fn avx2_count_lanes_match_the_scalar_twin() {
+        use super::super::scalar::{f32x8 as S32, i32x8 as I32};
+        if !crate::simd::level::Level::V3.supported() {
+            eprintln!("no AVX2 on this CPU: nothing to check");
+            return;
+        }
+        let mut next = lcg(0x9b05_688c_2b3e_6c1f);
+        let specials = [0.0f32, -0.0, f32::NAN, f32::INFINITY, 1.0, -1.0];
+        for _ in 0..50_000 {
+            let mut lane = || {
+                let r = next();
+                if r % 3 == 0 {
+                    specials[(r >> 8) as usize % specials.len()]
+                } else {
+                    f32::from_bits((r >> 32) as u32)
+                }
+            };
+            let a: [f32; 8] = std::array::from_fn(|_| lane());
+            let mut b: [f32; 8] = std::array::from_fn(|_| lane());
+            b[7] = a[7];
+            let c: [i32; 8] = std::array::from_fn(|_| next() as i32);
+            let d = next() as i32;
+            // SAFETY: AVX2 is available (checked above).
+            let (masks, both, sum) = unsafe { run_counts(a, b, c, d) };
+            let (sa, sb) = (S32::new(a), S32::new(b));
+            let (ge, lt) = (sa.cmp_ge(sb), sa.cmp_lt(sb));
+            assert_eq!(masks, ge.move_mask() | lt.move_mask() << 8, "{a:?} {b:?}");
+            assert_eq!(both, (ge & lt.blend(ge, lt)).move_mask(), "{a:?} {b:?}");
+            let want = I32::new(c) + (ge.cast_i32() & I32::splat(d));
+            assert_eq!(sum, want.to_array(), "{a:?} {b:?}");
         }
     }
 }

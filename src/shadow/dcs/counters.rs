@@ -23,6 +23,7 @@
 //! caster faces, far below 2³¹ for any scene that fits in memory, so they
 //! never wrap.
 
+use crate::simd::level::{level, Level};
 use crate::simd::{f32x8, i32x8};
 
 /// Samples per SIMD step.
@@ -198,6 +199,25 @@ pub(super) fn add_covered_in(
     edge: &OrientedEdge,
     delta: i32,
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if level() == Level::V3 && Level::V3.supported() {
+        // SAFETY: the CPU has AVX and AVX2 (`Level::V3` includes both),
+        // the one requirement of the kernel's `target_feature`.
+        return unsafe { add_covered_avx2(counters, xs, ys, edge, delta) };
+    }
+    add_covered_lanes(counters, xs, ys, edge, delta);
+}
+
+/// [`add_covered_in`] on the facade's lanes (the baseline kernel, and
+/// the twin the AVX2 one is tested against).
+#[inline(always)]
+fn add_covered_lanes(
+    counters: &mut [i32],
+    xs: &[f32],
+    ys: &[f32],
+    edge: &OrientedEdge,
+    delta: i32,
+) {
     let (lo, hi) = (edge.lo, edge.hi);
     let (lx, ly) = (f32x8::splat(lo[0]), f32x8::splat(lo[1]));
     let (hx, hy) = (f32x8::splat(hi[0]), f32x8::splat(hi[1]));
@@ -219,6 +239,36 @@ pub(super) fn add_covered_in(
         let cur = i32x8::from(<[i32; LANES]>::try_from(&*c).expect("chunks_exact(LANES)"));
         let next = cur + (m & d);
         c.copy_from_slice(&next.to_array());
+    }
+}
+
+/// [`add_covered_in`] in 256-bit registers ([`crate::simd::avx`]): a
+/// baseline build runs the facade's `f32x8` as two SSE halves, even in
+/// the counter pass's x86-64-v3 copy. The same IEEE operations in the
+/// same order per lane, so the same counts.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn add_covered_avx2(counters: &mut [i32], xs: &[f32], ys: &[f32], edge: &OrientedEdge, delta: i32) {
+    use crate::simd::avx::{F32x8, I32x8};
+    let (lo, hi) = (edge.lo, edge.hi);
+    let (lx, ly) = (F32x8::splat(lo[0]), F32x8::splat(lo[1]));
+    let (hx, hy) = (F32x8::splat(hi[0]), F32x8::splat(hi[1]));
+    let (dx, dy) = (F32x8::splat(hi[0] - lo[0]), F32x8::splat(hi[1] - lo[1]));
+    let zero = F32x8::splat(0.0);
+    let d = I32x8::splat(delta);
+    for ((c, xs), ys) in counters
+        .chunks_exact_mut(LANES)
+        .zip(xs.chunks_exact(LANES))
+        .zip(ys.chunks_exact(LANES))
+    {
+        let sx = F32x8::load(xs.try_into().expect("chunks_exact(LANES)"));
+        let sy = F32x8::load(ys.try_into().expect("chunks_exact(LANES)"));
+        let c_lo = lx.mul(sy).sub(ly.mul(sx));
+        let c_hi = hx.mul(sy).sub(hy.mul(sx));
+        let beyond = dx.mul(sy.sub(ly)).sub(dy.mul(sx.sub(lx)));
+        let m = c_lo.ge(zero).and(c_hi.lt(zero)).and(beyond.lt(zero));
+        let c: &mut [i32; LANES] = c.try_into().expect("chunks_exact_mut(LANES)");
+        I32x8::load(c).add(d.masked(m)).store(c);
     }
 }
 
@@ -450,6 +500,53 @@ mod tests {
             assert_eq!(v, w);
             assert!(v.contains(&3));
         }
+    }
+
+    /// The AVX2 kernel counts what the facade's lanes count, sample for
+    /// sample: random edges, edges through samples (ties of every
+    /// condition), and ends shared with the samples' own coordinates.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_kernel_matches_the_lanes() {
+        if !Level::V3.supported() {
+            eprintln!("no AVX2 on this CPU: nothing to check");
+            return;
+        }
+        let s = samples(256, 11);
+        let mut state = 3u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let mut covered = 0;
+        for round in 0..2000 {
+            let (a, b) = match round % 3 {
+                0 => ([next(), next()], [next(), next()]),
+                // Through a sample, or from one.
+                1 => {
+                    let [x, y] = s.get(round % s.len()).map(f64::from);
+                    ([x, y], [next(), next()])
+                }
+                _ => {
+                    let [x, y] = s.get(round % s.len()).map(f64::from);
+                    ([-x, -y], [x * 0.5, y * 0.5])
+                }
+            };
+            let Some(e) = OrientedEdge::new(a, b) else {
+                continue;
+            };
+            let start: Vec<i32> = (0..s.padded() as i32).map(|k| k % 7 - 3).collect();
+            let (mut lanes, mut avx2) = (start.clone(), start.clone());
+            let delta = round as i32 % 5 - 2;
+            add_covered_lanes(&mut lanes, &s.xs, &s.ys, &e, delta);
+            // SAFETY: the CPU has AVX2 (checked above).
+            unsafe { add_covered_avx2(&mut avx2, &s.xs, &s.ys, &e, delta) };
+            assert_eq!(lanes, avx2, "edge {e:?}, delta {delta}");
+            covered += lanes.iter().zip(&start).filter(|(a, b)| a != b).count();
+        }
+        assert!(covered > 10_000, "{covered} samples moved");
     }
 
     #[test]
