@@ -587,7 +587,7 @@ mod tests {
         for _ in 0..50_000 {
             let mut lane = || {
                 let r = next();
-                if r % 3 == 0 {
+                if r.is_multiple_of(3) {
                     specials[(r >> 8) as usize % specials.len()]
                 } else {
                     f32::from_bits((r >> 32) as u32)
