@@ -105,6 +105,16 @@ impl ReceiverChart {
         }
     }
 
+    /// The rect light's projection from the receiver, when the chart is
+    /// one and the receiver is off the light's plane.
+    #[inline]
+    pub fn rect_projection(&self) -> Option<&RectProjection> {
+        match self {
+            ReceiverChart::Rect { projection, .. } => projection.as_ref(),
+            ReceiverChart::Sphere { .. } => None,
+        }
+    }
+
     /// The edge `v0 → v1` projected from the receiver into the chart,
     /// clipped to the part that can occlude the light (in front of the
     /// receiver, not beyond the light) and to the chart's square.

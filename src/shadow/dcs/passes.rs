@@ -21,7 +21,7 @@ use super::bitfield::{CoverageTables, TableResolution};
 use super::chart::ReceiverChart;
 use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
-use super::receiver::{GroupPass, LightPass, PixelResult, Scratch};
+use super::receiver::{BlockExtras, Extras, GroupPass, LightPass, PixelResult, Scratch, BLOCK};
 use super::region::{ReceiverBlock, RegionBound};
 use super::ties::{cap_segment, own_face_change, tied_from_changes, tied_pixels, ExactStart, Tie};
 use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
@@ -35,7 +35,7 @@ use crate::shade::gather::{gather_filter, GatherParams};
 use crate::shadow::kit::groups::Attenuation;
 use crate::shadow::kit::membership::{draw_wedges, HalfSink, LightStart, MembershipTile};
 use crate::shadow::kit::rays::scene_diagonal;
-use crate::shadow::kit::tiles::{local_xy, TilePixels};
+use crate::shadow::kit::tiles::TilePixels;
 use crate::shadow::kit::timing::{timed, PassTimer};
 use crate::shadow::kit::volumes::{build_volume, stencil_counts, ShadowVolume};
 use crate::shadow::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
@@ -892,49 +892,79 @@ fn tile_counters_body(
     let mut sampled = 0;
     let mut unbounded_pairs = 0;
     let mut recounted = 0;
-    let mut e = 0;
     let (near, block_edges) = unbounded_near(pass.ctx, grid, tile, unbounded);
     // The ids alone, contiguous: reading them through the edges (each
     // behind its region bound) missed the cache once per pair.
     let near_ids: Vec<u32> = near.iter().map(|u| u.id).collect();
+    // Each local pixel's run of `entries` and of `stsv_entries`.
+    let runs = |sorted: &[u64], shift: u32| -> Vec<usize> {
+        let mut starts = vec![0; TILE_PIXELS + 1];
+        for &v in sorted {
+            starts[(v >> shift) as usize + 1] += 1;
+        }
+        for k in 0..TILE_PIXELS {
+            starts[k + 1] += starts[k];
+        }
+        starts
+    };
+    let (tag_runs, stsv_runs) = (runs(&entries, 33), runs(stsv_entries, 32));
+    let in_lanes = pass.blocks_in_lanes();
+    let mut made = BlockExtras::default();
     let mut extra = Vec::new();
-    let (mut si, mut here) = (0, Vec::new());
-    for (local, r) in out.iter_mut().enumerate() {
-        let (x, y) = grid.tile_pixel_xy(tile, local);
-        here.clear();
-        while si < stsv_entries.len() && (stsv_entries[si] >> 32) as usize == local {
-            here.push(stsv_entries[si] as u32);
-            si += 1;
+    let mut here = Vec::new();
+    // Block by block (4², as `block_edges`), each block's receivers row by
+    // row, so that a block's unbounded edges can be made for all of its
+    // receivers at once.
+    for (cell, cell_edges) in block_edges.iter().enumerate() {
+        let (cx, cy) = (cell % PER_ROW * INNER, cell / PER_ROW * INNER);
+        let pixels: [Option<usize>; BLOCK] = std::array::from_fn(|k| {
+            let local = (cy + k / INNER) * TILE_SIZE + cx + k % INNER;
+            let (x, y) = grid.tile_pixel_xy(tile, local);
+            let i = y * width + x;
+            (x < width && y < height && gbuffer.is_surface(i)).then_some(i)
+        });
+        let lanes = in_lanes && !cell_edges.is_empty();
+        if lanes {
+            let edges = cell_edges.iter().map(|&(k, m)| (near_ids[k as usize], m));
+            pass.block_extras(&pixels, edges, &mut made);
         }
-        let first = e;
-        while e < entries.len() && (entries[e] >> 33) as usize == local {
-            e += 1;
+        for (bit, pixel) in pixels.iter().enumerate() {
+            let local = (cy + bit / INNER) * TILE_SIZE + cx + bit % INNER;
+            let Some(i) = *pixel else {
+                continue;
+            };
+            here.clear();
+            here.extend(
+                stsv_entries[stsv_runs[local]..stsv_runs[local + 1]]
+                    .iter()
+                    .map(|&v| v as u32),
+            );
+            let tags = &mut entries[tag_runs[local]..tag_runs[local + 1]];
+            for tag in tags.iter_mut() {
+                *tag &= (1 << 33) - 1;
+            }
+            let extras = if lanes {
+                Extras::Made(made.of(bit))
+            } else {
+                extra.clear();
+                extra.extend(
+                    cell_edges
+                        .iter()
+                        .filter(|&&(_, mask)| mask >> bit & 1 == 1)
+                        .map(|&(k, _)| near_ids[k as usize]),
+                );
+                Extras::Ids(&extra)
+            };
+            let admitted = match extras {
+                Extras::Ids(ids) => ids.len(),
+                Extras::Made(m) => m.admitted,
+            };
+            sampled += usize::from(!tags.is_empty() || admitted > 0 || !here.is_empty());
+            unbounded_pairs += admitted;
+            let r = pass.pixel(i, tags, extras, &here, scratch);
+            recounted += usize::from(r.recounted);
+            out[local] = r;
         }
-        if x >= width || y >= height {
-            continue;
-        }
-        let i = y * width + x;
-        if !gbuffer.is_surface(i) {
-            continue;
-        }
-        let tags = &mut entries[first..e];
-        for tag in tags.iter_mut() {
-            *tag &= (1 << 33) - 1;
-        }
-        extra.clear();
-        let (lx, ly) = local_xy(local);
-        let cell = ly / INNER * PER_ROW + lx / INNER;
-        let bit = (ly % INNER) * INNER + lx % INNER;
-        extra.extend(
-            block_edges[cell]
-                .iter()
-                .filter(|&&(_, mask)| mask >> bit & 1 == 1)
-                .map(|&(k, _)| near_ids[k as usize]),
-        );
-        sampled += usize::from(!tags.is_empty() || !extra.is_empty() || !here.is_empty());
-        unbounded_pairs += extra.len();
-        *r = pass.pixel(i, tags, &extra, &here, scratch);
-        recounted += usize::from(r.recounted);
     }
     TileResult {
         pixels: out,

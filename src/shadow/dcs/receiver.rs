@@ -8,16 +8,18 @@ use super::bitfield::CoverageTables;
 use super::blocks::{BlockGrid, BlockSamples};
 use super::chart::ReceiverChart;
 use super::counters::{add_covered, ChartSamples, OrientedEdge, SectorSamples};
-use super::edges::{side_of, CandidateEdge, CandidateEdges};
+use super::edges::{side_of, side_of4, CandidateEdge, CandidateEdges};
 use super::ties::{ExactStart, Tie};
 use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::sampling::{LightSampler, PatternSampler};
 use crate::shade::{surface_point, LightSample, PreparedLight, SurfacePoint};
 use crate::shadow::kit::groups::Attenuation;
+use crate::shadow::kit::light_frame::{RectProjection, RectProjection4};
 use crate::shadow::kit::rays::ShadowOrigin;
 use crate::shadow::kit::wedge_geometry::LightBound;
 use crate::shadow::stsv::{STriangles, SamplePositions};
 use crate::shadow::ShadowContext;
+use crate::simd::f64x4;
 use glam::{DVec3, Vec3};
 
 /// Effective edges from which a receiver's samples are sorted into
@@ -71,6 +73,51 @@ pub(super) struct Scratch {
     /// `effective`.
     spans: Vec<GroupSpan>,
     visibility: Vec<f32>,
+}
+
+/// A receiver's unbounded edges: their ids, or what
+/// [`LightPass::block_extras`] made of them.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Extras<'a> {
+    /// Ids (sorted, global over the groups).
+    Ids(&'a [u32]),
+    /// The opaque group's, made for the receiver's block.
+    Made(MadeExtras<'a>),
+}
+
+/// One receiver's share of [`BlockExtras`].
+#[derive(Debug, Clone, Copy)]
+pub(super) struct MadeExtras<'a> {
+    /// The effective edges among them, in id order.
+    effective: &'a [(OrientedEdge, i32)],
+    /// Whether one's quad plane lies between the raster's receiver and
+    /// `p'` (its start count is then recounted).
+    recount: bool,
+    /// How many reached the receiver.
+    pub(super) admitted: usize,
+}
+
+/// The unbounded edges of a 4² block's receivers ([`BLOCK`] of them,
+/// row by row), made in lanes ([`LightPass::block_extras`]).
+#[derive(Debug, Default)]
+pub(super) struct BlockExtras {
+    effective: [Vec<(OrientedEdge, i32)>; BLOCK],
+    recount: [bool; BLOCK],
+    admitted: [usize; BLOCK],
+}
+
+/// Receivers of a block.
+pub(super) const BLOCK: usize = 16;
+
+impl BlockExtras {
+    /// Block receiver `k`'s share.
+    pub(super) fn of(&self, k: usize) -> MadeExtras<'_> {
+        MadeExtras {
+            effective: &self.effective[k],
+            recount: self.recount[k],
+            admitted: self.admitted[k],
+        }
+    }
 }
 
 /// One group's edges at one receiver ([`LightPass::group_edges`]).
@@ -202,10 +249,15 @@ impl LightPass<'_, '_> {
         &self,
         i: usize,
         tags: &[u64],
-        extra: &[u32],
+        extras: Extras,
         s_triangles: &[u32],
         scratch: &mut Scratch,
     ) -> PixelResult {
+        let (extra, made): (&[u32], _) = match extras {
+            Extras::Ids(ids) => (ids, None),
+            Extras::Made(made) => (&[], Some(made)),
+        };
+        let admitted = made.map_or(extra.len(), |m| m.admitted);
         let gbuffer = self.ctx.gbuffer;
         let inspect = self.inspect.filter(|_| {
             self.inspect_pixels
@@ -216,7 +268,7 @@ impl LightPass<'_, '_> {
         let eye = self.ctx.view.eye.as_vec3();
         let direct = self.technique.mode == DcsMode::Direct;
         let sp = || surface_point(self.ctx.scene, &g, eye);
-        if tags.is_empty() && extra.is_empty() && s_triangles.is_empty() && inspect.is_none() {
+        if tags.is_empty() && admitted == 0 && s_triangles.is_empty() && inspect.is_none() {
             // Outside every wedge: D = D(O) and the layer counts are the
             // start counts for every sample.
             return self.uniform(i, d0, sp, 0, false);
@@ -271,12 +323,15 @@ impl LightPass<'_, '_> {
             let first = scratch.effective.len();
             let recorded = k == 0 || !group_tags.is_empty() || !group_extra.is_empty();
             let start = if recorded {
+                // The opaque group's unbounded edges, when made for the
+                // whole block ([`LightPass::block_extras`]).
+                let made = made.filter(|_| k == 0);
                 let (start, recount) = self.group_edges(
                     k,
                     i,
                     (raster, p),
                     &chart,
-                    (group_tags, group_extra),
+                    (group_tags, group_extra, made),
                     &mut scratch.effective,
                 );
                 recounted |= recount;
@@ -497,6 +552,119 @@ impl LightPass<'_, '_> {
         }
     }
 
+    /// Whether [`LightPass::block_extras`] can make the unbounded edges:
+    /// one caster group and a rect light.
+    pub(super) fn blocks_in_lanes(&self) -> bool {
+        self.groups.len() == 1 && matches!(self.bound, LightBound::Rect(_))
+    }
+
+    /// The unbounded edges of the 4² block of receivers `pixels` (global
+    /// indices, row by row; `None` where no receiver) into `out`: each
+    /// of `edges` (its id and the mask of receivers it reached) tested
+    /// against four receivers at a time, with [`LightPass::group_edges`]'s
+    /// operations per lane (`side_of4`, `multiplicity4`,
+    /// `RectProjection4`), so each receiver gets the effective edges, in
+    /// the same order, and the recount verdict its own pass would.
+    /// Only where [`LightPass::blocks_in_lanes`].
+    #[inline(always)]
+    pub(super) fn block_extras(
+        &self,
+        pixels: &[Option<usize>; BLOCK],
+        edges: impl Iterator<Item = (u32, u16)>,
+        out: &mut BlockExtras,
+    ) {
+        let group = &self.groups[0];
+        let candidates = &group.candidates;
+        let mut origins = [DVec3::ZERO; BLOCK];
+        let mut rasters = [DVec3::ZERO; BLOCK];
+        let mut projections: [Option<RectProjection>; BLOCK] = [None; BLOCK];
+        let mut tied = [false; BLOCK];
+        for (k, pixel) in pixels.iter().enumerate() {
+            out.effective[k].clear();
+            out.recount[k] = false;
+            out.admitted[k] = 0;
+            let Some(i) = *pixel else {
+                continue;
+            };
+            let g = self.ctx.gbuffer.sample(i);
+            let p = self.origin.of(g.position, g.geo_normal).as_dvec3();
+            (origins[k], rasters[k]) = (p, g.position.as_dvec3());
+            projections[k] =
+                ReceiverChart::new(&self.bound, p).and_then(|c| c.rect_projection().copied());
+            tied[k] = self.ties[i] == Tie::Tied;
+        }
+        let lanes = |v: &[DVec3; BLOCK], g: usize| {
+            let q = &v[4 * g..4 * g + 4];
+            [
+                f64x4::new([q[0].x, q[1].x, q[2].x, q[3].x]),
+                f64x4::new([q[0].y, q[1].y, q[2].y, q[3].y]),
+                f64x4::new([q[0].z, q[1].z, q[2].z, q[3].z]),
+            ]
+        };
+        let origin_lanes: [[f64x4; 3]; 4] = std::array::from_fn(|g| lanes(&origins, g));
+        let raster_lanes: [[f64x4; 3]; 4] = std::array::from_fn(|g| lanes(&rasters, g));
+        // Per lane group: its projections (a lane without one borrows a
+        // neighbour's, its results unread) and the lanes that have one.
+        let projected: [(Option<RectProjection4>, u32); 4] = std::array::from_fn(|g| {
+            let row = &projections[4 * g..4 * g + 4];
+            let Some(any) = row.iter().flatten().next() else {
+                return (None, 0);
+            };
+            let have = (0..4).fold(0, |m, k| m | u32::from(row[k].is_some()) << k);
+            let four = std::array::from_fn(|k| row[k].as_ref().unwrap_or(any));
+            (Some(RectProjection4::new(four)), have)
+        });
+        let local = |global: u32| (global - group.first_edge) as usize;
+        for (id, mask) in edges {
+            let e = &candidates.edges[local(id)];
+            for g in 0..4 {
+                let live = u32::from(mask >> (4 * g)) & 0xF;
+                if live == 0 {
+                    continue;
+                }
+                let p = &origin_lanes[g];
+                let geometric = side_of4(p, e.v0, e.v1, self.centre);
+                let lane = |k: usize| live >> k & 1 == 1;
+                for k in (0..4).filter(|&k| lane(k)) {
+                    out.admitted[4 * g + k] += 1;
+                }
+                let sided = (0..4).filter(|&k| lane(k) && geometric[k] != 0);
+                if e.quad_sign != 0 && sided.clone().any(|k| !tied[4 * g + k]) {
+                    let at_raster = side_of4(&raster_lanes[g], e.v0, e.v1, self.centre);
+                    for k in sided.clone() {
+                        if !tied[4 * g + k] && at_raster[k] != geometric[k] {
+                            out.recount[4 * g + k] = true;
+                        }
+                    }
+                }
+                let (Some(projection), have) = &projected[g] else {
+                    continue;
+                };
+                if !sided.clone().any(|k| have >> k & 1 == 1) {
+                    continue;
+                }
+                let mu = match self.technique.silhouettes {
+                    SilhouetteMode::Centre if e.quad_sign != 0 => {
+                        [e.quad_weight as i32 * i32::from(e.quad_sign); 4]
+                    }
+                    _ => candidates.multiplicity4(e, p),
+                };
+                if !sided.clone().any(|k| have >> k & 1 == 1 && mu[k] != 0) {
+                    continue;
+                }
+                let ends = projection.edge(e.v0, e.v1);
+                for k in sided.clone() {
+                    if have >> k & 1 == 0 || mu[k] == 0 {
+                        continue;
+                    }
+                    if let Some(oriented) = ends[k].and_then(|(a, b)| OrientedEdge::new(a, b)) {
+                        out.effective[4 * g + k].push((oriented, geometric[k] * mu[k]));
+                    }
+                }
+            }
+        }
+    }
+
     /// One group's start count at the shadow-ray origin `p'` (`p`) of
     /// pixel `i`, and whether a ray recounted it: the stencil decided
     /// `D(O)` at the raster's receiver; where a quad's plane passes
@@ -504,7 +672,9 @@ impl LightPass<'_, '_> {
     /// the volume, −m leaving it) or, where that does not compose with
     /// the own-face rule, one ray gives it. Every recorded edge (`tags`,
     /// then `extra`) whose projection covers part of the light goes to
-    /// `effective` with its signed change of `D`.
+    /// `effective` with its signed change of `D`; then `made`'s, the
+    /// unbounded edges [`LightPass::block_extras`] made for the receiver
+    /// (with their recount verdict).
     #[inline(always)]
     fn group_edges(
         &self,
@@ -512,7 +682,7 @@ impl LightPass<'_, '_> {
         i: usize,
         (raster, p): (DVec3, DVec3),
         chart: &ReceiverChart,
-        (tags, extra): (&[u64], &[u32]),
+        (tags, extra, made): (&[u64], &[u32], Option<MadeExtras>),
         effective: &mut Vec<(OrientedEdge, i32)>,
     ) -> (i32, bool) {
         let group = &self.groups[k];
@@ -584,6 +754,10 @@ impl LightPass<'_, '_> {
             {
                 recount = true;
             }
+        }
+        if let Some(made) = made {
+            effective.extend_from_slice(made.effective);
+            recount |= made.recount;
         }
         if recount {
             // One ray gives the count at `p'`.
