@@ -280,6 +280,45 @@ impl F64x4 {
         and => _mm256_and_pd;
         /// Bitwise or.
         or => _mm256_or_pd;
+        /// IEEE quotient per lane.
+        div => _mm256_div_pd;
+        /// Mask of `self < o` (false on NaN), the facade's name.
+        cmp_lt => _mm256_cmp_pd::<_CMP_LT_OQ>;
+        /// Mask of `self > o` (false on NaN), the facade's name.
+        cmp_gt => _mm256_cmp_pd::<_CMP_GT_OQ>;
+        /// Mask of `self ≤ o` (false on NaN), as the facade's `cmp_le`.
+        cmp_le => _mm256_cmp_pd::<_CMP_LE_OQ>;
+        /// Mask of `self ≥ o` (false on NaN), as the facade's `cmp_ge`.
+        cmp_ge => _mm256_cmp_pd::<_CMP_GE_OQ>;
+        /// Bitwise and, the facade's operator name.
+        bitand => _mm256_and_pd;
+        /// Bitwise or, the facade's operator name.
+        bitor => _mm256_or_pd;
+    }
+
+    /// The lanes `a`, in order.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn new(a: [f64; 4]) -> Self {
+        F64x4(_mm256_setr_pd(a[0], a[1], a[2], a[3]))
+    }
+
+    /// Bitwise not, the facade's operator name.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn not(self) -> Self {
+        F64x4(_mm256_xor_pd(
+            self.0,
+            _mm256_castsi256_pd(_mm256_set1_epi64x(-1)),
+        ))
     }
 
     /// Every lane `v`.

@@ -29,7 +29,6 @@
 use crate::geom::silhouette::{area_silhouettes, sphere_silhouettes};
 use crate::geom::EdgeAdjacency;
 use crate::shadow::kit::volumes::side_quad;
-use crate::simd::f64x4;
 use glam::{DVec3, Vec3};
 
 /// One face next to a candidate edge.
@@ -184,28 +183,17 @@ impl CandidateEdges {
         Some([plane(a)?, plane(b)?])
     }
 
-    /// [`CandidateEdges::multiplicity_from`] of `edge` from four points
-    /// at once (lane `k` of each coordinate is point `k`): each face's
-    /// side by the scalar operations per lane, so the same values.
-    #[inline(always)]
-    pub fn multiplicity4(&self, edge: &CandidateEdge, p: &[f64x4; 3]) -> [i32; 4] {
-        let mut mu = [0; 4];
-        for f in &self.faces[edge.faces.0 as usize..edge.faces.1 as usize] {
-            // `f.normal.dot(p − f.point) > 0`.
-            let d = [
-                p[0] - f64x4::splat(f.point.x),
-                p[1] - f64x4::splat(f.point.y),
-                p[2] - f64x4::splat(f.point.z),
-            ];
-            let dot = f64x4::splat(f.normal.x) * d[0]
-                + f64x4::splat(f.normal.y) * d[1]
-                + f64x4::splat(f.normal.z) * d[2];
-            let front = dot.cmp_gt(f64x4::ZERO).move_mask();
-            for (k, m) in mu.iter_mut().enumerate() {
-                *m += face_weight(f, front >> k & 1 == 1);
-            }
-        }
-        mu
+    /// The faces of `edge` as `(normal, point, [weight behind, weight in
+    /// front])`: [`CandidateEdges::multiplicity_from`] sums, per face, the
+    /// weight for the side `normal · (p − point) > 0` says.
+    pub fn face_terms(&self, edge: &CandidateEdge) -> impl Iterator<Item = FaceTerm> + '_ {
+        self.faces[edge.faces.0 as usize..edge.faces.1 as usize]
+            .iter()
+            .map(|f| FaceTerm {
+                normal: f.normal,
+                point: f.point,
+                weights: [face_weight(f, false), face_weight(f, true)],
+            })
     }
 
     /// `μ_e(p)`: the edge's shadow-volume multiplicity with the light
@@ -217,6 +205,17 @@ impl CandidateEdges {
             .map(|f| face_weight(f, f.normal.dot(p - f.point) > 0.0))
             .sum()
     }
+}
+
+/// One face's part of `μ_e(p)` ([`CandidateEdges::face_terms`]).
+#[derive(Debug, Clone, Copy)]
+pub struct FaceTerm {
+    /// Unnormalised normal.
+    pub normal: DVec3,
+    /// A vertex of the face.
+    pub point: DVec3,
+    /// The term behind the face (`[0]`) and in front of it (`[1]`).
+    pub weights: [i32; 2],
 }
 
 /// A face's term of `μ_e(p)`, with `front` whether `p` is in front of it.
@@ -231,32 +230,6 @@ fn face_weight(f: &EdgeFace, front: bool) -> i32 {
     h * i32::from(f.direction)
 }
 
-/// [`side_of`] from four points at once (lane `k` of each coordinate of
-/// `p` is point `k`), the same operations per lane.
-#[inline(always)]
-pub fn side_of4(p: &[f64x4; 3], v0: DVec3, v1: DVec3, o: DVec3) -> [i32; 4] {
-    let minus = |v: DVec3| {
-        [
-            f64x4::splat(v.x) - p[0],
-            f64x4::splat(v.y) - p[1],
-            f64x4::splat(v.z) - p[2],
-        ]
-    };
-    let (a, b, c) = (minus(v0), minus(v1), minus(o));
-    // `a.cross(b).dot(c)` as glam computes them.
-    let cross = [
-        a[1] * b[2] - b[1] * a[2],
-        a[2] * b[0] - b[2] * a[0],
-        a[0] * b[1] - b[0] * a[1],
-    ];
-    let d = cross[0] * c[0] + cross[1] * c[1] + cross[2] * c[2];
-    let (pos, neg) = (
-        d.cmp_gt(f64x4::ZERO).move_mask(),
-        d.cmp_lt(f64x4::ZERO).move_mask(),
-    );
-    std::array::from_fn(|k| (pos >> k & 1) as i32 - (neg >> k & 1) as i32)
-}
-
 /// The side of the plane `(p, v0, v1)` the point `o` is on: the sign of
 /// `det(v0 − p, v1 − p, o − p)`, 0 in the plane.
 #[inline]
@@ -268,72 +241,5 @@ pub fn side_of(p: DVec3, v0: DVec3, v1: DVec3, o: DVec3) -> i32 {
         -1
     } else {
         0
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The lanes' side and multiplicity are the scalar ones for each
-    /// point: the shipped bunny scene's candidate edges (closed bunny,
-    /// open ground) from random points and from points in an edge's
-    /// plane (side 0).
-    #[test]
-    fn lanes_match_the_scalar_side_and_multiplicity() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.toml");
-        let scene = crate::scene::load_scene(&path).expect("shipped scene");
-        let geometry = crate::geom::SceneGeometry::new(&scene);
-        let adj = EdgeAdjacency::build(&geometry, |_| true);
-        let corners = [
-            Vec3::new(-1.0, 5.0, -1.0),
-            Vec3::new(1.0, 5.0, -1.0),
-            Vec3::new(1.0, 5.0, 1.0),
-            Vec3::new(-1.0, 5.0, 1.0),
-        ];
-        let lit = crate::geom::silhouette::faces_point(&adj, Vec3::new(0.0, 5.0, 0.0));
-        let edges = CandidateEdges::build(
-            &adj,
-            &lit,
-            SilhouetteMode::WholeLight,
-            LightShapeForSilhouettes::Polygon(&corners),
-        );
-        assert!(edges.edges.len() > 100);
-        let mut state = 5u64;
-        let mut r = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 / (1u64 << 53) as f64) * 6.0 - 3.0
-        };
-        let o = DVec3::new(0.1, 5.0, -0.2);
-        let (mut zero, mut nonzero) = (0, 0);
-        for e in edges.edges.iter().step_by(7) {
-            for round in 0..40 {
-                let points: [DVec3; 4] = std::array::from_fn(|k| {
-                    if (round + k) % 5 == 0 {
-                        // In the plane (v0, v1, o): side 0, or nearly.
-                        e.v0 + (e.v1 - e.v0) * r() + (o - e.v0) * r()
-                    } else {
-                        DVec3::new(r(), r(), r())
-                    }
-                });
-                let lanes = [0, 1, 2].map(|a| crate::simd::f64x4::new(points.map(|p| p[a])));
-                let sides = side_of4(&lanes, e.v0, e.v1, o);
-                let mu = edges.multiplicity4(e, &lanes);
-                for (k, &p) in points.iter().enumerate() {
-                    assert_eq!(sides[k], side_of(p, e.v0, e.v1, o), "{p}");
-                    assert_eq!(mu[k], edges.multiplicity_from(e, p), "{p}");
-                    if sides[k] == 0 {
-                        zero += 1;
-                    }
-                    nonzero += usize::from(mu[k] != 0);
-                }
-            }
-        }
-        assert!(
-            zero > 0 && nonzero > 100,
-            "{zero} in plane, {nonzero} silhouettes"
-        );
     }
 }

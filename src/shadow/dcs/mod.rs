@@ -33,6 +33,7 @@ pub mod bitfield;
 pub mod blocks;
 pub mod chart;
 pub mod counters;
+mod edge_lanes;
 pub mod edges;
 pub mod faces;
 mod passes;

@@ -909,6 +909,9 @@ fn tile_counters_body(
     };
     let (tag_runs, stsv_runs) = (runs(&entries, 33), runs(stsv_entries, 32));
     let in_lanes = pass.blocks_in_lanes();
+    // The lane kernel in AVX registers where the CPU has them (and
+    // `PENUMBRA_SIMD` does not force the baseline).
+    let avx = crate::simd::avx::available();
     let mut made = BlockExtras::default();
     let mut extra = Vec::new();
     let mut here = Vec::new();
@@ -926,7 +929,7 @@ fn tile_counters_body(
         let lanes = in_lanes && !cell_edges.is_empty();
         if lanes {
             let edges = cell_edges.iter().map(|&(k, m)| (near_ids[k as usize], m));
-            pass.block_extras(&pixels, edges, &mut made);
+            pass.block_extras(&pixels, edges, &mut made, avx);
         }
         for (bit, pixel) in pixels.iter().enumerate() {
             let local = (cy + bit / INNER) * TILE_SIZE + cx + bit % INNER;

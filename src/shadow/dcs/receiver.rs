@@ -8,18 +8,18 @@ use super::bitfield::CoverageTables;
 use super::blocks::{BlockGrid, BlockSamples};
 use super::chart::ReceiverChart;
 use super::counters::{add_covered, ChartSamples, OrientedEdge, SectorSamples};
-use super::edges::{side_of, side_of4, CandidateEdge, CandidateEdges};
+use super::edge_lanes::{self, EdgeSource, GroupInputs, GROUPS};
+use super::edges::{side_of, CandidateEdge, CandidateEdges};
 use super::ties::{ExactStart, Tie};
 use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::sampling::{LightSampler, PatternSampler};
 use crate::shade::{surface_point, LightSample, PreparedLight, SurfacePoint};
 use crate::shadow::kit::groups::Attenuation;
-use crate::shadow::kit::light_frame::{RectProjection, RectProjection4};
+use crate::shadow::kit::light_frame::RectProjection;
 use crate::shadow::kit::rays::ShadowOrigin;
 use crate::shadow::kit::wedge_geometry::LightBound;
 use crate::shadow::stsv::{STriangles, SamplePositions};
 use crate::shadow::ShadowContext;
-use crate::simd::f64x4;
 use glam::{DVec3, Vec3};
 
 /// Effective edges from which a receiver's samples are sorted into
@@ -101,9 +101,9 @@ pub(super) struct MadeExtras<'a> {
 /// row by row), made in lanes ([`LightPass::block_extras`]).
 #[derive(Debug, Default)]
 pub(super) struct BlockExtras {
-    effective: [Vec<(OrientedEdge, i32)>; BLOCK],
-    recount: [bool; BLOCK],
-    admitted: [usize; BLOCK],
+    pub(super) effective: [Vec<(OrientedEdge, i32)>; BLOCK],
+    pub(super) recount: [bool; BLOCK],
+    pub(super) admitted: [usize; BLOCK],
 }
 
 /// Receivers of a block.
@@ -572,6 +572,7 @@ impl LightPass<'_, '_> {
         pixels: &[Option<usize>; BLOCK],
         edges: impl Iterator<Item = (u32, u16)>,
         out: &mut BlockExtras,
+        avx: bool,
     ) {
         let group = &self.groups[0];
         let candidates = &group.candidates;
@@ -593,76 +594,47 @@ impl LightPass<'_, '_> {
                 ReceiverChart::new(&self.bound, p).and_then(|c| c.rect_projection().copied());
             tied[k] = self.ties[i] == Tie::Tied;
         }
-        let lanes = |v: &[DVec3; BLOCK], g: usize| {
-            let q = &v[4 * g..4 * g + 4];
-            [
-                f64x4::new([q[0].x, q[1].x, q[2].x, q[3].x]),
-                f64x4::new([q[0].y, q[1].y, q[2].y, q[3].y]),
-                f64x4::new([q[0].z, q[1].z, q[2].z, q[3].z]),
-            ]
-        };
-        let origin_lanes: [[f64x4; 3]; 4] = std::array::from_fn(|g| lanes(&origins, g));
-        let raster_lanes: [[f64x4; 3]; 4] = std::array::from_fn(|g| lanes(&rasters, g));
-        // Per lane group: its projections (a lane without one borrows a
-        // neighbour's, its results unread) and the lanes that have one.
-        let projected: [(Option<RectProjection4>, u32); 4] = std::array::from_fn(|g| {
+        let mut groups = [GroupInputs::default(); GROUPS];
+        for (g, inputs) in groups.iter_mut().enumerate() {
+            for l in 0..4 {
+                let k = 4 * g + l;
+                for a in 0..3 {
+                    inputs.p[a][l] = origins[k][a];
+                    inputs.raster[a][l] = rasters[k][a];
+                }
+                inputs.tied |= u32::from(tied[k]) << l;
+            }
+            // A lane without a projection borrows a neighbour's (its
+            // results unread).
             let row = &projections[4 * g..4 * g + 4];
             let Some(any) = row.iter().flatten().next() else {
-                return (None, 0);
+                continue;
             };
-            let have = (0..4).fold(0, |m, k| m | u32::from(row[k].is_some()) << k);
-            let four = std::array::from_fn(|k| row[k].as_ref().unwrap_or(any));
-            (Some(RectProjection4::new(four)), have)
-        });
-        let local = |global: u32| (global - group.first_edge) as usize;
-        for (id, mask) in edges {
-            let e = &candidates.edges[local(id)];
-            for g in 0..4 {
-                let live = u32::from(mask >> (4 * g)) & 0xF;
-                if live == 0 {
-                    continue;
+            for (l, projection) in row.iter().enumerate() {
+                inputs.projected |= u32::from(projection.is_some()) << l;
+                let (_, n, u, v, s_p, t_p) = projection.as_ref().unwrap_or(any).parts();
+                for a in 0..3 {
+                    (inputs.n[a][l], inputs.u_dual[a][l], inputs.v_dual[a][l]) = (n[a], u[a], v[a]);
                 }
-                let p = &origin_lanes[g];
-                let geometric = side_of4(p, e.v0, e.v1, self.centre);
-                let lane = |k: usize| live >> k & 1 == 1;
-                for k in (0..4).filter(|&k| lane(k)) {
-                    out.admitted[4 * g + k] += 1;
-                }
-                let sided = (0..4).filter(|&k| lane(k) && geometric[k] != 0);
-                if e.quad_sign != 0 && sided.clone().any(|k| !tied[4 * g + k]) {
-                    let at_raster = side_of4(&raster_lanes[g], e.v0, e.v1, self.centre);
-                    for k in sided.clone() {
-                        if !tied[4 * g + k] && at_raster[k] != geometric[k] {
-                            out.recount[4 * g + k] = true;
-                        }
-                    }
-                }
-                let (Some(projection), have) = &projected[g] else {
-                    continue;
-                };
-                if !sided.clone().any(|k| have >> k & 1 == 1) {
-                    continue;
-                }
-                let mu = match self.technique.silhouettes {
-                    SilhouetteMode::Centre if e.quad_sign != 0 => {
-                        [e.quad_weight as i32 * i32::from(e.quad_sign); 4]
-                    }
-                    _ => candidates.multiplicity4(e, p),
-                };
-                if !sided.clone().any(|k| have >> k & 1 == 1 && mu[k] != 0) {
-                    continue;
-                }
-                let ends = projection.edge(e.v0, e.v1);
-                for k in sided.clone() {
-                    if have >> k & 1 == 0 || mu[k] == 0 {
-                        continue;
-                    }
-                    if let Some(oriented) = ends[k].and_then(|(a, b)| OrientedEdge::new(a, b)) {
-                        out.effective[4 * g + k].push((oriented, geometric[k] * mu[k]));
-                    }
-                }
+                (inputs.s_p[l], inputs.t_p[l]) = (s_p, t_p);
             }
         }
+        let source = EdgeSource {
+            candidates,
+            first_edge: group.first_edge,
+            centre: self.centre,
+            silhouettes: self.technique.silhouettes,
+        };
+        #[cfg(target_arch = "x86_64")]
+        if avx {
+            // SAFETY: `avx` is set only where the CPU has AVX (the
+            // caller's `simd::avx::available`), the kernel's one
+            // requirement.
+            unsafe { edge_lanes::run_avx(&groups, edges, &source, out) };
+            return;
+        }
+        let _ = avx;
+        edge_lanes::run_lanes(&groups, edges, &source, out);
     }
 
     /// One group's start count at the shadow-ray origin `p'` (`p`) of

@@ -25,7 +25,6 @@
 //! `x = c + s·u + t·v`, `(s, t) ∈ [−1, 1]²`: area fractions survive the
 //! affine map, so a parallelogram light is exact.
 
-use crate::simd::f64x4;
 use glam::DVec3;
 
 /// A rect light's frame: centre, half-edge vectors and their dual basis
@@ -164,6 +163,12 @@ impl RectProjection {
         })
     }
 
+    /// Its constants `(p, n, u_dual, v_dual, s_p, t_p)`, for code that
+    /// projects in lanes with [`RectProjection::edge`]'s operations.
+    pub fn parts(&self) -> (DVec3, DVec3, DVec3, DVec3, f64, f64) {
+        (self.p, self.n, self.u_dual, self.v_dual, self.s_p, self.t_p)
+    }
+
     /// The edge `q0 → q1` projected and clipped (see [`projected_edge`]).
     #[inline]
     pub fn edge(&self, q0: DVec3, q1: DVec3) -> Option<([f64; 2], [f64; 2])> {
@@ -178,113 +183,6 @@ impl RectProjection {
         };
         clip_to_square(project(q0), project(q1), 1.0)
     }
-}
-
-/// A projected edge's clipped `(s, t)` ends, `None` when nothing is left.
-pub type ClippedEdge = Option<([f64; 2], [f64; 2])>;
-
-/// Four receivers' [`RectProjection`]s of one rect light in lanes: one
-/// edge projected from all four at once, each lane with the scalar
-/// code's operations in its order, so each lane gives its receiver's
-/// bits ([`RectProjection4::edge`]).
-#[derive(Debug, Clone, Copy)]
-pub struct RectProjection4 {
-    p: [f64x4; 3],
-    n: [f64x4; 3],
-    u_dual: [f64x4; 3],
-    v_dual: [f64x4; 3],
-    s_p: f64x4,
-    t_p: f64x4,
-}
-
-impl RectProjection4 {
-    /// The lanes of `projections` (lane `k` from `projections[k]`).
-    pub fn new(projections: [&RectProjection; 4]) -> RectProjection4 {
-        let v = |f: &dyn Fn(&RectProjection) -> DVec3| {
-            let [a, b, c, d] = projections.map(f);
-            [
-                f64x4::new([a.x, b.x, c.x, d.x]),
-                f64x4::new([a.y, b.y, c.y, d.y]),
-                f64x4::new([a.z, b.z, c.z, d.z]),
-            ]
-        };
-        RectProjection4 {
-            p: v(&|r| r.p),
-            n: v(&|r| r.n),
-            u_dual: v(&|r| r.u_dual),
-            v_dual: v(&|r| r.v_dual),
-            s_p: f64x4::new(projections.map(|r| r.s_p)),
-            t_p: f64x4::new(projections.map(|r| r.t_p)),
-        }
-    }
-
-    /// [`RectProjection::edge`] of `q0 → q1` from each lane's receiver.
-    #[inline(always)]
-    pub fn edge(&self, q0: DVec3, q1: DVec3) -> [ClippedEdge; 4] {
-        let project = |q: DVec3| {
-            let d = [
-                f64x4::splat(q.x) - self.p[0],
-                f64x4::splat(q.y) - self.p[1],
-                f64x4::splat(q.z) - self.p[2],
-            ];
-            // `DVec3::dot`: `(a.x b.x + a.y b.y) + a.z b.z`.
-            let dot = |v: &[f64x4; 3]| d[0] * v[0] + d[1] * v[1] + d[2] * v[2];
-            let w = dot(&self.n);
-            [
-                dot(&self.u_dual) + w * self.s_p,
-                dot(&self.v_dual) + w * self.t_p,
-                w,
-            ]
-        };
-        clip_to_square4(project(q0), project(q1), 1.0)
-    }
-}
-
-/// [`clip_to_square`] on four segments at once (lane `k` of each
-/// homogeneous coordinate is segment `k`), with the scalar code's
-/// operations in its order per lane, so each lane's result is its bits:
-/// the early return of a constraint both ends fail becomes a dead lane,
-/// `k0.max(r)` (taken only where `fa < 0`, so `r ≥ 0`) a pick of `r`
-/// where `r > k0`, and `k1.min(r)` a pick where `r < k1` (equal values
-/// differ at most in a zero's sign, and then `k0 ≥ k1` drops the segment
-/// either way; a NaN `r` keeps the bound, as `max` / `min` do).
-#[inline(always)]
-pub fn clip_to_square4(a: [f64x4; 3], b: [f64x4; 3], w_max: f64) -> [ClippedEdge; 4] {
-    let [sa, ta, wa] = a;
-    let [sb, tb, wb] = b;
-    let (zero, one, m) = (f64x4::ZERO, f64x4::splat(1.0), f64x4::splat(w_max));
-    let constraints = [
-        (wa, wb),
-        (m - wa, m - wb),
-        (wa - sa, wb - sb),
-        (wa + sa, wb + sb),
-        (wa - ta, wb - tb),
-        (wa + ta, wb + tb),
-    ];
-    let (mut k0, mut k1, mut dead) = (zero, one, zero.cmp_gt(zero));
-    for (fa, fb) in constraints {
-        let (na, nb) = (fa.cmp_lt(zero), fb.cmp_lt(zero));
-        // Most constraints hold at both ends in every lane: no division.
-        if !(na | nb).any() {
-            continue;
-        }
-        dead |= na & nb;
-        let r = fa / (fa - fb);
-        k0 = (na & r.cmp_gt(k0)).blend(r, k0);
-        k1 = (!na & nb & r.cmp_lt(k1)).blend(r, k1);
-    }
-    let lerp = |k: f64x4| [sa + (sb - sa) * k, ta + (tb - ta) * k, wa + (wb - wa) * k];
-    let pick = |m: f64x4, t: [f64x4; 3], f: [f64x4; 3]| [0, 1, 2].map(|c| m.blend(t[c], f[c]));
-    let [sa, ta, wa] = pick(k0.cmp_gt(zero), lerp(k0), a);
-    let [sb, tb, wb] = pick(k1.cmp_lt(one), lerp(k1), b);
-    let dead = (dead | k0.cmp_ge(k1) | wa.cmp_le(zero) | wb.cmp_le(zero)).move_mask();
-    if dead == 0xF {
-        return [None; 4];
-    }
-    let ends = [sa / wa, ta / wa, sb / wb, tb / wb].map(f64x4::to_array);
-    std::array::from_fn(|k| {
-        (dead >> k & 1 == 0).then(|| ([ends[0][k], ends[1][k]], [ends[2][k], ends[3][k]]))
-    })
 }
 
 /// The segment between the homogeneous points `a` and `b` (`(S, T, W)`,
@@ -595,56 +493,6 @@ mod tests {
             DVec3::new(0.5, 0.0, 0.0),
             DVec3::new(0.0, 0.0, 0.5),
         )
-    }
-
-    /// Four receivers' projections in lanes give each receiver's
-    /// clipped edge bit for bit: random edges (crossing the receiver's
-    /// plane, beyond the light, outside the square, through the
-    /// receiver), and receivers on and near the light's plane.
-    #[test]
-    fn lanes_project_as_each_receiver() {
-        let f = frame();
-        let mut state = 9u64;
-        let mut r = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
-        let (mut clipped, mut kept) = (0, 0);
-        for round in 0..5000 {
-            let receivers: [DVec3; 4] = std::array::from_fn(|k| {
-                let y = if round % 11 == 0 && k == 1 {
-                    4.0 - 1e-12
-                } else {
-                    2.0 * r()
-                };
-                DVec3::new(3.0 * r(), y, 3.0 * r())
-            });
-            let projections = receivers.map(|p| RectProjection::new(&f, p).expect("off the plane"));
-            let lanes = RectProjection4::new(std::array::from_fn(|k| &projections[k]));
-            let q0 = DVec3::new(2.0 * r(), 1.0 + 3.0 * r(), 2.0 * r());
-            let q1 = match round % 4 {
-                0 => q0 + DVec3::new(0.3 * r(), 0.3 * r(), 0.3 * r()),
-                1 => receivers[round % 4],
-                _ => DVec3::new(2.0 * r(), 1.0 + 4.0 * r(), 2.0 * r()),
-            };
-            let got = lanes.edge(q0, q1);
-            for (k, projection) in projections.iter().enumerate() {
-                let want = projection.edge(q0, q1);
-                let bits =
-                    |e: ClippedEdge| e.map(|(a, b)| [a[0], a[1], b[0], b[1]].map(f64::to_bits));
-                assert_eq!(bits(got[k]), bits(want), "{q0} {q1} from {}", receivers[k]);
-                match want {
-                    None => clipped += 1,
-                    Some(_) => kept += 1,
-                }
-            }
-        }
-        assert!(
-            clipped > 1000 && kept > 1000,
-            "{clipped} clipped, {kept} kept"
-        );
     }
 
     #[test]
