@@ -701,6 +701,19 @@ fn unbounded_near<'u>(
             && !u.region.excludes_box(b.0, b.1)
     };
     let mut block_edges: Vec<BlockEdges> = vec![Vec::new(); PER_ROW * PER_ROW];
+    // The region's per-receiver test in AVX registers where the CPU has
+    // them (the same mask, `RegionBound::admits_avx`).
+    let avx = crate::simd::avx::available();
+    let admits = |u: &UnboundedEdge, receivers: &ReceiverBlock| {
+        #[cfg(target_arch = "x86_64")]
+        if avx {
+            // SAFETY: `avx` is set only where the CPU has AVX, the one
+            // requirement of `admits_avx`.
+            return unsafe { u.region.admits_avx(receivers) };
+        }
+        let _ = avx;
+        u.region.admits(receivers)
+    };
     // The clusters the tile keeps, each with its run of `near`.
     let mut kept: Vec<(&EdgeCluster, std::ops::Range<u32>)> = Vec::new();
     if !on_screen.is_empty() {
@@ -784,8 +797,7 @@ fn unbounded_near<'u>(
                                 .filter(|&k| keeps(near[k as usize], x1, y1, INNER, b))
                                 .filter_map(|k| {
                                     let u = near[k as usize];
-                                    let mask =
-                                        rect_mask(u.rect, x1, y1) & u.region.admits(&receivers);
+                                    let mask = rect_mask(u.rect, x1, y1) & admits(u, &receivers);
                                     (mask != 0).then_some((k, mask))
                                 })
                                 .collect();

@@ -18,6 +18,49 @@
 use crate::simd::f64x4;
 use glam::DVec3;
 
+/// [`RegionBound::admits`]'s kernel over `$lane` lanes (made by
+/// `$splat(v)` and `$new(array)`), in names both the facade's `f64x4`
+/// and `simd::avx::F64x4` have, so it compiles on each (see
+/// `edge_lanes`).
+macro_rules! admits_kernel {
+    ($lane:ty, $splat:path, $new:path, $bound:ident, $block:ident) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, BitAnd, BitOr, Mul, Sub};
+        let mut keep = $block.valid;
+        for g in 0..4 {
+            if (keep >> (4 * g)) & 0xF == 0 {
+                continue;
+            }
+            let (x, y, z): ($lane, $lane, $lane) =
+                ($new($block.x[g]), $new($block.y[g]), $new($block.z[g]));
+            // `DVec3::dot`'s order: `(n_x x + n_y y) + n_z z`.
+            let dot = |n: DVec3| {
+                $splat(n.x)
+                    .mul(x)
+                    .add($splat(n.y).mul(y))
+                    .add($splat(n.z).mul(z))
+            };
+            let mut out = 0;
+            if let Some((faces, slack)) = &$bound.dihedral {
+                let d0 = dot(faces[0].0).sub($splat(faces[0].1));
+                let d1 = dot(faces[1].0).sub($splat(faces[1].1));
+                let (up, down) = ($splat(*slack), $splat(-*slack));
+                let front = d0.cmp_gt(up).bitand(d1.cmp_gt(up));
+                let behind = d0.cmp_lt(down).bitand(d1.cmp_lt(down));
+                out = front.bitor(behind).move_mask();
+            }
+            for &(n, h) in &$bound.planes {
+                if out == 0xF {
+                    break;
+                }
+                out |= dot(n).cmp_lt($splat(h)).move_mask();
+            }
+            keep &= !((out as u16) << (4 * g));
+        }
+        keep
+    }};
+}
+
 /// Half-spaces `n · y ≥ h` (unit `n`) whose intersection holds an edge's
 /// penumbra region.
 #[derive(Debug, Clone, Default)]
@@ -100,9 +143,9 @@ impl Dihedral4 {
 /// all of them at once ([`RegionBound::admits`]).
 #[derive(Debug, Clone, Copy)]
 pub struct ReceiverBlock {
-    x: [f64x4; 4],
-    y: [f64x4; 4],
-    z: [f64x4; 4],
+    x: [[f64; 4]; 4],
+    y: [[f64; 4]; 4],
+    z: [[f64; 4]; 4],
     /// Bit `k` set where receiver `k` exists (a surface pixel).
     valid: u16,
     /// The receivers' bounding box, when there is one.
@@ -114,9 +157,7 @@ impl ReceiverBlock {
     pub fn new(points: &[Option<DVec3>; 16]) -> ReceiverBlock {
         let lanes = |axis: usize| {
             std::array::from_fn(|g| {
-                f64x4::new(std::array::from_fn(|k| {
-                    points[4 * g + k].map_or(0.0, |p| p[axis])
-                }))
+                std::array::from_fn(|k| points[4 * g + k].map_or(0.0, |p| p[axis]))
             })
         };
         let valid = points
@@ -498,32 +539,17 @@ impl RegionBound {
     /// one region's data serves sixteen receivers.
     #[inline(always)]
     pub fn admits(&self, block: &ReceiverBlock) -> u16 {
-        let mut keep = block.valid;
-        for g in 0..4 {
-            if (keep >> (4 * g)) & 0xF == 0 {
-                continue;
-            }
-            let (x, y, z) = (block.x[g], block.y[g], block.z[g]);
-            let dot =
-                |n: DVec3| f64x4::splat(n.x) * x + f64x4::splat(n.y) * y + f64x4::splat(n.z) * z;
-            let mut out = 0;
-            if let Some((faces, slack)) = &self.dihedral {
-                let d0 = dot(faces[0].0) - f64x4::splat(faces[0].1);
-                let d1 = dot(faces[1].0) - f64x4::splat(faces[1].1);
-                let (up, down) = (f64x4::splat(*slack), f64x4::splat(-*slack));
-                let front = d0.cmp_gt(up) & d1.cmp_gt(up);
-                let behind = d0.cmp_lt(down) & d1.cmp_lt(down);
-                out = (front | behind).move_mask();
-            }
-            for &(n, h) in &self.planes {
-                if out == 0xF {
-                    break;
-                }
-                out |= dot(n).cmp_lt(f64x4::splat(h)).move_mask();
-            }
-            keep &= !((out as u16) << (4 * g));
-        }
-        keep
+        admits_kernel!(f64x4, f64x4::splat, f64x4::new, self, block)
+    }
+
+    /// [`RegionBound::admits`] in AVX registers: the same kernel
+    /// ([`admits_kernel!`]) on `simd::avx::F64x4`, the same operations per
+    /// lane, so the same mask.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    pub fn admits_avx(&self, block: &ReceiverBlock) -> u16 {
+        use crate::simd::avx::F64x4;
+        admits_kernel!(F64x4, F64x4::splat, F64x4::new, self, block)
     }
 
     /// Whether `p` is outside the region, one plane at a time: the
@@ -810,7 +836,13 @@ mod tests {
                         c + DVec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) * (0.1 * j as f64);
                     (j % 5 != 3).then_some(q)
                 });
-                let mask = bound.admits(&ReceiverBlock::new(&points));
+                let block = ReceiverBlock::new(&points);
+                let mask = bound.admits(&block);
+                #[cfg(target_arch = "x86_64")]
+                if crate::simd::avx::available() {
+                    // SAFETY: the CPU has AVX (checked).
+                    assert_eq!(unsafe { bound.admits_avx(&block) }, mask, "AVX admits");
+                }
                 for (j, q) in points.iter().enumerate() {
                     let want = q.is_some_and(|q| !bound.excludes_point(q));
                     assert_eq!(mask >> j & 1 == 1, want, "receiver {j} {q:?}");
