@@ -242,6 +242,11 @@ pub(super) fn run_lanes(
 }
 
 /// [`run_lanes`] in AVX registers.
+///
+/// # Safety
+///
+/// Outside AVX code, call only where the CPU has AVX
+/// (`simd::avx::available`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
 pub(super) fn run_avx(

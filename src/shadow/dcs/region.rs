@@ -545,6 +545,11 @@ impl RegionBound {
     /// [`RegionBound::admits`] in AVX registers: the same kernel
     /// ([`admits_kernel!`]) on `simd::avx::F64x4`, the same operations per
     /// lane, so the same mask.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX
+    /// (`simd::avx::available`).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     pub fn admits_avx(&self, block: &ReceiverBlock) -> u16 {
