@@ -239,27 +239,50 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
             (out, quads, pairs)
         })
         .collect();
-    // Chunks in order: triangle and quad numbers become global, setup
-    // output is moved into one list with one copy per chunk.
-    let mut setup: Vec<SetupTriangle<N>> =
-        Vec::with_capacity(chunks.iter().map(|(s, _, _)| s.len()).sum());
-    let mut quads = Vec::new();
-    let mut runs = Vec::with_capacity(chunks.len());
-    for (tris, chunk_quads, mut pairs) in chunks {
-        let first = setup.len() as u32;
-        for p in &mut pairs {
-            p.1 += first;
+    // Chunks in order: triangle and quad numbers become global, and each
+    // chunk's setup output is copied into its own part of one list, the
+    // chunks in parallel (one serial copy took ~7 ms of a 1024² shadow
+    // volume's ~55).
+    let (mut first, mut first_quad) = (Vec::with_capacity(chunks.len()), Vec::new());
+    let (mut total, mut total_quads) = (0usize, 0usize);
+    for (tris, chunk_quads, _) in &chunks {
+        first.push(total);
+        first_quad.push(total_quads as u32);
+        total += tris.len();
+        total_quads += chunk_quads.len();
+    }
+    let mut setup: Vec<SetupTriangle<N>> = Vec::with_capacity(total);
+    {
+        // The list's parts, one per chunk, in order.
+        let mut parts = Vec::with_capacity(chunks.len());
+        let mut rest = &mut setup.spare_capacity_mut()[..total];
+        for (tris, _, _) in &chunks {
+            let (part, tail) = rest.split_at_mut(tris.len());
+            parts.push(part);
+            rest = tail;
         }
-        let first_quad = quads.len() as u32;
-        if first_quad == 0 || chunk_quads.is_empty() {
-            setup.extend(tris);
-        } else {
-            setup.extend(tris.into_iter().map(|mut t| {
-                if t.quad != NO_QUAD {
-                    t.quad += first_quad;
+        chunks.par_iter().zip(parts).zip(&first_quad).for_each(
+            |(((tris, _, _), part), &offset)| {
+                for (slot, &t) in part.iter_mut().zip(tris) {
+                    let mut t = t;
+                    if offset > 0 && t.quad != NO_QUAD {
+                        t.quad += offset;
+                    }
+                    slot.write(t);
                 }
-                t
-            }));
+            },
+        );
+    }
+    // SAFETY: the parts split `0..total` of the spare capacity (reserved
+    // above) and each chunk's part is exactly as long as its triangles,
+    // every one of which the loop writes: every slot below `total` is
+    // initialised. `SetupTriangle` is `Copy`, so no drop is skipped.
+    unsafe { setup.set_len(total) };
+    let mut quads = Vec::with_capacity(total_quads);
+    let mut runs = Vec::with_capacity(chunks.len());
+    for ((_, chunk_quads, mut pairs), &first) in chunks.into_iter().zip(&first) {
+        for p in &mut pairs {
+            p.1 += first as u32;
         }
         quads.extend(chunk_quads);
         runs.push(pairs);
