@@ -391,6 +391,10 @@ pub(super) fn build_wedges(
         // silhouette at every receiver of its wedge (the thesis's rule),
         // so there only the other edges do. Those regions are built in
         // parallel (each edge's alone), the wedges in order.
+        // Room for every edge: growing a list of region bounds by doubling
+        // copied megabytes.
+        unbounded.reserve(candidates.edges.len());
+        ends.reserve(candidates.edges.len());
         let by_region: Vec<_> = candidates
             .edges
             .par_iter()
