@@ -37,6 +37,7 @@ use crate::geom::bvh::intersect_triangle;
 use crate::geom::SceneGeometry;
 use crate::simd::f32x4;
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// Box enlargement relative to the largest coordinate distance from a
 /// query's origin to the faces' bounds (see the module doc).
@@ -93,10 +94,13 @@ const STACK: usize = 3 * 15 + 2;
 
 impl FaceTree {
     /// The tree over the triangles of `geometry` for which `keep` is true.
-    pub fn build(geometry: &SceneGeometry, keep: impl Fn(u32) -> bool) -> FaceTree {
+    pub fn build(geometry: &SceneGeometry, keep: impl Fn(u32) -> bool + Sync) -> FaceTree {
+        // In parallel where it is per face (the sort's keys are unique, so
+        // the order, hence the tree, is the same on any thread count).
         let corners =
             |t: u32| geometry.triangles[t as usize].map(|i| geometry.positions[i as usize]);
         let faces: Vec<(u32, (Vec3, Vec3))> = (0..geometry.triangles.len() as u32)
+            .into_par_iter()
             .filter(|&t| keep(t))
             .map(|t| {
                 let [a, b, c] = corners(t);
@@ -120,7 +124,7 @@ impl FaceTree {
             DVec3::ZERO,
         );
         let mut keyed: Vec<(u32, u32)> = faces
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(k, (_, (l, h)))| {
                 let q = (((*l + *h).as_dvec3() * 0.5 - bounds.0.as_dvec3()) * scale)
@@ -129,11 +133,16 @@ impl FaceTree {
                 (spread(q.x) | spread(q.y) << 1 | spread(q.z) << 2, k as u32)
             })
             .collect();
-        keyed.sort_unstable();
-        let ids: Vec<u32> = keyed.iter().map(|&(_, k)| faces[k as usize].0).collect();
-        let tris = ids.iter().map(|&t| corners(t)).collect();
-        let mut boxes: Vec<(Vec3, Vec3)> =
-            keyed.iter().map(|&(_, k)| faces[k as usize].1).collect();
+        keyed.par_sort_unstable();
+        let ids: Vec<u32> = keyed
+            .par_iter()
+            .map(|&(_, k)| faces[k as usize].0)
+            .collect();
+        let tris = ids.par_iter().map(|&t| corners(t)).collect();
+        let mut boxes: Vec<(Vec3, Vec3)> = keyed
+            .par_iter()
+            .map(|&(_, k)| faces[k as usize].1)
+            .collect();
         let mut levels = Vec::new();
         loop {
             let (nodes, up): (Vec<Node4>, Vec<(Vec3, Vec3)>) =

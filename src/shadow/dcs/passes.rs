@@ -186,6 +186,9 @@ pub(super) fn recount_ties<'a>(
     let width = ctx.gbuffer.width as usize;
     let height = ctx.gbuffer.len() / width.max(1);
     let blocks_x = width.div_ceil(CAP_BLOCK);
+    if tied.par_iter().any(|&t| t == Tie::OwnFace) {
+        exact.prepare();
+    }
     let demoted: Vec<usize> = (0..blocks_x * height.div_ceil(CAP_BLOCK))
         .into_par_iter()
         .flat_map_iter(|b| {

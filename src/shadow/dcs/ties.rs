@@ -197,6 +197,14 @@ impl<'a> ExactStart<'a> {
         }
     }
 
+    /// Builds the tree now, from the calling thread (whose parallel
+    /// build then has every worker): for callers about to query it from a
+    /// parallel loop, where the first query's build would hold the other
+    /// workers waiting.
+    pub fn prepare(&self) {
+        self.tree();
+    }
+
     /// The tree over the groups' faces, built on first use.
     fn tree(&self) -> &FaceTree {
         self.tree
