@@ -75,11 +75,11 @@ impl F32x8 {
         /// IEEE difference per lane.
         sub => _mm256_sub_ps;
         /// Mask of `self ≥ o` (false on NaN), as the facade's `cmp_ge`.
-        ge => _mm256_cmp_ps::<_CMP_GE_OQ>;
+        cmp_ge => _mm256_cmp_ps::<_CMP_GE_OQ>;
         /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
-        lt => _mm256_cmp_ps::<_CMP_LT_OQ>;
-        /// Bitwise and.
-        and => _mm256_and_ps;
+        cmp_lt => _mm256_cmp_ps::<_CMP_LT_OQ>;
+        /// Bitwise and (the facade's `&`, by its method name).
+        bitand => _mm256_and_ps;
     }
 
     /// Every lane `v`.
@@ -272,27 +272,19 @@ impl F64x4 {
         sub => _mm256_sub_pd;
         /// IEEE product per lane.
         mul => _mm256_mul_pd;
-        /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
-        lt => _mm256_cmp_pd::<_CMP_LT_OQ>;
-        /// Mask of `self > o` (false on NaN), as the facade's `cmp_gt`.
-        gt => _mm256_cmp_pd::<_CMP_GT_OQ>;
-        /// Bitwise and.
-        and => _mm256_and_pd;
-        /// Bitwise or.
-        or => _mm256_or_pd;
         /// IEEE quotient per lane.
         div => _mm256_div_pd;
-        /// Mask of `self < o` (false on NaN), the facade's name.
+        /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
         cmp_lt => _mm256_cmp_pd::<_CMP_LT_OQ>;
-        /// Mask of `self > o` (false on NaN), the facade's name.
+        /// Mask of `self > o` (false on NaN), as the facade's `cmp_gt`.
         cmp_gt => _mm256_cmp_pd::<_CMP_GT_OQ>;
         /// Mask of `self ≤ o` (false on NaN), as the facade's `cmp_le`.
         cmp_le => _mm256_cmp_pd::<_CMP_LE_OQ>;
         /// Mask of `self ≥ o` (false on NaN), as the facade's `cmp_ge`.
         cmp_ge => _mm256_cmp_pd::<_CMP_GE_OQ>;
-        /// Bitwise and, the facade's operator name.
+        /// Bitwise and (the facade's `&`, by its method name).
         bitand => _mm256_and_pd;
-        /// Bitwise or, the facade's operator name.
+        /// Bitwise or (the facade's `|`, by its method name).
         bitor => _mm256_or_pd;
     }
 
@@ -501,7 +493,7 @@ mod tests {
     #[allow(clippy::type_complexity)]
     fn run_f64(a: [f64; 4], b: [f64; 4]) -> ([[f64; 4]; 3], [u32; 2], [[f64; 4]; 4], u32) {
         let (x, y) = (F64x4::load(&a), F64x4::load(&b));
-        let (lt, gt) = (x.lt(y), x.gt(y));
+        let (lt, gt) = (x.cmp_lt(y), x.cmp_gt(y));
         (
             [
                 x.add(y).to_array(),
@@ -510,8 +502,8 @@ mod tests {
             ],
             [lt.move_mask(), gt.move_mask()],
             [
-                lt.and(gt.or(lt)).to_array(),
-                lt.or(gt).to_array(),
+                lt.bitand(gt.bitor(lt)).to_array(),
+                lt.bitor(gt).to_array(),
                 lt.and_not(gt).to_array(),
                 lt.blend(x, y).to_array(),
             ],
@@ -601,8 +593,8 @@ mod tests {
     #[target_feature(enable = "avx,avx2")]
     fn run_counts(a: [f32; 8], b: [f32; 8], c: [i32; 8], d: i32) -> (u32, u32, [i32; 8]) {
         let (x, y) = (F32x8::load(&a), F32x8::load(&b));
-        let (ge, lt) = (x.ge(y), x.lt(y));
-        let both = ge.and(lt.blend(ge, lt));
+        let (ge, lt) = (x.cmp_ge(y), x.cmp_lt(y));
+        let both = ge.bitand(lt.blend(ge, lt));
         let sum = I32x8::load(&c).add(I32x8::splat(d).masked(ge));
         (
             _mm256_movemask_ps(ge.0) as u32 | (_mm256_movemask_ps(lt.0) as u32) << 8,

@@ -473,19 +473,19 @@ impl Packet {
                 let u = cx[h].mul(by[h]).sub(cy[h].mul(bx[h]));
                 let v = ax[h].mul(cy[h]).sub(ay[h].mul(cx[h]));
                 let w = bx[h].mul(ay[h]).sub(by[h].mul(ax[h]));
-                let negative = u.lt(zero).or(v.lt(zero)).or(w.lt(zero));
-                let positive = u.gt(zero).or(v.gt(zero)).or(w.gt(zero));
+                let negative = u.cmp_lt(zero).bitor(v.cmp_lt(zero)).bitor(w.cmp_lt(zero));
+                let positive = u.cmp_gt(zero).bitor(v.cmp_gt(zero)).bitor(w.cmp_gt(zero));
                 let det = u.add(v).add(w);
                 let t_scaled = u
                     .mul(sz[h].mul(akz[h]))
                     .add(v.mul(sz[h].mul(bkz[h])))
                     .add(w.mul(sz[h].mul(ckz[h])));
                 let limit = t_max.mul(det);
-                let ahead = det.gt(zero).blend(
-                    t_scaled.gt(zero).and(t_scaled.lt(limit)),
-                    t_scaled.lt(zero).and(t_scaled.gt(limit)),
+                let ahead = det.cmp_gt(zero).blend(
+                    t_scaled.cmp_gt(zero).bitand(t_scaled.cmp_lt(limit)),
+                    t_scaled.cmp_lt(zero).bitand(t_scaled.cmp_gt(limit)),
                 );
-                mask |= ahead.and_not(negative.and(positive)).move_mask() << (4 * h);
+                mask |= ahead.and_not(negative.bitand(positive)).move_mask() << (4 * h);
             }
             hit |= mask & through;
             if through & !hit == 0 {

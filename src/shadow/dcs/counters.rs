@@ -266,7 +266,10 @@ fn add_covered_avx2(counters: &mut [i32], xs: &[f32], ys: &[f32], edge: &Oriente
         let c_lo = lx.mul(sy).sub(ly.mul(sx));
         let c_hi = hx.mul(sy).sub(hy.mul(sx));
         let beyond = dx.mul(sy.sub(ly)).sub(dy.mul(sx.sub(lx)));
-        let m = c_lo.ge(zero).and(c_hi.lt(zero)).and(beyond.lt(zero));
+        let m = c_lo
+            .cmp_ge(zero)
+            .bitand(c_hi.cmp_lt(zero))
+            .bitand(beyond.cmp_lt(zero));
         let c: &mut [i32; LANES] = c.try_into().expect("chunks_exact_mut(LANES)");
         I32x8::load(c).add(d.masked(m)).store(c);
     }
@@ -470,16 +473,18 @@ pub fn add_covered_scalar(
 mod tests {
     use super::*;
 
+    /// The tests' random source: uniform in [−1, 1) from a 64-bit LCG.
+    fn signed(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
     fn samples(n: usize, seed: u64) -> ChartSamples {
         let mut s = ChartSamples::default();
         let mut x = seed;
-        let mut next = || {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((x >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
-        let pts: Vec<[f64; 2]> = (0..n).map(|_| [next(), next()]).collect();
+        let pts: Vec<[f64; 2]> = (0..n).map(|_| [signed(&mut x), signed(&mut x)]).collect();
         s.set(pts.into_iter());
         s
     }
@@ -514,12 +519,7 @@ mod tests {
         }
         let s = samples(256, 11);
         let mut state = 3u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut next = || signed(&mut state);
         let mut covered = 0;
         for round in 0..2000 {
             let (a, b) = match round % 3 {
@@ -574,12 +574,7 @@ mod tests {
     #[test]
     fn sectors_count_what_the_full_test_counts() {
         let mut x = 17u64;
-        let mut next = move || {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((x >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut next = move || signed(&mut x);
         let mut checked = 0;
         for round in 0..60 {
             let n = [1, 7, 64, 203, 256][round % 5];
