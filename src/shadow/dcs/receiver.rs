@@ -435,11 +435,15 @@ impl LightPass<'_, '_> {
                 let counts = if opaque { &mut *counters } else { &mut *layers };
                 counts.clear();
                 counts.resize(samples.padded(), span.start);
-                for (edge, delta) in &effective[span.first..span.end] {
-                    match table {
-                        _ if sorted => sectors.add_covered(counts, edge, *delta),
-                        Some(t) => t.add_covered(counts, edge, *delta),
-                        None => add_covered(counts, samples, edge, *delta),
+                let edges = &effective[span.first..span.end];
+                if sorted {
+                    sectors.add_covered_all(counts, edges);
+                } else {
+                    for (edge, delta) in edges {
+                        match table {
+                            Some(t) => t.add_covered(counts, edge, *delta),
+                            None => add_covered(counts, samples, edge, *delta),
+                        }
                     }
                 }
                 if !opaque {
