@@ -422,19 +422,15 @@ impl SectorSamples {
         self.runs.clear();
         let total = self.start[SECTORS] as usize;
         let all = [0, total.div_ceil(LANES) * LANES, 0, 0];
-        let size = |x: f32x8, y: f32x8| x.abs().max(y.abs()).to_array();
-        let margin = SECTOR_MARGIN as f32;
+        let (zero, four) = (f32x8::ZERO, f32x8::splat(4.0));
+        let (margin, tiny) = (f32x8::splat(SECTOR_MARGIN as f32), f32x8::splat(TINY));
+        let scale = f32x8::splat(SECTORS as f32 / 4.0);
+        let top = f32x8::splat((SECTORS - 1) as f32);
         // `t` lies within the margin of `[0, 4)`: one step wraps it.
-        let wrap = |t: f32| {
-            if t < 0.0 {
-                t + 4.0
-            } else if t >= 4.0 {
-                t - 4.0
-            } else {
-                t
-            }
+        let wrap = |t: f32x8| {
+            let t = t.cmp_lt(zero).blend(t + four, t);
+            t.cmp_ge(four).blend(t - four, t)
         };
-        let sector = |t: f32| ((wrap(t) * (SECTORS as f32 / 4.0)) as usize).min(SECTORS - 1);
         let step = |from: u32, to: u32| {
             (
                 from as usize / LANES * LANES,
@@ -450,24 +446,28 @@ impl SectorSamples {
                 lanes[3][k] = e.hi[1];
             }
             let [lx, ly, hx, hy] = lanes.map(f32x8::from);
-            let (a_lo, a_hi) = (
-                pseudo_angles(lx, ly).to_array(),
-                pseudo_angles(hx, hy).to_array(),
-            );
-            let (s_lo, s_hi) = (size(lx, ly), size(hx, hy));
+            let a = pseudo_angles(lx, ly) - margin;
+            let b = pseudo_angles(hx, hy) + margin;
+            let sector = |t: f32x8| (wrap(t) * scale).max(zero).min(top).trunc_int().to_array();
+            let (first, last) = (sector(a), sector(b));
+            // The turn from `a` to `b` modulo 4 (`b − a` lies in
+            // `(−4 − 2m, 4 + 2m)`); only compared with 1 below, far from
+            // where one step of wrapping could err.
+            let turn = wrap(b - a).to_array();
+            let small = (lx.abs().max(ly.abs()).cmp_lt(tiny) | hx.abs().max(hy.abs()).cmp_lt(tiny))
+                .move_mask();
             for k in 0..chunk.len() {
-                if s_lo[k] < TINY || s_hi[k] < TINY {
+                // (A NaN angle, at an end at the centre, is such a tiny end.)
+                if small & (1 << k) != 0 {
                     self.runs.push(all);
                     continue;
                 }
-                let (a, b) = (a_lo[k] - margin, a_hi[k] + margin);
-                let (first, last) = (sector(a), sector(b));
+                let (first, last) = (first[k] as usize, last[k] as usize);
                 // `lo → hi` turns by less than π (two units); with the
                 // margins it wraps past 0 exactly when the sectors come
                 // out reversed, or when it starts and ends in one sector
                 // but spans nearly all.
-                let one_run = first < last || (first == last && (b - a).rem_euclid(4.0) < 1.0);
-                let run = if one_run {
+                let run = if first < last || (first == last && turn[k] < 1.0) {
                     let (f, t) = step(self.start[first], self.start[last + 1]);
                     [f, t, 0, 0]
                 } else if first == last {
