@@ -344,6 +344,9 @@ pub struct SectorSamples {
 /// 40×.
 const SECTOR_MARGIN: f64 = 1e-5;
 
+/// Interleaved histograms and cursors of [`SectorSamples::set`].
+const STREAMS: usize = 4;
+
 /// Below this (largest coordinate), a point's products with others may
 /// underflow and the angular bound may not hold.
 const TINY: f32 = 1e-12;
@@ -357,25 +360,29 @@ impl SectorSamples {
     pub fn set(&mut self, samples: &ChartSamples) -> bool {
         let n = samples.len();
         self.keys.clear();
-        let mut counts = [0u32; SECTORS];
+        self.keys.resize(samples.padded(), 0);
+        // One histogram (and below one cursor per sector) per sample
+        // index mod STREAMS: consecutive samples mostly share a sector,
+        // and a single counter made every increment wait for the last
+        // one's store.
+        let mut counts = [[0u32; SECTORS]; STREAMS];
         // The keys eight at a time, from the pseudo-angle in f32: its
         // error, a few 1e-7, is far inside SECTOR_MARGIN, so every sample
         // still lies in the sectors `plan` gives an edge that can count
-        // it. Only which sector a sample near a boundary
-        // takes may differ from an f64 key, hence only the counters'
-        // order. The origin (0 / 0, NaN) takes the last sector.
+        // it. Only which sector a sample near a boundary takes may differ
+        // from an f64 key, hence only the counters' order. The origin
+        // (0 / 0, NaN) takes the last sector.
         let (tiny, zero) = (f32x8::splat(TINY), f32x8::ZERO);
         let scale = f32x8::splat(SECTORS as f32 / 4.0);
         let last = f32x8::splat((SECTORS - 1) as f32);
-        for (k, (xs, ys)) in samples
+        for ((xs, ys), out) in samples
             .xs
             .chunks_exact(LANES)
             .zip(samples.ys.chunks_exact(LANES))
-            .enumerate()
+            .zip(self.keys.chunks_exact_mut(LANES))
         {
             let (x, y) = (f32x8::load(xs), f32x8::load(ys));
-            let (ax, ay) = (x.abs(), y.abs());
-            let size = ax.max(ay);
+            let size = x.abs().max(y.abs());
             // (The padding is the origin, size 0.)
             if (size.cmp_lt(tiny) & size.cmp_ne(zero)).any() {
                 return false;
@@ -384,23 +391,31 @@ impl SectorSamples {
                 .min(last)
                 .trunc_int()
                 .to_array();
-            for &key in &keys[..LANES.min(n - k * LANES)] {
-                counts[key as usize] += 1;
-                self.keys.push(key as u8);
+            for (o, &key) in out.iter_mut().zip(&keys) {
+                *o = key as u8;
             }
         }
-        self.start[0] = 0;
-        for (k, &count) in counts.iter().enumerate() {
-            self.start[k + 1] = self.start[k] + count;
+        for (k, &key) in self.keys[..n].iter().enumerate() {
+            counts[k % STREAMS][usize::from(key)] += 1;
         }
+        // Sector by sector, each stream's run of it.
+        let mut next = [[0u32; SECTORS]; STREAMS];
+        let mut at = 0;
+        for sector in 0..SECTORS {
+            self.start[sector] = at;
+            for (cursor, count) in next.iter_mut().zip(&counts) {
+                cursor[sector] = at;
+                at += count[sector];
+            }
+        }
+        self.start[SECTORS] = at;
         let padded = samples.padded();
         self.xs.clear();
         self.xs.resize(padded, 0.0);
         self.ys.clear();
         self.ys.resize(padded, 0.0);
-        let mut next = self.start;
-        for (k, &key) in self.keys.iter().enumerate() {
-            let slot = &mut next[key as usize];
+        for (k, &key) in self.keys[..n].iter().enumerate() {
+            let slot = &mut next[k % STREAMS][usize::from(key)];
             self.xs[*slot as usize] = samples.xs[k];
             self.ys[*slot as usize] = samples.ys[k];
             *slot += 1;
