@@ -74,16 +74,20 @@ pub use patterns::{
 };
 
 /// SplitMix64's increment (the golden ratio in 64-bit fixed point).
-const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
+pub(crate) const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
 
 /// SplitMix64's output function: a bijective 64-bit mixer with full
 /// avalanche, so neighbouring keys give unrelated outputs.
 #[inline]
 pub fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z = (z ^ (z >> 30)).wrapping_mul(MIX_1);
+    z = (z ^ (z >> 27)).wrapping_mul(MIX_2);
     z ^ (z >> 31)
 }
+
+/// [`mix64`]'s two multipliers (for SIMD copies of it).
+pub(crate) const MIX_1: u64 = 0xbf58_476d_1ce4_e5b9;
+pub(crate) const MIX_2: u64 = 0x94d0_49bb_1331_11eb;
 
 /// The key of all samples of one light at one pixel: a hash of
 /// `(seed, light_index, x, y)`. Each field is folded in with its own

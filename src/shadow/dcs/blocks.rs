@@ -19,8 +19,9 @@
 //! (clipped ends and samples lie in the chart's square `[−1, 1]²`), with
 //! at most ~2e-6 of rounding, so it cannot count a sample there.
 
+use super::chart_lanes::chart_row;
 use super::counters::{add_covered_in, OrientedEdge, LANES};
-use crate::sampling::{uniform_pair, Strata};
+use crate::sampling::Strata;
 use crate::simd::f64x4;
 
 /// How far past zero (exactly, over a whole block) a condition of the
@@ -223,17 +224,14 @@ impl BlockSamples {
             self.offsets[b as usize] = at;
             let (i0, j0) = (b % grid.per_row * grid.bw, b / grid.per_row * grid.bh);
             let (xs, ys) = (&mut self.xs[at..at + len], &mut self.ys[at..at + len]);
-            let cells = (j0..j0 + grid.bh).flat_map(|j| (i0..i0 + grid.bw).map(move |i| (i, j)));
-            for ((x, y), (i, j)) in xs.iter_mut().zip(ys.iter_mut()).zip(cells) {
-                // As the sampling module's jittered walk makes sample
-                // `j a + i` (`Strata::point`; the cells' scale `1 / a` is
-                // exact, and hoisted here: a per-sample call cost 2 %),
-                // then the rect chart `(2 s − 1, 1 − 2 t)`. The tests
-                // hold it to that walk's points.
-                let (xi, xi2) = uniform_pair(key, j * a + i);
-                let (s, t) = ((f64::from(i) + xi) * inv, (f64::from(j) + xi2) * inv);
-                *x = (2.0 * s - 1.0) as f32;
-                *y = (1.0 - 2.0 * t) as f32;
+            let bw = grid.bw as usize;
+            let rows = xs.chunks_exact_mut(bw).zip(ys.chunks_exact_mut(bw));
+            for (j, (xs, ys)) in (j0..).zip(rows) {
+                // As the sampling module's jittered walk makes samples
+                // `j a + i` (`Strata::point`), then the rect chart
+                // `(2 s − 1, 1 − 2 t)`, four cells at a time where the
+                // CPU can. The tests hold it to that walk's points.
+                chart_row(key, a, (i0, j), (inv, inv), xs, ys);
             }
             at += len;
         }

@@ -93,6 +93,20 @@ impl ChartSamples {
         self.ys.truncate(written.div_ceil(LANES) * LANES);
     }
 
+    /// Replaces the samples by `n` points, which `f` writes into the
+    /// coordinate slices it is given (`n` long; the padding after them is
+    /// the origin).
+    #[inline(always)]
+    pub fn fill_slices(&mut self, n: usize, f: impl FnOnce(&mut [f32], &mut [f32])) {
+        let padded = n.div_ceil(LANES) * LANES;
+        self.xs.clear();
+        self.ys.clear();
+        self.xs.resize(padded, 0.0);
+        self.ys.resize(padded, 0.0);
+        f(&mut self.xs[..n], &mut self.ys[..n]);
+        self.n = n;
+    }
+
     /// Number of (unpadded) samples.
     pub fn len(&self) -> usize {
         self.n

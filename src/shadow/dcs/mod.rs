@@ -32,6 +32,7 @@
 pub mod bitfield;
 pub mod blocks;
 pub mod chart;
+mod chart_lanes;
 pub mod counters;
 mod edge_lanes;
 pub mod edges;

@@ -7,6 +7,7 @@
 use super::bitfield::CoverageTables;
 use super::blocks::{BlockGrid, BlockSamples};
 use super::chart::ReceiverChart;
+use super::chart_lanes::{chart_row, chart_rows_apply};
 use super::counters::{add_covered, ChartSamples, OrientedEdge, SectorSamples};
 use super::edge_lanes::{self, EdgeSource, GroupInputs, GROUPS};
 use super::edges::{side_of, CandidateEdge, CandidateEdges};
@@ -382,8 +383,24 @@ impl LightPass<'_, '_> {
                 };
             }
         }
-        if rect {
-            let n = self.pattern.len();
+        let n = self.pattern.len();
+        let rows = self
+            .pattern
+            .jittered(pixel)
+            .filter(|(strata, _)| chart_rows_apply(*strata, n));
+        if let (true, Some((strata, key))) = (rect, rows) {
+            // The same points, four cells at a time.
+            let a = strata.a;
+            let inv = (1.0 / f64::from(a), 1.0 / f64::from(strata.b));
+            scratch.chart.fill_slices(n as usize, |xs, ys| {
+                let rows = xs
+                    .chunks_exact_mut(a as usize)
+                    .zip(ys.chunks_exact_mut(a as usize));
+                for (j, (xs, ys)) in (0..).zip(rows) {
+                    chart_row(key, a, (0, j), inv, xs, ys);
+                }
+            });
+        } else if rect {
             let points = self.pattern.pixel_points(pixel);
             scratch.chart.fill(n as usize, |w| {
                 points.for_each(n, |(s, t)| w.push([2.0 * s - 1.0, 1.0 - 2.0 * t]))
