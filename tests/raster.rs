@@ -876,3 +876,114 @@ fn depth_bounds_skip_only_failing_fragments() {
     assert_eq!(front, run(CompareFunc::Greater, true));
     assert_eq!(behind, run(CompareFunc::LessEqual, true));
 }
+
+/// A depth-shift count ([`draw_depth_shift_counts`]) makes the plain
+/// counts and, per scale, each pixel's change of count when its stored
+/// depth `d` becomes `d × scale`, all in one walk: each change must be
+/// exactly the plain count over a copy of the scene depth scaled that way
+/// minus the plain count, for z-fail and z-pass, on random triangles and
+/// merged quads (`[a, b, c], [a, c, d]`) over a random scene depth, with
+/// scales large enough that many tests flip and small enough to be ties.
+#[test]
+fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
+    let (w, h) = (170u32, 130u32);
+    let mut rng = Rng(7);
+    let vertex = |rng: &mut Rng| ClipVertex {
+        position: Vec4::new(
+            (rng.f64() * 3.0 - 1.5) as f32,
+            (rng.f64() * 3.0 - 1.5) as f32,
+            rng.f64() as f32,
+            1.0,
+        ),
+        varyings: [],
+    };
+    let scene: Vec<ClipVertex<0>> = (0..60).map(|_| vertex(&mut rng)).collect();
+    let scene_tris: Vec<[u32; 3]> = (0..20).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    let mut volume: Vec<ClipVertex<0>> = (0..300).map(|_| vertex(&mut rng)).collect();
+    let mut volume_tris: Vec<[u32; 3]> = (0..100).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    for _ in 0..60 {
+        let n = volume.len() as u32;
+        volume.extend((0..4).map(|_| vertex(&mut rng)));
+        volume_tris.extend([[n, n + 1, n + 2], [n, n + 2, n + 3]]);
+    }
+    let grid = TileGrid::new(w, h).unwrap();
+    let scene_depth = || {
+        let mut fb = Framebuffer::new(grid);
+        let mut none = vec![(); grid.tile_count()];
+        let nf = penumbra::raster::NoFragmentStage;
+        draw(
+            &mut fb,
+            &mut none,
+            &RasterState::default(),
+            &scene,
+            &scene_tris,
+            &nf,
+        )
+        .unwrap();
+        fb
+    };
+    for zpass in [false, true] {
+        let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
+        let plain = |scale: Option<f32>| {
+            let mut fb = scene_depth();
+            if let Some(s) = scale {
+                fb.map_depth(|d| d * s);
+            }
+            fb.clear_stencil(0);
+            let mut none = vec![(); grid.tile_count()];
+            let nf = penumbra::raster::NoFragmentStage;
+            draw(&mut fb, &mut none, &state, &volume, &volume_tris, &nf).unwrap();
+            fb.stencil_image()
+        };
+        let counts = plain(None);
+        for scales in [
+            vec![Some(1.08f32), Some(0.93), None],
+            vec![Some(1.0 + 4e-6), None, Some(1.0 - 4e-6)],
+            vec![Some(0.9)],
+        ] {
+            let mut fb = scene_depth();
+            let images = penumbra::raster::draw_depth_shift_counts(
+                &mut fb,
+                &state,
+                &volume,
+                &volume_tris,
+                &scales,
+            )
+            .unwrap();
+            assert_eq!(images.len(), scales.len());
+            assert_eq!(
+                fb.stencil_image(),
+                counts,
+                "the stencil holds the plain counts"
+            );
+            for (image, scale) in images.iter().zip(&scales) {
+                match scale {
+                    None => assert_eq!(image, &counts, "zpass = {zpass}"),
+                    Some(s) => {
+                        let want: Vec<i32> = plain(Some(*s))
+                            .iter()
+                            .zip(&counts)
+                            .map(|(a, b)| a - b)
+                            .collect();
+                        assert_eq!(image, &want, "zpass = {zpass}, scale {s}");
+                        if *s > 1.05 || *s < 0.95 {
+                            assert!(image.iter().filter(|&&c| c != 0).count() > 100);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // More distinct scales than one walk records (4): a parameter error.
+    let mut fb = scene_depth();
+    let state = penumbra::shadow::kit::volumes::stencil_state(false);
+    let five = [Some(1.1), Some(1.2), Some(1.3), Some(1.4), Some(1.5)];
+    assert!(penumbra::raster::draw_depth_shift_counts(
+        &mut fb,
+        &state,
+        &volume,
+        &volume_tris,
+        &five
+    )
+    .is_err());
+}

@@ -6,7 +6,7 @@
 use super::depth_bounds::{DepthBounds, Verdict};
 use super::fragment::FragmentStage;
 use super::framebuffer::{DepthStencilTile, TILE_SIZE};
-use super::setup::EdgeFunction;
+use super::setup::{EdgeFunction, Plane};
 use super::simd::{compare_f32_lanes, LANES, LANE_OFFSETS};
 use super::state::{CompareFunc, RasterState, StencilFace, StencilOp};
 use super::tile::{TileJob, TileStats, BLOCK, OFFSETS_I32};
@@ -246,9 +246,36 @@ pub(crate) struct CountingPass {
     pub(super) back: i32,
     /// Count where the depth test fails (z-fail) rather than passes.
     pub(super) on_depth_fail: bool,
-    /// Count instead the change of the count when each stored depth is
-    /// scaled by this ([`super::draw_depth_shift_counts`]).
-    pub(super) depth_shift: Option<f32>,
+    /// Also record, per scale, the change of the count when each stored
+    /// depth is scaled by it ([`super::draw_depth_shift_counts`]), into
+    /// the tiles' [`DepthStencilTile::shifted`] images.
+    pub(super) shifts: DepthShifts,
+}
+
+/// Most depth scales one counting walk records
+/// ([`CountingPass::shifts`]).
+pub(crate) const MAX_DEPTH_SHIFTS: usize = 4;
+
+/// The depth scales of a counting walk (at most [`MAX_DEPTH_SHIFTS`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct DepthShifts {
+    scales: [f32; MAX_DEPTH_SHIFTS],
+    len: usize,
+}
+
+impl DepthShifts {
+    /// The scales `scales`, or `None` when there are too many.
+    pub(crate) fn new(scales: &[f32]) -> Option<DepthShifts> {
+        let mut out = DepthShifts::default();
+        out.scales.get_mut(..scales.len())?.copy_from_slice(scales);
+        out.len = scales.len();
+        Some(out)
+    }
+
+    /// The scales, in order.
+    pub(crate) fn as_slice(&self) -> &[f32] {
+        &self.scales[..self.len]
+    }
 }
 
 impl CountingPass {
@@ -277,14 +304,14 @@ impl CountingPass {
                 front: front_fail,
                 back: back_fail,
                 on_depth_fail: true,
-                depth_shift: None,
+                shifts: DepthShifts::default(),
             })
         } else if front_fail == 0 && back_fail == 0 {
             Some(CountingPass {
                 front: front_pass,
                 back: back_pass,
                 on_depth_fail: false,
-                depth_shift: None,
+                shifts: DepthShifts::default(),
             })
         } else {
             None
@@ -323,12 +350,14 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let last = TILE_SIZE as i32 - 1;
         // Counted lanes are `pass ^ flip`: the failing ones for z-fail.
         let flip = i32x8::splat(if c.on_depth_fail { -1 } else { 0 });
-        let shift = c.depth_shift.map(f32x8::splat);
+        let scales = c.shifts.scales.map(f32x8::splat);
+        let n_shifts = c.shifts.len;
         // Depth bounds of the tile's blocks, made on first use: a pass
         // that counts does not write depth, so they hold for the whole
         // pass. Only the volumes' test (Greater) uses them.
         let use_bounds = self.state.depth_func == CompareFunc::Greater;
         let mut bounds: Option<DepthBounds> = None;
+        let zero = i32x8::splat(0);
         for &ti in self.bin {
             let t = &self.triangles[ti as usize];
             let clip = [
@@ -361,13 +390,14 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 continue;
             };
             let depth = &ds.depth[..];
+            let shifted = &mut ds.shifted[..];
             let plane = t.depth;
             let plane2 = quad.map(|q| q.depth2);
             let delta = i32x8::splat(if t.front_facing { c.front } else { c.back });
             let (x0, dx) = (f32x8::splat(plane.x0), f32x8::splat(plane.dx));
-            // The whole rectangle's verdict first, then band by band.
+            // The whole rectangle's verdicts first, then band by band.
             let lines = use_bounds.then(|| EdgeLines::of(edges));
-            let mut pair = Verdict::Test;
+            let mut pair = WalkVerdicts::all_test(n_shifts);
             if let Some(lines) = &lines {
                 let (xl, xh) = lines.extent(rows.0, rows.1, clip[0], clip[2]);
                 if xl > xh {
@@ -375,8 +405,8 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 }
                 let b = bounds.get_or_insert_with(|| DepthBounds::of(depth));
                 let rect = [xl - tx, rows.0 - ty, xh - tx, rows.1 - ty];
-                pair = b.verdict_shift(&plane, plane2.as_ref(), self.origin, rect, c);
-                if pair == Verdict::Skip {
+                pair = pair.refine(b, (&plane, plane2.as_ref()), self.origin, rect, c);
+                if pair.skip() {
                     continue;
                 }
             }
@@ -391,20 +421,20 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 y = band.1 + 1;
                 let mut verdict = pair;
                 let one_band = band.0 == rows.0 && band.1 == rows.1;
-                if let (Verdict::Test, false, Some(lines), Some(b)) =
-                    (pair, one_band, &lines, &bounds)
+                if let (true, false, Some(lines), Some(b)) =
+                    (pair.tests(), one_band, &lines, &bounds)
                 {
                     let (xl, xh) = lines.extent(band.0, band.1, clip[0], clip[2]);
                     if xl > xh {
                         continue;
                     }
                     let rect = [xl - tx, band.0 - ty, xh - tx, band.1 - ty];
-                    verdict = b.verdict_shift(&plane, plane2.as_ref(), self.origin, rect, c);
-                    if verdict == Verdict::Skip {
+                    verdict = pair.refine(b, (&plane, plane2.as_ref()), self.origin, rect, c);
+                    if verdict.skip() {
                         continue;
                     }
                 }
-                let tested = verdict == Verdict::Test;
+                let tested = verdict.tests();
                 let w = match &mut walk {
                     Some(w) if walk_row == band.0 => w,
                     _ => walk.insert(SpanWalk::at(edges, clip, band.0)),
@@ -436,7 +466,9 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                         // past the tile row (padding or the next row) are
                         // loaded and stored back unchanged.
                         let live = i32x8::splat(left).cmp_gt(OFFSETS_I32);
-                        let added = if tested {
+                        // The fragments' and stored depths, where a test
+                        // needs them.
+                        let depths = tested.then(|| {
                             // Plane::lanes_on_row with the per-triangle
                             // splats hoisted: the same operations, the
                             // same bits.
@@ -453,25 +485,40 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                             let frag = frag.max(f32x8::splat(0.0)).min(f32x8::splat(1.0));
                             let stored: &[f32; LANES] =
                                 depth[local..local + LANES].try_into().expect("8 lanes");
-                            let stored = f32x8::new(*stored);
-                            let now = (test(frag, stored) ^ flip) & live;
-                            match shift {
-                                // +delta where the shifted depth counts
+                            (frag, f32x8::new(*stored))
+                        });
+                        // The lanes that count, exactly: a verdict other
+                        // than Test holds for every covered pixel.
+                        let now = match (verdict.plain, depths) {
+                            (Verdict::Skip, _) => zero,
+                            (Verdict::Test, Some((frag, stored))) => {
+                                (test(frag, stored) ^ flip) & live
+                            }
+                            _ => live,
+                        };
+                        if verdict.plain != Verdict::Skip {
+                            let s: &mut [i32; LANES] = (&mut stencil[local..local + LANES])
+                                .try_into()
+                                .expect("8 lanes");
+                            *s = (i32x8::new(*s) + (now & delta)).to_array();
+                        }
+                        if let Some((frag, stored)) = depths {
+                            for ((image, &scale), &on) in
+                                shifted.iter_mut().zip(&scales).zip(&verdict.shifted)
+                            {
+                                if !on {
+                                    continue;
+                                }
+                                // +delta where the scaled depth counts
                                 // and the stored one did not, −delta the
                                 // other way.
-                                Some(shift) => {
-                                    let then = (test(frag, stored * shift) ^ flip) & live;
-                                    (then & delta) - (now & delta)
-                                }
-                                None => now & delta,
+                                let then = (test(frag, stored * scale) ^ flip) & live;
+                                let s: &mut [i32; LANES] = (&mut image[local..local + LANES])
+                                    .try_into()
+                                    .expect("8 lanes");
+                                *s = (i32x8::new(*s) + (then & delta) - (now & delta)).to_array();
                             }
-                        } else {
-                            live & delta
-                        };
-                        let s: &mut [i32; LANES] = (&mut stencil[local..local + LANES])
-                            .try_into()
-                            .expect("8 lanes");
-                        *s = (i32x8::new(*s) + added).to_array();
+                        }
                         if left <= BLOCK {
                             break;
                         }
@@ -486,6 +533,56 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             }
         }
         stats
+    }
+}
+
+/// A rectangle's verdicts in a counting walk: the counts', and per depth
+/// scale whether its change must be tested (else it is 0 throughout).
+#[derive(Clone, Copy)]
+struct WalkVerdicts {
+    plain: Verdict,
+    shifted: [bool; MAX_DEPTH_SHIFTS],
+}
+
+impl WalkVerdicts {
+    /// Everything tested (the first `n` scales).
+    fn all_test(n: usize) -> WalkVerdicts {
+        WalkVerdicts {
+            plain: Verdict::Test,
+            shifted: std::array::from_fn(|k| k < n),
+        }
+    }
+
+    /// Nothing to do in the rectangle.
+    fn skip(&self) -> bool {
+        self.plain == Verdict::Skip && !self.shifted.contains(&true)
+    }
+
+    /// Whether some fragment's depth test must be run.
+    fn tests(&self) -> bool {
+        self.plain == Verdict::Test || self.shifted.contains(&true)
+    }
+
+    /// The verdicts over `rect`, inside a rectangle with these: only the
+    /// tested ones are judged again (a sub-rectangle of one skipped or
+    /// counted whole is skipped or counted whole too).
+    fn refine(
+        self,
+        b: &DepthBounds,
+        (plane, plane2): (&Plane, Option<&Plane>),
+        origin: (i32, i32),
+        rect: [i32; 4],
+        c: CountingPass,
+    ) -> WalkVerdicts {
+        let plain = match self.plain {
+            Verdict::Test => b.verdict(plane, plane2, origin, rect, c.on_depth_fail),
+            v => v,
+        };
+        let mut shifted = self.shifted;
+        for (on, &scale) in shifted.iter_mut().zip(c.shifts.as_slice()) {
+            *on = *on && b.verdict_scaled(plane, plane2, origin, rect, scale) == Verdict::Test;
+        }
+        WalkVerdicts { plain, shifted }
     }
 }
 

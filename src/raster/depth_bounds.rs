@@ -4,7 +4,6 @@
 //! writing it (counting passes, wedge passes): every pixel passes, every
 //! pixel fails, or test.
 
-use super::counting::CountingPass;
 use super::framebuffer::TILE_SIZE;
 use super::setup::Plane;
 use super::simd::LANES;
@@ -110,26 +109,23 @@ impl DepthBounds {
         }
     }
 
-    /// [`DepthBounds::verdict`] for a counting pass `c`; with a depth
-    /// shift, whether any fragment's test can differ between the stored
-    /// depth `d` and `d × shift` (`Skip` when the rectangle passes, or
-    /// fails, at both throughout; never `CountAll`).
+    /// For a shift-counting pass, whether any fragment's test can differ
+    /// between the stored depth `d` and `d × scale` over `rect` (`Skip`
+    /// when the rectangle passes, or fails, at both throughout; never
+    /// `CountAll`).
     #[inline]
-    pub(super) fn verdict_shift(
+    pub(super) fn verdict_scaled(
         &self,
         plane: &Plane,
         plane2: Option<&Plane>,
         origin: (i32, i32),
         rect: [i32; 4],
-        c: CountingPass,
+        scale: f32,
     ) -> Verdict {
-        let Some(shift) = c.depth_shift else {
-            return self.verdict(plane, plane2, origin, rect, c.on_depth_fail);
-        };
         let (lo, hi) = self.range(rect);
         // The shifted depths lie between the products of the bounds (a
         // monotone f32 product, rounded the same way per pixel).
-        let (lo, hi) = (lo.min(lo * shift), hi.max(hi * shift));
+        let (lo, hi) = (lo.min(lo * scale), hi.max(hi * scale));
         let (all_fail, all_pass) = judge(plane, plane2, origin, rect, lo, hi);
         if all_fail || all_pass {
             Verdict::Skip

@@ -149,6 +149,10 @@ pub struct DepthStencilTile {
     pub depth: Box<[f32]>,
     /// i32 stencil counts, allocated only once a pass uses the stencil.
     pub stencil: Option<Box<[i32]>>,
+    /// Per depth scale of a shift-counting pass
+    /// ([`super::draw_depth_shift_counts`]), the change of the stencil's
+    /// count under that scale (i32, as the counts); empty otherwise.
+    pub shifted: Vec<Box<[i32]>>,
 }
 
 /// The depth/stencil framebuffer.
@@ -170,6 +174,7 @@ impl Framebuffer {
                 .map(|_| DepthStencilTile {
                     depth: vec![FAR_DEPTH; TILE_PIXELS + TILE_PADDING].into_boxed_slice(),
                     stencil: None,
+                    shifted: Vec::new(),
                 })
                 .collect(),
         }
@@ -225,6 +230,33 @@ impl Framebuffer {
     /// where no stencil was ever allocated. Copied tile row by tile row,
     /// rows of tiles in parallel.
     pub fn stencil_image(&self) -> Vec<i32> {
+        self.image_of(|t| t.stencil.as_deref())
+    }
+
+    /// Gives every tile `n` zeroed images of count changes
+    /// ([`DepthStencilTile::shifted`]; `0` frees them), tiles in parallel.
+    pub(crate) fn clear_shifted(&mut self, n: usize) {
+        self.tiles.par_iter_mut().for_each(|t| {
+            t.shifted.truncate(n);
+            for s in &mut t.shifted {
+                s.fill(0);
+            }
+            while t.shifted.len() < n {
+                t.shifted
+                    .push(vec![0; TILE_PIXELS + TILE_PADDING].into_boxed_slice());
+            }
+        });
+    }
+
+    /// Change image `k` of a shift-counting pass, row-major (0 where a
+    /// tile has none).
+    pub(crate) fn shifted_image(&self, k: usize) -> Vec<i32> {
+        self.image_of(|t| t.shifted.get(k).map(|s| &s[..]))
+    }
+
+    /// A per-tile `i32` buffer (`TILE_SIZE`-wide rows) as one row-major
+    /// image, 0 where a tile has none.
+    fn image_of(&self, buffer: impl Fn(&DepthStencilTile) -> Option<&[i32]> + Sync) -> Vec<i32> {
         let (w, h) = (self.grid.width as usize, self.grid.height as usize);
         let mut out = vec![0; w * h];
         out.par_chunks_mut(w * TILE_SIZE)
@@ -233,7 +265,7 @@ impl Framebuffer {
                 let rows = band.len() / w;
                 for tx in 0..self.grid.tiles_x {
                     let t = ty * self.grid.tiles_x + tx;
-                    let Some(stencil) = &self.tiles[t].stencil else {
+                    let Some(values) = buffer(&self.tiles[t]) else {
                         continue;
                     };
                     let x0 = tx * TILE_SIZE;
@@ -241,7 +273,7 @@ impl Framebuffer {
                     for r in 0..rows {
                         let dst = r * w + x0;
                         band[dst..dst + cols]
-                            .copy_from_slice(&stencil[r * TILE_SIZE..r * TILE_SIZE + cols]);
+                            .copy_from_slice(&values[r * TILE_SIZE..r * TILE_SIZE + cols]);
                     }
                 }
             });

@@ -2,7 +2,7 @@
 
 use super::bin::{tile_pairs, TileBins};
 use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
-use super::counting::CountingPass;
+use super::counting::{CountingPass, DepthShifts, MAX_DEPTH_SHIFTS};
 use super::fragment::FragmentStage;
 use super::fragment::NoFragmentStage;
 use super::framebuffer::Framebuffer;
@@ -81,23 +81,23 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
         triangles,
         first_primitive,
         stage,
-        &[None],
-        |_| {},
+        DepthShifts::default(),
     )
 }
 
 /// A counting stencil pass (`state` must have a counting form: an
 /// always-passing stencil adding ±1 on depth fail or on depth pass, no
-/// depth write; otherwise a parameter error) run once per entry of
-/// `scales` over one setup and binning of the triangles, the stencil
-/// cleared before each: `None` gives the plain counts, `Some(scale)` each
-/// pixel's *change* of count when its stored depth `d` is replaced by
-/// `d × scale` (the f32 product): the fragments whose depth test flips,
-/// signed, i.e. the count a depth-scaled copy would get minus the
-/// framebuffer's own, exactly. For a change, rectangles where no
-/// fragment's test can flip (the volume in front of or behind both
-/// depths throughout) are skipped by the depth bounds. The stencil is
-/// left holding the last entry's image.
+/// depth write; otherwise a parameter error) giving one image per entry
+/// of `scales`: `None` the plain counts, `Some(scale)` each pixel's
+/// *change* of count when its stored depth `d` is replaced by `d × scale`
+/// (the f32 product): the fragments whose depth test flips, signed, i.e.
+/// the count a depth-scaled copy would get minus the framebuffer's own,
+/// exactly. One walk over one setup and binning of the triangles makes
+/// them all (at most [`MAX_DEPTH_SHIFTS`] distinct scales): each fragment's
+/// depth is computed once and tested against each depth, and for a
+/// change, rectangles where no fragment's test can flip (the volume in
+/// front of or behind both depths throughout) are skipped by the depth
+/// bounds. The stencil is left holding the plain counts.
 pub fn draw_depth_shift_counts(
     framebuffer: &mut Framebuffer,
     state: &RasterState,
@@ -107,16 +107,27 @@ pub fn draw_depth_shift_counts(
 ) -> Result<Vec<Vec<i32>>> {
     let grid = framebuffer.grid();
     let mut none = vec![(); grid.tile_count()];
-    if CountingPass::of::<0, NoFragmentStage>(state).is_none()
-        || scales.iter().flatten().any(|s| !s.is_finite())
-    {
+    let mut distinct: Vec<f32> = Vec::new();
+    for &s in scales.iter().flatten() {
+        if !distinct.iter().any(|d| d.to_bits() == s.to_bits()) {
+            distinct.push(s);
+        }
+    }
+    let shifts = DepthShifts::new(&distinct);
+    let (Some(shifts), Some(_)) = (shifts, CountingPass::of::<0, NoFragmentStage>(state)) else {
         return Err(Error::param(
             "state",
-            "a depth-shift count needs a counting stencil pass and finite scales",
+            format!(
+                "a depth-shift count needs a counting stencil pass and at most \
+                 {MAX_DEPTH_SHIFTS} distinct scales"
+            ),
         ));
+    };
+    if distinct.iter().any(|s| !s.is_finite()) {
+        return Err(Error::param("scales", "depth-shift scales must be finite"));
     }
     framebuffer.clear_stencil(0);
-    let mut images = Vec::with_capacity(scales.len());
+    framebuffer.clear_shifted(distinct.len());
     draw_inner(
         framebuffer,
         &mut none,
@@ -125,9 +136,20 @@ pub fn draw_depth_shift_counts(
         triangles,
         0,
         &NoFragmentStage,
-        scales,
-        |fb| images.push(fb.stencil_image()),
+        shifts,
     )?;
+    let images = scales
+        .iter()
+        .map(|scale| match scale {
+            None => framebuffer.stencil_image(),
+            Some(s) => {
+                let k = distinct.iter().position(|d| d.to_bits() == s.to_bits());
+                framebuffer.shifted_image(k.unwrap_or(0))
+            }
+        })
+        .collect();
+    // The change images are not part of the framebuffer's state.
+    framebuffer.clear_shifted(0);
     Ok(images)
 }
 
@@ -140,8 +162,7 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
     triangles: &[[u32; 3]],
     first_primitive: u32,
     stage: &S,
-    shifts: &[Option<f32>],
-    mut each: impl FnMut(&Framebuffer),
+    shifts: DepthShifts,
 ) -> Result<DrawStats> {
     let grid = framebuffer.grid();
     if targets.len() != grid.tile_count() {
@@ -289,38 +310,29 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
     }
     let bins = TileBins::from_pairs(&grid, &runs);
 
-    let mut stats = TileStats::default();
-    for (k, &depth_shift) in shifts.iter().enumerate() {
-        if k > 0 {
-            framebuffer.clear_stencil(0);
-        }
-        let counting = counting.map(|c| CountingPass { depth_shift, ..c });
-        let run = framebuffer
-            .tiles_mut()
-            .par_iter_mut()
-            .zip(targets.par_iter_mut())
-            .enumerate()
-            .map(|(tile, (ds, target))| {
-                let job = TileJob {
-                    tile,
-                    origin: grid.tile_origin(tile),
-                    triangles: &setup,
-                    quads: &quads,
-                    bin: bins.tile(tile),
-                    state,
-                    stage,
-                    counting,
-                };
-                job.run(ds, target)
-            })
-            .reduce(TileStats::default, |a, b| TileStats {
-                fragments: a.fragments + b.fragments,
-                passed: a.passed + b.passed,
-            });
-        stats.fragments += run.fragments;
-        stats.passed += run.passed;
-        each(framebuffer);
-    }
+    let counting = counting.map(|c| CountingPass { shifts, ..c });
+    let stats = framebuffer
+        .tiles_mut()
+        .par_iter_mut()
+        .zip(targets.par_iter_mut())
+        .enumerate()
+        .map(|(tile, (ds, target))| {
+            let job = TileJob {
+                tile,
+                origin: grid.tile_origin(tile),
+                triangles: &setup,
+                quads: &quads,
+                bin: bins.tile(tile),
+                state,
+                stage,
+                counting,
+            };
+            job.run(ds, target)
+        })
+        .reduce(TileStats::default, |a, b| TileStats {
+            fragments: a.fragments + b.fragments,
+            passed: a.passed + b.passed,
+        });
 
     Ok(DrawStats {
         triangles: triangles.len(),

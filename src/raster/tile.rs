@@ -332,28 +332,29 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             let lanes = mask & if c.on_depth_fail { !pass } else { pass };
             let delta = if t.front_facing { c.front } else { c.back };
             stats.fragments += POPCOUNT[mask as usize] as u64;
-            // With a depth shift, the change of the count: + where the
-            // shifted depth counts, − where the stored one did.
-            let shifted = c.depth_shift.map_or(0, |shift| {
+            if delta == 0 {
+                return;
+            }
+            let (d, zero) = (i32x8::splat(delta), i32x8::splat(0));
+            if lanes != 0 {
+                let stored = i32x8::load(&stencil[local..]);
+                let next = stored + select_i32(lanes, d, zero);
+                stencil[local..local + LANES].copy_from_slice(&next.to_array());
+            }
+            // Per depth scale, the change of the count: + where the
+            // scaled depth counts, − where the stored one did.
+            for (image, &scale) in ds.shifted.iter_mut().zip(c.shifts.as_slice()) {
                 let pass = compare_f32(
                     self.state.depth_func,
                     depth,
-                    stored_depth * f32x8::splat(shift),
+                    stored_depth * f32x8::splat(scale),
                 );
-                mask & if c.on_depth_fail { !pass } else { pass }
-            });
-            let (plus, minus) = match c.depth_shift {
-                Some(_) => (shifted, lanes),
-                None => (lanes, 0),
-            };
-            if (plus | minus) != 0 && delta != 0 {
-                let stored = i32x8::load(&stencil[local..]);
-                let (d, zero) = (i32x8::splat(delta), i32x8::splat(0));
-                let mut next = stored + select_i32(plus, d, zero);
-                if minus != 0 {
-                    next -= select_i32(minus, d, zero);
+                let shifted = mask & if c.on_depth_fail { !pass } else { pass };
+                if shifted != lanes {
+                    let stored = i32x8::load(&image[local..]);
+                    let next = stored + select_i32(shifted, d, zero) - select_i32(lanes, d, zero);
+                    image[local..local + LANES].copy_from_slice(&next.to_array());
                 }
-                stencil[local..local + LANES].copy_from_slice(&next.to_array());
             }
             return;
         }
