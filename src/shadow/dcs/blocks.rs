@@ -19,7 +19,7 @@
 //! (clipped ends and samples lie in the chart's square `[−1, 1]²`), with
 //! at most ~2e-6 of rounding, so it cannot count a sample there.
 
-use super::chart_lanes::chart_row;
+use super::chart_lanes::chart_rows;
 use super::counters::{add_covered_in, OrientedEdge, LANES};
 use crate::sampling::Strata;
 use crate::simd::f64x4;
@@ -224,15 +224,11 @@ impl BlockSamples {
             self.offsets[b as usize] = at;
             let (i0, j0) = (b % grid.per_row * grid.bw, b / grid.per_row * grid.bh);
             let (xs, ys) = (&mut self.xs[at..at + len], &mut self.ys[at..at + len]);
-            let bw = grid.bw as usize;
-            let rows = xs.chunks_exact_mut(bw).zip(ys.chunks_exact_mut(bw));
-            for (j, (xs, ys)) in (j0..).zip(rows) {
-                // As the sampling module's jittered walk makes samples
-                // `j a + i` (`Strata::point`), then the rect chart
-                // `(2 s − 1, 1 − 2 t)`, four cells at a time where the
-                // CPU can. The tests hold it to that walk's points.
-                chart_row(key, a, (i0, j), (inv, inv), xs, ys);
-            }
+            // As the sampling module's jittered walk makes samples
+            // `j a + i` (`Strata::point`), then the rect chart
+            // `(2 s − 1, 1 − 2 t)`, four cells at a time where the CPU
+            // can. The tests hold it to that walk's points.
+            chart_rows(key, a, (i0, j0, grid.bw as usize), (inv, inv), xs, ys);
             at += len;
         }
         self.counters.clear();

@@ -7,7 +7,7 @@
 use super::bitfield::CoverageTables;
 use super::blocks::{BlockGrid, BlockSamples};
 use super::chart::ReceiverChart;
-use super::chart_lanes::{chart_row, chart_rows_apply};
+use super::chart_lanes::{chart_rows, chart_rows_apply};
 use super::counters::{add_covered, ChartSamples, OrientedEdge, SectorSamples};
 use super::edge_lanes::{self, EdgeSource, GroupInputs, GROUPS};
 use super::edges::{side_of, CandidateEdge, CandidateEdges};
@@ -393,12 +393,7 @@ impl LightPass<'_, '_> {
             let a = strata.a;
             let inv = (1.0 / f64::from(a), 1.0 / f64::from(strata.b));
             scratch.chart.fill_slices(n as usize, |xs, ys| {
-                let rows = xs
-                    .chunks_exact_mut(a as usize)
-                    .zip(ys.chunks_exact_mut(a as usize));
-                for (j, (xs, ys)) in (0..).zip(rows) {
-                    chart_row(key, a, (0, j), inv, xs, ys);
-                }
+                chart_rows(key, a, (0, 0, a as usize), inv, xs, ys)
             });
         } else if rect {
             let points = self.pattern.pixel_points(pixel);
