@@ -22,7 +22,7 @@
 use super::chart_lanes::chart_rows;
 use super::counters::{add_covered_in, OrientedEdge, LANES};
 use crate::sampling::Strata;
-use crate::simd::f64x4;
+use crate::simd::{f64x4, i32x8};
 
 /// How far past zero (exactly, over a whole block) a condition of the
 /// covered test must fail for the block to be skipped: 5× the test's
@@ -192,6 +192,36 @@ pub struct BlockCounts {
     pub sum: i64,
 }
 
+impl BlockCounts {
+    /// The counts of `counters` (whole lanes), in one pass eight at a
+    /// time.
+    #[inline(always)]
+    pub fn of(counters: &[i32]) -> BlockCounts {
+        debug_assert!(counters.len().is_multiple_of(LANES));
+        let zero = i32x8::ZERO;
+        let (mut visible, mut top, mut sum) = (0u64, zero, 0i64);
+        for c in counters.chunks_exact(LANES) {
+            let d = i32x8::from(<[i32; LANES]>::try_from(c).expect("whole lanes"));
+            let positive = d.cmp_gt(zero);
+            visible += u64::from(LANES as u32 - positive.move_mask().count_ones());
+            top = d.cmp_gt(top).blend(d, top);
+            // Widened per lane: the sum of many large counts may pass
+            // i32's range.
+            sum += positive
+                .blend(d, zero)
+                .to_array()
+                .iter()
+                .map(|&v| i64::from(v))
+                .sum::<i64>();
+        }
+        BlockCounts {
+            visible,
+            max: top.to_array().into_iter().max().unwrap_or(0),
+            sum,
+        }
+    }
+}
+
 impl BlockSamples {
     /// The counts over all `grid` samples of the pixel with sample key
     /// `key` (the stratified pattern's), start count `d0` and effective
@@ -249,11 +279,7 @@ impl BlockSamples {
             }
         }
         let rest = (grid.count * len - made) as u64;
-        let mut counts = BlockCounts {
-            visible: self.counters.iter().filter(|&&c| c <= 0).count() as u64,
-            max: self.counters.iter().copied().max().unwrap_or(0).max(0),
-            sum: self.counters.iter().map(|&c| i64::from(c.max(0))).sum(),
-        };
+        let mut counts = BlockCounts::of(&self.counters);
         if rest > 0 {
             counts.visible += if d0 <= 0 { rest } else { 0 };
             counts.max = counts.max.max(d0);

@@ -5,10 +5,10 @@
 //! into transmittance, and from them its Vcoef or direct light.
 
 use super::bitfield::CoverageTables;
-use super::blocks::{BlockGrid, BlockSamples};
+use super::blocks::{BlockCounts, BlockGrid, BlockSamples};
 use super::chart::ReceiverChart;
 use super::chart_lanes::{chart_rows, chart_rows_apply};
-use super::counters::{add_covered, ChartSamples, OrientedEdge, SectorSamples};
+use super::counters::{add_covered, ChartSamples, OrientedEdge, SectorSamples, LANES};
 use super::edge_lanes::{self, EdgeSource, GroupInputs, GROUPS};
 use super::edges::{side_of, CandidateEdge, CandidateEdges};
 use super::ties::{ExactStart, Tie};
@@ -520,6 +520,19 @@ impl LightPass<'_, '_> {
             );
         }
         let weighted = semi_opaque || direct || self.prepared.is_textured() || count > 1 << 24;
+        if !weighted && counters.len().is_multiple_of(LANES) {
+            // Only the opaque counts, in whole lanes: one pass. (Visible
+            // samples, below 2²⁴, are exact in f32, as the count below.)
+            let c = BlockCounts::of(counters);
+            return PixelResult {
+                vcoef: c.visible as f32 / count as f32,
+                radiance: Vec3::ZERO,
+                max_dc: c.max as f32,
+                mean_dc: (c.sum as f64 / count as f64) as f32,
+                edges: edge_count,
+                recounted,
+            };
+        }
         let visible: f32 = if weighted {
             scratch.visibility.clear();
             scratch
