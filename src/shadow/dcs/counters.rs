@@ -316,8 +316,10 @@ fn add_runs_avx2(
     }
 }
 
-/// Sectors of the chart around the centre, by [`pseudo_angles`].
+/// Sectors of the chart around the centre, by [`pseudo_angles`] (a
+/// power of two: keys are masked by `SECTORS − 1`).
 const SECTORS: usize = 16;
+const _: () = assert!(SECTORS.is_power_of_two());
 
 /// A monotone stand-in for the angles of the points `(x, y)` around the
 /// origin, counter-clockwise from the +x axis, in `[0, 4)` (no
@@ -409,8 +411,11 @@ impl SectorSamples {
                 *o = key as u8;
             }
         }
+        // (Keys are below SECTORS, a power of two: the mask only shows
+        // the compiler so.)
+        let sector = |key: u8| usize::from(key) & (SECTORS - 1);
         for (k, &key) in self.keys[..n].iter().enumerate() {
-            counts[k % STREAMS][usize::from(key)] += 1;
+            counts[k % STREAMS][sector(key)] += 1;
         }
         // Sector by sector, each stream's run of it.
         let mut next = [[0u32; SECTORS]; STREAMS];
@@ -428,10 +433,11 @@ impl SectorSamples {
         self.xs.resize(padded, 0.0);
         self.ys.clear();
         self.ys.resize(padded, 0.0);
-        for (k, &key) in self.keys[..n].iter().enumerate() {
-            let slot = &mut next[k % STREAMS][usize::from(key)];
-            self.xs[*slot as usize] = samples.xs[k];
-            self.ys[*slot as usize] = samples.ys[k];
+        let (xs, ys) = (&samples.xs[..n], &samples.ys[..n]);
+        for (k, ((&key, &x), &y)) in self.keys[..n].iter().zip(xs).zip(ys).enumerate() {
+            let slot = &mut next[k % STREAMS][sector(key)];
+            self.xs[*slot as usize] = x;
+            self.ys[*slot as usize] = y;
             *slot += 1;
         }
         true
