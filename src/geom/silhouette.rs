@@ -2,6 +2,10 @@
 
 use super::EdgeAdjacency;
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+/// Faces or edges per parallel task (each a few dot products).
+const PAR_CHUNK: usize = 4096;
 
 /// Whether each face of `adj` faces the point `light`: `n · (L − a) > 0`
 /// with the normal from the winding, in f64 so that the sign is right for
@@ -10,7 +14,8 @@ use glam::{DVec3, Vec3};
 pub fn faces_point(adj: &EdgeAdjacency, light: Vec3) -> Vec<bool> {
     let l = light.as_dvec3();
     adj.face_vertices
-        .iter()
+        .par_iter()
+        .with_min_len(PAR_CHUNK)
         .map(|f| {
             let [a, b, c] = f.map(|i| adj.positions[i as usize].as_dvec3());
             (b - a).cross(c - a).dot(l - a) > 0.0
@@ -44,7 +49,8 @@ pub fn area_silhouettes(adj: &EdgeAdjacency, light_points: &[Vec3]) -> Vec<bool>
     let lp: Vec<DVec3> = light_points.iter().map(|p| p.as_dvec3()).collect();
     let class: Vec<i8> = adj
         .face_vertices
-        .iter()
+        .par_iter()
+        .with_min_len(PAR_CHUNK)
         .map(|f| {
             let [a, b, c] = f.map(|i| adj.positions[i as usize].as_dvec3());
             split((b - a).cross(c - a), a, &lp)
@@ -84,7 +90,8 @@ pub fn sphere_silhouettes(adj: &EdgeAdjacency, center: DVec3, radius: f64) -> Ve
 /// behind, 0: split). Boundary edges always qualify.
 fn silhouettes_from_classes(adj: &EdgeAdjacency, class: &[i8]) -> Vec<bool> {
     adj.edges
-        .iter()
+        .par_iter()
+        .with_min_len(PAR_CHUNK)
         .map(|e| {
             if e.uses.len() < 2 {
                 return true;

@@ -30,6 +30,10 @@ use crate::geom::silhouette::{area_silhouettes, sphere_silhouettes};
 use crate::geom::EdgeAdjacency;
 use crate::shadow::kit::volumes::side_quad;
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+/// Adjacency edges per parallel task of [`CandidateEdges::build`].
+const CANDIDATE_CHUNK: usize = 4096;
 
 /// One face next to a candidate edge.
 #[derive(Debug, Clone, Copy)]
@@ -127,35 +131,59 @@ impl CandidateEdges {
                 }
             }),
         };
+        // Chunks of edges in parallel, then joined in order (face ranges
+        // moved by the faces before): the same lists as one serial walk.
+        let chunks: Vec<CandidateEdges> = adj
+            .edges
+            .par_chunks(CANDIDATE_CHUNK)
+            .enumerate()
+            .map(|(chunk, edges)| {
+                let mut out = CandidateEdges::default();
+                for (k, e) in edges.iter().enumerate() {
+                    let i = chunk * CANDIDATE_CHUNK + k;
+                    let quad = side_quad(adj, lit, e);
+                    if quad.is_none() && !whole.as_ref().is_some_and(|w| w[i]) {
+                        continue;
+                    }
+                    let (quad_sign, quad_weight) = match quad {
+                        // side_quad orders [a, b] so that the quad faces out.
+                        Some([a, _, m]) => (if a == e.v[0] { 1 } else { -1 }, m),
+                        None => (0, 1),
+                    };
+                    let first = out.faces.len() as u32;
+                    for u in &e.uses {
+                        let [a, b, c] = adj.face_vertices[u.slot as usize]
+                            .map(|v| adj.positions[v as usize].as_dvec3());
+                        out.faces.push(EdgeFace {
+                            normal: (b - a).cross(c - a),
+                            point: a,
+                            direction: u.direction,
+                            closed: adj.face_closed[u.slot as usize],
+                        });
+                    }
+                    out.edges.push(CandidateEdge {
+                        v0: adj.positions[e.v[0] as usize].as_dvec3(),
+                        v1: adj.positions[e.v[1] as usize].as_dvec3(),
+                        quad_sign,
+                        quad_weight,
+                        faces: (first, out.faces.len() as u32),
+                    });
+                }
+                out
+            })
+            .collect();
         let mut out = CandidateEdges::default();
-        for (i, e) in adj.edges.iter().enumerate() {
-            let quad = side_quad(adj, lit, e);
-            if quad.is_none() && !whole.as_ref().is_some_and(|w| w[i]) {
-                continue;
-            }
-            let (quad_sign, quad_weight) = match quad {
-                // side_quad orders [a, b] so that the quad faces out.
-                Some([a, _, m]) => (if a == e.v[0] { 1 } else { -1 }, m),
-                None => (0, 1),
-            };
-            let first = out.faces.len() as u32;
-            for u in &e.uses {
-                let [a, b, c] = adj.face_vertices[u.slot as usize]
-                    .map(|v| adj.positions[v as usize].as_dvec3());
-                out.faces.push(EdgeFace {
-                    normal: (b - a).cross(c - a),
-                    point: a,
-                    direction: u.direction,
-                    closed: adj.face_closed[u.slot as usize],
-                });
-            }
-            out.edges.push(CandidateEdge {
-                v0: adj.positions[e.v[0] as usize].as_dvec3(),
-                v1: adj.positions[e.v[1] as usize].as_dvec3(),
-                quad_sign,
-                quad_weight,
-                faces: (first, out.faces.len() as u32),
-            });
+        out.edges
+            .reserve(chunks.iter().map(|c| c.edges.len()).sum::<usize>());
+        out.faces
+            .reserve(chunks.iter().map(|c| c.faces.len()).sum::<usize>());
+        for chunk in chunks {
+            let base = out.faces.len() as u32;
+            out.faces.extend(chunk.faces);
+            out.edges.extend(chunk.edges.into_iter().map(|mut e| {
+                e.faces = (e.faces.0 + base, e.faces.1 + base);
+                e
+            }));
         }
         out
     }
