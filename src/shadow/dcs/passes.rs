@@ -168,9 +168,10 @@ pub(super) fn recount_ties<'a>(
             } else {
                 tied_from_changes(&group.shift_changes, &group.counts, own_face)?
             };
-            for (a, b) in tied.iter_mut().zip(group_tied) {
-                *a = (*a).max(b);
-            }
+            tied.par_iter_mut()
+                .zip(group_tied)
+                .with_min_len(4096)
+                .for_each(|(a, b)| *a = (*a).max(b));
         }
     }
     let sets: Vec<(&EdgeAdjacency, &[bool])> = groups
@@ -244,6 +245,8 @@ pub(super) fn recount_ties<'a>(
         tied[i] = Tie::Tied;
     }
     let tied_surface: Vec<usize> = (0..tied.len())
+        .into_par_iter()
+        .with_min_len(4096)
         .filter(|&i| tied[i] == Tie::Tied && ctx.gbuffer.is_surface(i))
         .collect();
     if !tied_surface.is_empty() {

@@ -101,7 +101,8 @@ pub fn tied_from_changes(
         return Ok(vec![Tie::None; counts.len()]);
     };
     let mut tied: Vec<Tie> = nearer
-        .iter()
+        .par_iter()
+        .with_min_len(4096)
         .map(|&change| if change != 0 { Tie::Tied } else { Tie::None })
         .collect();
     if let Some(farther) = changes.get(1) {
