@@ -212,8 +212,10 @@ pub(super) fn recount_ties<'a>(
             // One query for the receivers of the block on one face: the
             // cap faces other than their own that come near any of their
             // segments (none on most of a ground, a handful of neighbours
-            // on a mesh), then each segment against those alone.
-            block.sort_unstable_by_key(|r| (r.1, r.0));
+            // on a mesh), then each segment against those alone. (Pushed in
+            // pixel order: a stable sort by face keeps it within a face,
+            // and finds a 32² block's long runs of one face in one pass.)
+            block.sort_by_key(|r| r.1);
             let mut near = Vec::new();
             let mut caps = Vec::new();
             for on_face in block.chunk_by(|a, b| a.1 == b.1) {
