@@ -624,6 +624,26 @@ fn perspective_correct_varyings() {
     assert!(checked > 500);
 }
 
+/// A clip-space vertex anywhere around the screen, at a random depth.
+fn random_vertex(rng: &mut Rng) -> ClipVertex<0> {
+    ClipVertex {
+        position: Vec4::new(
+            (rng.f64() * 3.0 - 1.5) as f32,
+            (rng.f64() * 3.0 - 1.5) as f32,
+            rng.f64() as f32,
+            1.0,
+        ),
+        varyings: [],
+    }
+}
+
+/// `n` independent random triangles.
+fn triangle_soup(rng: &mut Rng, n: u32) -> (Vec<ClipVertex<0>>, Vec<[u32; 3]>) {
+    let vertices = (0..3 * n).map(|_| random_vertex(rng)).collect();
+    let triangles = (0..n).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    (vertices, triangles)
+}
+
 /// Shadow-volume passes take a dedicated counting path; it must give the
 /// same stencil counts as the general path (forced here by a fragment
 /// stage that shades) for z-fail and z-pass, on random overlapping
@@ -637,19 +657,8 @@ fn counting_path_equals_general_stencil_path() {
     }
     let (w, h) = (150u32, 110u32);
     let mut rng = Rng(99);
-    let vertex = |rng: &mut Rng| ClipVertex {
-        position: Vec4::new(
-            (rng.f64() * 3.0 - 1.5) as f32,
-            (rng.f64() * 3.0 - 1.5) as f32,
-            rng.f64() as f32,
-            1.0,
-        ),
-        varyings: [],
-    };
-    let scene: Vec<ClipVertex<0>> = (0..60).map(|_| vertex(&mut rng)).collect();
-    let scene_tris: Vec<[u32; 3]> = (0..20).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
-    let volume: Vec<ClipVertex<0>> = (0..300).map(|_| vertex(&mut rng)).collect();
-    let volume_tris: Vec<[u32; 3]> = (0..100).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    let (scene, scene_tris) = triangle_soup(&mut rng, 20);
+    let (volume, volume_tris) = triangle_soup(&mut rng, 100);
     for zpass in [false, true] {
         // The states the shadow-volume technique itself uses.
         let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
@@ -888,22 +897,11 @@ fn depth_bounds_skip_only_failing_fragments() {
 fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
     let (w, h) = (170u32, 130u32);
     let mut rng = Rng(7);
-    let vertex = |rng: &mut Rng| ClipVertex {
-        position: Vec4::new(
-            (rng.f64() * 3.0 - 1.5) as f32,
-            (rng.f64() * 3.0 - 1.5) as f32,
-            rng.f64() as f32,
-            1.0,
-        ),
-        varyings: [],
-    };
-    let scene: Vec<ClipVertex<0>> = (0..60).map(|_| vertex(&mut rng)).collect();
-    let scene_tris: Vec<[u32; 3]> = (0..20).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
-    let mut volume: Vec<ClipVertex<0>> = (0..300).map(|_| vertex(&mut rng)).collect();
-    let mut volume_tris: Vec<[u32; 3]> = (0..100).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    let (scene, scene_tris) = triangle_soup(&mut rng, 20);
+    let (mut volume, mut volume_tris) = triangle_soup(&mut rng, 100);
     for _ in 0..60 {
         let n = volume.len() as u32;
-        volume.extend((0..4).map(|_| vertex(&mut rng)));
+        volume.extend((0..4).map(|_| random_vertex(&mut rng)));
         volume_tris.extend([[n, n + 1, n + 2], [n, n + 2, n + 3]]);
     }
     let grid = TileGrid::new(w, h).unwrap();

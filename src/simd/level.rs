@@ -113,6 +113,16 @@ pub fn level() -> Level {
     })
 }
 
+/// Whether the x86-64-v3 copies run: [`level`] is v3 and this CPU has
+/// every feature of the level (checked at run time, the one requirement
+/// of each v3 copy's `target_feature` call). One cached flag for the hot
+/// dispatch sites.
+#[inline]
+pub fn runs_v3() -> bool {
+    static V3: OnceLock<bool> = OnceLock::new();
+    *V3.get_or_init(|| level() == Level::V3 && Level::V3.supported())
+}
+
 /// One line for `--explain`: the level the dispatched routines run at,
 /// whether the AVX kernels run, and the features the build itself targets.
 pub fn describe() -> String {

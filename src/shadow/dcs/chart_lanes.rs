@@ -19,7 +19,7 @@
 
 use crate::sampling::{uniform_pair, Strata};
 #[cfg(target_arch = "x86_64")]
-use crate::simd::level::{level, Level};
+use crate::simd::level::runs_v3;
 
 /// Whether a receiver's `n` samples on `strata` can be made by
 /// [`chart_rows`]: every cell one sample, both sides powers of two, rows
@@ -47,9 +47,9 @@ pub(super) fn chart_rows(
 ) {
     debug_assert!(xs.len() == ys.len() && w.is_multiple_of(4) && xs.len().is_multiple_of(w));
     #[cfg(target_arch = "x86_64")]
-    if level() == Level::V3 && Level::V3.supported() {
-        // SAFETY: the CPU has AVX and AVX2 (`Level::V3` includes both),
-        // the one requirement of the kernel's `target_feature`.
+    if runs_v3() {
+        // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
+        // features, AVX and AVX2 among them: the kernel's one requirement.
         return unsafe { chart_rows_avx2(key, a, (i0, j0, w), inv, xs, ys) };
     }
     chart_rows_scalar(key, a, (i0, j0, w), inv, xs, ys);

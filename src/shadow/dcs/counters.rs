@@ -23,7 +23,7 @@
 //! caster faces, far below 2³¹ for any scene that fits in memory, so they
 //! never wrap.
 
-use crate::simd::level::{level, Level};
+use crate::simd::level::runs_v3;
 use crate::simd::{f32x8, i32x8};
 
 /// Samples per SIMD step.
@@ -214,9 +214,9 @@ pub(super) fn add_covered_in(
     delta: i32,
 ) {
     #[cfg(target_arch = "x86_64")]
-    if level() == Level::V3 && Level::V3.supported() {
-        // SAFETY: the CPU has AVX and AVX2 (`Level::V3` includes both),
-        // the one requirement of the kernel's `target_feature`.
+    if runs_v3() {
+        // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
+        // features, AVX and AVX2 among them: the kernel's one requirement.
         return unsafe { add_covered_avx2(counters, xs, ys, edge, delta) };
     }
     add_covered_lanes(counters, xs, ys, edge, delta);
@@ -530,9 +530,9 @@ impl SectorSamples {
     pub fn add_covered_all(&mut self, counters: &mut [i32], edges: &[(OrientedEdge, i32)]) {
         self.plan(edges);
         #[cfg(target_arch = "x86_64")]
-        if level() == Level::V3 && Level::V3.supported() {
-            // SAFETY: the CPU has AVX and AVX2 (`Level::V3` includes
-            // both), the one requirement of the kernel's `target_feature`.
+        if runs_v3() {
+            // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
+            // features, AVX and AVX2 among them: the kernel's one requirement.
             return unsafe { add_runs_avx2(counters, &self.xs, &self.ys, edges, &self.runs) };
         }
         for ((edge, delta), run) in edges.iter().zip(&self.runs) {
@@ -615,7 +615,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_kernel_matches_the_lanes() {
-        if !Level::V3.supported() {
+        if !crate::simd::level::Level::V3.supported() {
             eprintln!("no AVX2 on this CPU: nothing to check");
             return;
         }

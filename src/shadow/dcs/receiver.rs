@@ -44,6 +44,21 @@ pub(super) struct PixelResult {
     pub(super) recounted: bool,
 }
 
+impl PixelResult {
+    /// The results of a receiver whose only per-sample reads are its `n`
+    /// samples' opaque counts `c` (no radiance).
+    fn from_counts(c: BlockCounts, n: usize, edges: f32, recounted: bool) -> PixelResult {
+        PixelResult {
+            vcoef: c.visible as f32 / n as f32,
+            radiance: Vec3::ZERO,
+            max_dc: c.max as f32,
+            mean_dc: (c.sum as f64 / n as f64) as f32,
+            edges,
+            recounted,
+        }
+    }
+}
+
 /// Per-worker buffers of the counter pass.
 #[derive(Default)]
 pub(super) struct Scratch {
@@ -373,14 +388,7 @@ impl LightPass<'_, '_> {
                 let edges = &scratch.effective[span.first..span.end];
                 let c = scratch.blocks.count(grid, key, span.start, edges);
                 let n = self.pattern.len() as usize;
-                return PixelResult {
-                    vcoef: c.visible as f32 / n as f32,
-                    radiance: Vec3::ZERO,
-                    max_dc: c.max as f32,
-                    mean_dc: (c.sum as f64 / n as f64) as f32,
-                    edges: edge_count,
-                    recounted,
-                };
+                return PixelResult::from_counts(c, n, edge_count, recounted);
             }
         }
         let n = self.pattern.len();
@@ -524,14 +532,7 @@ impl LightPass<'_, '_> {
             // Only the opaque counts, in whole lanes: one pass. (Visible
             // samples, below 2²⁴, are exact in f32, as the count below.)
             let c = BlockCounts::of(counters);
-            return PixelResult {
-                vcoef: c.visible as f32 / count as f32,
-                radiance: Vec3::ZERO,
-                max_dc: c.max as f32,
-                mean_dc: (c.sum as f64 / count as f64) as f32,
-                edges: edge_count,
-                recounted,
-            };
+            return PixelResult::from_counts(c, count, edge_count, recounted);
         }
         let visible: f32 = if weighted {
             scratch.visibility.clear();

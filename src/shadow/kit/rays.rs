@@ -19,7 +19,7 @@ use crate::shade::surface_point;
 use crate::shade::{LightSample, PreparedLight};
 use crate::shadow::{LightTerm, ShadowContext};
 #[cfg(target_arch = "x86_64")]
-use crate::simd::level::{level, Level};
+use crate::simd::level::runs_v3;
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -344,9 +344,9 @@ impl<'a> ShadowTracer<'a> {
         scratch: &mut Scratch,
     ) -> u64 {
         #[cfg(target_arch = "x86_64")]
-        if level() == Level::V3 && Level::V3.supported() {
+        if runs_v3() {
             // SAFETY: the CPU has every feature the v3 copy enables
-            // (`Level::supported`), its one requirement.
+            // (`runs_v3` checks them), its one requirement.
             return unsafe { self.gsample_bundle_v3(g, samples, rect, out, scratch) };
         }
         self.gsample_bundle_body(g, samples, rect, out, scratch)
