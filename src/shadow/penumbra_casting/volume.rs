@@ -83,6 +83,13 @@ pub enum BoxTest {
 }
 
 impl PenumbraVolume {
+    /// Bytes it holds (itself and its plane lists).
+    pub fn bytes(&self) -> u64 {
+        (std::mem::size_of::<Self>()
+            + self.planes.capacity() * std::mem::size_of::<Plane>()
+            + self.quads.capacity() * std::mem::size_of::<PlaneQuad>()) as u64
+    }
+
     /// Every plane active.
     pub fn all(&self) -> u32 {
         if self.planes.len() >= 32 {
