@@ -46,7 +46,7 @@ ROWS = [
     ("1K smp", 1280, 960, 1024, 1),
     ("4× light", 1280, 960, 256, 2),
 ]
-PC_LINE = re.compile(r"sort ([0-9.]+) s, build ([0-9.]+) s, cast ([0-9.]+) s")
+PC_LINE = re.compile(r"sort ([0-9.]+) s, (?:probe [0-9.]+ s, )?build ([0-9.]+) s, cast ([0-9.]+) s")
 NOTE = re.compile(r"^\s*([0-9.]+) (B|KiB|MiB|GiB)\s+(receiver hierarchy|bit masks) light 0")
 UNIT = {"B": 1 / 2**20, "KiB": 1 / 1024, "MiB": 1.0, "GiB": 1024.0}
 

@@ -253,6 +253,45 @@ fn each_optimisation_alone_gives_the_same_masks() {
     }
 }
 
+/// Splitting heavy chunks by the probe changes no bit: bunny with one
+/// 256² chunk split wherever the probe saw any work (down to 64²) against
+/// no split, and the split chunks the same in a pool of one thread and of
+/// three.
+#[test]
+fn splitting_heavy_chunks_changes_no_mask() {
+    let scene = common::shipped("bunny.toml");
+    let frame = common::Frame::new(&scene, 200, 150);
+    let ctx = frame.ctx(&scene);
+    let with = |split: u64| {
+        let mut t = technique(32, PenumbraCastingOptions::default());
+        t.options.pc_chunk = 256;
+        t.options.pc_split_work = split;
+        t
+    };
+    let whole = with(0).light_masks(&ctx, 0).expect("runs");
+    assert_eq!(whole.report.chunks, 1);
+    let pool = |n| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .expect("a pool")
+    };
+    let split = pool(1).install(|| with(1).light_masks(&ctx, 0).expect("runs"));
+    let again = pool(3).install(|| with(1).light_masks(&ctx, 0).expect("runs"));
+    assert!(
+        split.report.chunks > 4 && split.report.chunks_unsplit == 1,
+        "{} chunks from {}",
+        split.report.chunks,
+        split.report.chunks_unsplit
+    );
+    assert_eq!(split.report.chunks, again.report.chunks);
+    let blocked: u32 = whole.words.iter().map(|w| w.count_ones()).sum();
+    assert!(blocked > 1000, "{blocked} blocked relations");
+    assert!(split.words == whole.words, "split chunks change the masks");
+    assert!(again.words == whole.words);
+    assert!(split.umbra == whole.umbra);
+}
+
 /// With the reference's samples the output is the reference's, bit for
 /// bit, at every pixel whose relations are all ray-exact.
 #[test]

@@ -111,6 +111,13 @@ pub struct PenumbraCastingOptions {
     /// receivers share a hierarchy (chunks run in parallel).
     #[arg(long, default_value_t = 256)]
     pub pc_chunk: u32,
+    /// Penumbra casting: split a chunk in four (down to 64 px) while a
+    /// probe of it (every fourth receiver in x and y, the first sixteenth
+    /// of the triangles) counts more than this many triangles reaching its
+    /// receivers' leaves (0: never), so that the chunk under a dense caster
+    /// does not set the wall time alone.
+    #[arg(long, default_value_t = 1 << 17)]
+    pub pc_split_work: u64,
     /// Penumbra casting: most MiB of bit masks (receivers × samples bits)
     /// held at once; chunks are processed in waves that fit.
     #[arg(long, default_value_t = 1024)]
@@ -142,6 +149,7 @@ impl PenumbraCastingOptions {
             pc_cone_decides: false,
             pc_cone_split: false,
             pc_cull_back_faces: false,
+            pc_split_work: 0,
             ..self
         }
     }
@@ -254,6 +262,10 @@ pub struct LightReport {
     pub volume_bytes: u64,
     /// The blockers' light penumbra volumes, all held during the cast.
     pub volume_list_bytes: u64,
+    /// Chunks before the heavy ones were split.
+    pub chunks_unsplit: usize,
+    /// The probe that decides the splits (wall clock).
+    pub probe_time: Duration,
     /// Wall-clock times.
     pub sort_time: Duration,
     /// Light volumes of the triangles and hierarchy casting.
@@ -291,6 +303,79 @@ impl Tr<'_> {
 /// A chunk's receivers: pixel indices and sets.
 struct ChunkInput {
     pixels: Vec<u32>,
+    /// Its square of the screen: corner and side, in pixels.
+    x0: u32,
+    y0: u32,
+    side: u32,
+}
+
+/// Smallest chunk side a heavy chunk is split down to.
+const MIN_SPLIT_SIDE: u32 = 64;
+/// Pixel step of the probe's receivers in x and y.
+const PROBE_STEP: u32 = 4;
+/// The probe casts this fraction (one in …) of the triangles, the first
+/// in cast order.
+const PROBE_SHARE: usize = 16;
+
+/// `inputs` with every chunk whose probe work is above `limit` cut into
+/// its four quarters, and so on while a quarter's is, down to
+/// [`MIN_SPLIT_SIDE`]. `probe(pixels)` casts a chunk's probe and gives
+/// each probe receiver's pixel and work (the triangles that reached its
+/// leaf); a quarter's work is its probe receivers' sum. Work is a count,
+/// the same on every machine and for every thread count or band, and the
+/// result is in chunk order, so the chunks (and the leaf-triangle AOV)
+/// are the same too.
+fn split_heavy_chunks<P>(
+    inputs: Vec<ChunkInput>,
+    width: u32,
+    limit: u64,
+    probe: P,
+) -> Vec<ChunkInput>
+where
+    P: Fn(&[u32]) -> Vec<(u32, u64)> + Sync,
+{
+    let works: Vec<Vec<(u32, u64)>> = inputs.par_iter().map(|c| probe(&c.pixels)).collect();
+    let mut out = Vec::new();
+    for (c, work) in inputs.into_iter().zip(works) {
+        let mut stack = vec![(c, work)];
+        while let Some((c, work)) = stack.pop() {
+            let total: u64 = work.iter().map(|w| w.1).sum();
+            let half = c.side / 2;
+            if total <= limit || half < MIN_SPLIT_SIDE {
+                out.push(c);
+                continue;
+            }
+            let quarter = |i: u32| {
+                let (x, y) = (i % width, i / width);
+                usize::from(x >= c.x0 + half) + 2 * usize::from(y >= c.y0 + half)
+            };
+            let mut parts: [(ChunkInput, Vec<(u32, u64)>); 4] = std::array::from_fn(|q| {
+                let q = q as u32;
+                (
+                    ChunkInput {
+                        pixels: Vec::new(),
+                        x0: c.x0 + (q % 2) * half,
+                        y0: c.y0 + (q / 2) * half,
+                        side: half,
+                    },
+                    Vec::new(),
+                )
+            });
+            for &i in &c.pixels {
+                parts[quarter(i)].0.pixels.push(i);
+            }
+            for &(i, v) in &work {
+                parts[quarter(i)].1.push((i, v));
+            }
+            // Pushed last to first: popped (and emitted) in quarter order.
+            for part in parts.into_iter().rev() {
+                if !part.0.pixels.is_empty() {
+                    stack.push(part);
+                }
+            }
+        }
+    }
+    out
 }
 
 impl PenumbraCasting {
@@ -454,7 +539,12 @@ impl PenumbraCasting {
         let side = self.options.pc_chunk;
         let (cw, ch) = (w.div_ceil(side), h.div_ceil(side));
         let mut inputs: Vec<ChunkInput> = (0..cw * ch)
-            .map(|_| ChunkInput { pixels: Vec::new() })
+            .map(|c| ChunkInput {
+                pixels: Vec::new(),
+                x0: c % cw * side,
+                y0: c / cw * side,
+                side,
+            })
             .collect();
         for i in 0..gb.len() {
             let Some(s) = gb.get(i) else { continue };
@@ -467,6 +557,60 @@ impl PenumbraCasting {
                 .push(i as u32);
         }
         inputs.retain(|c| !c.pixels.is_empty());
+        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
+        let sw = self.options.switches();
+        // Every blocker's light penumbra volume, made once (in parallel)
+        // and held for all chunks of all waves: each chunk then runs
+        // through the whole list on its own. (Batches of volumes with a
+        // barrier after each let the chunk under a dense caster hold both
+        // workers at every batch: on bunny.toml at 1280×960 one 256²
+        // chunk took 10.4 s of the 17.8 s summed over all.)
+        let tv = std::time::Instant::now();
+        let mut vl: Vec<PenumbraVolume> = Vec::new();
+        vl.resize_with(tris.len(), PenumbraVolume::default);
+        tris.par_iter()
+            .zip(vl.par_iter_mut())
+            .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
+        report.volume_list_bytes = vl.iter().map(PenumbraVolume::bytes).sum();
+        report.cast_time += tv.elapsed();
+        let receiver_pos = |i: u32| {
+            let s = gb.sample(i as usize);
+            let o = origin.of(s.position, s.geo_normal).as_dvec3() - centre;
+            [o.x, o.y, o.z]
+        };
+        let receiver_set = |i: u32| sets.set_of((i % w, i / w)) as u16;
+        report.chunks_unsplit = inputs.len();
+        if self.options.pc_split_work > 0 {
+            let tp = std::time::Instant::now();
+            inputs = split_heavy_chunks(inputs, w, self.options.pc_split_work, |pixels| {
+                // The probe: every PROBE_STEP-th pixel's receiver in x and
+                // y, the first triangles in cast order; its work, the
+                // triangles that reached each receiver's leaf.
+                let probe: Vec<u32> = pixels
+                    .iter()
+                    .copied()
+                    .filter(|&i| (i % w) % PROBE_STEP == 0 && (i / w) % PROBE_STEP == 0)
+                    .collect();
+                let pos = probe.iter().map(|&i| receiver_pos(i)).collect();
+                let set = probe.iter().map(|&i| receiver_set(i)).collect();
+                let mut chunk = Chunk::new(&sets, sw, slack, pos, set);
+                let first = tris.len().div_ceil(PROBE_SHARE);
+                for (t, v) in tris[..first].iter().zip(&vl[..first]) {
+                    chunk.process(t, v);
+                }
+                chunk
+                    .order
+                    .iter()
+                    .map(|&o| {
+                        (
+                            probe[o as usize],
+                            u64::from(chunk.leaf_triangles[o as usize]),
+                        )
+                    })
+                    .collect()
+            });
+            report.probe_time = tp.elapsed();
+        }
         report.chunks = inputs.len();
         report.receivers = inputs.iter().map(|c| c.pixels.len()).sum();
 
@@ -502,41 +646,13 @@ impl PenumbraCasting {
         }
         report.waves = waves.len();
 
-        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
-        let sw = self.options.switches();
-        // Every blocker's light penumbra volume, made once (in parallel)
-        // and held for all chunks of all waves: each chunk then runs
-        // through the whole list on its own. (Batches of volumes with a
-        // barrier after each let the chunk under a dense caster hold both
-        // workers at every batch: on bunny.toml at 1280×960 one 256²
-        // chunk took 10.4 s of the 17.8 s summed over all.)
-        let tv = std::time::Instant::now();
-        let mut vl: Vec<PenumbraVolume> = Vec::new();
-        vl.resize_with(tris.len(), PenumbraVolume::default);
-        tris.par_iter()
-            .zip(vl.par_iter_mut())
-            .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
-        report.volume_list_bytes = vl.iter().map(PenumbraVolume::bytes).sum();
-        report.cast_time += tv.elapsed();
         for wave in waves {
             let tb = std::time::Instant::now();
             let mut chunks: Vec<(Vec<u32>, Chunk)> = wave
                 .into_par_iter()
                 .map(|c| {
-                    let pos = c
-                        .pixels
-                        .iter()
-                        .map(|&i| {
-                            let s = gb.sample(i as usize);
-                            let o = origin.of(s.position, s.geo_normal).as_dvec3() - centre;
-                            [o.x, o.y, o.z]
-                        })
-                        .collect();
-                    let set = c
-                        .pixels
-                        .iter()
-                        .map(|&i| sets.set_of((i % w, i / w)) as u16)
-                        .collect();
+                    let pos = c.pixels.iter().map(|&i| receiver_pos(i)).collect();
+                    let set = c.pixels.iter().map(|&i| receiver_set(i)).collect();
                     let chunk = Chunk::new(&sets, sw, slack, pos, set);
                     let pixels = chunk.order.iter().map(|&o| c.pixels[o as usize]).collect();
                     (pixels, chunk)
@@ -762,8 +878,9 @@ impl PenumbraCasting {
             t.finish_with(
                 &mut out.passes,
                 format!(
-                    "sort {:.3} s, build {:.3} s, cast {:.3} s, translucent {:.3} s",
+                    "sort {:.3} s, probe {:.3} s, build {:.3} s, cast {:.3} s, translucent {:.3} s",
                     report.sort_time.as_secs_f64(),
+                    report.probe_time.as_secs_f64(),
                     report.build_time.as_secs_f64(),
                     report.cast_time.as_secs_f64(),
                     report.translucent_time.as_secs_f64()
@@ -783,12 +900,16 @@ impl PenumbraCasting {
         notes.push(BufferNote {
             name: format!("receiver hierarchy light {k}"),
             detail: format!(
-                "{} receivers in {} chunks of {}² px ({} wave(s)); {} nodes at peak (leaves ≤ {}, \
+                "{} receivers in {} chunks ({} of {}² px, {} after splitting the heavy ones by a \
+                 probe of {:.3} s) in {} wave(s); {} nodes at peak (leaves ≤ {}, \
                  spatial median above {} points, least surface area below); {} rebuild(s) at > {} % \
                  in umbra, {:.3} s building (CPU)",
                 r.receivers,
                 r.chunks,
+                r.chunks_unsplit,
                 o.pc_chunk,
+                r.chunks,
+                r.probe_time.as_secs_f64(),
                 r.waves,
                 r.stats.peak_nodes,
                 hierarchy::LEAF,
