@@ -638,6 +638,24 @@ fn random_vertex(rng: &mut Rng) -> ClipVertex<0> {
 }
 
 /// `n` independent random triangles.
+/// A framebuffer over `grid` holding the depth of `scene` (default
+/// state, no fragment stage): the receivers the stencil tests draw over.
+fn scene_depth(grid: TileGrid, scene: &[ClipVertex<0>], tris: &[[u32; 3]]) -> Framebuffer {
+    let mut fb = Framebuffer::new(grid);
+    let mut none = vec![(); grid.tile_count()];
+    let state = RasterState::default();
+    draw(
+        &mut fb,
+        &mut none,
+        &state,
+        scene,
+        tris,
+        &penumbra::raster::NoFragmentStage,
+    )
+    .unwrap();
+    fb
+}
+
 fn triangle_soup(rng: &mut Rng, n: u32) -> (Vec<ClipVertex<0>>, Vec<[u32; 3]>) {
     let vertices = (0..3 * n).map(|_| random_vertex(rng)).collect();
     let triangles = (0..n).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
@@ -664,18 +682,9 @@ fn counting_path_equals_general_stencil_path() {
         let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
         let run = |general: bool| {
             let grid = TileGrid::new(w, h).unwrap();
-            let mut fb = Framebuffer::new(grid);
+            let mut fb = scene_depth(grid, &scene, &scene_tris);
             let mut none = vec![(); grid.tile_count()];
             let nf = penumbra::raster::NoFragmentStage;
-            draw(
-                &mut fb,
-                &mut none,
-                &RasterState::default(),
-                &scene,
-                &scene_tris,
-                &nf,
-            )
-            .unwrap();
             fb.clear_stencil(0);
             if general {
                 draw(&mut fb, &mut none, &state, &volume, &volume_tris, &Shades).unwrap();
@@ -763,18 +772,9 @@ fn counting_path_merges_quads_exactly() {
         let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
         let run = |general: bool| {
             let grid = TileGrid::new(w, h).unwrap();
-            let mut fb = Framebuffer::new(grid);
+            let mut fb = scene_depth(grid, &scene, &scene_tris);
             let mut none = vec![(); grid.tile_count()];
             let nf = penumbra::raster::NoFragmentStage;
-            draw(
-                &mut fb,
-                &mut none,
-                &RasterState::default(),
-                &scene,
-                &scene_tris,
-                &nf,
-            )
-            .unwrap();
             fb.clear_stencil(0);
             let stats = if general {
                 draw(&mut fb, &mut none, &state, &volume, &volume_tris, &Shades).unwrap()
@@ -845,18 +845,7 @@ fn depth_bounds_skip_only_failing_fragments() {
     let tris: Vec<[u32; 3]> = (0..300).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
     let run = |func: CompareFunc, self_test: bool| {
         let grid = TileGrid::new(w, h).unwrap();
-        let mut fb = Framebuffer::new(grid);
-        let mut none = vec![(); grid.tile_count()];
-        let nf = penumbra::raster::NoFragmentStage;
-        draw(
-            &mut fb,
-            &mut none,
-            &RasterState::default(),
-            &scene,
-            &scene_tris,
-            &nf,
-        )
-        .unwrap();
+        let mut fb = scene_depth(grid, &scene, &scene_tris);
         let mut counts = TiledTarget::new(grid, 0u32);
         let state = RasterState {
             depth_func: if self_test { CompareFunc::Always } else { func },
@@ -905,25 +894,10 @@ fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
         volume_tris.extend([[n, n + 1, n + 2], [n, n + 2, n + 3]]);
     }
     let grid = TileGrid::new(w, h).unwrap();
-    let scene_depth = || {
-        let mut fb = Framebuffer::new(grid);
-        let mut none = vec![(); grid.tile_count()];
-        let nf = penumbra::raster::NoFragmentStage;
-        draw(
-            &mut fb,
-            &mut none,
-            &RasterState::default(),
-            &scene,
-            &scene_tris,
-            &nf,
-        )
-        .unwrap();
-        fb
-    };
     for zpass in [false, true] {
         let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
         let plain = |scale: Option<f32>| {
-            let mut fb = scene_depth();
+            let mut fb = scene_depth(grid, &scene, &scene_tris);
             if let Some(s) = scale {
                 fb.map_depth(|d| d * s);
             }
@@ -939,7 +913,7 @@ fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
             vec![Some(1.0 + 4e-6), None, Some(1.0 - 4e-6)],
             vec![Some(0.9)],
         ] {
-            let mut fb = scene_depth();
+            let mut fb = scene_depth(grid, &scene, &scene_tris);
             let images = penumbra::raster::draw_depth_shift_counts(
                 &mut fb,
                 &state,
@@ -973,7 +947,7 @@ fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
         }
     }
     // More distinct scales than one walk records (4): a parameter error.
-    let mut fb = scene_depth();
+    let mut fb = scene_depth(grid, &scene, &scene_tris);
     let state = penumbra::shadow::kit::volumes::stencil_state(false);
     let five = [Some(1.1), Some(1.2), Some(1.3), Some(1.4), Some(1.5)];
     assert!(penumbra::raster::draw_depth_shift_counts(

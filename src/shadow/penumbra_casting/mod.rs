@@ -598,15 +598,13 @@ impl PenumbraCasting {
                 for (t, v) in tris[..first].iter().zip(&vl[..first]) {
                     chunk.process(t, v);
                 }
+                // (The chunk keeps its receivers in leaf order: receiver
+                // `r` is probe receiver `order[r]`.)
                 chunk
                     .order
                     .iter()
-                    .map(|&o| {
-                        (
-                            probe[o as usize],
-                            u64::from(chunk.leaf_triangles[o as usize]),
-                        )
-                    })
+                    .zip(&chunk.leaf_triangles)
+                    .map(|(&o, &n)| (probe[o as usize], u64::from(n)))
                     .collect()
             });
             report.probe_time = tp.elapsed();
