@@ -286,6 +286,9 @@ impl F64x4 {
         bitand => _mm256_and_pd;
         /// Bitwise or (the facade's `|`, by its method name).
         bitor => _mm256_or_pd;
+        /// `if self > o { self } else { o }` per lane (`vmaxpd`: a NaN in
+        /// either lane, or two equal lanes, give `o`), as the facade's `max`.
+        max => _mm256_max_pd;
     }
 
     /// The lanes `a`, in order.

@@ -727,18 +727,25 @@ fn unbounded_near<'u>(
         }
         (lo.x <= hi.x).then_some((lo, hi))
     };
+    // The region's box and per-receiver tests in AVX registers where the
+    // CPU has them (the same verdicts, `RegionBound::excludes_box_avx`
+    // and `RegionBound::admits_avx`): the facade's lanes are two SSE2
+    // halves in a baseline build, even inside the AVX2 copy of this pass.
+    let avx = crate::simd::avx::available();
+    let excludes = |region: &RegionBound, (lo, hi): (DVec3, DVec3)| {
+        #[cfg(target_arch = "x86_64")]
+        if avx {
+            // SAFETY: `avx` is set only where the CPU has AVX, the one
+            // requirement of `excludes_box_avx`.
+            return unsafe { region.excludes_box_avx(lo, hi) };
+        }
+        region.excludes_box(lo, hi)
+    };
     let keeps = |u: &UnboundedEdge, x0: usize, y0: usize, size: usize, b: (DVec3, DVec3)| {
         let r = u.rect;
-        r[0] < x0 + size
-            && r[2] > x0
-            && r[1] < y0 + size
-            && r[3] > y0
-            && !u.region.excludes_box(b.0, b.1)
+        r[0] < x0 + size && r[2] > x0 && r[1] < y0 + size && r[3] > y0 && !excludes(&u.region, b)
     };
     let mut block_edges: Vec<BlockEdges> = vec![Vec::new(); PER_ROW * PER_ROW];
-    // The region's per-receiver test in AVX registers where the CPU has
-    // them (the same mask, `RegionBound::admits_avx`).
-    let avx = crate::simd::avx::available();
     let admits = |u: &UnboundedEdge, receivers: &ReceiverBlock| {
         #[cfg(target_arch = "x86_64")]
         if avx {
@@ -754,14 +761,14 @@ fn unbounded_near<'u>(
     if !on_screen.is_empty() {
         if let Some(b) = bbox(ox, oy, TILE_SIZE) {
             for c in on_screen {
-                if c.region.excludes_box(b.0, b.1) {
+                if excludes(&c.region, b) {
                     continue;
                 }
                 let first = near.len() as u32;
                 near.extend(
                     unbounded[c.edges.clone()]
                         .iter()
-                        .filter(|u| in_tile(u.rect) && !u.region.excludes_box(b.0, b.1)),
+                        .filter(|u| in_tile(u.rect) && !excludes(&u.region, b)),
                 );
                 kept.push((c, first..near.len() as u32));
             }
@@ -797,7 +804,7 @@ fn unbounded_near<'u>(
                         && r[2] > x0
                         && r[1] < y0 + OUTER
                         && r[3] > y0
-                        && !c.region.excludes_box(b.0, b.1)
+                        && !excludes(&c.region, b)
                 })
                 .flat_map(|(_, run)| run.clone())
                 .filter(|&k| keeps(near[k as usize], x0, y0, OUTER, b))

@@ -79,29 +79,32 @@ pub struct RegionBound {
 /// Four planes of [`RegionBound::planes`] in structure-of-arrays form:
 /// lane `k` of `n[axis]` and `h` is plane `4 i + k` of the group `i`.
 /// Unused lanes have `n = 0`, `h = −∞`: they exclude nothing (`0 · x`
-/// sums to 0 or NaN, neither of which is below −∞).
+/// sums to 0 or NaN, neither of which is below −∞). Plain arrays, so
+/// that the facade's lanes and AVX registers load them alike.
 #[derive(Debug, Clone, Copy)]
+#[repr(C, align(32))]
 struct Planes4 {
-    n: [f64x4; 3],
-    h: f64x4,
+    n: [[f64; 4]; 3],
+    h: [f64; 4],
 }
 
 /// The dihedral test's two face planes in four lanes: face 0 at the box
 /// corner least far along its normal, face 0 at the farthest, then face 1
 /// the same.
 #[derive(Debug, Clone, Copy)]
+#[repr(C, align(32))]
 struct Dihedral4 {
     /// Lanes `[n0, n0, n1, n1]` per axis.
-    n: [f64x4; 3],
+    n: [[f64; 4]; 3],
     /// `[h0, h0, h1, h1]`.
-    h: f64x4,
-    /// Per axis, the lanes that take the box's `hi` (a mask): the
-    /// scalar twin's `(n ≥ 0) == far`, so the farthest lanes where
-    /// `n ≥ 0` (−0 included) and the least far ones where not (NaN
-    /// included).
-    take_hi: [f64x4; 3],
-    slack: f64x4,
-    neg_slack: f64x4,
+    h: [f64; 4],
+    /// Per axis, the lanes that take the box's `hi` (a mask: all bits
+    /// set, or none): the scalar twin's `(n ≥ 0) == far`, so the
+    /// farthest lanes where `n ≥ 0` (−0 included) and the least far ones
+    /// where not (NaN included).
+    take_hi: [[f64; 4]; 3],
+    slack: [f64; 4],
+    neg_slack: [f64; 4],
 }
 
 /// Lanes of [`Dihedral4`] at the least far corners (both faces)…
@@ -111,31 +114,78 @@ const FAR_LANES: u32 = 0b1010;
 
 impl Dihedral4 {
     fn new(faces: [(DVec3, f64); 2], slack: f64) -> Dihedral4 {
-        let lanes = |f: &dyn Fn(usize) -> f64| f64x4::new([f(0), f(0), f(1), f(1)]);
-        let mask = |f: &dyn Fn(usize) -> bool| {
-            let one = |lane: usize| if f(lane) { 1.0 } else { 0.0 };
-            f64x4::new([one(0), one(1), one(2), one(3)]).cmp_gt(f64x4::ZERO)
-        };
+        let lanes = |f: &dyn Fn(usize) -> f64| [f(0), f(0), f(1), f(1)];
+        let all = f64::from_bits(u64::MAX);
+        let mask = |f: &dyn Fn(usize) -> bool| [0, 1, 2, 3].map(|l| if f(l) { all } else { 0.0 });
         let take_hi =
             |axis: usize| mask(&|lane: usize| (faces[lane / 2].0[axis] >= 0.0) == (lane % 2 == 1));
         Dihedral4 {
             n: [0, 1, 2].map(|axis| lanes(&|f| faces[f].0[axis])),
             h: lanes(&|f| faces[f].1),
             take_hi: [take_hi(0), take_hi(1), take_hi(2)],
-            slack: f64x4::splat(slack),
-            neg_slack: f64x4::splat(-slack),
+            slack: [slack; 4],
+            neg_slack: [-slack; 4],
         }
     }
 
-    /// The scalar twin's verdict from the lanes' signed distances `d`:
-    /// in front of both faces at their least far corners, or behind both
-    /// at their farthest.
+    /// The scalar twin's verdict from the lanes' masks of signed
+    /// distances above the slack (`front`) and below its negative
+    /// (`behind`): in front of both faces at their least far corners, or
+    /// behind both at their farthest.
     #[inline(always)]
-    fn excludes(&self, d: f64x4) -> bool {
-        let front = d.cmp_gt(self.slack).move_mask() & NEAR_LANES == NEAR_LANES;
-        let behind = d.cmp_lt(self.neg_slack).move_mask() & FAR_LANES == FAR_LANES;
-        front || behind
+    fn excludes(front: u32, behind: u32) -> bool {
+        front & NEAR_LANES == NEAR_LANES || behind & FAR_LANES == FAR_LANES
     }
+}
+
+/// [`RegionBound::excludes_box`]'s kernel over `$lane` lanes (made by
+/// `$splat(v)` and `$new(array)`), in names both the facade's `f64x4`
+/// and `simd::avx::F64x4` have, as [`admits_kernel!`].
+///
+/// Per plane lane: `n_a f_a` with `f` the box corner furthest along `n`
+/// (the scalar twin's `hi` where `n_a ≥ 0`, −0 included, `lo`
+/// elsewhere), then `(n_x f_x + n_y f_y) + n_z f_z` in `DVec3::dot`'s
+/// order. The product is taken as `max(n_a lo_a, n_a hi_a)` (`maxpd`'s
+/// rule, the facade's `max`: `if a > b { a } else { b }`), which for
+/// `lo_a ≤ hi_a`, neither NaN, is the twin's product bit for bit —
+/// rounded products are monotone, so for `n_a ≥ 0` (or ±0, or an
+/// infinite corner making `0 · ∞` NaN on either side) `n_a lo_a > n_a
+/// hi_a` never holds and `n_a hi_a` is returned, and for `n_a < 0` it is
+/// `n_a lo_a` unless the two are equal — the same value, apart from the
+/// sign of a zero when `lo_a = −0`, `hi_a = +0`. A zero's sign changes a
+/// rounded sum only when the sum is zero, and `−0 < h` is `+0 < h`: the
+/// verdict per plane is the twin's. (Receivers' bounds are min / max of
+/// positions, which skip NaN, so `lo ≤ hi` and neither is NaN.)
+macro_rules! excludes_box_kernel {
+    ($lane:ty, $splat:path, $new:path, $bound:ident, $lo:ident, $hi:ident) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, Mul, Sub};
+        let lo4: [$lane; 3] = [$splat($lo.x), $splat($lo.y), $splat($lo.z)];
+        let hi4: [$lane; 3] = [$splat($hi.x), $splat($hi.y), $splat($hi.z)];
+        let dihedral = $bound.dihedral4.as_ref().is_some_and(|f| {
+            // Per lane its corner (the scalar twin's pick), then
+            // `n · corner − h` in `DVec3::dot`'s order.
+            let c = |axis: usize| $new(f.take_hi[axis]).blend(hi4[axis], lo4[axis]);
+            let d = $new(f.n[0])
+                .mul(c(0))
+                .add($new(f.n[1]).mul(c(1)))
+                .add($new(f.n[2]).mul(c(2)))
+                .sub($new(f.h));
+            Dihedral4::excludes(
+                d.cmp_gt($new(f.slack)).move_mask(),
+                d.cmp_lt($new(f.neg_slack)).move_mask(),
+            )
+        });
+        dihedral
+            || $bound.quads.iter().any(|q| {
+                let term = |a: usize| {
+                    let n = $new(q.n[a]);
+                    n.mul(lo4[a]).max(n.mul(hi4[a]))
+                };
+                let d = term(0).add(term(1)).add(term(2));
+                d.cmp_lt($new(q.h)).move_mask() != 0
+            })
+    }};
 }
 
 /// Sixteen receivers (a 4 × 4 block of pixels, row by row) in four lane
@@ -341,10 +391,7 @@ impl RegionBound {
                     }
                     h[k] = offset;
                 }
-                Planes4 {
-                    n: n.map(f64x4::new),
-                    h: f64x4::new(h),
-                }
+                Planes4 { n, h }
             })
             .collect();
         RegionBound {
@@ -573,41 +620,28 @@ impl RegionBound {
         self.planes.iter().any(|&(n, h)| n.dot(p) < h)
     }
 
-    /// Whether the whole box `[lo, hi]` is outside the region.
+    /// Whether the whole box `[lo, hi]` is outside the region
+    /// ([`excludes_box_kernel!`] on the facade's lanes).
     #[inline(always)]
     pub fn excludes_box(&self, lo: DVec3, hi: DVec3) -> bool {
-        let lo4 = [f64x4::splat(lo.x), f64x4::splat(lo.y), f64x4::splat(lo.z)];
-        let hi4 = [f64x4::splat(hi.x), f64x4::splat(hi.y), f64x4::splat(hi.z)];
-        if let Some(f) = &self.dihedral4 {
-            // Per lane its corner (the scalar twin's pick), then
-            // `n · corner − h` in `DVec3::dot`'s order.
-            let c = |axis: usize| f.take_hi[axis].blend(hi4[axis], lo4[axis]);
-            let d = f.n[0] * c(0) + f.n[1] * c(1) + f.n[2] * c(2) - f.h;
-            if f.excludes(d) {
-                return true;
-            }
-        }
-        // Per lane: `n_a f_a` with `f` the box corner furthest along `n`
-        // (the scalar twin's `hi` where `n_a ≥ 0`, −0 included, `lo`
-        // elsewhere), then `(n_x f_x + n_y f_y) + n_z f_z` in
-        // `DVec3::dot`'s order. The product is taken as `max(n_a lo_a,
-        // n_a hi_a)` (the facade's `max`: `if a > b { a } else { b }`),
-        // which for `lo_a ≤ hi_a`, neither NaN, is the twin's product bit
-        // for bit — rounded products are monotone, so for `n_a ≥ 0` (or
-        // ±0, or an infinite corner making `0 · ∞` NaN on either side)
-        // `n_a lo_a > n_a hi_a` never holds and `n_a hi_a` is returned,
-        // and for `n_a < 0` it is `n_a lo_a` unless the two are equal —
-        // the same value, apart from the sign of a zero when `lo_a = −0`,
-        // `hi_a = +0`. A zero's sign changes a rounded sum only when the
-        // sum is zero, and `−0 < h` is `+0 < h`: the verdict per plane is
-        // the twin's. (Receivers' bounds are min / max of positions,
-        // which skip NaN, so `lo ≤ hi` and neither is NaN.)
         debug_assert!(lo.cmple(hi).all(), "box {lo} {hi}");
-        self.quads.iter().any(|q| {
-            let term = |a: usize| (q.n[a] * lo4[a]).max(q.n[a] * hi4[a]);
-            let d = term(0) + term(1) + term(2);
-            d.cmp_lt(q.h).any()
-        })
+        excludes_box_kernel!(f64x4, f64x4::splat, f64x4::new, self, lo, hi)
+    }
+
+    /// [`RegionBound::excludes_box`] in AVX registers: the same kernel on
+    /// `simd::avx::F64x4`, the same operations per lane, so the same
+    /// verdict.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX
+    /// (`simd::avx::available`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    pub fn excludes_box_avx(&self, lo: DVec3, hi: DVec3) -> bool {
+        use crate::simd::avx::F64x4;
+        debug_assert!(lo.cmple(hi).all(), "box {lo} {hi}");
+        excludes_box_kernel!(F64x4, F64x4::splat, F64x4::new, self, lo, hi)
     }
 
     /// [`RegionBound::excludes_box`] one plane at a time (the scalar twin
@@ -835,6 +869,12 @@ mod tests {
                 };
                 let got = bound.excludes_box(lo, hi);
                 assert_eq!(got, bound.excludes_box_scalar(lo, hi), "box {lo} {hi}");
+                #[cfg(target_arch = "x86_64")]
+                if crate::simd::avx::available() {
+                    // SAFETY: the CPU has AVX (checked).
+                    let avx = unsafe { bound.excludes_box_avx(lo, hi) };
+                    assert_eq!(avx, got, "AVX box {lo} {hi}");
+                }
                 // Sixteen receivers around `c`, some missing.
                 let points: [Option<DVec3>; 16] = std::array::from_fn(|j| {
                     let q =
