@@ -80,6 +80,14 @@ impl F32x8 {
         cmp_lt => _mm256_cmp_ps::<_CMP_LT_OQ>;
         /// Bitwise and (the facade's `&`, by its method name).
         bitand => _mm256_and_ps;
+        /// Bitwise or (the facade's `|`, by its method name).
+        bitor => _mm256_or_ps;
+        /// IEEE sum per lane.
+        add => _mm256_add_ps;
+        /// IEEE quotient per lane.
+        div => _mm256_div_ps;
+        /// Mask of `self ≠ o` (true on NaN), as the facade's `cmp_ne`.
+        cmp_ne => _mm256_cmp_ps::<_CMP_NEQ_UQ>;
     }
 
     /// Every lane `v`.
@@ -91,6 +99,72 @@ impl F32x8 {
     #[target_feature(enable = "avx")]
     pub fn splat(v: f32) -> Self {
         F32x8(_mm256_set1_ps(v))
+    }
+
+    /// The lanes `a`, in order.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn new(a: [f32; 8]) -> Self {
+        Self::load(&a)
+    }
+
+    /// `|self|` per lane (the sign bit cleared), as the facade's `abs`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn abs(self) -> Self {
+        F32x8(_mm256_and_ps(
+            self.0,
+            _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX)),
+        ))
+    }
+
+    /// Bit `k` set where lane `k`'s sign bit is (a mask's lanes), as the
+    /// facade's `move_mask`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn move_mask(self) -> u32 {
+        _mm256_movemask_ps(self.0) as u32
+    }
+
+    /// Whether any lane's sign bit is set, as the facade's `any`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn any(self) -> bool {
+        self.move_mask() != 0
+    }
+
+    /// Each lane truncated toward zero to `i32` (`vcvttps2dq`: NaN and
+    /// out-of-range lanes give `i32::MIN`), as an array: for lanes in
+    /// `i32`'s range (not NaN) the same as the facade's
+    /// `trunc_int_array` (which saturates the others).
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn trunc_int_array(self) -> [i32; 8] {
+        let mut out = [0i32; 8];
+        // SAFETY: `out` is eight `i32` (32 bytes), exactly what an
+        // unaligned 256-bit store writes.
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), _mm256_cvttps_epi32(self.0)) };
+        out
     }
 
     /// The lanes of a facade `f32x8`, in order.
@@ -229,6 +303,52 @@ impl I32x8 {
     #[target_feature(enable = "avx,avx2")]
     pub fn add(self, o: Self) -> Self {
         I32x8(_mm256_add_epi32(self.0, o.0))
+    }
+
+    /// Mask of `self > o` per lane (all ones or all zeros), as the
+    /// facade's `i32x8::cmp_gt`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn cmp_gt(self, o: Self) -> Self {
+        I32x8(_mm256_cmpgt_epi32(self.0, o.0))
+    }
+
+    /// The larger lane of `self` and `o`, per lane.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn max(self, o: Self) -> Self {
+        I32x8(_mm256_max_epi32(self.0, o.0))
+    }
+
+    /// Bitwise and.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn bitand(self, o: Self) -> Self {
+        I32x8(_mm256_and_si256(self.0, o.0))
+    }
+
+    /// Bit `k` set where lane `k`'s sign bit is (a mask's lanes), as the
+    /// facade's `move_mask`.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn move_mask(self) -> u32 {
+        _mm256_movemask_ps(_mm256_castsi256_ps(self.0)) as u32
     }
 
     /// The lanes where the mask `m` (lanes all ones or all zeros) is set,

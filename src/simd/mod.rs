@@ -397,6 +397,13 @@ impl f32x8 {
         i32x8(self.0.trunc_int())
     }
 
+    /// [`f32x8::trunc_int`]'s lanes as an array: for lanes in `i32`'s
+    /// range (not NaN) the same as `simd::avx::F32x8::trunc_int_array`.
+    #[inline(always)]
+    pub fn trunc_int_array(self) -> [i32; 8] {
+        self.trunc_int().to_array()
+    }
+
     /// The eight lanes widened to `f64` (exact): lanes 0–3 and 4–7.
     #[inline(always)]
     pub fn widen(self) -> [f64x4; 2] {

@@ -22,6 +22,7 @@
 use super::chart_lanes::chart_rows;
 use super::counters::{add_covered_in, OrientedEdge, LANES};
 use crate::sampling::Strata;
+use crate::simd::level::runs_v3;
 use crate::simd::{f64x4, i32x8};
 
 /// How far past zero (exactly, over a whole block) a condition of the
@@ -194,9 +195,59 @@ pub struct BlockCounts {
 
 impl BlockCounts {
     /// The counts of `counters` (whole lanes), in one pass eight at a
-    /// time.
+    /// time: in 256-bit registers where the CPU has AVX2
+    /// ([`BlockCounts::of_avx2`]), on the facade's lanes elsewhere.
     #[inline(always)]
     pub fn of(counters: &[i32]) -> BlockCounts {
+        #[cfg(target_arch = "x86_64")]
+        if runs_v3() {
+            // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
+            // features, AVX and AVX2 among them: the kernel's one
+            // requirement.
+            return unsafe { BlockCounts::of_avx2(counters) };
+        }
+        BlockCounts::of_lanes(counters)
+    }
+
+    /// [`BlockCounts::of`] in 256-bit registers. The sum of positive
+    /// counts is kept per lane in `i32`, exact while no lane's sum can
+    /// pass `i32::MAX` (the largest count times the lane's length, checked
+    /// at the end); otherwise the facade's pass, which widens each count
+    /// to `i64`, gives it. Integer sums and maxima do not depend on the
+    /// order, so both give the facade's counts.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2")]
+    fn of_avx2(counters: &[i32]) -> BlockCounts {
+        use crate::simd::avx::I32x8;
+        debug_assert!(counters.len().is_multiple_of(LANES));
+        let zero = I32x8::splat(0);
+        let (mut hidden, mut top, mut sum) = (0u64, zero, zero);
+        for c in counters.chunks_exact(LANES) {
+            let d = I32x8::load(c.try_into().expect("whole lanes"));
+            let positive = d.cmp_gt(zero);
+            hidden += u64::from(positive.move_mask().count_ones());
+            top = top.max(d);
+            sum = sum.add(d.bitand(positive));
+        }
+        let max = top.to_array().into_iter().max().unwrap_or(0);
+        let per_lane = (counters.len() / LANES) as i64;
+        if i64::from(max) * per_lane > i64::from(i32::MAX) {
+            return BlockCounts::of_lanes(counters);
+        }
+        BlockCounts {
+            visible: counters.len() as u64 - hidden,
+            max,
+            sum: sum.to_array().iter().map(|&v| i64::from(v)).sum(),
+        }
+    }
+
+    /// [`BlockCounts::of`] on the facade's lanes.
+    #[inline(always)]
+    fn of_lanes(counters: &[i32]) -> BlockCounts {
         debug_assert!(counters.len().is_multiple_of(LANES));
         let zero = i32x8::ZERO;
         let (mut visible, mut top, mut sum) = (0u64, zero, 0i64);
@@ -354,6 +405,37 @@ mod tests {
         }
         // The culling does skip blocks.
         assert!(skipped > 1000, "{skipped} blocks skipped");
+    }
+
+    /// The AVX2 counts equal the facade's: small counts, counts of
+    /// every sign, and counts so large that the lanes' `i32` sums would
+    /// wrap (the facade's pass then gives them).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn counts_in_avx2_match_the_lanes() {
+        if !crate::simd::level::Level::V3.supported() {
+            eprintln!("no AVX2 on this CPU: nothing to check");
+            return;
+        }
+        let mut s = 9u64;
+        for round in 0..300 {
+            let len = LANES * (1 + round % 40);
+            let scale = match round % 3 {
+                0 => 5.0,
+                1 => 1e5,
+                _ => 2e9,
+            };
+            let counters: Vec<i32> = (0..len)
+                .map(|_| ((2.0 * rng(&mut s) - 1.0) * scale) as i32)
+                .collect();
+            // SAFETY: the CPU has AVX2 (checked).
+            let got = unsafe { BlockCounts::of_avx2(&counters) };
+            assert_eq!(got, BlockCounts::of_lanes(&counters), "round {round}");
+        }
+        let huge = vec![i32::MAX; 64];
+        // SAFETY: the CPU has AVX2 (checked).
+        let got = unsafe { BlockCounts::of_avx2(&huge) };
+        assert_eq!(got.sum, 64 * i64::from(i32::MAX));
     }
 
     /// A block is ruled out only when none of its samples can be

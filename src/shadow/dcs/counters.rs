@@ -325,12 +325,167 @@ const _: () = assert!(SECTORS.is_power_of_two());
 /// origin, counter-clockwise from the +x axis, in `[0, 4)` (no
 /// trigonometry; the origin gives NaN). In f32 it errs by at most a few
 /// 1e-7: one rounding each of `|x| + |y|`, the quotient and `1 − p` or
-/// `3 + p`.
+/// `3 + p`. A macro over `$lane` lanes (made by `$splat(v)`), in names
+/// the facade's `f32x8` and `simd::avx::F32x8` both have, so the AVX
+/// copies of the sector kernels below make the same bits.
+macro_rules! pseudo_angles {
+    ($lane:ty, $splat:path, $x:expr, $y:expr) => {{
+        let (x, y): ($lane, $lane) = ($x, $y);
+        let p = x.div(x.abs().add(y.abs()));
+        y.cmp_lt($splat(0.0))
+            .blend($splat(3.0).add(p), $splat(1.0).sub(p))
+    }};
+}
+
+/// [`SectorSamples::set`]'s keys of `xs`, `ys` (whole lanes) into `keys`
+/// over `$lane` lanes (made by `$splat` and `$load`, truncated to an
+/// `[i32; 8]` by the method `$trunc`); `false` at a non-zero sample so
+/// close to the centre that its products could underflow.
+macro_rules! sector_keys_kernel {
+    ($lane:ty, $splat:path, $load:path, $trunc:ident, $xs:expr, $ys:expr, $keys:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, BitAnd, Div, Mul, Sub};
+        // The pseudo-angle in f32 errs by a few 1e-7, far inside
+        // SECTOR_MARGIN, so every sample still lies in the sectors `plan`
+        // gives an edge that can count it. Only which sector a sample
+        // near a boundary takes may differ from an f64 key, hence only
+        // the counters' order. The origin (0 / 0, NaN) takes the last
+        // sector (`min` keeps `last` for a NaN), so every truncated lane
+        // lies in `[0, SECTORS)`.
+        let (tiny, zero) = ($splat(TINY), $splat(0.0));
+        let scale = $splat(SECTORS as f32 / 4.0);
+        let last = $splat((SECTORS - 1) as f32);
+        let mut near_centre = false;
+        for ((xs, ys), out) in $xs
+            .chunks_exact(LANES)
+            .zip($ys.chunks_exact(LANES))
+            .zip($keys.chunks_exact_mut(LANES))
+        {
+            let xs: &[f32; LANES] = xs.try_into().expect("chunks_exact(LANES)");
+            let ys: &[f32; LANES] = ys.try_into().expect("chunks_exact(LANES)");
+            let (x, y): ($lane, $lane) = ($load(xs), $load(ys));
+            let size = x.abs().max(y.abs());
+            // (The padding is the origin, size 0.)
+            if size.cmp_lt(tiny).bitand(size.cmp_ne(zero)).any() {
+                near_centre = true;
+                break;
+            }
+            let keys = pseudo_angles!($lane, $splat, x, y)
+                .mul(scale)
+                .min(last)
+                .$trunc();
+            for (o, &key) in out.iter_mut().zip(&keys) {
+                *o = key as u8;
+            }
+        }
+        !near_centre
+    }};
+}
+
+/// [`SectorSamples::plan`]'s sector ends of eight edges (lanes
+/// `[lo.x, lo.y, hi.x, hi.y]`) over `$lane` lanes, as
+/// [`sector_keys_kernel!`]: the first and last sector (clamped to
+/// `[0, SECTORS)` before truncation, so the same on every lane type),
+/// the turn from `lo` to `hi` modulo 4, and the mask of edges with an end
+/// at the centre.
+macro_rules! sector_ends_kernel {
+    ($lane:ty, $splat:path, $load:path, $trunc:ident, $lanes:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, BitOr, Div, Mul, Sub};
+        let lanes: &[[f32; LANES]; 4] = $lanes;
+        let (zero, four) = ($splat(0.0), $splat(4.0));
+        let (margin, tiny) = ($splat(SECTOR_MARGIN as f32), $splat(TINY));
+        let scale = $splat(SECTORS as f32 / 4.0);
+        let top = $splat((SECTORS - 1) as f32);
+        // `t` lies within the margin of `[0, 4)`: one step wraps it.
+        macro_rules! wrap {
+            ($t:expr) => {{
+                let t: $lane = $t;
+                let t = t.cmp_lt(zero).blend(t.add(four), t);
+                t.cmp_ge(four).blend(t.sub(four), t)
+            }};
+        }
+        let (lx, ly, hx, hy): ($lane, $lane, $lane, $lane) = (
+            $load(&lanes[0]),
+            $load(&lanes[1]),
+            $load(&lanes[2]),
+            $load(&lanes[3]),
+        );
+        let a = pseudo_angles!($lane, $splat, lx, ly).sub(margin);
+        let b = pseudo_angles!($lane, $splat, hx, hy).add(margin);
+        let first = wrap!(a).mul(scale).max(zero).min(top).$trunc();
+        let last = wrap!(b).mul(scale).max(zero).min(top).$trunc();
+        // The turn from `a` to `b` modulo 4 (`b − a` lies in
+        // `(−4 − 2m, 4 + 2m)`); only compared with 1, far from where one
+        // step of wrapping could err.
+        let turn = wrap!(b.sub(a)).to_array();
+        let small = lx
+            .abs()
+            .max(ly.abs())
+            .cmp_lt(tiny)
+            .bitor(hx.abs().max(hy.abs()).cmp_lt(tiny))
+            .move_mask();
+        SectorEnds {
+            first,
+            last,
+            turn,
+            small,
+        }
+    }};
+}
+
+/// Eight edges' sector ends ([`sector_ends_kernel!`]).
+struct SectorEnds {
+    first: [i32; LANES],
+    last: [i32; LANES],
+    turn: [f32; LANES],
+    small: u32,
+}
+
+/// [`sector_keys_kernel!`] on the facade's lanes.
 #[inline(always)]
-fn pseudo_angles(x: f32x8, y: f32x8) -> f32x8 {
-    let p = x / (x.abs() + y.abs());
-    y.cmp_lt(f32x8::ZERO)
-        .blend(f32x8::splat(3.0) + p, f32x8::splat(1.0) - p)
+fn sector_keys_lanes(xs: &[f32], ys: &[f32], keys: &mut [u8]) -> bool {
+    let load = |a: &[f32; LANES]| f32x8::from(*a);
+    sector_keys_kernel!(f32x8, f32x8::splat, load, trunc_int_array, xs, ys, keys)
+}
+
+/// [`sector_keys_kernel!`] in 256-bit registers.
+///
+/// # Safety
+///
+/// Outside AVX code, call only where the CPU has AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn sector_keys_avx(xs: &[f32], ys: &[f32], keys: &mut [u8]) -> bool {
+    use crate::simd::avx::F32x8;
+    sector_keys_kernel!(
+        F32x8,
+        F32x8::splat,
+        F32x8::load,
+        trunc_int_array,
+        xs,
+        ys,
+        keys
+    )
+}
+
+/// [`sector_ends_kernel!`] on the facade's lanes.
+#[inline(always)]
+fn sector_ends_lanes(lanes: &[[f32; LANES]; 4]) -> SectorEnds {
+    let load = |a: &[f32; LANES]| f32x8::from(*a);
+    sector_ends_kernel!(f32x8, f32x8::splat, load, trunc_int_array, lanes)
+}
+
+/// [`sector_ends_kernel!`] in 256-bit registers.
+///
+/// # Safety
+///
+/// Outside AVX code, call only where the CPU has AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn sector_ends_avx(lanes: &[[f32; LANES]; 4]) -> SectorEnds {
+    use crate::simd::avx::F32x8;
+    sector_ends_kernel!(F32x8, F32x8::splat, F32x8::load, trunc_int_array, lanes)
 }
 
 /// One receiver's samples sorted into angular sectors around the centre,
@@ -382,34 +537,19 @@ impl SectorSamples {
         // and a single counter made every increment wait for the last
         // one's store.
         let mut counts = [[0u32; SECTORS]; STREAMS];
-        // The keys eight at a time, from the pseudo-angle in f32: its
-        // error, a few 1e-7, is far inside SECTOR_MARGIN, so every sample
-        // still lies in the sectors `plan` gives an edge that can count
-        // it. Only which sector a sample near a boundary takes may differ
-        // from an f64 key, hence only the counters' order. The origin
-        // (0 / 0, NaN) takes the last sector.
-        let (tiny, zero) = (f32x8::splat(TINY), f32x8::ZERO);
-        let scale = f32x8::splat(SECTORS as f32 / 4.0);
-        let last = f32x8::splat((SECTORS - 1) as f32);
-        for ((xs, ys), out) in samples
-            .xs
-            .chunks_exact(LANES)
-            .zip(samples.ys.chunks_exact(LANES))
-            .zip(self.keys.chunks_exact_mut(LANES))
-        {
-            let (x, y) = (f32x8::load(xs), f32x8::load(ys));
-            let size = x.abs().max(y.abs());
-            // (The padding is the origin, size 0.)
-            if (size.cmp_lt(tiny) & size.cmp_ne(zero)).any() {
-                return false;
-            }
-            let keys = (pseudo_angles(x, y) * scale)
-                .min(last)
-                .trunc_int()
-                .to_array();
-            for (o, &key) in out.iter_mut().zip(&keys) {
-                *o = key as u8;
-            }
+        let (xs, ys) = (&samples.xs[..], &samples.ys[..]);
+        #[cfg(target_arch = "x86_64")]
+        let keyed = if runs_v3() {
+            // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
+            // features, AVX among them: the kernel's one requirement.
+            unsafe { sector_keys_avx(xs, ys, &mut self.keys) }
+        } else {
+            sector_keys_lanes(xs, ys, &mut self.keys)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let keyed = sector_keys_lanes(xs, ys, &mut self.keys);
+        if !keyed {
+            return false;
         }
         // (Keys are below SECTORS, a power of two: the mask only shows
         // the compiler so.)
@@ -457,21 +597,14 @@ impl SectorSamples {
         self.runs.clear();
         let total = self.start[SECTORS] as usize;
         let all = [0, total.div_ceil(LANES) * LANES, 0, 0];
-        let (zero, four) = (f32x8::ZERO, f32x8::splat(4.0));
-        let (margin, tiny) = (f32x8::splat(SECTOR_MARGIN as f32), f32x8::splat(TINY));
-        let scale = f32x8::splat(SECTORS as f32 / 4.0);
-        let top = f32x8::splat((SECTORS - 1) as f32);
-        // `t` lies within the margin of `[0, 4)`: one step wraps it.
-        let wrap = |t: f32x8| {
-            let t = t.cmp_lt(zero).blend(t + four, t);
-            t.cmp_ge(four).blend(t - four, t)
-        };
         let step = |from: u32, to: u32| {
             (
                 from as usize / LANES * LANES,
                 (to as usize).div_ceil(LANES) * LANES,
             )
         };
+        #[cfg(target_arch = "x86_64")]
+        let avx = runs_v3();
         for chunk in edges.chunks(LANES) {
             let mut lanes = [[0f32; LANES]; 4];
             for (k, (e, _)) in chunk.iter().enumerate() {
@@ -480,17 +613,22 @@ impl SectorSamples {
                 lanes[2][k] = e.hi[0];
                 lanes[3][k] = e.hi[1];
             }
-            let [lx, ly, hx, hy] = lanes.map(f32x8::from);
-            let a = pseudo_angles(lx, ly) - margin;
-            let b = pseudo_angles(hx, hy) + margin;
-            let sector = |t: f32x8| (wrap(t) * scale).max(zero).min(top).trunc_int().to_array();
-            let (first, last) = (sector(a), sector(b));
-            // The turn from `a` to `b` modulo 4 (`b − a` lies in
-            // `(−4 − 2m, 4 + 2m)`); only compared with 1 below, far from
-            // where one step of wrapping could err.
-            let turn = wrap(b - a).to_array();
-            let small = (lx.abs().max(ly.abs()).cmp_lt(tiny) | hx.abs().max(hy.abs()).cmp_lt(tiny))
-                .move_mask();
+            #[cfg(target_arch = "x86_64")]
+            let ends = if avx {
+                // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
+                // features, AVX among them: the kernel's one requirement.
+                unsafe { sector_ends_avx(&lanes) }
+            } else {
+                sector_ends_lanes(&lanes)
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let ends = sector_ends_lanes(&lanes);
+            let SectorEnds {
+                first,
+                last,
+                turn,
+                small,
+            } = ends;
             for k in 0..chunk.len() {
                 // (A NaN angle, at an end at the centre, is such a tiny end.)
                 if small & (1 << k) != 0 {
@@ -752,6 +890,61 @@ mod tests {
         let mut s = ChartSamples::default();
         s.set([[0.5, 0.5], [1e-20, 0.0]].into_iter());
         assert!(!SectorSamples::default().set(&s));
+    }
+
+    /// The AVX copies of the sector kernels give the facade's keys and
+    /// sector ends, bit for bit: random samples and edges, points on the
+    /// axes and diagonals (sector boundaries), at the origin, and near it.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sector_kernels_in_avx_match_the_lanes() {
+        if !crate::simd::avx::available() {
+            eprintln!("no AVX on this CPU: nothing to check");
+            return;
+        }
+        let mut state = 17u64;
+        let mut next = || signed(&mut state) as f32;
+        let special = [0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 1e-13, -3e-12, 1e-30];
+        for round in 0..500 {
+            let mut point = |k: usize| -> f32 {
+                if (round + k).is_multiple_of(3) {
+                    special[(round * 7 + k) % special.len()]
+                } else {
+                    next()
+                }
+            };
+            let xs: Vec<f32> = (0..64).map(&mut point).collect();
+            let ys: Vec<f32> = (0..64).map(|k| point(k + 1)).collect();
+            let (mut a, mut b) = (vec![0u8; 64], vec![0u8; 64]);
+            let lanes_ok = sector_keys_lanes(&xs, &ys, &mut a);
+            // SAFETY: the CPU has AVX (checked).
+            let avx_ok = unsafe { sector_keys_avx(&xs, &ys, &mut b) };
+            assert_eq!(lanes_ok, avx_ok, "round {round}");
+            if lanes_ok {
+                assert_eq!(a, b, "round {round}");
+            }
+            let lanes: [[f32; LANES]; 4] = std::array::from_fn(|r| {
+                std::array::from_fn(|k| {
+                    if r % 2 == 0 {
+                        xs[8 * r + k]
+                    } else {
+                        ys[8 * r + k]
+                    }
+                })
+            });
+            let want = sector_ends_lanes(&lanes);
+            // SAFETY: the CPU has AVX (checked).
+            let got = unsafe { sector_ends_avx(&lanes) };
+            assert_eq!(got.first, want.first, "round {round}");
+            assert_eq!(got.last, want.last, "round {round}");
+            assert_eq!(got.turn.map(f32::to_bits), want.turn.map(f32::to_bits));
+            assert_eq!(got.small, want.small, "round {round}");
+            assert!(want
+                .first
+                .iter()
+                .chain(&want.last)
+                .all(|&k| (0..SECTORS as i32).contains(&k)));
+        }
     }
 
     #[test]
