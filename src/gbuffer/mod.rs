@@ -225,6 +225,19 @@ impl GBuffer {
         self.points[i].triangle() != NO_TRIANGLE
     }
 
+    /// Pixel `i`'s surface position, `None` on the background: what
+    /// [`GBuffer::sample`] gives as `position`, without reading the rest
+    /// (the culling's boxes read millions of positions).
+    #[inline]
+    pub fn surface_position(&self, i: usize) -> Option<Vec3> {
+        let p = &self.points[i];
+        if p.triangle() == NO_TRIANGLE {
+            return None;
+        }
+        let [x, y, z, _] = p.position_depth;
+        Some(Vec3::new(x, y, z))
+    }
+
     /// The shading point of pixel `i` (row-major).
     #[inline]
     pub fn sample(&self, i: usize) -> GSample {

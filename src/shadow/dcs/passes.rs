@@ -718,9 +718,8 @@ fn unbounded_near<'u>(
         let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for y in y0..(y0 + size).min(height) {
             for x in x0..(x0 + size).min(width) {
-                let i = y * width + x;
-                if ctx.gbuffer.is_surface(i) {
-                    let q = ctx.gbuffer.sample(i).position.as_dvec3();
+                if let Some(q) = ctx.gbuffer.surface_position(y * width + x) {
+                    let q = q.as_dvec3();
                     (lo, hi) = (lo.min(q), hi.max(q));
                 }
             }
@@ -862,8 +861,11 @@ fn receiver_block(ctx: &ShadowContext, x0: usize, y0: usize) -> ReceiverBlock {
     let points: [Option<DVec3>; INNER * INNER] = std::array::from_fn(|k| {
         let (x, y) = (x0 + k % INNER, y0 + k / INNER);
         let i = y * width + x;
-        (x < width && y < height && ctx.gbuffer.is_surface(i))
-            .then(|| ctx.gbuffer.sample(i).position.as_dvec3())
+        if x < width && y < height {
+            ctx.gbuffer.surface_position(i).map(|p| p.as_dvec3())
+        } else {
+            None
+        }
     });
     ReceiverBlock::new(&points)
 }
