@@ -409,6 +409,9 @@ impl F64x4 {
         /// `if self > o { self } else { o }` per lane (`vmaxpd`: a NaN in
         /// either lane, or two equal lanes, give `o`), as the facade's `max`.
         max => _mm256_max_pd;
+        /// `if self < o { self } else { o }` per lane (`vminpd`), as the
+        /// facade's `min`.
+        min => _mm256_min_pd;
     }
 
     /// The lanes `a`, in order.

@@ -52,10 +52,64 @@ pub struct BlockGrid {
     count: usize,
     /// Chart boxes of the blocks (structure of arrays, four blocks per
     /// vector, past the last block empty boxes far out).
-    x0: Vec<f64x4>,
-    x1: Vec<f64x4>,
-    y0: Vec<f64x4>,
-    y1: Vec<f64x4>,
+    x0: Vec<[f64; 4]>,
+    x1: Vec<[f64; 4]>,
+    y0: Vec<[f64; 4]>,
+    y1: Vec<[f64; 4]>,
+}
+
+/// [`BlockGrid::mask`]'s kernel over `$lane` lanes (made by `$splat(v)`
+/// and `$new(array)`), in names both the facade's `f64x4` and
+/// `simd::avx::F64x4` have, so each gives the same bits.
+macro_rules! block_mask_kernel {
+    ($lane:ty, $splat:path, $new:path, $grid:ident, $edge:ident) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, BitOr, Mul, Not};
+        let (lo, hi) = ($edge.lo(), $edge.hi());
+        let f = |v: f32| f64::from(v);
+        let (lx, ly, hx, hy) = (f(lo[0]), f(lo[1]), f(hi[0]), f(hi[1]));
+        // The test's own f32 differences.
+        let (dx, dy) = (f(hi[0] - lo[0]), f(hi[1] - lo[1]));
+        // Each condition as `a x + b y + c`: beyond = dx (y − ly) −
+        // dy (x − lx) must be < 0, c_lo = lx y − ly x ≥ 0, c_hi =
+        // hx y − hy x < 0.
+        let beyond = (-dy, dx, dy * lx - dx * ly);
+        let c_lo = (-ly, lx, 0.0);
+        let c_hi = (-hy, hx, 0.0);
+        let (margin, below) = ($splat(BLOCK_MARGIN), $splat(-BLOCK_MARGIN));
+        let mut mask = 0u64;
+        for (k, (((x0, x1), y0), y1)) in $grid
+            .x0
+            .iter()
+            .zip(&$grid.x1)
+            .zip(&$grid.y0)
+            .zip(&$grid.y1)
+            .enumerate()
+        {
+            let (x0, x1, y0, y1): ($lane, $lane, $lane, $lane) =
+                ($new(*x0), $new(*x1), $new(*y0), $new(*y1));
+            // Least and greatest of `a x + b y + c` over the box.
+            let range = |(a, b, c): (f64, f64, f64)| {
+                let (ax0, ax1) = ($splat(a).mul(x0), $splat(a).mul(x1));
+                let (by0, by1) = ($splat(b).mul(y0), $splat(b).mul(y1));
+                let c = $splat(c);
+                (
+                    c.add(ax0.min(ax1)).add(by0.min(by1)),
+                    c.add(ax0.max(ax1)).add(by0.max(by1)),
+                )
+            };
+            let (beyond_min, _) = range(beyond);
+            let (_, c_lo_max) = range(c_lo);
+            let (c_hi_min, _) = range(c_hi);
+            let ruled_out = beyond_min
+                .cmp_ge(margin)
+                .bitor(c_lo_max.cmp_le(below))
+                .bitor(c_hi_min.cmp_ge(margin));
+            let may = !ruled_out.move_mask() & 0xf;
+            mask |= u64::from(may) << (4 * k);
+        }
+        mask & $grid.all()
+    }};
 }
 
 impl BlockGrid {
@@ -89,10 +143,10 @@ impl BlockGrid {
                 1.0 - 2.0 * j0 * inv + CELL_SLACK,
             ];
         }
-        let lanes = |k: usize| -> Vec<f64x4> {
+        let lanes = |k: usize| -> Vec<[f64; 4]> {
             boxes
                 .chunks_exact(4)
-                .map(|c| f64x4::new([c[0][k], c[1][k], c[2][k], c[3][k]]))
+                .map(|c| [c[0][k], c[1][k], c[2][k], c[3][k]])
                 .collect()
         };
         Some(BlockGrid {
@@ -113,50 +167,36 @@ impl BlockGrid {
         (self.bw * self.bh) as usize
     }
 
-    /// Bit `b`: block `b` may hold a sample `edge`'s test counts.
+    /// Bit `b`: block `b` may hold a sample `edge`'s test counts
+    /// ([`block_mask_kernel!`], in 256-bit registers where the CPU has
+    /// AVX).
     #[inline(always)]
     pub fn mask(&self, edge: &OrientedEdge) -> u64 {
-        let (lo, hi) = (edge.lo(), edge.hi());
-        let f = |v: f32| f64::from(v);
-        let (lx, ly, hx, hy) = (f(lo[0]), f(lo[1]), f(hi[0]), f(hi[1]));
-        // The test's own f32 differences.
-        let (dx, dy) = (f(hi[0] - lo[0]), f(hi[1] - lo[1]));
-        // Each condition as `a x + b y + c`: beyond = dx (y − ly) −
-        // dy (x − lx) must be < 0, c_lo = lx y − ly x ≥ 0, c_hi =
-        // hx y − hy x < 0.
-        let beyond = (-dy, dx, dy * lx - dx * ly);
-        let c_lo = (-ly, lx, 0.0);
-        let c_hi = (-hy, hx, 0.0);
-        let splat = f64x4::splat;
-        let (margin, below) = (splat(BLOCK_MARGIN), splat(-BLOCK_MARGIN));
-        let mut mask = 0u64;
-        for (k, (((x0, x1), y0), y1)) in self
-            .x0
-            .iter()
-            .zip(&self.x1)
-            .zip(&self.y0)
-            .zip(&self.y1)
-            .enumerate()
-        {
-            // Least and greatest of `a x + b y + c` over the box.
-            let range = |(a, b, c): (f64, f64, f64)| {
-                let (ax0, ax1) = (splat(a) * *x0, splat(a) * *x1);
-                let (by0, by1) = (splat(b) * *y0, splat(b) * *y1);
-                let c = splat(c);
-                (
-                    c + ax0.min(ax1) + by0.min(by1),
-                    c + ax0.max(ax1) + by0.max(by1),
-                )
-            };
-            let (beyond_min, _) = range(beyond);
-            let (_, c_lo_max) = range(c_lo);
-            let (c_hi_min, _) = range(c_hi);
-            let ruled_out =
-                beyond_min.cmp_ge(margin) | c_lo_max.cmp_le(below) | c_hi_min.cmp_ge(margin);
-            let may = !ruled_out.move_mask() & 0xf;
-            mask |= u64::from(may) << (4 * k);
+        #[cfg(target_arch = "x86_64")]
+        if runs_v3() {
+            // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
+            // features, AVX among them: the kernel's one requirement.
+            return unsafe { self.mask_avx(edge) };
         }
-        mask & self.all()
+        self.mask_lanes(edge)
+    }
+
+    /// [`BlockGrid::mask`] on the facade's lanes.
+    #[inline(always)]
+    fn mask_lanes(&self, edge: &OrientedEdge) -> u64 {
+        block_mask_kernel!(f64x4, f64x4::splat, f64x4::new, self, edge)
+    }
+
+    /// [`BlockGrid::mask`] in AVX registers.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn mask_avx(&self, edge: &OrientedEdge) -> u64 {
+        use crate::simd::avx::F64x4;
+        block_mask_kernel!(F64x4, F64x4::splat, F64x4::new, self, edge)
     }
 
     /// Every block's bit.
@@ -457,6 +497,12 @@ mod tests {
                 continue;
             };
             let mask = grid.mask(&edge);
+            assert_eq!(mask, grid.mask_lanes(&edge));
+            #[cfg(target_arch = "x86_64")]
+            if crate::simd::avx::available() {
+                // SAFETY: the CPU has AVX (checked).
+                assert_eq!(unsafe { grid.mask_avx(&edge) }, mask, "AVX mask");
+            }
             for k in 0..400 {
                 let p = [r(), r()];
                 let p = if k % 2 == 0 {
