@@ -238,6 +238,23 @@ impl GBuffer {
         Some(Vec3::new(x, y, z))
     }
 
+    /// Pixel `i`'s surface position, geometric normal and triangle,
+    /// `None` on the background: [`GBuffer::sample`]'s fields of those
+    /// names, without reading the rest.
+    #[inline]
+    pub fn surface_geometry(&self, i: usize) -> Option<(Vec3, Vec3, u32)> {
+        let p = &self.points[i];
+        let bits = p.triangle();
+        if bits == NO_TRIANGLE {
+            return None;
+        }
+        let triangle = bits & !GEO_FLIPPED;
+        let [x, y, z, _] = p.position_depth;
+        let unit = self.unit_normals[triangle as usize];
+        let geo_normal = if bits & GEO_FLIPPED != 0 { -unit } else { unit };
+        Some((Vec3::new(x, y, z), geo_normal, triangle))
+    }
+
     /// The shading point of pixel `i` (row-major).
     #[inline]
     pub fn sample(&self, i: usize) -> GSample {

@@ -155,10 +155,12 @@ pub(super) fn recount_ties<'a>(
         }
         for (k, group) in groups.iter().enumerate() {
             let own_face = |i: usize| {
-                let g = ctx.gbuffer.sample(i);
-                match cap.get(g.triangle as usize) {
+                let Some((position, geo_normal, triangle)) = ctx.gbuffer.surface_geometry(i) else {
+                    return Some(0);
+                };
+                match cap.get(triangle as usize) {
                     Some(&(c, weight)) if c == k => {
-                        own_face_change(weight, g.geo_normal, g.position, point)
+                        own_face_change(weight, geo_normal, position, point)
                     }
                     _ => Some(0),
                 }
@@ -201,11 +203,14 @@ pub(super) fn recount_ties<'a>(
             for y in by..(by + CAP_BLOCK).min(height) {
                 for x in bx..(bx + CAP_BLOCK).min(width) {
                     let i = y * width + x;
-                    if tied[i] == Tie::OwnFace && ctx.gbuffer.is_surface(i) {
-                        let g = ctx.gbuffer.sample(i);
-                        let p_ray = origin.of(g.position, g.geo_normal);
-                        let (start, dir) = cap_segment(g.position, p_ray, eye);
-                        block.push((i, g.triangle, start, dir));
+                    if tied[i] != Tie::OwnFace {
+                        continue;
+                    }
+                    if let Some((position, geo_normal, triangle)) = ctx.gbuffer.surface_geometry(i)
+                    {
+                        let p_ray = origin.of(position, geo_normal);
+                        let (start, dir) = cap_segment(position, p_ray, eye);
+                        block.push((i, triangle, start, dir));
                     }
                 }
             }
