@@ -280,10 +280,18 @@ impl LightPass<'_, '_> {
                 .is_none_or(|p| p.binary_search(&i).is_ok())
         });
         let d0 = self.groups[0].start[i];
-        let g = gbuffer.sample(i);
+        // The position and geometric normal are read for every receiver;
+        // the whole shading sample only where a radiance needs it.
+        let (position, geo_normal) = match gbuffer.surface_geometry(i) {
+            Some((position, geo_normal, _)) => (position, geo_normal),
+            None => {
+                let g = gbuffer.sample(i);
+                (g.position, g.geo_normal)
+            }
+        };
         let eye = self.ctx.view.eye.as_vec3();
         let direct = self.technique.mode == DcsMode::Direct;
-        let sp = || surface_point(self.ctx.scene, &g, eye);
+        let sp = || surface_point(self.ctx.scene, &gbuffer.sample(i), eye);
         if tags.is_empty() && admitted == 0 && s_triangles.is_empty() && inspect.is_none() {
             // Outside every wedge: D = D(O) and the layer counts are the
             // start counts for every sample.
@@ -303,15 +311,15 @@ impl LightPass<'_, '_> {
             || !s_triangles.is_empty()
         {
             self.sampler
-                .samples_with(&self.pattern, g.position, pixel, &mut scratch.samples);
+                .samples_with(&self.pattern, position, pixel, &mut scratch.samples);
         } else {
             scratch.samples.clear();
         }
         // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
         // rounds it): receivers on an occluder's own surface then see its
         // edges from the same side of its faces as the reference's rays.
-        let p = self.origin.of(g.position, g.geo_normal).as_dvec3();
-        let raster = g.position.as_dvec3();
+        let p = self.origin.of(position, geo_normal).as_dvec3();
+        let raster = position.as_dvec3();
         let chart = match ReceiverChart::new(&self.bound, p) {
             Some(c) if rect || !scratch.samples.is_empty() => c,
             // Inside a sphere light: no defined Vcoef (as the reference).
@@ -617,9 +625,15 @@ impl LightPass<'_, '_> {
             let Some(i) = *pixel else {
                 continue;
             };
-            let g = self.ctx.gbuffer.sample(i);
-            let p = self.origin.of(g.position, g.geo_normal).as_dvec3();
-            (origins[k], rasters[k]) = (p, g.position.as_dvec3());
+            let (position, geo_normal) = match self.ctx.gbuffer.surface_geometry(i) {
+                Some((position, geo_normal, _)) => (position, geo_normal),
+                None => {
+                    let g = self.ctx.gbuffer.sample(i);
+                    (g.position, g.geo_normal)
+                }
+            };
+            let p = self.origin.of(position, geo_normal).as_dvec3();
+            (origins[k], rasters[k]) = (p, position.as_dvec3());
             projections[k] =
                 ReceiverChart::new(&self.bound, p).and_then(|c| c.rect_projection().copied());
             tied[k] = self.ties[i] == Tie::Tied;
