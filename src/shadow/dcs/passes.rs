@@ -745,9 +745,8 @@ fn unbounded_near<'u>(
         }
         region.excludes_box(lo, hi)
     };
-    let keeps = |u: &UnboundedEdge, x0: usize, y0: usize, size: usize, b: (DVec3, DVec3)| {
-        let r = u.rect;
-        r[0] < x0 + size && r[2] > x0 && r[1] < y0 + size && r[3] > y0 && !excludes(&u.region, b)
+    let meets = |r: [usize; 4], x0: usize, y0: usize, size: usize| {
+        r[0] < x0 + size && r[2] > x0 && r[1] < y0 + size && r[3] > y0
     };
     let mut block_edges: Vec<BlockEdges> = vec![Vec::new(); PER_ROW * PER_ROW];
     let admits = |u: &UnboundedEdge, receivers: &ReceiverBlock| {
@@ -757,7 +756,6 @@ fn unbounded_near<'u>(
             // requirement of `admits_avx`.
             return unsafe { u.region.admits_avx(receivers) };
         }
-        let _ = avx;
         u.region.admits(receivers)
     };
     // The clusters the tile keeps, each with its run of `near`.
@@ -769,11 +767,9 @@ fn unbounded_near<'u>(
                     continue;
                 }
                 let first = near.len() as u32;
-                near.extend(
-                    unbounded[c.edges.clone()]
-                        .iter()
-                        .filter(|u| in_tile(u.rect) && !excludes(&u.region, b)),
-                );
+                let edges = unbounded[c.edges.clone()].iter();
+                let region_of = |u: &'u UnboundedEdge| in_tile(u.rect).then_some(&u.region);
+                keep_regions(avx, edges, region_of, b, &mut near);
                 kept.push((c, first..near.len() as u32));
             }
         }
@@ -781,17 +777,7 @@ fn unbounded_near<'u>(
     if near.is_empty() {
         return (near, block_edges);
     }
-    // Of `list`, the edges that may apply to the `size`² block at
-    // `(x, y)`; none when the block has no receiver.
-    let narrow = |list: &[u32], x: usize, y: usize, size: usize| -> Vec<u32> {
-        let Some(b) = bbox(x, y, size) else {
-            return Vec::new();
-        };
-        list.iter()
-            .copied()
-            .filter(|&k| keeps(near[k as usize], x, y, size, b))
-            .collect()
-    };
+    let (mut outer, mut middle, mut inner) = (Vec::new(), Vec::new(), Vec::new());
     for by in 0..TILE_SIZE / OUTER {
         for bx in 0..TILE_SIZE / OUTER {
             let (x0, y0) = (ox + bx * OUTER, oy + by * OUTER);
@@ -799,20 +785,14 @@ fn unbounded_near<'u>(
                 continue;
             };
             // Clusters first, then their edges (ascending, as `near`).
-            let outer: Vec<u32> = kept
+            let runs = kept
                 .iter()
                 .filter(|(c, run)| {
-                    let r = c.rect;
-                    !run.is_empty()
-                        && r[0] < x0 + OUTER
-                        && r[2] > x0
-                        && r[1] < y0 + OUTER
-                        && r[3] > y0
-                        && !excludes(&c.region, b)
+                    !run.is_empty() && meets(c.rect, x0, y0, OUTER) && !excludes(&c.region, b)
                 })
-                .flat_map(|(_, run)| run.clone())
-                .filter(|&k| keeps(near[k as usize], x0, y0, OUTER, b))
-                .collect();
+                .flat_map(|(_, run)| run.clone());
+            outer.clear();
+            narrow(avx, &near, runs, (x0, y0, OUTER), b, &mut outer);
             if outer.is_empty() {
                 continue;
             }
@@ -823,7 +803,19 @@ fn unbounded_near<'u>(
             for my in 0..OUTER / MIDDLE {
                 for mx in 0..OUTER / MIDDLE {
                     let (xm, ym) = (x0 + mx * MIDDLE, y0 + my * MIDDLE);
-                    let middle = narrow(&outer, xm, ym, MIDDLE);
+                    // None when the block has no receiver.
+                    let Some(b) = bbox(xm, ym, MIDDLE) else {
+                        continue;
+                    };
+                    middle.clear();
+                    narrow(
+                        avx,
+                        &near,
+                        outer.iter().copied(),
+                        (xm, ym, MIDDLE),
+                        b,
+                        &mut middle,
+                    );
                     if middle.is_empty() {
                         continue;
                     }
@@ -836,12 +828,19 @@ fn unbounded_near<'u>(
                             let Some(b) = receivers.bounds() else {
                                 continue;
                             };
+                            inner.clear();
+                            narrow(
+                                avx,
+                                &near,
+                                middle.iter().copied(),
+                                (x1, y1, INNER),
+                                b,
+                                &mut inner,
+                            );
                             let cell = (y1 - oy) / INNER * PER_ROW + (x1 - ox) / INNER;
-                            block_edges[cell] = middle
+                            block_edges[cell] = inner
                                 .iter()
-                                .copied()
-                                .filter(|&k| keeps(near[k as usize], x1, y1, INNER, b))
-                                .filter_map(|k| {
+                                .filter_map(|&k| {
                                     let u = near[k as usize];
                                     let mask = rect_mask(u.rect, x1, y1) & admits(u, &receivers);
                                     (mask != 0).then_some((k, mask))
@@ -854,6 +853,46 @@ fn unbounded_near<'u>(
         }
     }
     (near, block_edges)
+}
+
+/// Of the edges `list` (indices into `near`), those whose screen
+/// rectangle meets the `size`² block at `(x0, y0)` and whose region does
+/// not exclude its receivers' box `b`, into `out`.
+#[inline(always)]
+fn narrow(
+    avx: bool,
+    near: &[&UnboundedEdge],
+    list: impl Iterator<Item = u32>,
+    (x0, y0, size): (usize, usize, usize),
+    b: (DVec3, DVec3),
+    out: &mut Vec<u32>,
+) {
+    let region_of = |k: u32| {
+        let u = near[k as usize];
+        let r = u.rect;
+        (r[0] < x0 + size && r[2] > x0 && r[1] < y0 + size && r[3] > y0).then_some(&u.region)
+    };
+    keep_regions(avx, list, region_of, b, out);
+}
+
+/// [`RegionBound::keep_avx`] where the CPU has AVX (`avx`), else
+/// [`RegionBound::keep_lanes`]: the same items.
+#[inline(always)]
+fn keep_regions<'r, T: Copy>(
+    avx: bool,
+    items: impl Iterator<Item = T>,
+    region_of: impl Fn(T) -> Option<&'r RegionBound>,
+    (lo, hi): (DVec3, DVec3),
+    out: &mut Vec<T>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if avx {
+        // SAFETY: `avx` is set only where the CPU has AVX, the one
+        // requirement of `keep_avx`.
+        return unsafe { RegionBound::keep_avx(items, region_of, lo, hi, out) };
+    }
+    let _ = avx;
+    RegionBound::keep_lanes(items, region_of, lo, hi, out)
 }
 
 /// One 4² block's unbounded edges that may apply: indices into the tile's
