@@ -15,6 +15,8 @@ use super::volume::{
     chunks_left, cone_group, cone_slack, hard_bits_scalar, hard_bits_simd, light_side_of_plane,
     penumbra_volume, plane_sides, BoxTest, Cone, HardVolumes, PenumbraVolume,
 };
+#[cfg(target_arch = "x86_64")]
+use crate::simd::level::runs_v3;
 use glam::DVec3;
 use std::time::{Duration, Instant};
 
@@ -243,6 +245,49 @@ impl<'a> Chunk<'a> {
         self.recurse(0, vl, vl.all(), 0, n);
     }
 
+    /// The traversal from `node` ([`Chunk::recurse_body`]), in its
+    /// x86-64-v3 copy where the CPU has those features
+    /// (`simd::level::runs_v3`).
+    fn recurse(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if runs_v3() {
+            // SAFETY: `runs_v3` checked that the CPU has every feature the
+            // v3 copy enables, its one requirement.
+            return unsafe { self.recurse_v3(node, vl, pl, s0, s1) };
+        }
+        self.recurse_body(node, vl, pl, s0, s1, false)
+    }
+
+    /// [`Chunk::recurse_body`] compiled for `Level::V3` (`simd::level`):
+    /// the same code and bits (no FMA), with the volume and cone tests'
+    /// AVX kernels inlined into it.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn recurse_v3(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
+        self.recurse_body(node, vl, pl, s0, s1, true)
+    }
+
+    /// Down the hierarchy by `v3`'s copy.
+    #[inline(always)]
+    fn descend(
+        &mut self,
+        node: usize,
+        vl: &PenumbraVolume,
+        pl: u32,
+        s0: usize,
+        s1: usize,
+        v3: bool,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if v3 {
+            // SAFETY: `v3` is only set in the v3 copy, which runs only where
+            // `runs_v3` found the CPU's features.
+            return unsafe { self.recurse_v3(node, vl, pl, s0, s1) };
+        }
+        let _ = v3;
+        self.recurse_body(node, vl, pl, s0, s1, false)
+    }
+
     fn rebuild(&mut self) {
         let t = Instant::now();
         let ids: Vec<u32> = (0..self.pos.len() as u32)
@@ -336,7 +381,16 @@ impl<'a> Chunk<'a> {
         }
     }
 
-    fn recurse(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
+    #[inline(always)]
+    fn recurse_body(
+        &mut self,
+        node: usize,
+        vl: &PenumbraVolume,
+        pl: u32,
+        s0: usize,
+        s1: usize,
+        v3: bool,
+    ) {
         let sw = self.sw;
         let Node {
             lo,
@@ -375,8 +429,8 @@ impl<'a> Chunk<'a> {
         }
         if count == 0 {
             let left = first as usize;
-            self.recurse(left, vl, pl2, c0, c1);
-            self.recurse(left + 1, vl, pl2, c0, c1);
+            self.descend(left, vl, pl2, c0, c1, v3);
+            self.descend(left + 1, vl, pl2, c0, c1, v3);
             if sw.umbra {
                 let (l, r) = (&self.hier.nodes[left], &self.hier.nodes[left + 1]);
                 let (gu, f) = (l.group_umbra & r.group_umbra, l.full && r.full);
@@ -391,6 +445,7 @@ impl<'a> Chunk<'a> {
     }
 
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn leaf(
         &mut self,
         node: usize,
@@ -428,6 +483,7 @@ impl<'a> Chunk<'a> {
         let _ = g;
     }
 
+    #[inline(always)]
     fn point(&mut self, r: usize, c0: usize, c1: usize) {
         let sw = self.sw;
         if !self.groups_built {

@@ -64,13 +64,95 @@ pub struct PenumbraVolume {
     quads: Vec<PlaneQuad>,
 }
 
-/// Four planes as lanes.
+/// Four planes as lanes (plain arrays, so that the facade's lanes and
+/// AVX registers load them alike).
 #[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(32))]
 struct PlaneQuad {
-    nx: f64x4,
-    ny: f64x4,
-    nz: f64x4,
-    d: f64x4,
+    nx: [f64; 4],
+    ny: [f64; 4],
+    nz: [f64; 4],
+    d: [f64; 4],
+}
+
+/// [`PenumbraVolume::test_box`]'s kernel over `$lane` lanes (made by
+/// `$splat(v)` and `$load(&[f64; 4])`), in names both the facade's
+/// `f64x4` and `simd::avx::F64x4` have: the same operations per lane, so
+/// the same answer on each.
+macro_rules! test_box_kernel {
+    ($lane:ty, $splat:path, $load:path, $v:expr, $lo:expr, $hi:expr, $active:expr, $slack:expr, $prune:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, Mul};
+        let (v, lo, hi, active): (&PenumbraVolume, &[f64; 3], &[f64; 3], u32) =
+            ($v, $lo, $hi, $active);
+        let zero = $splat(0.0);
+        let s = $splat(-$slack);
+        let (lx, ly, lz): ($lane, $lane, $lane) = ($splat(lo[0]), $splat(lo[1]), $splat(lo[2]));
+        let (hx, hy, hz): ($lane, $lane, $lane) = ($splat(hi[0]), $splat(hi[1]), $splat(hi[2]));
+        let mut out = active;
+        let mut outside = false;
+        for (i, q) in v.quads.iter().enumerate() {
+            let lanes = (active >> (4 * i)) & 0xf;
+            if lanes == 0 {
+                continue;
+            }
+            let (nx, ny, nz, d): ($lane, $lane, $lane, $lane) =
+                ($load(&q.nx), $load(&q.ny), $load(&q.nz), $load(&q.d));
+            let (px, py, pz) = (nx.cmp_ge(zero), ny.cmp_ge(zero), nz.cmp_ge(zero));
+            // The corner where the value is largest: hi where n ≥ 0.
+            let vmax = nx
+                .mul(px.blend(hx, lx))
+                .add(ny.mul(py.blend(hy, ly)))
+                .add(nz.mul(pz.blend(hz, lz)))
+                .add(d);
+            if vmax.cmp_lt(s).move_mask() & lanes != 0 {
+                outside = true;
+                break;
+            }
+            if $prune {
+                let vmin = nx
+                    .mul(px.blend(lx, hx))
+                    .add(ny.mul(py.blend(ly, hy)))
+                    .add(nz.mul(pz.blend(lz, hz)))
+                    .add(d);
+                out &= !((vmin.cmp_ge(s).move_mask() & lanes) << (4 * i));
+            }
+        }
+        if outside {
+            BoxTest::Outside
+        } else {
+            BoxTest::Active(out)
+        }
+    }};
+}
+
+/// [`PenumbraVolume::contains`]'s kernel over `$lane` lanes, as
+/// [`test_box_kernel!`].
+macro_rules! contains_kernel {
+    ($lane:ty, $splat:path, $load:path, $v:expr, $p:expr, $active:expr, $slack:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, Mul};
+        let (v, p, active): (&PenumbraVolume, [f64; 3], u32) = ($v, $p, $active);
+        let s = $splat(-$slack);
+        let (x, y, z): ($lane, $lane, $lane) = ($splat(p[0]), $splat(p[1]), $splat(p[2]));
+        let mut inside = true;
+        for (i, q) in v.quads.iter().enumerate() {
+            let lanes = (active >> (4 * i)) & 0xf;
+            if lanes == 0 {
+                continue;
+            }
+            let value = $load(&q.nx)
+                .mul(x)
+                .add($load(&q.ny).mul(y))
+                .add($load(&q.nz).mul(z))
+                .add($load(&q.d));
+            if value.cmp_lt(s).move_mask() & lanes != 0 {
+                inside = false;
+                break;
+            }
+        }
+        inside
+    }};
 }
 
 /// A box against a volume's active planes.
@@ -112,10 +194,10 @@ impl PenumbraVolume {
                 a[3][j] = p.d;
             }
             self.quads.push(PlaneQuad {
-                nx: f64x4::new(a[0]),
-                ny: f64x4::new(a[1]),
-                nz: f64x4::new(a[2]),
-                d: f64x4::new(a[3]),
+                nx: a[0],
+                ny: a[1],
+                nz: a[2],
+                d: a[3],
             });
         }
     }
@@ -140,43 +222,75 @@ impl PenumbraVolume {
         slack: f64,
         prune: bool,
     ) -> BoxTest {
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::avx::available() {
+            // SAFETY: `available` checked that the CPU has AVX, the one
+            // requirement of `test_box_avx`.
+            return unsafe { self.test_box_avx(lo, hi, active, slack, prune) };
+        }
+        self.test_box_lanes(lo, hi, active, slack, prune)
+    }
+
+    /// [`PenumbraVolume::test_box`] on the facade's lanes.
+    #[inline]
+    pub fn test_box_lanes(
+        &self,
+        lo: &[f64; 3],
+        hi: &[f64; 3],
+        active: u32,
+        slack: f64,
+        prune: bool,
+    ) -> BoxTest {
         if !self.has_quads() {
             return self.test_box_scalar(lo, hi, active, slack, prune);
         }
-        let zero = f64x4::ZERO;
-        let s = f64x4::splat(-slack);
-        let (lx, ly, lz) = (
-            f64x4::splat(lo[0]),
-            f64x4::splat(lo[1]),
-            f64x4::splat(lo[2]),
-        );
-        let (hx, hy, hz) = (
-            f64x4::splat(hi[0]),
-            f64x4::splat(hi[1]),
-            f64x4::splat(hi[2]),
-        );
-        let mut out = active;
-        for (i, q) in self.quads.iter().enumerate() {
-            let lanes = (active >> (4 * i)) & 0xf;
-            if lanes == 0 {
-                continue;
-            }
-            let (px, py, pz) = (q.nx.cmp_ge(zero), q.ny.cmp_ge(zero), q.nz.cmp_ge(zero));
-            // The corner where the value is largest: hi where n ≥ 0.
-            let vmax = ((q.nx * px.blend(hx, lx) + q.ny * py.blend(hy, ly))
-                + q.nz * pz.blend(hz, lz))
-                + q.d;
-            if vmax.cmp_lt(s).move_mask() & lanes != 0 {
-                return BoxTest::Outside;
-            }
-            if prune {
-                let vmin = ((q.nx * px.blend(lx, hx) + q.ny * py.blend(ly, hy))
-                    + q.nz * pz.blend(lz, hz))
-                    + q.d;
-                out &= !((vmin.cmp_ge(s).move_mask() & lanes) << (4 * i));
-            }
+        let load = |a: &[f64; 4]| f64x4::new(*a);
+        test_box_kernel!(
+            f64x4,
+            f64x4::splat,
+            load,
+            self,
+            lo,
+            hi,
+            active,
+            slack,
+            prune
+        )
+    }
+
+    /// [`PenumbraVolume::test_box`] in AVX registers: the same kernel, the
+    /// same answer.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX
+    /// (`simd::avx::available`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub fn test_box_avx(
+        &self,
+        lo: &[f64; 3],
+        hi: &[f64; 3],
+        active: u32,
+        slack: f64,
+        prune: bool,
+    ) -> BoxTest {
+        use crate::simd::avx::F64x4;
+        if !self.has_quads() {
+            return self.test_box_scalar(lo, hi, active, slack, prune);
         }
-        BoxTest::Active(out)
+        test_box_kernel!(
+            F64x4,
+            F64x4::splat,
+            F64x4::load,
+            self,
+            lo,
+            hi,
+            active,
+            slack,
+            prune
+        )
     }
 
     /// [`PenumbraVolume::test_box`], plane by plane (its scalar twin).
@@ -210,22 +324,41 @@ impl PenumbraVolume {
     /// is [`PenumbraVolume::contains_scalar`]'s).
     #[inline]
     pub fn contains(&self, p: [f64; 3], active: u32, slack: f64) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::avx::available() {
+            // SAFETY: `available` checked that the CPU has AVX, the one
+            // requirement of `contains_avx`.
+            return unsafe { self.contains_avx(p, active, slack) };
+        }
+        self.contains_lanes(p, active, slack)
+    }
+
+    /// [`PenumbraVolume::contains`] on the facade's lanes.
+    #[inline]
+    pub fn contains_lanes(&self, p: [f64; 3], active: u32, slack: f64) -> bool {
         if !self.has_quads() {
             return self.contains_scalar(p, active, slack);
         }
-        let s = f64x4::splat(-slack);
-        let (x, y, z) = (f64x4::splat(p[0]), f64x4::splat(p[1]), f64x4::splat(p[2]));
-        for (i, q) in self.quads.iter().enumerate() {
-            let lanes = (active >> (4 * i)) & 0xf;
-            if lanes == 0 {
-                continue;
-            }
-            let v = ((q.nx * x + q.ny * y) + q.nz * z) + q.d;
-            if v.cmp_lt(s).move_mask() & lanes != 0 {
-                return false;
-            }
+        let load = |a: &[f64; 4]| f64x4::new(*a);
+        contains_kernel!(f64x4, f64x4::splat, load, self, p, active, slack)
+    }
+
+    /// [`PenumbraVolume::contains`] in AVX registers: the same kernel, the
+    /// same answer.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX
+    /// (`simd::avx::available`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub fn contains_avx(&self, p: [f64; 3], active: u32, slack: f64) -> bool {
+        use crate::simd::avx::F64x4;
+        if !self.has_quads() {
+            return self.contains_scalar(p, active, slack);
         }
-        true
+        contains_kernel!(F64x4, F64x4::splat, F64x4::load, self, p, active, slack)
     }
 
     /// [`PenumbraVolume::contains`], plane by plane (its scalar twin).
@@ -597,6 +730,80 @@ impl ChunkBoxes {
 /// coordinates of magnitude at most `M`.
 const CONE_C: f64 = 4096.0 * f64::EPSILON;
 
+/// [`Cone::outside_chunks`]'s eight chunks, as two lanes of four, over
+/// `$lane` lanes (as [`test_box_kernel!`]); the group's box test comes
+/// first, outside the macro.
+macro_rules! cone_chunks_kernel {
+    ($lane:ty, $splat:path, $load:path, $cone:expr, $b:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, Mul, Sub};
+        let (cone, b): (&Cone, &ChunkBoxes) = ($cone, $b);
+        let o = cone.o;
+        let s = $splat(-cone.slack);
+        let (ox, oy, oz): ($lane, $lane, $lane) = ($splat(o[0]), $splat(o[1]), $splat(o[2]));
+        let mut out = 0u32;
+        for n in &cone.n {
+            let pick = |a: usize| if n[a] >= 0.0 { &b.hi[a] } else { &b.lo[a] };
+            let (cx, cy, cz) = (pick(0), pick(1), pick(2));
+            let (nx, ny, nz): ($lane, $lane, $lane) = ($splat(n[0]), $splat(n[1]), $splat(n[2]));
+            for h in 0..2 {
+                let quad = |c: &[f64; 8]| -> [f64; 4] {
+                    [c[4 * h], c[4 * h + 1], c[4 * h + 2], c[4 * h + 3]]
+                };
+                let v = nx
+                    .mul($load(&quad(cx)).sub(ox))
+                    .add(ny.mul($load(&quad(cy)).sub(oy)))
+                    .add(nz.mul($load(&quad(cz)).sub(oz)));
+                // Not ≥ −allowance (NaN and −∞ of empty chunks included).
+                out |= (v.cmp_ge(s).move_mask() ^ 0xf) << (4 * h);
+            }
+        }
+        nibbles(out)
+    }};
+}
+
+/// [`Cone::decide`]'s kernel over `$lane` lanes (as [`test_box_kernel!`]).
+macro_rules! cone_decide_kernel {
+    ($lane:ty, $splat:path, $load:path, $cone:expr, $g:expr, $skip:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, BitAnd, BitOr, Mul, Sub};
+        let (cone, g, skip): (&Cone, &GroupSoa, u32) = ($cone, $g, $skip);
+        let (s, ns): ($lane, $lane) = ($splat(cone.slack), $splat(-cone.slack));
+        let o = cone.o;
+        let (ox, oy, oz): ($lane, $lane, $lane) = ($splat(o[0]), $splat(o[1]), $splat(o[2]));
+        let n: [($lane, $lane, $lane); 3] =
+            cone.n.map(|n| ($splat(n[0]), $splat(n[1]), $splat(n[2])));
+        let (mut sure, mut unsure) = (0u32, 0u32);
+        for c in 0..g.len.div_ceil(4) {
+            if (skip >> (4 * c)) & 0xf == 0xf {
+                continue;
+            }
+            let quad = |a: &[f64; 32]| -> [f64; 4] {
+                [a[4 * c], a[4 * c + 1], a[4 * c + 2], a[4 * c + 3]]
+            };
+            let dx = $load(&quad(&g.x)).sub(ox);
+            let dy = $load(&quad(&g.y)).sub(oy);
+            let dz = $load(&quad(&g.z)).sub(oz);
+            let v0 = n[0].0.mul(dx).add(n[0].1.mul(dy)).add(n[0].2.mul(dz));
+            let v1 = n[1].0.mul(dx).add(n[1].1.mul(dy)).add(n[1].2.mul(dz));
+            let v2 = n[2].0.mul(dx).add(n[2].1.mul(dy)).add(n[2].2.mul(dz));
+            let inside = v0
+                .cmp_gt(s)
+                .bitand(v1.cmp_gt(s))
+                .bitand(v2.cmp_gt(s))
+                .move_mask();
+            let outside = v0
+                .cmp_lt(ns)
+                .bitor(v1.cmp_lt(ns))
+                .bitor(v2.cmp_lt(ns))
+                .move_mask();
+            sure |= inside << (4 * c);
+            unsure |= (!(inside | outside) & 0xf) << (4 * c);
+        }
+        (sure & !skip, unsure & !skip)
+    }};
+}
+
 /// The cone from a receiver through a triangle (§4 of
 /// `docs/algorithms/penumbra-casting.md`, "cone prefilter"): the three
 /// planes through the receiver `o` and an edge, oriented inwards, in
@@ -656,6 +863,18 @@ impl Cone {
     /// computed as the scalar twin does.
     #[inline]
     pub fn outside_chunks(&self, b: &ChunkBoxes) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::avx::available() {
+            // SAFETY: `available` checked that the CPU has AVX, the one
+            // requirement of `outside_chunks_avx`.
+            return unsafe { self.outside_chunks_avx(b) };
+        }
+        self.outside_chunks_lanes(b)
+    }
+
+    /// [`Cone::outside_chunks`] on the facade's lanes.
+    #[inline]
+    pub fn outside_chunks_lanes(&self, b: &ChunkBoxes) -> u32 {
         let o = self.o;
         for n in &self.n {
             let c = |a: usize| {
@@ -670,23 +889,37 @@ impl Cone {
                 return u32::MAX;
             }
         }
-        let s = f64x4::splat(-self.slack);
-        let (ox, oy, oz) = (f64x4::splat(o[0]), f64x4::splat(o[1]), f64x4::splat(o[2]));
-        let mut out = 0u32;
+        let load = |a: &[f64; 4]| f64x4::new(*a);
+        cone_chunks_kernel!(f64x4, f64x4::splat, load, self, b)
+    }
+
+    /// [`Cone::outside_chunks`] in AVX registers: the same values, the
+    /// same bits.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX
+    /// (`simd::avx::available`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub fn outside_chunks_avx(&self, b: &ChunkBoxes) -> u32 {
+        use crate::simd::avx::F64x4;
+        let o = self.o;
         for n in &self.n {
-            let pick = |a: usize| if n[a] >= 0.0 { &b.hi[a] } else { &b.lo[a] };
-            let (cx, cy, cz) = (pick(0), pick(1), pick(2));
-            let (nx, ny, nz) = (f64x4::splat(n[0]), f64x4::splat(n[1]), f64x4::splat(n[2]));
-            for h in 0..2 {
-                let r = 4 * h..4 * h + 4;
-                let v = (nx * (f64x4::load(&cx[r.clone()]) - ox)
-                    + ny * (f64x4::load(&cy[r.clone()]) - oy))
-                    + nz * (f64x4::load(&cz[r]) - oz);
-                // Not ≥ −allowance (NaN and −∞ of empty chunks included).
-                out |= (v.cmp_ge(s).move_mask() ^ 0xf) << (4 * h);
+            let c = |a: usize| {
+                if n[a] >= 0.0 {
+                    b.group_hi[a]
+                } else {
+                    b.group_lo[a]
+                }
+            };
+            let v = (n[0] * (c(0) - o[0]) + n[1] * (c(1) - o[1])) + n[2] * (c(2) - o[2]);
+            if v < -self.slack {
+                return u32::MAX;
             }
         }
-        nibbles(out)
+        cone_chunks_kernel!(F64x4, F64x4::splat, F64x4::load, self, b)
     }
 
     /// [`Cone::outside_chunks`], chunk by chunk (its scalar twin).
@@ -732,30 +965,34 @@ impl Cone {
     /// [`Cone::decide_scalar`] does (same bits).
     #[inline]
     pub fn decide(&self, g: &GroupSoa, skip: u32) -> (u32, u32) {
-        let (s, ns) = (f64x4::splat(self.slack), f64x4::splat(-self.slack));
-        let o = self.o;
-        let (ox, oy, oz) = (f64x4::splat(o[0]), f64x4::splat(o[1]), f64x4::splat(o[2]));
-        let n = self
-            .n
-            .map(|n| (f64x4::splat(n[0]), f64x4::splat(n[1]), f64x4::splat(n[2])));
-        let (mut sure, mut unsure) = (0u32, 0u32);
-        for c in 0..g.len.div_ceil(4) {
-            if (skip >> (4 * c)) & 0xf == 0xf {
-                continue;
-            }
-            let r = 4 * c..4 * c + 4;
-            let dx = f64x4::load(&g.x[r.clone()]) - ox;
-            let dy = f64x4::load(&g.y[r.clone()]) - oy;
-            let dz = f64x4::load(&g.z[r]) - oz;
-            let v0 = (n[0].0 * dx + n[0].1 * dy) + n[0].2 * dz;
-            let v1 = (n[1].0 * dx + n[1].1 * dy) + n[1].2 * dz;
-            let v2 = (n[2].0 * dx + n[2].1 * dy) + n[2].2 * dz;
-            let inside = (v0.cmp_gt(s) & v1.cmp_gt(s) & v2.cmp_gt(s)).move_mask();
-            let outside = (v0.cmp_lt(ns) | v1.cmp_lt(ns) | v2.cmp_lt(ns)).move_mask();
-            sure |= inside << (4 * c);
-            unsure |= (!(inside | outside) & 0xf) << (4 * c);
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::avx::available() {
+            // SAFETY: `available` checked that the CPU has AVX, the one
+            // requirement of `decide_avx`.
+            return unsafe { self.decide_avx(g, skip) };
         }
-        (sure & !skip, unsure & !skip)
+        self.decide_lanes(g, skip)
+    }
+
+    /// [`Cone::decide`] on the facade's lanes.
+    #[inline]
+    pub fn decide_lanes(&self, g: &GroupSoa, skip: u32) -> (u32, u32) {
+        let load = |a: &[f64; 4]| f64x4::new(*a);
+        cone_decide_kernel!(f64x4, f64x4::splat, load, self, g, skip)
+    }
+
+    /// [`Cone::decide`] in AVX registers: the same values, the same bits.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX
+    /// (`simd::avx::available`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub fn decide_avx(&self, g: &GroupSoa, skip: u32) -> (u32, u32) {
+        use crate::simd::avx::F64x4;
+        cone_decide_kernel!(F64x4, F64x4::splat, F64x4::load, self, g, skip)
     }
 
     /// [`Cone::decide`], sample by sample (its scalar twin).
@@ -810,7 +1047,7 @@ pub fn plane_sides(g: &GroupSoa, t: &[DVec3; 3], slack: f64) -> (u32, u32) {
 /// as for a clear light, and those within the allowance of the plane
 /// (whose kernel orientation is not known in advance) are `unsure`.
 /// `simd`: [`Cone::decide`] or its scalar twin (same bits).
-#[inline]
+#[inline(always)]
 pub fn cone_group(
     c: &Cone,
     soa: &GroupSoa,
@@ -1035,6 +1272,8 @@ mod tests {
                 };
                 let x = c.outside_chunks(&boxes);
                 assert_eq!(x, c.outside_chunks_scalar(&boxes));
+                // (`outside_chunks` runs the AVX copy where the CPU has AVX.)
+                assert_eq!(c.outside_chunks_lanes(&boxes), x);
                 all += usize::from(x == u32::MAX);
                 some += usize::from(x != u32::MAX && x != 0 && len > 4);
             }
@@ -1122,6 +1361,7 @@ mod tests {
                 }
                 let (sure, unsure) = cone.decide(&soa, skip);
                 assert_eq!((sure, unsure), cone.decide_scalar(&soa, skip));
+                assert_eq!(cone.decide_lanes(&soa, skip), (sure, unsure));
                 assert_eq!(sure & !k, 0, "round {round}: sure but not marked");
                 assert_eq!(k & !(sure | unsure), 0, "round {round}: marked, not sure");
                 assert_eq!((sure | unsure) & skip, 0);
@@ -1248,6 +1488,7 @@ mod tests {
                 for prune in [false, true] {
                     let x = vol.test_box(&lo, &hi, active, 1e-9, prune);
                     assert_eq!(x, vol.test_box_scalar(&lo, &hi, active, 1e-9, prune));
+                    assert_eq!(vol.test_box_lanes(&lo, &hi, active, 1e-9, prune), x);
                     match x {
                         BoxTest::Outside => outside += 1,
                         BoxTest::Active(p) if p != active => pruned += 1,
@@ -1261,6 +1502,7 @@ mod tests {
                 };
                 let x = vol.contains(o, active, 1e-9);
                 assert_eq!(x, vol.contains_scalar(o, active, 1e-9));
+                assert_eq!(vol.contains_lanes(o, active, 1e-9), x);
                 inside += usize::from(x);
             }
         }
