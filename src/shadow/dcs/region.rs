@@ -238,7 +238,36 @@ impl ReceiverBlock {
 /// [`RegionBound::new`]). Unused lanes are zero vectors, whose dot is 0
 /// and passes.
 struct Generators4 {
-    groups: Vec<[f64x4; 3]>,
+    groups: Vec<[[f64; 4]; 3]>,
+    /// Test in AVX registers ([`Generators4::bound_avx`]); set only where
+    /// the CPU has AVX, by the v3 copy of [`RegionBound::new`].
+    avx: bool,
+}
+
+/// [`Generators4::bound`]'s kernel over `$lane` lanes (made by
+/// `$splat(v)` and `$new(array)`), in names both the facade's `f64x4`
+/// and `simd::avx::F64x4` have: the same verdicts on each.
+macro_rules! generators_bound_kernel {
+    ($lane:ty, $splat:path, $new:path, $g:expr, $n:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, Mul};
+        let (g, n): (&Generators4, DVec3) = ($g, $n);
+        let (x, y, z): ($lane, $lane, $lane) = ($splat(n.x), $splat(n.y), $splat(n.z));
+        let (low, high): ($lane, $lane) = ($splat(-1e-9), $splat(1e-9));
+        let (mut up, mut down) = (true, true);
+        for lanes in &g.groups {
+            let dot = x
+                .mul($new(lanes[0]))
+                .add(y.mul($new(lanes[1])))
+                .add(z.mul($new(lanes[2])));
+            up &= dot.cmp_ge(low).move_mask() == 0b1111;
+            down &= dot.cmp_le(high).move_mask() == 0b1111;
+            if !(up || down) {
+                break;
+            }
+        }
+        (up, down)
+    }};
 }
 
 impl Generators4 {
@@ -252,10 +281,10 @@ impl Generators4 {
                         lane[k] = d[axis];
                     }
                 }
-                lanes.map(f64x4::new)
+                lanes
             })
             .collect();
-        Generators4 { groups }
+        Generators4 { groups, avx: false }
     }
 
     /// Whether `n` and whether `−n` bound the cone: every generator `d`
@@ -263,20 +292,29 @@ impl Generators4 {
     /// `DVec3::dot`'s operations in its order (products commute
     /// exactly), and `(−n) · d` is `−(n · d)` up to the sign of a zero,
     /// so the second test is `n · d ≤ 1e-9`: the scalar twin's verdicts.
-    #[inline]
+    #[inline(always)]
     fn bound(&self, n: DVec3) -> (bool, bool) {
-        let (x, y, z) = (f64x4::splat(n.x), f64x4::splat(n.y), f64x4::splat(n.z));
-        let (low, high) = (f64x4::splat(-1e-9), f64x4::splat(1e-9));
-        let (mut up, mut down) = (true, true);
-        for g in &self.groups {
-            let dot = x * g[0] + y * g[1] + z * g[2];
-            up &= dot.cmp_ge(low).move_mask() == 0b1111;
-            down &= dot.cmp_le(high).move_mask() == 0b1111;
-            if !(up || down) {
-                break;
-            }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only by the v3 copy of
+            // `RegionBound::new`, which runs only where the CPU has
+            // x86-64-v3's features, AVX among them.
+            return unsafe { self.bound_avx(n) };
         }
-        (up, down)
+        generators_bound_kernel!(f64x4, f64x4::splat, f64x4::new, self, n)
+    }
+
+    /// [`Generators4::bound`] in AVX registers.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    fn bound_avx(&self, n: DVec3) -> (bool, bool) {
+        use crate::simd::avx::F64x4;
+        generators_bound_kernel!(F64x4, F64x4::splat, F64x4::new, self, n)
     }
 }
 
@@ -345,7 +383,7 @@ impl<'a> FacetTest<'a> {
     /// Of the unit normal along candidate `n` (none when `n` is nearly 0
     /// or not finite) and its opposite, those that bound the cone, `n`
     /// first.
-    #[inline]
+    #[inline(always)]
     fn facets(&self, n: DVec3) -> impl Iterator<Item = DVec3> {
         let len = n.length();
         let usable = len > 1e-12 && len.is_finite();
@@ -360,7 +398,7 @@ impl<'a> FacetTest<'a> {
             .filter_map(|(n, keep)| keep.then_some(n))
     }
 
-    #[inline]
+    #[inline(always)]
     fn bound(&self, n: DVec3) -> (bool, bool) {
         match self {
             FacetTest::Simd(g) => g.bound(n),
@@ -418,9 +456,41 @@ impl RegionBound {
     }
 
     fn edge_bound(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64, simd: bool) -> RegionBound {
+        #[cfg(target_arch = "x86_64")]
+        if simd && crate::simd::level::runs_v3() {
+            // SAFETY: `runs_v3` checked that the CPU has every feature the
+            // v3 copy enables, its one requirement.
+            return unsafe { Self::edge_bound_v3(v0, v1, corners, slack) };
+        }
+        Self::edge_bound_body(v0, v1, corners, slack, simd, false)
+    }
+
+    /// [`RegionBound::edge_bound`] compiled for `Level::V3`
+    /// (`simd::level`), with the facet test in AVX registers: the same
+    /// code and verdicts (no FMA).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn edge_bound_v3(v0: DVec3, v1: DVec3, corners: &[DVec3], slack: f64) -> RegionBound {
+        Self::edge_bound_body(v0, v1, corners, slack, true, true)
+    }
+
+    /// [`RegionBound::edge_bound`] itself, inlined into each copy.
+    #[inline(always)]
+    fn edge_bound_body(
+        v0: DVec3,
+        v1: DVec3,
+        corners: &[DVec3],
+        slack: f64,
+        simd: bool,
+        avx: bool,
+    ) -> RegionBound {
         let generators = cone_generators(&[v0, v1], corners);
         let along = v1 - v0;
-        let facets = FacetTest::new(&generators, simd);
+        let mut facets = FacetTest::new(&generators, simd);
+        if let FacetTest::Simd(g) = &mut facets {
+            g.avx = avx;
+        }
+        let facets = facets;
         // Dozens of planes per edge, for tens of thousands of edges: grown
         // in a per-thread buffer and copied once, not reallocated as they
         // come (the allocator was a fifth of the wedge build).
