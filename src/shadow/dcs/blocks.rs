@@ -22,6 +22,7 @@
 use super::chart_lanes::chart_rows;
 use super::counters::{add_covered_in, OrientedEdge, LANES};
 use crate::sampling::Strata;
+#[cfg(target_arch = "x86_64")]
 use crate::simd::level::runs_v3;
 use crate::simd::{f64x4, i32x8};
 

@@ -241,6 +241,7 @@ struct Generators4 {
     groups: Vec<[[f64; 4]; 3]>,
     /// Test in AVX registers ([`Generators4::bound_avx`]); set only where
     /// the CPU has AVX, by the v3 copy of [`RegionBound::new`].
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     avx: bool,
 }
 
