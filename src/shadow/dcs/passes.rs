@@ -715,8 +715,7 @@ fn unbounded_near<'u>(
     let (width, height) = (grid.width as usize, grid.height as usize);
     let (ox, oy) = grid.tile_origin(tile);
     let (ox, oy) = (ox as usize, oy as usize);
-    let (tx1, ty1) = (ox + TILE_SIZE, oy + TILE_SIZE);
-    let in_tile = |r: [usize; 4]| r[0] < tx1 && r[2] > ox && r[1] < ty1 && r[3] > oy;
+    let in_tile = |r: [usize; 4]| rect_meets(r, ox, oy, TILE_SIZE);
     let mut near: Vec<&UnboundedEdge> = Vec::new();
     let on_screen: Vec<&EdgeCluster> = clusters.iter().filter(|c| in_tile(c.rect)).collect();
     let bbox = |x0: usize, y0: usize, size: usize| {
@@ -744,9 +743,6 @@ fn unbounded_near<'u>(
             return unsafe { region.excludes_box_avx(lo, hi) };
         }
         region.excludes_box(lo, hi)
-    };
-    let meets = |r: [usize; 4], x0: usize, y0: usize, size: usize| {
-        r[0] < x0 + size && r[2] > x0 && r[1] < y0 + size && r[3] > y0
     };
     let mut block_edges: Vec<BlockEdges> = vec![Vec::new(); PER_ROW * PER_ROW];
     let admits = |u: &UnboundedEdge, receivers: &ReceiverBlock| {
@@ -788,10 +784,9 @@ fn unbounded_near<'u>(
             let runs = kept
                 .iter()
                 .filter(|(c, run)| {
-                    !run.is_empty() && meets(c.rect, x0, y0, OUTER) && !excludes(&c.region, b)
+                    !run.is_empty() && rect_meets(c.rect, x0, y0, OUTER) && !excludes(&c.region, b)
                 })
                 .flat_map(|(_, run)| run.clone());
-            outer.clear();
             narrow(avx, &near, runs, (x0, y0, OUTER), b, &mut outer);
             if outer.is_empty() {
                 continue;
@@ -807,7 +802,6 @@ fn unbounded_near<'u>(
                     let Some(b) = bbox(xm, ym, MIDDLE) else {
                         continue;
                     };
-                    middle.clear();
                     narrow(
                         avx,
                         &near,
@@ -828,7 +822,6 @@ fn unbounded_near<'u>(
                             let Some(b) = receivers.bounds() else {
                                 continue;
                             };
-                            inner.clear();
                             narrow(
                                 avx,
                                 &near,
@@ -857,7 +850,7 @@ fn unbounded_near<'u>(
 
 /// Of the edges `list` (indices into `near`), those whose screen
 /// rectangle meets the `size`² block at `(x0, y0)` and whose region does
-/// not exclude its receivers' box `b`, into `out`.
+/// not exclude its receivers' box `b`, into `out` (cleared first).
 #[inline(always)]
 fn narrow(
     avx: bool,
@@ -869,10 +862,17 @@ fn narrow(
 ) {
     let region_of = |k: u32| {
         let u = near[k as usize];
-        let r = u.rect;
-        (r[0] < x0 + size && r[2] > x0 && r[1] < y0 + size && r[3] > y0).then_some(&u.region)
+        rect_meets(u.rect, x0, y0, size).then_some(&u.region)
     };
+    out.clear();
     keep_regions(avx, list, region_of, b, out);
+}
+
+/// Whether the screen rectangle `r` (`[x0, y0, x1, y1)`) meets the
+/// `size`² block at `(x0, y0)`.
+#[inline(always)]
+fn rect_meets(r: [usize; 4], x0: usize, y0: usize, size: usize) -> bool {
+    r[0] < x0 + size && r[2] > x0 && r[1] < y0 + size && r[3] > y0
 }
 
 /// [`RegionBound::keep_avx`] where the CPU has AVX (`avx`), else

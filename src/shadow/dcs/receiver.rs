@@ -282,13 +282,7 @@ impl LightPass<'_, '_> {
         let d0 = self.groups[0].start[i];
         // The position and geometric normal are read for every receiver;
         // the whole shading sample only where a radiance needs it.
-        let (position, geo_normal) = match gbuffer.surface_geometry(i) {
-            Some((position, geo_normal, _)) => (position, geo_normal),
-            None => {
-                let g = gbuffer.sample(i);
-                (g.position, g.geo_normal)
-            }
-        };
+        let (position, geo_normal) = position_normal(gbuffer, i);
         let eye = self.ctx.view.eye.as_vec3();
         let direct = self.technique.mode == DcsMode::Direct;
         let sp = || surface_point(self.ctx.scene, &gbuffer.sample(i), eye);
@@ -625,13 +619,7 @@ impl LightPass<'_, '_> {
             let Some(i) = *pixel else {
                 continue;
             };
-            let (position, geo_normal) = match self.ctx.gbuffer.surface_geometry(i) {
-                Some((position, geo_normal, _)) => (position, geo_normal),
-                None => {
-                    let g = self.ctx.gbuffer.sample(i);
-                    (g.position, g.geo_normal)
-                }
-            };
+            let (position, geo_normal) = position_normal(self.ctx.gbuffer, i);
             let p = self.origin.of(position, geo_normal).as_dvec3();
             (origins[k], rasters[k]) = (p, position.as_dvec3());
             projections[k] =
@@ -784,4 +772,16 @@ impl LightPass<'_, '_> {
         }
         (d0, recount)
     }
+}
+
+/// Pixel `i`'s position and geometric normal, as its shading sample has
+/// them (zero on the background), without reading the rest.
+#[inline(always)]
+fn position_normal(gbuffer: &crate::gbuffer::GBuffer, i: usize) -> (Vec3, Vec3) {
+    let background = crate::gbuffer::GSample::BACKGROUND;
+    gbuffer
+        .surface_geometry(i)
+        .map_or((background.position, background.geo_normal), |(p, n, _)| {
+            (p, n)
+        })
 }

@@ -61,6 +61,20 @@ macro_rules! admits_kernel {
     }};
 }
 
+/// [`RegionBound::keep_lanes`]' loop over `$lane` lanes: each item whose
+/// region ([`excludes_box_kernel!`]) does not exclude the box, into `$out`.
+macro_rules! keep_kernel {
+    ($lane:ty, $splat:path, $new:path, $items:ident, $region_of:ident, $lo:ident, $hi:ident, $out:ident) => {
+        for item in $items {
+            if let Some(region) = $region_of(item) {
+                if !excludes_box_kernel!($lane, $splat, $new, region, $lo, $hi) {
+                    $out.push(item);
+                }
+            }
+        }
+    };
+}
+
 /// Half-spaces `n · y ≥ h` (unit `n`) whose intersection holds an edge's
 /// penumbra region.
 #[derive(Debug, Clone, Default)]
@@ -727,13 +741,16 @@ impl RegionBound {
         hi: DVec3,
         out: &mut Vec<T>,
     ) {
-        for item in items {
-            if let Some(region) = region_of(item) {
-                if !excludes_box_kernel!(f64x4, f64x4::splat, f64x4::new, region, lo, hi) {
-                    out.push(item);
-                }
-            }
-        }
+        keep_kernel!(
+            f64x4,
+            f64x4::splat,
+            f64x4::new,
+            items,
+            region_of,
+            lo,
+            hi,
+            out
+        )
     }
 
     /// [`RegionBound::keep_lanes`] in AVX registers, the kernel inlined
@@ -754,13 +771,16 @@ impl RegionBound {
         out: &mut Vec<T>,
     ) {
         use crate::simd::avx::F64x4;
-        for item in items {
-            if let Some(region) = region_of(item) {
-                if !excludes_box_kernel!(F64x4, F64x4::splat, F64x4::new, region, lo, hi) {
-                    out.push(item);
-                }
-            }
-        }
+        keep_kernel!(
+            F64x4,
+            F64x4::splat,
+            F64x4::new,
+            items,
+            region_of,
+            lo,
+            hi,
+            out
+        )
     }
 
     /// [`RegionBound::excludes_box`] one plane at a time (the scalar twin

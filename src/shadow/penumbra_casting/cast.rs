@@ -250,12 +250,10 @@ impl<'a> Chunk<'a> {
     /// (`simd::level::runs_v3`).
     fn recurse(&mut self, node: usize, vl: &PenumbraVolume, pl: u32, s0: usize, s1: usize) {
         #[cfg(target_arch = "x86_64")]
-        if runs_v3() {
-            // SAFETY: `runs_v3` checked that the CPU has every feature the
-            // v3 copy enables, its one requirement.
-            return unsafe { self.recurse_v3(node, vl, pl, s0, s1) };
-        }
-        self.recurse_body(node, vl, pl, s0, s1, false)
+        let v3 = runs_v3();
+        #[cfg(not(target_arch = "x86_64"))]
+        let v3 = false;
+        self.descend(node, vl, pl, s0, s1, v3)
     }
 
     /// [`Chunk::recurse_body`] compiled for `Level::V3` (`simd::level`):
@@ -267,7 +265,8 @@ impl<'a> Chunk<'a> {
         self.recurse_body(node, vl, pl, s0, s1, true)
     }
 
-    /// Down the hierarchy by `v3`'s copy.
+    /// Down the hierarchy by the v3 copy where `v3` (set only where
+    /// `runs_v3` found the CPU's features), else by the plain one.
     #[inline(always)]
     fn descend(
         &mut self,
@@ -280,8 +279,8 @@ impl<'a> Chunk<'a> {
     ) {
         #[cfg(target_arch = "x86_64")]
         if v3 {
-            // SAFETY: `v3` is only set in the v3 copy, which runs only where
-            // `runs_v3` found the CPU's features.
+            // SAFETY: `v3` is set only where `runs_v3` found every feature
+            // the v3 copy enables, its one requirement.
             return unsafe { self.recurse_v3(node, vl, pl, s0, s1) };
         }
         let _ = v3;

@@ -730,35 +730,54 @@ impl ChunkBoxes {
 /// coordinates of magnitude at most `M`.
 const CONE_C: f64 = 4096.0 * f64::EPSILON;
 
-/// [`Cone::outside_chunks`]'s eight chunks, as two lanes of four, over
-/// `$lane` lanes (as [`test_box_kernel!`]); the group's box test comes
-/// first, outside the macro.
+/// [`Cone::outside_chunks`] over `$lane` lanes (as
+/// [`test_box_kernel!`]): the group's box first (in scalars), then its
+/// eight chunks as two lanes of four.
 macro_rules! cone_chunks_kernel {
     ($lane:ty, $splat:path, $load:path, $cone:expr, $b:expr) => {{
         #[allow(unused_imports)]
         use std::ops::{Add, Mul, Sub};
         let (cone, b): (&Cone, &ChunkBoxes) = ($cone, $b);
         let o = cone.o;
-        let s = $splat(-cone.slack);
-        let (ox, oy, oz): ($lane, $lane, $lane) = ($splat(o[0]), $splat(o[1]), $splat(o[2]));
-        let mut out = 0u32;
-        for n in &cone.n {
-            let pick = |a: usize| if n[a] >= 0.0 { &b.hi[a] } else { &b.lo[a] };
-            let (cx, cy, cz) = (pick(0), pick(1), pick(2));
-            let (nx, ny, nz): ($lane, $lane, $lane) = ($splat(n[0]), $splat(n[1]), $splat(n[2]));
-            for h in 0..2 {
-                let quad = |c: &[f64; 8]| -> [f64; 4] {
-                    [c[4 * h], c[4 * h + 1], c[4 * h + 2], c[4 * h + 3]]
-                };
-                let v = nx
-                    .mul($load(&quad(cx)).sub(ox))
-                    .add(ny.mul($load(&quad(cy)).sub(oy)))
-                    .add(nz.mul($load(&quad(cz)).sub(oz)));
-                // Not ≥ −allowance (NaN and −∞ of empty chunks included).
-                out |= (v.cmp_ge(s).move_mask() ^ 0xf) << (4 * h);
+        // Each rounding step of a plane's value is monotonic in each
+        // coordinate: where the group's extreme corner is outside by more
+        // than the allowance, every chunk's is.
+        let group_outside = cone.n.iter().any(|n| {
+            let c = |a: usize| {
+                if n[a] >= 0.0 {
+                    b.group_hi[a]
+                } else {
+                    b.group_lo[a]
+                }
+            };
+            let v = (n[0] * (c(0) - o[0]) + n[1] * (c(1) - o[1])) + n[2] * (c(2) - o[2]);
+            v < -cone.slack
+        });
+        if group_outside {
+            u32::MAX
+        } else {
+            let s = $splat(-cone.slack);
+            let (ox, oy, oz): ($lane, $lane, $lane) = ($splat(o[0]), $splat(o[1]), $splat(o[2]));
+            let mut out = 0u32;
+            for n in &cone.n {
+                let pick = |a: usize| if n[a] >= 0.0 { &b.hi[a] } else { &b.lo[a] };
+                let (cx, cy, cz) = (pick(0), pick(1), pick(2));
+                let (nx, ny, nz): ($lane, $lane, $lane) =
+                    ($splat(n[0]), $splat(n[1]), $splat(n[2]));
+                for h in 0..2 {
+                    let quad = |c: &[f64; 8]| -> [f64; 4] {
+                        [c[4 * h], c[4 * h + 1], c[4 * h + 2], c[4 * h + 3]]
+                    };
+                    let v = nx
+                        .mul($load(&quad(cx)).sub(ox))
+                        .add(ny.mul($load(&quad(cy)).sub(oy)))
+                        .add(nz.mul($load(&quad(cz)).sub(oz)));
+                    // Not ≥ −allowance (NaN and −∞ of empty chunks included).
+                    out |= (v.cmp_ge(s).move_mask() ^ 0xf) << (4 * h);
+                }
             }
+            nibbles(out)
         }
-        nibbles(out)
     }};
 }
 
@@ -875,20 +894,6 @@ impl Cone {
     /// [`Cone::outside_chunks`] on the facade's lanes.
     #[inline]
     pub fn outside_chunks_lanes(&self, b: &ChunkBoxes) -> u32 {
-        let o = self.o;
-        for n in &self.n {
-            let c = |a: usize| {
-                if n[a] >= 0.0 {
-                    b.group_hi[a]
-                } else {
-                    b.group_lo[a]
-                }
-            };
-            let v = (n[0] * (c(0) - o[0]) + n[1] * (c(1) - o[1])) + n[2] * (c(2) - o[2]);
-            if v < -self.slack {
-                return u32::MAX;
-            }
-        }
         let load = |a: &[f64; 4]| f64x4::new(*a);
         cone_chunks_kernel!(f64x4, f64x4::splat, load, self, b)
     }
@@ -905,20 +910,6 @@ impl Cone {
     #[inline]
     pub fn outside_chunks_avx(&self, b: &ChunkBoxes) -> u32 {
         use crate::simd::avx::F64x4;
-        let o = self.o;
-        for n in &self.n {
-            let c = |a: usize| {
-                if n[a] >= 0.0 {
-                    b.group_hi[a]
-                } else {
-                    b.group_lo[a]
-                }
-            };
-            let v = (n[0] * (c(0) - o[0]) + n[1] * (c(1) - o[1])) + n[2] * (c(2) - o[2]);
-            if v < -self.slack {
-                return u32::MAX;
-            }
-        }
         cone_chunks_kernel!(F64x4, F64x4::splat, F64x4::load, self, b)
     }
 
