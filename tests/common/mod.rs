@@ -55,6 +55,18 @@ pub fn shipped(name: &str) -> penumbra::scene::Scene {
     penumbra::scene::load_scene(&path).expect("shipped scene loads")
 }
 
+/// `scene` with its first light (a rect) made a sphere of radius `radius`
+/// at the same centre.
+#[allow(dead_code)]
+pub fn with_sphere_light(mut scene: penumbra::scene::Scene, radius: f32) -> penumbra::scene::Scene {
+    use penumbra::scene::LightShape;
+    let LightShape::Rect { center, .. } = scene.lights[0].shape else {
+        panic!("a rect light");
+    };
+    scene.lights[0].shape = LightShape::Sphere { center, radius };
+    scene
+}
+
 /// Everything a technique reads, for `scene` at `w × h`.
 pub struct Frame {
     pub geometry: penumbra::geom::SceneGeometry,

@@ -10,10 +10,10 @@
 //! independent of order).
 
 use super::hierarchy::{Hierarchy, Node};
-use super::samples::SampleSets;
+use super::samples::{ReceiverSamples, SampleKey, SampleSets};
 use super::volume::{
     chunks_left, cone_group, cone_slack, hard_bits_scalar, hard_bits_simd, light_side_of_plane,
-    penumbra_volume, plane_sides, BoxTest, Cone, HardVolumes, PenumbraVolume,
+    penumbra_volume, plane_sides, BoxTest, ChunkBoxes, Cone, GroupSoa, HardVolumes, PenumbraVolume,
 };
 #[cfg(target_arch = "x86_64")]
 use crate::simd::level::runs_v3;
@@ -73,6 +73,8 @@ pub struct ChunkStats {
     pub build_time: Duration,
     /// Triangles whose group and hard volumes were built (lazily).
     pub volumes_built: u64,
+    /// Sphere lights: most receivers holding their own samples at once.
+    pub peak_sample_receivers: usize,
 }
 
 /// One chunk of receivers.
@@ -88,6 +90,9 @@ pub struct Chunk<'a> {
     pub pos: Vec<[f64; 3]>,
     /// Per receiver: its sample set.
     pub set: Vec<u16>,
+    /// Sphere lights: each receiver's own samples, made on first need
+    /// (`None` for a rect light, whose receivers share their set's).
+    own: Option<ReceiverSamples>,
     /// Per receiver: group-umbra bits.
     pub group_umbra: Vec<u128>,
     /// Per receiver: full umbra.
@@ -123,14 +128,17 @@ pub struct Chunk<'a> {
 }
 
 impl<'a> Chunk<'a> {
-    /// A chunk over receivers at `pos` with sets `set`; receiver `r` of
-    /// the chunk is input receiver `order[r]`.
+    /// A chunk over receivers at `pos` with sets `set` and sample keys
+    /// `keys` (used only where each receiver has samples of its own,
+    /// [`SampleSets::per_receiver`]; may be empty otherwise); receiver `r`
+    /// of the chunk is input receiver `order[r]`.
     pub fn new(
         sets: &'a SampleSets,
         sw: Switches,
         slack: f64,
         pos: Vec<[f64; 3]>,
         set: Vec<u16>,
+        keys: Vec<SampleKey>,
     ) -> Chunk<'a> {
         let r = pos.len();
         let g = sets.groups;
@@ -146,6 +154,11 @@ impl<'a> Chunk<'a> {
         let order = std::mem::replace(&mut hier.points, (0..r as u32).collect());
         let pos: Vec<[f64; 3]> = order.iter().map(|&i| pos[i as usize]).collect();
         let set: Vec<u16> = order.iter().map(|&i| set[i as usize]).collect();
+        let own = sets.per_receiver().then(|| {
+            ReceiverSamples::new(order.iter().map(|&i| keys[i as usize]).collect(), false)
+        });
+        // One scratch hard-volume set where no receivers share samples.
+        let cache = if own.is_some() { 1 } else { sets.sets * g };
         let mut stats = ChunkStats {
             peak_nodes: hier.nodes.len(),
             peak_hierarchy_bytes: hier.bytes(),
@@ -170,6 +183,7 @@ impl<'a> Chunk<'a> {
             order,
             pos,
             set,
+            own,
             slot,
             pool,
             free: Vec::new(),
@@ -179,11 +193,11 @@ impl<'a> Chunk<'a> {
             stack: Vec::new(),
             groups_vol: vec![PenumbraVolume::default(); g],
             groups_built: false,
-            hard: vec![HardVolumes::default(); sets.sets * g],
-            hard_stamp: vec![0; sets.sets * g],
-            hard_built: vec![0; sets.sets * g],
-            sides: vec![(0, 0); sets.sets * g],
-            sides_stamp: vec![0; sets.sets * g],
+            hard: vec![HardVolumes::default(); cache],
+            hard_stamp: vec![0; cache],
+            hard_built: vec![0; cache],
+            sides: vec![(0, 0); cache],
+            sides_stamp: vec![0; cache],
             stamp: 0,
             tri: [DVec3::ZERO; 3],
             stats,
@@ -229,11 +243,11 @@ impl<'a> Chunk<'a> {
         }
         self.tri = *t;
         self.groups_built = false;
-        if !sw.lazy {
+        if !sw.lazy && self.own.is_none() {
             self.build_groups();
             for s in 0..self.sets.sets {
                 for k in 0..self.sets.groups {
-                    self.hard_volumes(s, k, 0xff);
+                    self.hard_volumes(s, 0, k, 0xff);
                 }
             }
         }
@@ -304,8 +318,12 @@ impl<'a> Chunk<'a> {
         self.groups_built = true;
         self.stats.volumes_built += 1;
         let t = self.tri;
-        for (k, v) in self.groups_vol.iter_mut().enumerate() {
-            penumbra_volume(&self.sets.group_bounds[k], &t, v);
+        // With samples of its own per receiver every group's bound is the
+        // light's: its volume would be `V_L`, already tested.
+        if self.own.is_none() {
+            for (k, v) in self.groups_vol.iter_mut().enumerate() {
+                penumbra_volume(&self.sets.group_bounds[k], &t, v);
+            }
         }
         self.cone_slack = None;
         if self.sw.cone {
@@ -328,8 +346,15 @@ impl<'a> Chunk<'a> {
 
     /// The hard volumes of (set, group k) with at least the chunks of
     /// four in `need` built for the current triangle (built lazily, chunk
-    /// by chunk: the cone prefilter leaves most chunks untested).
-    fn hard_volumes(&mut self, set: usize, k: usize, need: u8) -> usize {
+    /// by chunk: the cone prefilter leaves most chunks untested); where
+    /// receivers have samples of their own, receiver `r`'s group, built
+    /// afresh in the one scratch set.
+    fn hard_volumes(&mut self, set: usize, r: usize, k: usize, need: u8) -> usize {
+        if let Some(own) = &self.own {
+            let (soa, _) = own.group(r, k, self.sets.groups);
+            self.hard[0].build_chunks(soa, &self.tri, need);
+            return 0;
+        }
         let i = set * self.sets.groups + k;
         if self.hard_stamp[i] != self.stamp {
             self.hard_stamp[i] = self.stamp;
@@ -344,8 +369,13 @@ impl<'a> Chunk<'a> {
     }
 
     /// The samples' sides of the current triangle's plane for (set,
-    /// group k), computed on first need.
-    fn plane_sides(&mut self, set: usize, k: usize) -> (u32, u32) {
+    /// group k), computed on first need (receiver `r`'s own group, each
+    /// time, where receivers have samples of their own).
+    fn plane_sides(&mut self, set: usize, r: usize, k: usize) -> (u32, u32) {
+        if let Some(own) = &self.own {
+            let (slack, _) = self.cone_slack.expect("a cone");
+            return plane_sides(own.group(r, k, self.sets.groups).0, &self.tri, slack);
+        }
         let i = set * self.sets.groups + k;
         if self.sides_stamp[i] != self.stamp {
             self.sides_stamp[i] = self.stamp;
@@ -412,7 +442,7 @@ impl<'a> Chunk<'a> {
             if sw.umbra && (group_umbra >> k) & 1 == 1 {
                 continue;
             }
-            if self.groups_built {
+            if self.groups_built && self.own.is_none() {
                 let v = &self.groups_vol[k as usize];
                 match v.test_box(&lo, &hi, pk & v.all(), self.slack, sw.active_planes) {
                     BoxTest::Outside => {}
@@ -503,6 +533,10 @@ impl<'a> Chunk<'a> {
         if self.slot[r] == NONE {
             self.alloc(r);
         }
+        if let Some(own) = &mut self.own {
+            own.ensure(self.sets, r);
+        }
+        let per_receiver = self.own.is_some();
         let set = self.set[r] as usize;
         let g = self.sets.groups;
         let base = self.slot[r] as usize * g;
@@ -513,7 +547,7 @@ impl<'a> Chunk<'a> {
                 continue;
             }
             let v = &self.groups_vol[k];
-            if !v.contains(o, pk & v.all(), self.slack) {
+            if !per_receiver && !v.contains(o, pk & v.all(), self.slack) {
                 continue;
             }
             let valid = self.sets.valid[k];
@@ -524,8 +558,8 @@ impl<'a> Chunk<'a> {
             let mut skip = word | !valid;
             let bits = match &cone {
                 Some(c) if decides => {
-                    let sides = split.then(|| self.plane_sides(set, k));
-                    let (soa, boxes) = (&self.sets.soa[set][k], &self.sets.boxes[set][k]);
+                    let sides = split.then(|| self.plane_sides(set, r, k));
+                    let (soa, boxes) = self.group_samples(set, r, k);
                     let (sure, unsure) = cone_group(c, soa, boxes, skip, sides, sw.simd);
                     if sure | unsure == 0 {
                         continue;
@@ -535,21 +569,21 @@ impl<'a> Chunk<'a> {
                     } else {
                         // Ties up to rounding: the kernel's own answer.
                         let skip = !unsure;
-                        let hv = self.hard_volumes(set, k, chunks_left(skip));
+                        let hv = self.hard_volumes(set, r, k, chunks_left(skip));
                         sure | self.kernel(hv, o, skip)
                     }
                 }
                 Some(c) => {
-                    skip |= c.outside_chunks(&self.sets.boxes[set][k]);
+                    skip |= c.outside_chunks(self.group_samples(set, r, k).1);
                     if skip == u32::MAX {
                         continue;
                     }
-                    let hv = self.hard_volumes(set, k, chunks_left(skip));
+                    let hv = self.hard_volumes(set, r, k, chunks_left(skip));
                     self.kernel(hv, o, skip)
                 }
                 None => {
                     // The chunks of four with a sample left to test.
-                    let hv = self.hard_volumes(set, k, chunks_left(skip));
+                    let hv = self.hard_volumes(set, r, k, chunks_left(skip));
                     self.kernel(hv, o, skip)
                 }
             };
@@ -565,7 +599,31 @@ impl<'a> Chunk<'a> {
             if sw.on_demand {
                 self.release(r);
             }
+            if let Some(own) = &mut self.own {
+                own.release(r);
+            }
         }
+    }
+
+    /// Group `k`'s samples for receiver `r` of set `set`: positions and
+    /// chunk boxes (its own where receivers have samples of their own).
+    #[inline(always)]
+    fn group_samples(&self, set: usize, r: usize, k: usize) -> (&GroupSoa, &ChunkBoxes) {
+        match &self.own {
+            Some(own) => own.group(r, k, self.sets.groups),
+            None => (&self.sets.soa[set][k], &self.sets.boxes[set][k]),
+        }
+    }
+
+    /// The receivers' sample keys where they have samples of their own.
+    pub fn sample_keys(&self) -> Option<&[SampleKey]> {
+        self.own.as_ref().map(ReceiverSamples::keys)
+    }
+
+    /// Most receivers that held their own samples at once (0 where they
+    /// share their set's).
+    pub fn peak_sample_receivers(&self) -> usize {
+        self.own.as_ref().map_or(0, |o| o.peak)
     }
 
     #[inline(always)]

@@ -44,7 +44,7 @@ use crate::shade::{surface_point, PreparedLight};
 use cast::{Chunk, ChunkStats, Switches};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use samples::{SampleSets, GROUP, MAX_GROUPS};
+use samples::{ReceiverSamples, SampleKey, SampleSets, GROUP, MAX_GROUPS};
 use std::time::Duration;
 use volume::{penumbra_volume, PenumbraVolume};
 
@@ -177,11 +177,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     page: Some("penumbra-casting.md"),
     capabilities: |_| Capabilities {
         rect_lights: Support::Yes,
-        sphere_lights: Support::Refused {
-            param: "--technique",
-            why: "the light-sample hierarchy is built for rect lights (a sphere's samples move \
-                  with the receiver); use dcs or reference",
-        },
+        sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
         enclosed_lights: Support::Yes,
         semi_opaque: Support::Yes,
@@ -456,19 +452,24 @@ impl PenumbraCasting {
             .lights
             .get(k)
             .ok_or_else(|| Error::param("--technique", format!("no light {k}")))?;
-        let LightShape::Rect { center, u, v, .. } = light.shape else {
-            return Err(Error::param(
-                "--technique",
-                "penumbra casting takes rect lights only (use dcs or reference)",
-            ));
-        };
-        let centre = center.as_dvec3();
-        let e1 = u.as_dvec3().normalize_or_zero();
-        let e3 = u.as_dvec3().cross(v.as_dvec3()).normalize_or_zero();
-        let e2 = e3.cross(e1);
         let sampler = LightSampler::new(light);
         let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
-        let sets = SampleSets::new(&sampler, &pattern, self.sample_sets(), centre, [e1, e2, e3]);
+        let (centre, sets) = match light.shape {
+            LightShape::Rect { center, u, v, .. } => {
+                let centre = center.as_dvec3();
+                let e1 = u.as_dvec3().normalize_or_zero();
+                let e3 = u.as_dvec3().cross(v.as_dvec3()).normalize_or_zero();
+                let e2 = e3.cross(e1);
+                let axes = [e1, e2, e3];
+                let sets = SampleSets::new(&sampler, &pattern, self.sample_sets(), centre, axes);
+                (centre, sets)
+            }
+            LightShape::Sphere { center, radius } => {
+                let centre = center.as_dvec3();
+                let sets = SampleSets::sphere(&sampler, &pattern, centre, f64::from(radius));
+                (centre, sets)
+            }
+        };
         let mut report = LightReport::default();
 
         // Triangles: opaque casters, non-degenerate, relative to the light.
@@ -548,7 +549,9 @@ impl PenumbraCasting {
             .collect();
         for i in 0..gb.len() {
             let Some(s) = gb.get(i) else { continue };
-            if !s.is_surface() || !receives(ctx, s.object) {
+            // (A receiver inside a sphere light has no samples: it is
+            // finished with the non-receivers.)
+            if !s.is_surface() || !receives(ctx, s.object) || !sets.has_samples(s.position) {
                 continue;
             }
             let (x, y) = (i as u32 % w, i as u32 / w);
@@ -579,6 +582,19 @@ impl PenumbraCasting {
             [o.x, o.y, o.z]
         };
         let receiver_set = |i: u32| sets.set_of((i % w, i / w)) as u16;
+        // Sample keys only where receivers have samples of their own.
+        let receiver_keys = |pixels: &[u32]| -> Vec<SampleKey> {
+            if !sets.per_receiver() {
+                return Vec::new();
+            }
+            pixels
+                .iter()
+                .map(|&i| SampleKey {
+                    position: gb.sample(i as usize).position,
+                    pixel: (i % w, i / w),
+                })
+                .collect()
+        };
         report.chunks_unsplit = inputs.len();
         if self.options.pc_split_work > 0 {
             let tp = std::time::Instant::now();
@@ -593,7 +609,8 @@ impl PenumbraCasting {
                     .collect();
                 let pos = probe.iter().map(|&i| receiver_pos(i)).collect();
                 let set = probe.iter().map(|&i| receiver_set(i)).collect();
-                let mut chunk = Chunk::new(&sets, sw, slack, pos, set);
+                let keys = receiver_keys(&probe);
+                let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys);
                 let first = tris.len().div_ceil(PROBE_SHARE);
                 for (t, v) in tris[..first].iter().zip(&vl[..first]) {
                     chunk.process(t, v);
@@ -630,6 +647,18 @@ impl PenumbraCasting {
                 0
             } else {
                 casters.record_bytes(sets.n)
+            }
+            + if sets.per_receiver() {
+                // Its own samples, in the opaque pass and again in the
+                // translucent one (with the projector's positions).
+                ReceiverSamples::bytes_per_receiver(sets.groups, false)
+                    + if casters.is_empty() {
+                        0
+                    } else {
+                        ReceiverSamples::bytes_per_receiver(sets.groups, !casters.mattes.is_empty())
+                    }
+            } else {
+                0
             };
         let mut waves: Vec<Vec<ChunkInput>> = Vec::new();
         let mut bytes = 0u64;
@@ -651,7 +680,8 @@ impl PenumbraCasting {
                 .map(|c| {
                     let pos = c.pixels.iter().map(|&i| receiver_pos(i)).collect();
                     let set = c.pixels.iter().map(|&i| receiver_set(i)).collect();
-                    let chunk = Chunk::new(&sets, sw, slack, pos, set);
+                    let keys = receiver_keys(&c.pixels);
+                    let chunk = Chunk::new(&sets, sw, slack, pos, set, keys);
                     let pixels = chunk.order.iter().map(|&o| c.pixels[o as usize]).collect();
                     (pixels, chunk)
                 })
@@ -674,6 +704,7 @@ impl PenumbraCasting {
                 report.stats.masked += s.masked;
                 report.stats.build_time += s.build_time;
                 report.stats.volumes_built += s.volumes_built;
+                report.stats.peak_sample_receivers += c.peak_sample_receivers();
                 report.volume_bytes += c.volume_bytes();
                 wave_masks += s.peak_masks as u64 * c.mask_bytes();
             }
@@ -810,6 +841,7 @@ impl PenumbraCasting {
                 let mut words = Vec::new();
                 let mut vis = vec![1.0f32; n];
                 let mut vt = vec![1.0f64; n];
+                let mut buf = Vec::new();
                 let mut local = Vec::with_capacity(px.len());
                 for (r, &i) in px.iter().enumerate() {
                     let set = c.set[r] as usize;
@@ -835,9 +867,13 @@ impl PenumbraCasting {
                         (visible as f64 / n as f64) as f32
                     };
                     let g = ctx.gbuffer.sample(i as usize);
+                    let key = SampleKey {
+                        position: g.position,
+                        pixel: (i % w as u32, i / w as u32),
+                    };
                     let rad = prepared.direct_from_samples(
                         &surface_point(ctx.scene, &g, eye),
-                        &sets.samples[set],
+                        sets.samples_for(set, key, &mut buf),
                         &vis,
                     );
                     local.push((i, vcoef, rad, c.leaf_triangles[r]));
@@ -857,18 +893,32 @@ impl PenumbraCasting {
                 radiance[i as usize] = r;
                 leaf[i as usize] = l as f32;
             }
-            // Surface pixels that receive no shadows: every sample visible.
+            // Surface pixels that receive no shadows: every sample visible;
+            // inside a sphere light: no samples, Vcoef 1 and no radiance,
+            // as the reference leaves them.
             let all_visible = vec![1.0f32; sets.n];
+            let mut buf = Vec::new();
             for i in 0..len {
                 let Some(g) = ctx.gbuffer.get(i) else {
                     continue;
                 };
-                if g.is_surface() && !receives(ctx, g.object) {
-                    let set = sets.set_of(((i % w) as u32, (i / w) as u32));
+                if !g.is_surface() {
+                    continue;
+                }
+                if !sets.has_samples(g.position) {
+                    vcoef[i] = 1.0;
+                    radiance[i] = Vec3::ZERO;
+                } else if !receives(ctx, g.object) {
+                    let pixel = ((i % w) as u32, (i / w) as u32);
+                    let set = sets.set_of(pixel);
+                    let key = SampleKey {
+                        position: g.position,
+                        pixel,
+                    };
                     vcoef[i] = 1.0;
                     radiance[i] = prepared.direct_from_samples(
                         &surface_point(ctx.scene, &g, eye),
-                        &sets.samples[set],
+                        sets.samples_for(set, key, &mut buf),
                         &all_visible,
                     );
                 }
@@ -943,10 +993,18 @@ impl PenumbraCasting {
                  whole cast",
                 sets.sets,
                 sets.n,
-                if self.matches_reference(sets) {
-                    " (every receiver gets the reference's samples)"
+                if sets.per_receiver() {
+                    format!(
+                        " (sphere light: each receiver its own, the reference's, made on first \
+                         need; {} receivers held theirs at the chunks' summed peaks, {} bytes \
+                         each; the groups bounded by the light's box)",
+                        r.stats.peak_sample_receivers,
+                        ReceiverSamples::bytes_per_receiver(sets.groups, false)
+                    )
+                } else if self.matches_reference(sets) {
+                    " (every receiver gets the reference's samples)".to_string()
                 } else {
-                    ", assigned per receiver by a pixel hash"
+                    ", assigned per receiver by a pixel hash".to_string()
                 },
                 r.triangles,
                 r.culled,
@@ -992,10 +1050,16 @@ impl SampleDecisions for PenumbraCasting {
     ) -> Result<Vec<PixelVisibility>> {
         let m = self.light_masks(ctx, light)?;
         let g = m.sets.groups;
+        let w = ctx.gbuffer.width.max(1) as usize;
+        let mut buf = Vec::new();
         Ok(pixels
             .iter()
             .filter_map(|&i| {
                 let set = usize::from((*m.set.get(i)?)?);
+                let key = SampleKey {
+                    position: ctx.gbuffer.sample(i).position,
+                    pixel: ((i % w) as u32, (i / w) as u32),
+                };
                 let words = &m.words[i * g..(i + 1) * g];
                 let mut visibility = vec![1.0; m.sets.n];
                 let vt = m.transmittance.get(i * m.sets.n..(i + 1) * m.sets.n);
@@ -1008,7 +1072,7 @@ impl SampleDecisions for PenumbraCasting {
                 }
                 Some(PixelVisibility {
                     pixel: i,
-                    samples: m.sets.samples[set].clone(),
+                    samples: m.sets.samples_for(set, key, &mut buf).to_vec(),
                     visibility,
                 })
             })

@@ -20,10 +20,21 @@
 //! positions over every set (§3.4: it must bound all sets), widened by
 //! rounding margins, so every position a hard shadow volume is built
 //! from lies inside it.
+//!
+//! Sphere lights (§3.4 leaves volumetric lights open): the reference
+//! samples the cone the sphere subtends from each receiver's surface
+//! point, so a sample's position moves with the receiver and no set is
+//! shared. [`SampleSets::sphere`] keeps one nominal set (every receiver's
+//! samples in index order, so the masks' slots are the reference's
+//! indices) and bounds the light and every group by the sphere's box,
+//! widened by the `f32` rounding of the sample positions; each receiver's
+//! own samples are computed on first need by [`ReceiverSamples`] — the
+//! reference's samples at its pixel, for every pattern.
 
 use super::volume::{ChunkBoxes, GroupSoa};
 use crate::sampling::{mix64, pixel_key, LightSampler, PatternSampler, SamplePattern};
 use crate::shade::LightSample;
+use crate::shadow::stsv::SamplePositions;
 use glam::{DVec3, Vec3};
 
 /// Samples per group (the paper's 32: one `u32` mask word).
@@ -74,6 +85,28 @@ pub struct SampleSets {
     assign: Assign,
     seed: u64,
     light_index: usize,
+    /// Sphere lights: how each receiver's own samples are made.
+    sphere: Option<SphereSampling>,
+}
+
+/// A sphere light's sampler and pattern: a receiver's samples are
+/// `sampler.samples_with(pattern, position, pixel)`, the reference's call.
+#[derive(Debug, Clone)]
+struct SphereSampling {
+    sampler: LightSampler,
+    pattern: PatternSampler,
+    centre: DVec3,
+}
+
+/// What a receiver's samples are made from where they move with it
+/// (sphere lights): the surface point the reference samples from (the
+/// cone's apex; the shadow rays start at its offset origin) and its pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleKey {
+    /// The G-buffer's surface position.
+    pub position: Vec3,
+    /// The pixel (the pattern's key).
+    pub pixel: (u32, u32),
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -166,16 +199,7 @@ impl SampleSets {
         };
         let all_lo = lo.iter().fold(DVec3::INFINITY, |a, &b| a.min(b));
         let all_hi = hi.iter().fold(DVec3::NEG_INFINITY, |a, &b| a.max(b));
-        let valid = (0..groups)
-            .map(|g| {
-                let len = (n - g * GROUP).min(GROUP);
-                if len == GROUP {
-                    u32::MAX
-                } else {
-                    (1u32 << len) - 1
-                }
-            })
-            .collect();
+        let valid = valid_bits(n, groups);
         let soa = positions
             .iter()
             .map(|set| set.chunks(GROUP).map(GroupSoa::new).collect())
@@ -205,6 +229,93 @@ impl SampleSets {
             assign,
             seed: pattern.seed(),
             light_index: pattern.light_index(),
+            sphere: None,
+        }
+    }
+
+    /// The nominal set of sphere light `sampler` (centre `centre`, radius
+    /// `radius`) for `pattern`: no shared positions (each receiver's are
+    /// its own, [`ReceiverSamples`]), slots in sample index order, and the
+    /// light and every group bounded by the sphere's box in world axes.
+    /// The box's half side is the radius plus the `f32` rounding of a
+    /// position on the sphere (`2⁻²³` of the largest coordinate
+    /// magnitude, twice over) plus `1e-12` of the scale, so every sample
+    /// position of every receiver lies inside it.
+    pub fn sphere(
+        sampler: &LightSampler,
+        pattern: &PatternSampler,
+        centre: DVec3,
+        radius: f64,
+    ) -> SampleSets {
+        let n = pattern.len() as usize;
+        let groups = n.div_ceil(GROUP);
+        let scale = centre.abs().max_element() + radius;
+        let half = radius + 2.0 * f64::from(f32::EPSILON) * scale + 1e-12 * scale.max(1.0);
+        let mut corners = [DVec3::ZERO; 8];
+        for (i, c) in corners.iter_mut().enumerate() {
+            *c = DVec3::new(
+                if i & 1 == 0 { -half } else { half },
+                if i & 2 == 0 { -half } else { half },
+                if i & 4 == 0 { -half } else { half },
+            );
+        }
+        let light = LightBox { corners };
+        SampleSets {
+            n,
+            groups,
+            sets: 1,
+            positions: Vec::new(),
+            soa: Vec::new(),
+            boxes: Vec::new(),
+            extent: half,
+            order: vec![(0..n as u32).collect()],
+            samples: vec![Vec::new()],
+            light,
+            group_bounds: vec![light; groups],
+            valid: valid_bits(n, groups),
+            assign: Assign::One,
+            seed: pattern.seed(),
+            light_index: pattern.light_index(),
+            sphere: Some(SphereSampling {
+                sampler: *sampler,
+                pattern: pattern.clone(),
+                centre,
+            }),
+        }
+    }
+
+    /// Whether each receiver has samples of its own (a sphere light): no
+    /// set's positions are shared, and the group bounds are the light's.
+    pub fn per_receiver(&self) -> bool {
+        self.sphere.is_some()
+    }
+
+    /// Whether a receiver at surface `position` has samples: every one for
+    /// a rect light; for a sphere light, exactly those outside the sphere
+    /// (the reference gives one inside or on it none).
+    pub fn has_samples(&self, position: Vec3) -> bool {
+        match &self.sphere {
+            None => true,
+            Some(s) => s.sampler.cone_frame(position.as_dvec3()).is_some(),
+        }
+    }
+
+    /// The samples (in index order) of the receiver of set `set` with
+    /// key `key`: the set's shared list, or for a sphere light its own,
+    /// written to `buf`.
+    pub fn samples_for<'s>(
+        &'s self,
+        set: usize,
+        key: SampleKey,
+        buf: &'s mut Vec<LightSample>,
+    ) -> &'s [LightSample] {
+        match &self.sphere {
+            None => &self.samples[set],
+            Some(s) => {
+                s.sampler
+                    .samples_with(&s.pattern, key.position, key.pixel, buf);
+                buf
+            }
         }
     }
 
@@ -243,6 +354,150 @@ impl SampleSets {
     /// Bytes of the sets (positions, orders, samples).
     pub fn bytes(&self) -> u64 {
         (self.sets * self.n * (24 + 4 + std::mem::size_of::<LightSample>())) as u64
+    }
+}
+
+/// Per group of `n` samples: the valid bits of its mask word.
+fn valid_bits(n: usize, groups: usize) -> Vec<u32> {
+    (0..groups)
+        .map(|g| {
+            let len = (n - g * GROUP).min(GROUP);
+            if len == GROUP {
+                u32::MAX
+            } else {
+                (1u32 << len) - 1
+            }
+        })
+        .collect()
+}
+
+/// Where each receiver has samples of its own (sphere lights): its
+/// samples as the kernels take them, made on first need and dropped at
+/// full umbra, in a pool of slots (so the memory is that of the receivers
+/// being worked on, not of the chunk).
+#[derive(Debug, Default)]
+pub struct ReceiverSamples {
+    /// Per receiver: its key.
+    keys: Vec<SampleKey>,
+    /// Per receiver: its slot in the pools, or `u32::MAX`.
+    slot: Vec<u32>,
+    /// Per slot and group: positions relative to the light's centre.
+    soa: Vec<GroupSoa>,
+    /// Per slot and group: the boxes of its samples four by four.
+    boxes: Vec<ChunkBoxes>,
+    /// Per slot and group, where asked for: the `f32` positions for the
+    /// soft-textured projector.
+    projector: Vec<SamplePositions>,
+    with_projector: bool,
+    free: Vec<u32>,
+    live: usize,
+    /// Most slots alive at once.
+    pub peak: usize,
+    scratch: Vec<LightSample>,
+    rel: Vec<DVec3>,
+}
+
+impl ReceiverSamples {
+    /// An empty cache over receivers with keys `keys` (with the
+    /// projector's positions too where `projector`).
+    pub fn new(keys: Vec<SampleKey>, projector: bool) -> ReceiverSamples {
+        ReceiverSamples {
+            slot: vec![u32::MAX; keys.len()],
+            keys,
+            with_projector: projector,
+            ..ReceiverSamples::default()
+        }
+    }
+
+    /// The receivers' keys.
+    pub fn keys(&self) -> &[SampleKey] {
+        &self.keys
+    }
+
+    /// Makes receiver `r`'s samples of `sets` (a sphere light's) if it
+    /// has none yet.
+    pub fn ensure(&mut self, sets: &SampleSets, r: usize) {
+        if self.slot[r] != u32::MAX {
+            return;
+        }
+        let Some(sp) = &sets.sphere else { return };
+        let g = sets.groups;
+        sp.sampler.samples_with(
+            &sp.pattern,
+            self.keys[r].position,
+            self.keys[r].pixel,
+            &mut self.scratch,
+        );
+        self.rel.clear();
+        self.rel
+            .extend(self.scratch.iter().map(|s| s.x.as_dvec3() - sp.centre));
+        let s = if let Some(s) = self.free.pop() {
+            s
+        } else {
+            let s = (self.soa.len() / g.max(1)) as u32;
+            self.soa.resize(self.soa.len() + g, GroupSoa::new(&[]));
+            self.boxes
+                .resize(self.boxes.len() + g, ChunkBoxes::new(&[]));
+            if self.with_projector {
+                self.projector
+                    .resize(self.projector.len() + g, SamplePositions::default());
+            }
+            s
+        };
+        let base = s as usize * g;
+        // A receiver inside the sphere has no samples (the chunks leave
+        // such receivers out): its groups stay empty and hold nothing.
+        for k in 0..g {
+            let part = self
+                .rel
+                .get(GROUP * k..(GROUP * (k + 1)).min(self.rel.len()));
+            let part = part.unwrap_or(&[]);
+            self.soa[base + k] = GroupSoa::new(part);
+            self.boxes[base + k] = ChunkBoxes::new(part);
+            if self.with_projector {
+                let lp = self
+                    .scratch
+                    .get(GROUP * k..(GROUP * (k + 1)).min(self.scratch.len()))
+                    .unwrap_or(&[]);
+                self.projector[base + k].set(lp);
+            }
+        }
+        self.slot[r] = s;
+        self.live += 1;
+        self.peak = self.peak.max(self.live);
+    }
+
+    /// Receiver `r`'s group `k` (of `groups`): positions and chunk boxes.
+    /// It must have been made ([`ReceiverSamples::ensure`]).
+    #[inline(always)]
+    pub fn group(&self, r: usize, k: usize, groups: usize) -> (&GroupSoa, &ChunkBoxes) {
+        let i = self.slot[r] as usize * groups + k;
+        (&self.soa[i], &self.boxes[i])
+    }
+
+    /// Receiver `r`'s group `k`: the projector's positions (made with
+    /// `projector`).
+    pub fn projector(&self, r: usize, k: usize, groups: usize) -> &SamplePositions {
+        &self.projector[self.slot[r] as usize * groups + k]
+    }
+
+    /// Drops receiver `r`'s samples (its slot is reused).
+    pub fn release(&mut self, r: usize) {
+        let s = self.slot[r];
+        if s != u32::MAX {
+            self.free.push(s);
+            self.slot[r] = u32::MAX;
+            self.live -= 1;
+        }
+    }
+
+    /// Bytes of one receiver's samples with `groups` groups (the
+    /// projector's positions included where `projector`).
+    pub fn bytes_per_receiver(groups: usize, projector: bool) -> u64 {
+        let per_group = std::mem::size_of::<GroupSoa>()
+            + std::mem::size_of::<ChunkBoxes>()
+            + if projector { 3 * 4 * GROUP } else { 0 };
+        (groups * per_group) as u64
     }
 }
 

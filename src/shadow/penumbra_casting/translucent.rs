@@ -40,7 +40,7 @@
 
 use super::cast::Chunk;
 use super::hierarchy::Hierarchy;
-use super::samples::{SampleSets, GROUP};
+use super::samples::{ReceiverSamples, SampleSets, GROUP};
 use super::volume::PenumbraVolume;
 use super::volume::{hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes};
 use crate::scene::Scene;
@@ -103,7 +103,9 @@ impl Casters {
                 out.mattes.push(*s);
             }
         }
-        if !out.mattes.is_empty() {
+        // (Where receivers have samples of their own, the pass makes
+        // their positions per receiver.)
+        if !out.mattes.is_empty() && !sets.per_receiver() {
             out.positions = (0..sets.sets)
                 .map(|set| {
                     (0..sets.groups)
@@ -262,7 +264,17 @@ pub fn cast(
     let mut gv = vec![PenumbraVolume::default(); g];
     // The hard-volume cache (`sets × groups × 4 KiB`) only for layers.
     let layers = casters.tris.iter().any(|t| matches!(t.1, Kind::Layer(_)));
-    let cache = if layers { sets.sets * g } else { 0 };
+    // Sphere lights: each receiver's own samples (made on first need; the
+    // opaque pass dropped its own), one scratch hard-volume set, and no
+    // group volumes (every group's bound is the light's).
+    let mut own = c
+        .sample_keys()
+        .map(|keys| ReceiverSamples::new(keys.to_vec(), !casters.mattes.is_empty()));
+    let cache = match (&own, layers) {
+        (_, false) => 0,
+        (Some(_), true) => 1,
+        (None, true) => sets.sets * g,
+    };
     let mut hard = vec![HardVolumes::default(); cache];
     let mut stamp = vec![0u32; cache];
     let mut words = Vec::new();
@@ -275,9 +287,12 @@ pub fn cast(
             Kind::Layer(_) => slack,
         };
         penumbra_volume(&sets.light, tri, &mut vl);
-        for (k, v) in gv.iter_mut().enumerate() {
-            penumbra_volume(&sets.group_bounds[k], tri, v);
+        if own.is_none() {
+            for (k, v) in gv.iter_mut().enumerate() {
+                penumbra_volume(&sets.group_bounds[k], tri, v);
+            }
         }
+        let per_receiver = own.is_some();
         stack.clear();
         stack.push((0, vl.all()));
         while let Some((node, pl)) = stack.pop() {
@@ -299,20 +314,34 @@ pub fn cast(
                 }
                 c.words(p, &mut words);
                 let set = c.set[p] as usize;
+                if let Some(own) = &mut own {
+                    own.ensure(sets, p);
+                }
+                // A group whose volume leaves the receiver out is skipped
+                // (no volumes where the groups' bounds are the light's).
+                let outside = |k: usize| !per_receiver && !gv[k].contains(o, gv[k].all(), s);
                 hits.clear();
                 match *kind {
                     Kind::Layer(_) => {
-                        for k in 0..g {
-                            let valid = sets.valid[k];
-                            if words[k] == valid || !gv[k].contains(o, gv[k].all(), s) {
+                        for (k, (&word, &valid)) in words.iter().zip(&sets.valid).enumerate() {
+                            if word == valid || outside(k) {
                                 continue;
                             }
-                            let i = set * g + k;
-                            if stamp[i] != now {
-                                stamp[i] = now;
-                                hard[i].build(&sets.soa[set][k], tri);
-                            }
-                            let skip = words[k] | !valid;
+                            let i = match &own {
+                                Some(own) => {
+                                    hard[0].build(own.group(p, k, g).0, tri);
+                                    0
+                                }
+                                None => {
+                                    let i = set * g + k;
+                                    if stamp[i] != now {
+                                        stamp[i] = now;
+                                        hard[i].build(&sets.soa[set][k], tri);
+                                    }
+                                    i
+                                }
+                            };
+                            let skip = word | !valid;
                             let mut bits = if simd {
                                 hard_bits_simd(&hard[i], o, skip)
                             } else {
@@ -330,12 +359,15 @@ pub fn cast(
                         let Some(proj) = SampleProjector::new(stri, origin[p]) else {
                             continue;
                         };
-                        for k in 0..g {
-                            if words[k] == sets.valid[k] || !gv[k].contains(o, gv[k].all(), s) {
+                        for (k, (&w, &valid)) in words.iter().zip(&sets.valid).enumerate() {
+                            if w == valid || outside(k) {
                                 continue;
                             }
-                            let w = words[k];
-                            proj.for_each_hit_in(&casters.positions[set][k], |j, b1, b2| {
+                            let positions = match &own {
+                                Some(own) => own.projector(p, k, g),
+                                None => &casters.positions[set][k],
+                            };
+                            proj.for_each_hit_in(positions, |j, b1, b2| {
                                 if (w >> j) & 1 == 1 {
                                     return;
                                 }
