@@ -12,8 +12,9 @@
 use super::hierarchy::{Hierarchy, Node};
 use super::samples::{ReceiverSamples, SampleKey, SampleSets};
 use super::volume::{
-    chunks_left, cone_group, cone_slack, hard_bits_scalar, hard_bits_simd, light_side_of_plane,
-    penumbra_volume, plane_sides, BoxTest, ChunkBoxes, Cone, GroupSoa, HardVolumes, PenumbraVolume,
+    ball_side_of_plane, chunks_left, cone_group, cone_slack, hard_bits_scalar, hard_bits_simd,
+    light_side_of_plane, penumbra_volume, plane_sides, BoxTest, ChunkBoxes, Cone, GroupSoa,
+    HardVolumes, PenumbraVolume,
 };
 #[cfg(target_arch = "x86_64")]
 use crate::simd::level::runs_v3;
@@ -335,7 +336,12 @@ impl<'a> Chunk<'a> {
             let slack = cone_slack(m);
             if slack.is_finite() {
                 let split = self.sw.cone_decides && self.sw.cone_split;
-                self.cone_slack = match light_side_of_plane(&self.sets.light, &t, slack) {
+                // A sphere light: its ball, tighter than its box.
+                let side = match self.sets.ball() {
+                    Some(radius) => ball_side_of_plane(radius, &t, slack),
+                    None => light_side_of_plane(&self.sets.light, &t, slack),
+                };
+                self.cone_slack = match side {
                     Some(side) => Some((slack, side)),
                     None if split => Some((slack, 0.0)),
                     None => None,
@@ -530,6 +536,13 @@ impl<'a> Chunk<'a> {
             },
             None => (None, false, false),
         };
+        // A sphere light clear of the triangle's plane: a cone that misses
+        // the light's ball marks nothing (no mask, no samples made).
+        if let (Some(c), Some(radius), false) = (&cone, self.sets.ball(), split) {
+            if c.misses_ball(radius) {
+                return;
+            }
+        }
         if self.slot[r] == NONE {
             self.alloc(r);
         }

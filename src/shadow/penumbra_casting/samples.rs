@@ -284,6 +284,12 @@ impl SampleSets {
         }
     }
 
+    /// Sphere lights: the radius of a ball about the light's centre that
+    /// holds every receiver's every sample (the box's half side).
+    pub fn ball(&self) -> Option<f64> {
+        self.sphere.as_ref().map(|_| self.extent)
+    }
+
     /// Whether each receiver has samples of its own (a sphere light): no
     /// set's positions are shared, and the group bounds are the light's.
     pub fn per_receiver(&self) -> bool {

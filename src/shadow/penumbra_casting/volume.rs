@@ -913,6 +913,27 @@ impl Cone {
         cone_chunks_kernel!(F64x4, F64x4::splat, F64x4::load, self, b)
     }
 
+    /// Whether every point of the ball of radius `radius` about the
+    /// light's centre (the coordinates' origin) is outside one of the
+    /// cone's planes by more than the allowance, as
+    /// [`Cone::outside_chunks`] asks of a chunk's box: the value at the
+    /// centre plus the normal's length times `radius`, each widened by
+    /// `1e-9` relative (their rounding is ~1e-16). Then the kernel marks
+    /// none of the light's samples — where the light is clear of the
+    /// triangle's plane (for samples within the allowance of a splitting
+    /// plane the kernel's orientation is not known, and they go to the
+    /// kernel whatever the cone says).
+    #[inline]
+    pub fn misses_ball(&self, radius: f64) -> bool {
+        let o = DVec3::from_array(self.o);
+        self.n.iter().any(|n| {
+            let n = DVec3::from_array(*n);
+            let len = n.length();
+            let reach = len * radius * (1.0 + 1e-9) + 1e-9 * len * o.length();
+            -n.dot(o) + reach < -self.slack
+        })
+    }
+
     /// [`Cone::outside_chunks`], chunk by chunk (its scalar twin).
     #[inline]
     pub fn outside_chunks_scalar(&self, b: &ChunkBoxes) -> u32 {
@@ -1122,6 +1143,28 @@ pub fn light_side_of_plane(light: &LightBox, t: &[DVec3; 3], slack: f64) -> Opti
     }
 }
 
+/// [`light_side_of_plane`] for a light whose samples all lie in the ball
+/// of radius `radius` about its centre (the origin of the coordinates):
+/// a sphere light, whose box reaches √3 times as far along its diagonals.
+/// The value at a sample `y` is the value at the centre plus
+/// `((t1 − t0) × (t2 − t0))·y`, at most the normal's length times
+/// `radius` in magnitude; both computed terms are widened by `1e-9`
+/// relative (their rounding is ~1e-16), so where the result is clear of
+/// `slack` every sample's exact value is too.
+pub fn ball_side_of_plane(radius: f64, t: &[DVec3; 3], slack: f64) -> Option<f64> {
+    let nt = cross(t[1] - t[0], t[2] - t[0]);
+    let centre = -nt.dot(t[0]);
+    let len = nt.length();
+    let reach = len * radius * (1.0 + 1e-9) + 1e-9 * len * t[0].length();
+    if centre - reach > slack {
+        Some(1.0)
+    } else if centre + reach < -slack {
+        Some(-1.0)
+    } else {
+        None
+    }
+}
+
 /// One group's sample positions as lanes (padded to 32 with zeros).
 #[derive(Debug, Clone)]
 pub struct GroupSoa {
@@ -1304,6 +1347,57 @@ mod tests {
         let p = t[a] + (t[(a + 1) % 3] - t[a]) * mu;
         let lam = 1.2 + rng(st).abs() * 2.0;
         (y + (p - y) * lam + v(st) * tiny).to_array()
+    }
+
+    /// A sphere light's tests are conservative: where the ball is clear
+    /// of a triangle's plane every sample on the sphere is clear on that
+    /// side by the allowance ([`plane_sides`]), and where a cone misses
+    /// the ball the kernel marks no sample; receivers placed on the lines
+    /// from samples through the triangle's edges make near misses.
+    #[test]
+    fn sphere_ball_tests_are_conservative() {
+        let mut st = 11u64;
+        let v = |s: &mut u64| DVec3::new(rng(s), rng(s), rng(s));
+        let (mut clear, mut missed, mut hit) = (0usize, 0usize, 0usize);
+        for round in 0..400 {
+            let r = 0.1 + rng(&mut st).abs();
+            // Samples on the sphere about the origin (the light's centre).
+            let samples: Vec<DVec3> = (0..32)
+                .map(|_| v(&mut st).normalize_or(DVec3::X) * r)
+                .collect();
+            let t = [v(&mut st), v(&mut st), v(&mut st)].map(|p| p * 2.0 - DVec3::Y * 2.0);
+            let slack = cone_slack(4.0);
+            let Some(side) = ball_side_of_plane(r, &t, slack) else {
+                continue;
+            };
+            clear += 1;
+            let soa = GroupSoa::new(&samples);
+            let (pos, neg) = plane_sides(&soa, &t, slack);
+            assert_eq!(
+                if side > 0.0 { pos } else { neg },
+                u32::MAX,
+                "round {round}"
+            );
+            let mut hv = HardVolumes::default();
+            hv.build(&soa, &t);
+            for q in 0..60 {
+                let o = receiver(&mut st, q, &samples, &t, 1e-15);
+                let Some(cone) = Cone::new(&t, o, slack) else {
+                    continue;
+                };
+                let k = hard_bits_scalar(&hv, o, 0);
+                if cone.misses_ball(r) {
+                    missed += 1;
+                    assert_eq!(k, 0, "round {round}: a cone missing the ball marks");
+                } else {
+                    hit += usize::from(k != 0);
+                }
+            }
+        }
+        assert!(
+            clear > 200 && missed > 1000 && hit > 1000,
+            "{clear} {missed} {hit}"
+        );
     }
 
     /// The cone's verdicts are the kernel's: every `sure` sample is
