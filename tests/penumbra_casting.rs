@@ -578,3 +578,152 @@ fn sphere_light_stiff_cases_lose_and_invent_no_shadow_beyond_ties() {
         }
     }
 }
+
+/// A unit cube (outward faces) with the faces in `missing` left out:
+/// `"bottom"`, `"top"`, `"front"`, `"back"`, `"left"`, `"right"`.
+fn open_cube_obj(missing: &[&str]) -> String {
+    let mut obj = String::from(
+        "v -0.5 -0.5 -0.5\nv 0.5 -0.5 -0.5\nv 0.5 0.5 -0.5\nv -0.5 0.5 -0.5\n\
+         v -0.5 -0.5 0.5\nv 0.5 -0.5 0.5\nv 0.5 0.5 0.5\nv -0.5 0.5 0.5\n",
+    );
+    for (name, faces) in [
+        ("bottom", "f 1 2 6\nf 1 6 5\n"),
+        ("top", "f 4 8 7\nf 4 7 3\n"),
+        ("front", "f 5 6 7\nf 5 7 8\n"),
+        ("back", "f 1 4 3\nf 1 3 2\n"),
+        ("left", "f 1 5 8\nf 1 8 4\n"),
+        ("right", "f 2 3 7\nf 2 7 6\n"),
+    ] {
+        if !missing.contains(&name) {
+            obj += faces;
+        }
+    }
+    obj
+}
+
+/// Open casters (a cube without one or two faces, opening up, sideways
+/// and down onto the ground, and the shipped bunny, whose base has five
+/// holes): their back faces are cast only into the receivers not sealed
+/// against the holes, and every relation is still the shadow ray's,
+/// optimised equal to basic (which casts every face everywhere).
+#[test]
+fn open_casters_skip_back_faces_only_where_sealed() {
+    for (name, missing) in [
+        ("up", &["top"][..]),
+        ("side", &["right"][..]),
+        ("down", &["bottom"][..]),
+        ("tunnel", &["front", "back"][..]),
+    ] {
+        let toml = r#"
+[scene]
+name = "open"
+[camera]
+eye = [2.5, 3.5, 3.0]
+target = [0.0, 0.3, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 50.0
+width = 64
+height = 48
+[[light]]
+type = "rect"
+center = [-0.8, 3.0, -0.5]
+u = [0.5, 0.0, 0.0]
+v = [0.0, 0.0, 0.5]
+radiance = [8.0, 8.0, 8.0]
+[[object]]
+name = "ground"
+shape = "quad"
+size = [8.0, 8.0]
+[[object]]
+name = "open cube"
+obj = "cube.obj"
+translate = [0.0, 0.5, 0.0]
+rotate = [0.0, 20.0, 0.0]
+"#;
+        let obj = open_cube_obj(missing);
+        let scene = common::scene_in_scratch(
+            &format!("pc-open-{name}"),
+            toml,
+            &[("cube.obj", obj.as_bytes())],
+        );
+        let frame = common::Frame::new(&scene, 64, 48);
+        let ctx = frame.ctx(&scene);
+        let optimised = technique(64, PenumbraCastingOptions::default())
+            .light_masks(&ctx, 0)
+            .expect("penumbra casting runs");
+        let r = &optimised.report;
+        eprintln!(
+            "{name}: {} open back faces, {} caps, {} of {} receivers sealed",
+            r.open_back, r.caps, r.sealed, r.receivers
+        );
+        assert!(r.open_back > 0 && r.caps > 0, "{name}: {r:?}");
+        assert!(r.sealed > 0 && r.sealed < r.receivers, "{name}: {r:?}");
+        let e = check(&scene, &frame, &optimised);
+        assert!(e.blocked > e.relations / 50, "{name}: {e:?}");
+        assert_exact(name, &e);
+        let basic = technique(64, PenumbraCastingOptions::default().basic())
+            .light_masks(&ctx, 0)
+            .expect("penumbra casting runs");
+        assert!(basic.words == optimised.words, "{name}: basic differs");
+    }
+    let scene = common::shipped("bunny.toml");
+    let frame = common::Frame::new(&scene, 48, 36);
+    let ctx = frame.ctx(&scene);
+    let masks = technique(32, PenumbraCastingOptions::default())
+        .light_masks(&ctx, 0)
+        .expect("penumbra casting runs");
+    let r = &masks.report;
+    assert!(
+        r.open_back > 10_000 && r.sealed > r.receivers / 2,
+        "bunny: {r:?}"
+    );
+    assert_exact("bunny", &check(&scene, &frame, &masks));
+}
+
+/// The boundary loops of an open caster close it: a fan per loop, with
+/// the object's faces, uses every welded edge as often in one direction
+/// as in the other; a closed cube has none.
+#[test]
+fn boundary_loops_close_open_casters() {
+    use std::collections::HashMap;
+    for (missing, loops) in [
+        (&[][..], 0),
+        (&["top"][..], 1),
+        (&["front", "back"][..], 2),
+        (&["top", "right"][..], 1),
+    ] {
+        let toml = "[scene]\nname = \"loops\"\n[camera]\neye = [2.0, 2.0, 3.0]\n\
+                    target = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 50.0\n\
+                    width = 16\nheight = 16\n[[light]]\ntype = \"rect\"\n\
+                    center = [0.0, 3.0, 0.0]\nu = [0.5, 0.0, 0.0]\nv = [0.0, 0.0, 0.5]\n\
+                    radiance = [1.0, 1.0, 1.0]\n[[object]]\nobj = \"cube.obj\"\n";
+        let obj = open_cube_obj(missing);
+        let scene = common::scene_in_scratch("pc-loops", toml, &[("cube.obj", obj.as_bytes())]);
+        let g = penumbra::geom::SceneGeometry::new(&scene);
+        let adj = &g.adjacency;
+        let found = adj.boundary_loops(&g, 0);
+        assert_eq!(found.len(), loops, "{missing:?}: {found:?}");
+        let mut sum: HashMap<(u32, u32), i32> = HashMap::new();
+        let mut add = |a: u32, b: u32| {
+            let (key, d) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
+            *sum.entry(key).or_default() += d;
+        };
+        for f in &adj.face_vertices {
+            for k in 0..3 {
+                add(f[k], f[(k + 1) % 3]);
+            }
+        }
+        for l in &found {
+            for i in 1..l.len() - 1 {
+                let t = [l[0], l[i + 1], l[i]];
+                for k in 0..3 {
+                    add(t[k], t[(k + 1) % 3]);
+                }
+            }
+        }
+        assert!(
+            sum.values().all(|&s| s == 0),
+            "{missing:?}: not closed by its caps"
+        );
+    }
+}

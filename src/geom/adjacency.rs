@@ -150,4 +150,56 @@ impl EdgeAdjacency {
             .collect();
         adj
     }
+
+    /// The boundary of object `object`'s surface as closed loops of
+    /// welded vertices, each in the direction its faces traverse it: an
+    /// edge whose uses' directions sum to `s ≠ 0` appears `|s|` times,
+    /// from `v[0]` to `v[1]` where `s > 0`. The boundary of a 2-chain is a
+    /// 1-cycle (every vertex has as many boundary edges out as in), so
+    /// the walk always closes; any surface spanning the loops with the
+    /// reverse orientation (a fan per loop: `(v0, v[i+1], v[i])`) closes
+    /// the object into a 2-cycle. Empty for a closed object. Loops and
+    /// their vertices come in edge order: the same for the same input.
+    pub fn boundary_loops(&self, geometry: &SceneGeometry, object: u32) -> Vec<Vec<u32>> {
+        let mut out_edges: FastMap<u32, Vec<u32>> = FastMap::default();
+        let mut starts = Vec::new();
+        for e in &self.edges {
+            let Some(first) = e.uses.first() else {
+                continue;
+            };
+            if geometry.triangle_object[first.face as usize] != object {
+                continue;
+            }
+            let sum: i32 = e.uses.iter().map(|u| u.direction as i32).sum();
+            let (a, b) = if sum > 0 {
+                (e.v[0], e.v[1])
+            } else {
+                (e.v[1], e.v[0])
+            };
+            for _ in 0..sum.unsigned_abs() {
+                out_edges.entry(a).or_default().push(b);
+                starts.push(a);
+            }
+        }
+        // Walked from the end of each vertex's list, so each edge once.
+        for list in out_edges.values_mut() {
+            list.reverse();
+        }
+        let mut loops = Vec::new();
+        for &start in &starts {
+            let mut walk = Vec::new();
+            let mut v = start;
+            while let Some(next) = out_edges.get_mut(&v).and_then(|l| l.pop()) {
+                walk.push(v);
+                v = next;
+                if v == start {
+                    break;
+                }
+            }
+            if !walk.is_empty() {
+                loops.push(walk);
+            }
+        }
+        loops
+    }
 }

@@ -100,6 +100,11 @@ pub struct Chunk<'a> {
     pub full: Vec<bool>,
     /// Per receiver: blocker triangles that reached its leaf.
     pub leaf_triangles: Vec<u32>,
+    /// Per receiver: sealed ([`Chunk::seal`]): the back faces of open
+    /// casters can be skipped for it.
+    sealed: Vec<bool>,
+    /// Whether the triangle being cast is an open caster's back face.
+    open_back: bool,
     slot: Vec<u32>,
     pool: Vec<u32>,
     free: Vec<u32>,
@@ -181,6 +186,8 @@ impl<'a> Chunk<'a> {
             group_umbra: vec![0; r],
             full: vec![false; r],
             leaf_triangles: vec![0; r],
+            sealed: vec![false; r],
+            open_back: false,
             order,
             pos,
             set,
@@ -221,9 +228,68 @@ impl<'a> Chunk<'a> {
         }
     }
 
+    /// Marks the receivers for which open casters behave as closed ones:
+    /// those outside every open caster's box (`boxes`, relative to the
+    /// light's centre, already widened) and outside the light penumbra
+    /// volume of every triangle of the surfaces that close those casters
+    /// (`caps`: no segment from the receiver to any light sample crosses
+    /// a cap). Such a receiver's winding number about a closed-up caster
+    /// is 0, as every sample's is (the light is outside the caster's box),
+    /// so a segment crossing one of its faces front to back (a back face
+    /// of the light: the whole light behind its plane) crosses one back
+    /// to front as well, and that face is not a cap: one of the caster's
+    /// kept faces blocks the relation too. Open casters' back faces are
+    /// then skipped for it ([`Chunk::process`]).
+    pub fn seal(&mut self, caps: &[PenumbraVolume], boxes: &[([f64; 3], [f64; 3])]) {
+        let inside = |p: &[f64; 3], (lo, hi): &([f64; 3], [f64; 3])| {
+            (0..3).all(|a| p[a] >= lo[a] && p[a] <= hi[a])
+        };
+        let mut sealed: Vec<bool> = self
+            .pos
+            .iter()
+            .map(|p| !boxes.iter().any(|b| inside(p, b)))
+            .collect();
+        let mut stack = Vec::new();
+        for v in caps {
+            if self.hier.nodes.is_empty() {
+                break;
+            }
+            stack.clear();
+            stack.push((0usize, v.all()));
+            while let Some((n, pl)) = stack.pop() {
+                let node = &self.hier.nodes[n];
+                let pl = match v.test_box(&node.lo, &node.hi, pl, self.slack, true) {
+                    BoxTest::Outside => continue,
+                    BoxTest::Active(p) => p,
+                };
+                let (first, count) = (node.first as usize, node.count as usize);
+                if count == 0 {
+                    stack.push((first, pl));
+                    stack.push((first + 1, pl));
+                    continue;
+                }
+                for &r in &self.hier.points[first..first + count] {
+                    let r = r as usize;
+                    if sealed[r] && v.contains(self.pos[r], pl, self.slack) {
+                        sealed[r] = false;
+                    }
+                }
+            }
+        }
+        self.hier.mark_sealed(&sealed);
+        self.sealed = sealed;
+    }
+
+    /// Receivers sealed by [`Chunk::seal`].
+    pub fn sealed_count(&self) -> usize {
+        self.sealed.iter().filter(|&&s| s).count()
+    }
+
     /// Casts triangle `t` (relative to the light's centre) with its light
-    /// penumbra volume `vl`.
-    pub fn process(&mut self, t: &[DVec3; 3], vl: &PenumbraVolume) {
+    /// penumbra volume `vl`; `open_back`: it is a back face of an open
+    /// caster, cast only into the receivers that are not sealed
+    /// ([`Chunk::seal`]).
+    pub fn process(&mut self, t: &[DVec3; 3], vl: &PenumbraVolume, open_back: bool) {
         let sw = self.sw;
         if sw.umbra
             && sw.rebuild_percent > 0
@@ -243,6 +309,7 @@ impl<'a> Chunk<'a> {
             self.stamp = 1;
         }
         self.tri = *t;
+        self.open_back = open_back;
         self.groups_built = false;
         if !sw.lazy && self.own.is_none() {
             self.build_groups();
@@ -308,6 +375,7 @@ impl<'a> Chunk<'a> {
             .filter(|&r| !self.full[r as usize])
             .collect();
         self.hier = Hierarchy::build_keyed(&self.pos, ids, Some(&self.order));
+        self.hier.mark_sealed(&self.sealed);
         self.umbra_in_hier = 0;
         self.stats.rebuilds += 1;
         self.stats.peak_nodes = self.stats.peak_nodes.max(self.hier.nodes.len());
@@ -434,8 +502,9 @@ impl<'a> Chunk<'a> {
             count,
             group_umbra,
             full,
+            sealed,
         } = self.hier.nodes[node].clone();
-        if sw.umbra && full {
+        if (sw.umbra && full) || (sealed && self.open_back) {
             return;
         }
         let pl2 = match vl.test_box(&lo, &hi, pl, self.slack, sw.active_planes) {
@@ -498,9 +567,11 @@ impl<'a> Chunk<'a> {
         let (mut and_gu, mut and_full) = (all, true);
         for idx in first..first + count {
             let r = self.hier.points[idx] as usize;
-            self.leaf_triangles[r] += 1;
-            if !(skip_full && self.full[r]) && vl.contains(self.pos[r], pl, self.slack) {
-                self.point(r, c0, c1);
+            if !(self.open_back && self.sealed[r]) {
+                self.leaf_triangles[r] += 1;
+                if !(skip_full && self.full[r]) && vl.contains(self.pos[r], pl, self.slack) {
+                    self.point(r, c0, c1);
+                }
             }
             let gu = if self.full[r] {
                 all

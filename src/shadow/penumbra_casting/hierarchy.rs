@@ -28,6 +28,10 @@ pub struct Node {
     pub group_umbra: u128,
     /// Full-umbra bit.
     pub full: bool,
+    /// Every receiver below is sealed: no open caster's hole is on any
+    /// segment from it to the light (see `Chunk::seal`), so open casters'
+    /// back faces skip the node.
+    pub sealed: bool,
 }
 
 /// The tree over some receivers.
@@ -63,6 +67,33 @@ impl Hierarchy {
         let key = Key(key);
         h.build_node(pos, key, 0, 0, n, &mut scratch);
         h
+    }
+
+    /// Sets every node's `sealed` bit: the AND of `sealed[r]` over the
+    /// receivers below it.
+    pub fn mark_sealed(&mut self, sealed: &[bool]) {
+        if !self.nodes.is_empty() {
+            self.mark_sealed_below(0, sealed);
+        }
+    }
+
+    fn mark_sealed_below(&mut self, node: usize, sealed: &[bool]) -> bool {
+        let (first, count) = (
+            self.nodes[node].first as usize,
+            self.nodes[node].count as usize,
+        );
+        let all = if count > 0 {
+            self.points[first..first + count]
+                .iter()
+                .all(|&r| sealed[r as usize])
+        } else {
+            // Both children are visited (no short circuit): each needs its bit.
+            let left = self.mark_sealed_below(first, sealed);
+            let right = self.mark_sealed_below(first + 1, sealed);
+            left && right
+        };
+        self.nodes[node].sealed = all;
+        all
     }
 
     /// Bytes held.
@@ -126,6 +157,7 @@ fn empty_node() -> Node {
         count: 0,
         group_umbra: 0,
         full: false,
+        sealed: false,
     }
 }
 

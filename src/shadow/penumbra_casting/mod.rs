@@ -246,6 +246,12 @@ pub struct LightReport {
     pub triangles: usize,
     /// Back faces of closed casters left out.
     pub culled: usize,
+    /// Back faces of open casters, cast only into unsealed receivers.
+    pub open_back: usize,
+    /// Triangles of the surfaces closing the open casters.
+    pub caps: usize,
+    /// Receivers sealed against the open casters' holes.
+    pub sealed: usize,
     /// Chunks and waves.
     pub chunks: usize,
     /// Waves of chunks (mask budget).
@@ -502,7 +508,24 @@ impl PenumbraCasting {
                 (lo - DVec3::splat(m)).cmpgt(lhi).any() || (hi + DVec3::splat(m)).cmplt(llo).any()
             })
             .collect();
-        let tris: Vec<[DVec3; 3]> = (0..g.triangles.len())
+        // The argument needs every face of the caster to block: one with a
+        // see-through face (a semi-opaque or textured material) is never
+        // culled, as its exit crossing may be that face.
+        let mut all_opaque = vec![true; ctx.scene.objects.len()];
+        for t in 0..g.triangles.len() {
+            let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
+            if !mat.is_some_and(|m| m.is_opaque()) {
+                if let Some(a) = all_opaque.get_mut(g.triangle_object[t] as usize) {
+                    *a = false;
+                }
+            }
+        }
+        let cullable = |o: usize| {
+            cull && light_outside.get(o) == Some(&true) && all_opaque.get(o) == Some(&true)
+        };
+        // Per opaque caster triangle: it and whether it is an open
+        // caster's back face (cast only where receivers are not sealed).
+        let tris: Vec<([DVec3; 3], bool)> = (0..g.triangles.len())
             .filter(|&t| {
                 let obj = ctx.scene.objects.get(g.triangle_object[t] as usize);
                 let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
@@ -515,23 +538,57 @@ impl PenumbraCasting {
                     return None;
                 }
                 let o = g.triangle_object[t] as usize;
-                let closed =
-                    g.object_closed.get(o) == Some(&true) && light_outside.get(o) == Some(&true);
                 let behind = |c: &DVec3| n.dot(*c - tri[0]) < 0.0;
-                if cull && closed && sets.light.corners.iter().all(behind) {
-                    report.culled += 1;
-                    return None;
+                if cullable(o) && sets.light.corners.iter().all(behind) {
+                    if g.object_closed.get(o) == Some(&true) {
+                        report.culled += 1;
+                        return None;
+                    }
+                    report.open_back += 1;
+                    return Some((tri, true));
                 }
-                Some(tri)
+                Some((tri, false))
             })
             .collect();
+        // The surfaces closing the open casters that have back faces
+        // (a fan per boundary loop, in welded positions), as light
+        // penumbra volumes, and the casters' boxes, widened.
+        let mut open = vec![false; ctx.scene.objects.len()];
+        for (t, o) in g.triangle_object.iter().enumerate() {
+            if g.object_closed.get(*o as usize) == Some(&false) && cullable(*o as usize) {
+                let tri = g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                open[*o as usize] |= sets.light.corners.iter().all(|c| n.dot(*c - tri[0]) < 0.0);
+            }
+        }
+        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
+        let mut cap_tris = Vec::new();
+        let mut open_boxes = Vec::new();
+        for (o, _) in open.iter().enumerate().filter(|(_, &x)| x) {
+            let (lo, hi) = object_box[o];
+            let (lo, hi) = (lo - DVec3::splat(slack), hi + DVec3::splat(slack));
+            open_boxes.push((lo.to_array(), hi.to_array()));
+            let at = |v: u32| g.adjacency.positions[v as usize].as_dvec3() - centre;
+            for l in g.adjacency.boundary_loops(g, o as u32) {
+                for i in 1..l.len().saturating_sub(1) {
+                    let tri = [at(l[0]), at(l[i + 1]), at(l[i])];
+                    // A cap with no area is crossed by no segment.
+                    if (tri[1] - tri[0]).cross(tri[2] - tri[0]).length_squared() > 0.0 {
+                        cap_tris.push(tri);
+                    }
+                }
+            }
+        }
         let tris = if self.options.pc_sort_blockers {
             sort_by_area(tris)
         } else {
             tris
         };
+        let (tris, open_back): (Vec<[DVec3; 3]>, Vec<bool>) = tris.into_iter().unzip();
         report.sort_time = t0.elapsed();
         report.triangles = tris.len();
+        report.caps = cap_tris.len();
+        let any_open_back = report.open_back > 0;
 
         // Receivers, by screen chunk.
         let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
@@ -560,7 +617,6 @@ impl PenumbraCasting {
                 .push(i as u32);
         }
         inputs.retain(|c| !c.pixels.is_empty());
-        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
         let sw = self.options.switches();
         // Every blocker's light penumbra volume, made once (in parallel)
         // and held for all chunks of all waves: each chunk then runs
@@ -573,6 +629,12 @@ impl PenumbraCasting {
         vl.resize_with(tris.len(), PenumbraVolume::default);
         tris.par_iter()
             .zip(vl.par_iter_mut())
+            .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
+        let mut caps: Vec<PenumbraVolume> = Vec::new();
+        caps.resize_with(cap_tris.len(), PenumbraVolume::default);
+        cap_tris
+            .par_iter()
+            .zip(caps.par_iter_mut())
             .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
         report.volume_list_bytes = vl.iter().map(PenumbraVolume::bytes).sum();
         report.cast_time += tv.elapsed();
@@ -612,8 +674,8 @@ impl PenumbraCasting {
                 let keys = receiver_keys(&probe);
                 let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys);
                 let first = tris.len().div_ceil(PROBE_SHARE);
-                for (t, v) in tris[..first].iter().zip(&vl[..first]) {
-                    chunk.process(t, v);
+                for ((t, v), &b) in tris[..first].iter().zip(&vl[..first]).zip(&open_back) {
+                    chunk.process(t, v, b);
                 }
                 // (The chunk keeps its receivers in leaf order: receiver
                 // `r` is probe receiver `order[r]`.)
@@ -681,7 +743,10 @@ impl PenumbraCasting {
                     let pos = c.pixels.iter().map(|&i| receiver_pos(i)).collect();
                     let set = c.pixels.iter().map(|&i| receiver_set(i)).collect();
                     let keys = receiver_keys(&c.pixels);
-                    let chunk = Chunk::new(&sets, sw, slack, pos, set, keys);
+                    let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys);
+                    if any_open_back {
+                        chunk.seal(&caps, &open_boxes);
+                    }
                     let pixels = chunk.order.iter().map(|&o| c.pixels[o as usize]).collect();
                     (pixels, chunk)
                 })
@@ -689,8 +754,8 @@ impl PenumbraCasting {
             report.build_time += tb.elapsed();
             let tc = std::time::Instant::now();
             chunks.par_iter_mut().for_each(|(_, c)| {
-                for (t, v) in tris.iter().zip(&vl) {
-                    c.process(t, v);
+                for ((t, v), &b) in tris.iter().zip(&vl).zip(&open_back) {
+                    c.process(t, v, b);
                 }
             });
             report.cast_time += tc.elapsed();
@@ -705,6 +770,7 @@ impl PenumbraCasting {
                 report.stats.build_time += s.build_time;
                 report.stats.volumes_built += s.volumes_built;
                 report.stats.peak_sample_receivers += c.peak_sample_receivers();
+                report.sealed += c.sealed_count();
                 report.volume_bytes += c.volume_bytes();
                 wave_masks += s.peak_masks as u64 * c.mask_bytes();
             }
@@ -989,8 +1055,9 @@ impl PenumbraCasting {
             name: format!("light sample sets light {k}"),
             detail: format!(
                 "{} set(s) of {} samples{}; {} triangles cast ({} back faces of closed casters \
-                 skipped), {} volume builds; their light penumbra volumes {:.2} MiB, held for the \
-                 whole cast",
+                 skipped; {} of open casters cast only into the {} receivers not sealed against \
+                 their holes, by {} closing triangles), {} volume builds; their light penumbra \
+                 volumes {:.2} MiB, held for the whole cast",
                 sets.sets,
                 sets.n,
                 if sets.per_receiver() {
@@ -1008,6 +1075,9 @@ impl PenumbraCasting {
                 },
                 r.triangles,
                 r.culled,
+                r.open_back,
+                r.receivers - r.sealed,
+                r.caps,
                 r.stats.volumes_built,
                 r.volume_list_bytes as f64 / f64::from(1 << 20)
             ),
@@ -1105,14 +1175,14 @@ fn receives(ctx: &ShadowContext, object: u32) -> bool {
 
 /// Coarse blocker sorting (§3.3): buckets by `⌊log2(max area / area)⌋`
 /// (32 buckets, the last catching the rest), largest first, stable.
-fn sort_by_area(tris: Vec<[DVec3; 3]>) -> Vec<[DVec3; 3]> {
+fn sort_by_area<T: Clone>(tris: Vec<([DVec3; 3], T)>) -> Vec<([DVec3; 3], T)> {
     const BUCKETS: usize = 32;
-    let area = |t: &[DVec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length();
+    let area = |t: &([DVec3; 3], T)| (t.0[1] - t.0[0]).cross(t.0[2] - t.0[0]).length();
     let max = tris.iter().map(area).fold(0.0f64, f64::max);
     if !(max > 0.0) {
         return tris;
     }
-    let bucket = |t: &[DVec3; 3]| -> usize {
+    let bucket = |t: &([DVec3; 3], T)| -> usize {
         let r = max / area(t);
         if !(r.is_finite()) {
             BUCKETS - 1
@@ -1120,7 +1190,7 @@ fn sort_by_area(tris: Vec<[DVec3; 3]>) -> Vec<[DVec3; 3]> {
             (r.log2().floor().max(0.0) as usize).min(BUCKETS - 1)
         }
     };
-    let mut out: Vec<Vec<[DVec3; 3]>> = vec![Vec::new(); BUCKETS];
+    let mut out: Vec<Vec<([DVec3; 3], T)>> = vec![Vec::new(); BUCKETS];
     for t in tris {
         out[bucket(&t)].push(t);
     }
