@@ -579,24 +579,43 @@ fn sphere_light_stiff_cases_lose_and_invent_no_shadow_beyond_ties() {
     }
 }
 
-/// A unit cube (outward faces) with the faces in `missing` left out:
-/// `"bottom"`, `"top"`, `"front"`, `"back"`, `"left"`, `"right"`.
+/// A unit cube (outward faces), each face an 8 × 8 grid of quads (so its
+/// back faces outnumber the triangles closing an opening), with the faces
+/// in `missing` left out: `"bottom"`, `"top"`, `"front"`, `"back"`,
+/// `"left"`, `"right"`. Grid coordinates are multiples of 1/8, exact, so
+/// the faces' shared edges weld.
 fn open_cube_obj(missing: &[&str]) -> String {
-    let mut obj = String::from(
-        "v -0.5 -0.5 -0.5\nv 0.5 -0.5 -0.5\nv 0.5 0.5 -0.5\nv -0.5 0.5 -0.5\n\
-         v -0.5 -0.5 0.5\nv 0.5 -0.5 0.5\nv 0.5 0.5 0.5\nv -0.5 0.5 0.5\n",
-    );
-    for (name, faces) in [
-        ("bottom", "f 1 2 6\nf 1 6 5\n"),
-        ("top", "f 4 8 7\nf 4 7 3\n"),
-        ("front", "f 5 6 7\nf 5 7 8\n"),
-        ("back", "f 1 4 3\nf 1 3 2\n"),
-        ("left", "f 1 5 8\nf 1 8 4\n"),
-        ("right", "f 2 3 7\nf 2 7 6\n"),
-    ] {
-        if !missing.contains(&name) {
-            obj += faces;
+    const N: usize = 8;
+    let mut obj = String::new();
+    let mut next = 1;
+    // (name, origin, a, b) with a × b the outward normal.
+    let faces: [(&str, [f32; 3], [f32; 3], [f32; 3]); 6] = [
+        ("bottom", [-0.5, -0.5, -0.5], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
+        ("top", [-0.5, 0.5, -0.5], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]),
+        ("front", [-0.5, -0.5, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+        ("back", [-0.5, -0.5, -0.5], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]),
+        ("left", [-0.5, -0.5, -0.5], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]),
+        ("right", [0.5, -0.5, -0.5], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]),
+    ];
+    for (name, o, a, b) in faces {
+        if missing.contains(&name) {
+            continue;
         }
+        for j in 0..=N {
+            for i in 0..=N {
+                let (u, v) = (i as f32 / N as f32, j as f32 / N as f32);
+                let p: Vec<f32> = (0..3).map(|k| o[k] + a[k] * u + b[k] * v).collect();
+                obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+            }
+        }
+        let at = |i: usize, j: usize| next + j * (N + 1) + i;
+        for j in 0..N {
+            for i in 0..N {
+                let (p00, p10, p11, p01) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                obj += &format!("f {p00} {p10} {p11}\nf {p00} {p11} {p01}\n");
+            }
+        }
+        next += (N + 1) * (N + 1);
     }
     obj
 }

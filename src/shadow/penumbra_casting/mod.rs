@@ -311,6 +311,10 @@ struct ChunkInput {
     side: u32,
 }
 
+/// An open caster's back faces are cast only into sealed-off receivers
+/// when it has more than this many back faces per closing triangle.
+const OPEN_CAPS_PER_BACK_FACE: usize = 4;
+
 /// Smallest chunk side a heavy chunk is split down to.
 const MIN_SPLIT_SIDE: u32 = 64;
 /// Pixel step of the probe's receivers in x and y.
@@ -523,6 +527,46 @@ impl PenumbraCasting {
         let cullable = |o: usize| {
             cull && light_outside.get(o) == Some(&true) && all_opaque.get(o) == Some(&true)
         };
+        let back_face = |tri: &[DVec3; 3]| {
+            let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            sets.light.corners.iter().all(|c| n.dot(*c - tri[0]) < 0.0)
+        };
+        let rel = |t: usize| g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
+        // Open casters: the surfaces closing them (a fan per boundary
+        // loop, in welded positions) and their boxes, widened. Only where
+        // the caps are few against the back faces they let skip (a sheet,
+        // whose cap is itself reversed, seals nothing).
+        let mut open_backs = vec![0usize; ctx.scene.objects.len()];
+        for (t, &o) in g.triangle_object.iter().enumerate() {
+            let o = o as usize;
+            if g.object_closed.get(o) == Some(&false) && cullable(o) && back_face(&rel(t)) {
+                open_backs[o] += 1;
+            }
+        }
+        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
+        let mut open = vec![false; ctx.scene.objects.len()];
+        let mut cap_tris = Vec::new();
+        let mut open_boxes = Vec::new();
+        for (o, &backs) in open_backs.iter().enumerate().filter(|(_, &b)| b > 0) {
+            let at = |v: u32| g.adjacency.positions[v as usize].as_dvec3() - centre;
+            let mut caps = Vec::new();
+            for l in g.adjacency.boundary_loops(g, o as u32) {
+                for i in 1..l.len().saturating_sub(1) {
+                    let tri = [at(l[0]), at(l[i + 1]), at(l[i])];
+                    // A cap with no area is crossed by no segment.
+                    if (tri[1] - tri[0]).cross(tri[2] - tri[0]).length_squared() > 0.0 {
+                        caps.push(tri);
+                    }
+                }
+            }
+            if caps.len() * OPEN_CAPS_PER_BACK_FACE < backs {
+                open[o] = true;
+                cap_tris.extend(caps);
+                let (lo, hi) = object_box[o];
+                let (lo, hi) = (lo - DVec3::splat(slack), hi + DVec3::splat(slack));
+                open_boxes.push((lo.to_array(), hi.to_array()));
+            }
+        }
         // Per opaque caster triangle: it and whether it is an open
         // caster's back face (cast only where receivers are not sealed).
         let tris: Vec<([DVec3; 3], bool)> = (0..g.triangles.len())
@@ -532,53 +576,25 @@ impl PenumbraCasting {
                 obj.is_some_and(|o| o.cast_shadows) && mat.is_some_and(|m| m.is_opaque())
             })
             .filter_map(|t| {
-                let tri = g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
+                let tri = rel(t);
                 let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
                 if !(n.length_squared() > 0.0) {
                     return None;
                 }
                 let o = g.triangle_object[t] as usize;
-                let behind = |c: &DVec3| n.dot(*c - tri[0]) < 0.0;
-                if cullable(o) && sets.light.corners.iter().all(behind) {
+                if cullable(o) && back_face(&tri) {
                     if g.object_closed.get(o) == Some(&true) {
                         report.culled += 1;
                         return None;
                     }
-                    report.open_back += 1;
-                    return Some((tri, true));
+                    if open[o] {
+                        report.open_back += 1;
+                        return Some((tri, true));
+                    }
                 }
                 Some((tri, false))
             })
             .collect();
-        // The surfaces closing the open casters that have back faces
-        // (a fan per boundary loop, in welded positions), as light
-        // penumbra volumes, and the casters' boxes, widened.
-        let mut open = vec![false; ctx.scene.objects.len()];
-        for (t, o) in g.triangle_object.iter().enumerate() {
-            if g.object_closed.get(*o as usize) == Some(&false) && cullable(*o as usize) {
-                let tri = g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
-                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-                open[*o as usize] |= sets.light.corners.iter().all(|c| n.dot(*c - tri[0]) < 0.0);
-            }
-        }
-        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
-        let mut cap_tris = Vec::new();
-        let mut open_boxes = Vec::new();
-        for (o, _) in open.iter().enumerate().filter(|(_, &x)| x) {
-            let (lo, hi) = object_box[o];
-            let (lo, hi) = (lo - DVec3::splat(slack), hi + DVec3::splat(slack));
-            open_boxes.push((lo.to_array(), hi.to_array()));
-            let at = |v: u32| g.adjacency.positions[v as usize].as_dvec3() - centre;
-            for l in g.adjacency.boundary_loops(g, o as u32) {
-                for i in 1..l.len().saturating_sub(1) {
-                    let tri = [at(l[0]), at(l[i + 1]), at(l[i])];
-                    // A cap with no area is crossed by no segment.
-                    if (tri[1] - tri[0]).cross(tri[2] - tri[0]).length_squared() > 0.0 {
-                        cap_tris.push(tri);
-                    }
-                }
-            }
-        }
         let tris = if self.options.pc_sort_blockers {
             sort_by_area(tris)
         } else {
@@ -1055,9 +1071,8 @@ impl PenumbraCasting {
             name: format!("light sample sets light {k}"),
             detail: format!(
                 "{} set(s) of {} samples{}; {} triangles cast ({} back faces of closed casters \
-                 skipped; {} of open casters cast only into the {} receivers not sealed against \
-                 their holes, by {} closing triangles), {} volume builds; their light penumbra \
-                 volumes {:.2} MiB, held for the whole cast",
+                 skipped{}), {} volume builds; their light penumbra volumes {:.2} MiB, held for \
+                 the whole cast",
                 sets.sets,
                 sets.n,
                 if sets.per_receiver() {
@@ -1075,9 +1090,17 @@ impl PenumbraCasting {
                 },
                 r.triangles,
                 r.culled,
-                r.open_back,
-                r.receivers - r.sealed,
-                r.caps,
+                if r.open_back > 0 {
+                    format!(
+                        "; {} of open casters cast only into the {} receivers not sealed \
+                         against their holes, by {} closing triangles",
+                        r.open_back,
+                        r.receivers - r.sealed,
+                        r.caps
+                    )
+                } else {
+                    String::new()
+                },
                 r.stats.volumes_built,
                 r.volume_list_bytes as f64 / f64::from(1 << 20)
             ),
