@@ -561,7 +561,8 @@ fn open_cube_obj(missing: &[&str]) -> String {
     let mut obj = String::new();
     let mut next = 1;
     // (name, origin, a, b) with a × b the outward normal.
-    let faces: [(&str, [f32; 3], [f32; 3], [f32; 3]); 6] = [
+    type Face = (&'static str, [f32; 3], [f32; 3], [f32; 3]);
+    let faces: [Face; 6] = [
         (
             "bottom",
             [-0.5, -0.5, -0.5],
