@@ -448,13 +448,15 @@ impl<'a> Chunk<'a> {
     fn plane_sides(&mut self, set: usize, r: usize, k: usize) -> (u32, u32) {
         if let Some(own) = &self.own {
             let (slack, _) = self.cone_slack.expect("a cone");
-            return plane_sides(own.group(r, k, self.sets.groups).0, &self.tri, slack);
+            let (soa, boxes) = own.group(r, k, self.sets.groups);
+            return plane_sides(soa, boxes, &self.tri, slack);
         }
         let i = set * self.sets.groups + k;
         if self.sides_stamp[i] != self.stamp {
             self.sides_stamp[i] = self.stamp;
             let (slack, _) = self.cone_slack.expect("a cone");
-            self.sides[i] = plane_sides(&self.sets.soa[set][k], &self.tri, slack);
+            let (soa, boxes) = (&self.sets.soa[set][k], &self.sets.boxes[set][k]);
+            self.sides[i] = plane_sides(soa, boxes, &self.tri, slack);
         }
         self.sides[i]
     }

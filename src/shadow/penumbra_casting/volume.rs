@@ -1034,8 +1034,34 @@ impl Cone {
 /// sample in either set the kernel's orientation and its triangle-plane
 /// side are the exact ones (the kernel computes the same value within
 /// `400 ε M³`, far below the cone's allowance).
-pub fn plane_sides(g: &GroupSoa, t: &[DVec3; 3], slack: f64) -> (u32, u32) {
+///
+/// The group's box (`b`, its samples' chunk boxes) answers first: each
+/// rounding step of the value is monotonic in each coordinate, so where
+/// the box's least corner (for the normal) is clear on the positive side,
+/// or its greatest on the negative one, every sample's value is too.
+pub fn plane_sides(g: &GroupSoa, b: &ChunkBoxes, t: &[DVec3; 3], slack: f64) -> (u32, u32) {
     let nt = cross(t[1] - t[0], t[2] - t[0]);
+    let all = if g.len >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << g.len) - 1
+    };
+    let corner = |least: bool| {
+        let c = |a: usize| {
+            if (nt[a] >= 0.0) == least {
+                b.group_lo[a]
+            } else {
+                b.group_hi[a]
+            }
+        };
+        DVec3::new(c(0), c(1), c(2))
+    };
+    if nt.dot(corner(true) - t[0]) > slack {
+        return (all, 0);
+    }
+    if nt.dot(corner(false) - t[0]) < -slack {
+        return (0, all);
+    }
     let (mut pos, mut neg) = (0u32, 0u32);
     for j in 0..g.len {
         let v = nt.dot(DVec3::new(g.x[j], g.y[j], g.z[j]) - t[0]);
@@ -1372,7 +1398,7 @@ mod tests {
             };
             clear += 1;
             let soa = GroupSoa::new(&samples);
-            let (pos, neg) = plane_sides(&soa, &t, slack);
+            let (pos, neg) = plane_sides(&soa, &ChunkBoxes::new(&samples), &t, slack);
             assert_eq!(
                 if side > 0.0 { pos } else { neg },
                 u32::MAX,
@@ -1500,7 +1526,16 @@ mod tests {
             let mut hv = HardVolumes::default();
             hv.build(&soa, &t);
             let valid = lanes(len);
-            let sides = side.is_none().then(|| plane_sides(&soa, &t, slack));
+            let sides = side.is_none().then(|| plane_sides(&soa, &boxes, &t, slack));
+            // The group box's shortcut gives the per-sample sides.
+            let nt = cross(t[1] - t[0], t[2] - t[0]);
+            let (mut pos, mut neg) = (0u32, 0u32);
+            for (j, y) in samples.iter().enumerate() {
+                let v = nt.dot(*y - t[0]);
+                pos |= u32::from(v > slack) << j;
+                neg |= u32::from(v < -slack) << j;
+            }
+            assert_eq!(plane_sides(&soa, &boxes, &t, slack), (pos, neg));
             for q in 0..60 {
                 let o = receiver(&mut st, q, &samples, &t, 0.0);
                 let Some(cone) = Cone::new(&t, o, slack) else {
