@@ -1062,9 +1062,74 @@ pub fn plane_sides(g: &GroupSoa, b: &ChunkBoxes, t: &[DVec3; 3], slack: f64) -> 
     if nt.dot(corner(false) - t[0]) < -slack {
         return (0, all);
     }
+    #[cfg(target_arch = "x86_64")]
+    if crate::simd::avx::available() {
+        // SAFETY: `available` checked that the CPU has AVX, the one
+        // requirement of `plane_sides_avx`.
+        return unsafe { plane_sides_avx(g, nt, t[0], slack) };
+    }
+    plane_sides_lanes(g, nt, t[0], slack)
+}
+
+/// [`plane_sides`]' per-sample values over `$lane` lanes (as
+/// [`test_box_kernel!`]), each computed as [`plane_sides_scalar`] does:
+/// `((nx (x − t0x) + ny (y − t0y)) + nz (z − t0z))`.
+macro_rules! plane_sides_kernel {
+    ($lane:ty, $splat:path, $load:path, $g:expr, $nt:expr, $t0:expr, $slack:expr) => {{
+        #[allow(unused_imports)]
+        use std::ops::{Add, Mul, Sub};
+        let (g, nt, t0, slack): (&GroupSoa, DVec3, DVec3, f64) = ($g, $nt, $t0, $slack);
+        let (s, ns): ($lane, $lane) = ($splat(slack), $splat(-slack));
+        let (nx, ny, nz): ($lane, $lane, $lane) = ($splat(nt.x), $splat(nt.y), $splat(nt.z));
+        let (ox, oy, oz): ($lane, $lane, $lane) = ($splat(t0.x), $splat(t0.y), $splat(t0.z));
+        let (mut pos, mut neg) = (0u32, 0u32);
+        for c in 0..g.len.div_ceil(4) {
+            let quad = |a: &[f64; 32]| -> [f64; 4] {
+                [a[4 * c], a[4 * c + 1], a[4 * c + 2], a[4 * c + 3]]
+            };
+            let v = nx
+                .mul($load(&quad(&g.x)).sub(ox))
+                .add(ny.mul($load(&quad(&g.y)).sub(oy)))
+                .add(nz.mul($load(&quad(&g.z)).sub(oz)));
+            pos |= v.cmp_gt(s).move_mask() << (4 * c);
+            neg |= v.cmp_lt(ns).move_mask() << (4 * c);
+        }
+        // The padding lanes beyond the group's samples hold nothing.
+        let all = if g.len >= 32 {
+            u32::MAX
+        } else {
+            (1u32 << g.len) - 1
+        };
+        (pos & all, neg & all)
+    }};
+}
+
+/// [`plane_sides`]' per-sample part on the facade's lanes (normal `nt`,
+/// vertex `t0`).
+pub fn plane_sides_lanes(g: &GroupSoa, nt: DVec3, t0: DVec3, slack: f64) -> (u32, u32) {
+    let load = |a: &[f64; 4]| f64x4::new(*a);
+    plane_sides_kernel!(f64x4, f64x4::splat, load, g, nt, t0, slack)
+}
+
+/// [`plane_sides_lanes`] in AVX registers: the same values, the same bits.
+///
+/// # Safety
+///
+/// Outside AVX code, call only where the CPU has AVX
+/// (`simd::avx::available`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+pub fn plane_sides_avx(g: &GroupSoa, nt: DVec3, t0: DVec3, slack: f64) -> (u32, u32) {
+    use crate::simd::avx::F64x4;
+    plane_sides_kernel!(F64x4, F64x4::splat, F64x4::load, g, nt, t0, slack)
+}
+
+/// [`plane_sides`]' per-sample part, sample by sample (its scalar twin).
+pub fn plane_sides_scalar(g: &GroupSoa, nt: DVec3, t0: DVec3, slack: f64) -> (u32, u32) {
     let (mut pos, mut neg) = (0u32, 0u32);
     for j in 0..g.len {
-        let v = nt.dot(DVec3::new(g.x[j], g.y[j], g.z[j]) - t[0]);
+        let v = nt.dot(DVec3::new(g.x[j], g.y[j], g.z[j]) - t0);
         if v > slack {
             pos |= 1 << j;
         } else if v < -slack {
@@ -1536,6 +1601,14 @@ mod tests {
                 neg |= u32::from(v < -slack) << j;
             }
             assert_eq!(plane_sides(&soa, &boxes, &t, slack), (pos, neg));
+            let t0 = t[0];
+            assert_eq!(plane_sides_scalar(&soa, nt, t0, slack), (pos, neg));
+            assert_eq!(plane_sides_lanes(&soa, nt, t0, slack), (pos, neg));
+            #[cfg(target_arch = "x86_64")]
+            if crate::simd::avx::available() {
+                // SAFETY: the CPU has AVX (checked just above).
+                assert_eq!(unsafe { plane_sides_avx(&soa, nt, t0, slack) }, (pos, neg));
+            }
             for q in 0..60 {
                 let o = receiver(&mut st, q, &samples, &t, 0.0);
                 let Some(cone) = Cone::new(&t, o, slack) else {
