@@ -724,3 +724,30 @@ fn boundary_loops_close_open_casters() {
         );
     }
 }
+
+/// A sphere light's receivers hold their own samples: under a small mask
+/// budget the chunks shrink (to a divisor of `--pc-chunk`, so bands stay
+/// aligned) and the masks are the same.
+#[test]
+fn sphere_light_chunks_shrink_to_the_budget_with_the_same_masks() {
+    let scene = common::with_sphere_light(common::shipped("spheres.toml"), 1.2);
+    let frame = common::Frame::new(&scene, 48, 36);
+    let ctx = frame.ctx(&scene);
+    let whole = technique(256, PenumbraCastingOptions::default())
+        .light_masks(&ctx, 0)
+        .expect("penumbra casting runs");
+    let small = technique(
+        256,
+        PenumbraCastingOptions {
+            pc_mask_budget_mib: 1,
+            ..PenumbraCastingOptions::default()
+        },
+    )
+    .light_masks(&ctx, 0)
+    .expect("penumbra casting runs");
+    let (a, b) = (&whole.report, &small.report);
+    assert_eq!(a.chunk_side, 32, "{a:?}");
+    assert!(b.chunk_side < 32 && 32 % b.chunk_side == 0, "{b:?}");
+    assert!(b.chunks > a.chunks && b.waves > 1, "{b:?}");
+    assert!(small.words == whole.words, "the budget changes the masks");
+}

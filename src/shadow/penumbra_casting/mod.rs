@@ -252,6 +252,9 @@ pub struct LightReport {
     pub caps: usize,
     /// Receivers sealed against the open casters' holes.
     pub sealed: usize,
+    /// The chunk side used (the option's, or a divisor of it within the
+    /// memory budget).
+    pub chunk_side: u32,
     /// Chunks and waves.
     pub chunks: usize,
     /// Waves of chunks (mask budget).
@@ -309,6 +312,16 @@ struct ChunkInput {
     x0: u32,
     y0: u32,
     side: u32,
+}
+
+/// The largest divisor `d` of `chunk` whose `d × d` receivers of
+/// `per_receiver` bytes fit in half of `budget` bytes (1 if none does).
+fn chunk_side(chunk: u32, per_receiver: u64, budget: u64) -> u32 {
+    (1..=chunk.max(1))
+        .rev()
+        .filter(|d| chunk % d == 0)
+        .find(|&d| u64::from(d) * u64::from(d) * per_receiver * 2 <= budget)
+        .unwrap_or(1)
 }
 
 /// An open caster's back faces are cast only into sealed-off receivers
@@ -606,11 +619,47 @@ impl PenumbraCasting {
         report.caps = cap_tris.len();
         let any_open_back = report.open_back > 0;
 
+        // Translucent casters (semi-opaque layers, S-triangles).
+        let casters = translucent::Casters::collect(ctx, &sets, centre);
+        report.translucent.layers = casters
+            .tris
+            .iter()
+            .filter(|t| matches!(t.1, translucent::Kind::Layer(_)))
+            .count();
+        report.translucent.mattes = casters.mattes.len();
+        report.translucent.bytes_per_sample = casters.record_bytes(1);
+
+        // Waves of chunks within the mask budget (a translucent record
+        // counted for every receiver: the worst case).
+        let budget = u64::from(self.options.pc_mask_budget_mib) << 20;
+        let per_receiver = sets.groups as u64 * 4
+            + if casters.is_empty() {
+                0
+            } else {
+                casters.record_bytes(sets.n)
+            }
+            + if sets.per_receiver() {
+                // Its own samples, in the opaque pass and again in the
+                // translucent one (with the projector's positions).
+                ReceiverSamples::bytes_per_receiver(sets.groups, false)
+                    + if casters.is_empty() {
+                        0
+                    } else {
+                        ReceiverSamples::bytes_per_receiver(sets.groups, !casters.mattes.is_empty())
+                    }
+            } else {
+                0
+            };
+        // The chunk side: the option's, or its largest divisor whose
+        // chunk's worst case stays within half the budget (a sphere
+        // light's receivers each hold their own samples: at 4096 samples
+        // 151 KiB a receiver). A divisor keeps the bands' chunk alignment.
+        let side = chunk_side(self.options.pc_chunk, per_receiver, budget);
+        report.chunk_side = side;
         // Receivers, by screen chunk.
         let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
         let gb = ctx.gbuffer;
         let (w, h) = (gb.width.max(1), gb.height);
-        let side = self.options.pc_chunk;
         let (cw, ch) = (w.div_ceil(side), h.div_ceil(side));
         let mut inputs: Vec<ChunkInput> = (0..cw * ch)
             .map(|c| ChunkInput {
@@ -707,37 +756,6 @@ impl PenumbraCasting {
         report.chunks = inputs.len();
         report.receivers = inputs.iter().map(|c| c.pixels.len()).sum();
 
-        // Translucent casters (semi-opaque layers, S-triangles).
-        let casters = translucent::Casters::collect(ctx, &sets, centre);
-        report.translucent.layers = casters
-            .tris
-            .iter()
-            .filter(|t| matches!(t.1, translucent::Kind::Layer(_)))
-            .count();
-        report.translucent.mattes = casters.mattes.len();
-        report.translucent.bytes_per_sample = casters.record_bytes(1);
-
-        // Waves of chunks within the mask budget (a translucent record
-        // counted for every receiver: the worst case).
-        let budget = u64::from(self.options.pc_mask_budget_mib) << 20;
-        let per_receiver = sets.groups as u64 * 4
-            + if casters.is_empty() {
-                0
-            } else {
-                casters.record_bytes(sets.n)
-            }
-            + if sets.per_receiver() {
-                // Its own samples, in the opaque pass and again in the
-                // translucent one (with the projector's positions).
-                ReceiverSamples::bytes_per_receiver(sets.groups, false)
-                    + if casters.is_empty() {
-                        0
-                    } else {
-                        ReceiverSamples::bytes_per_receiver(sets.groups, !casters.mattes.is_empty())
-                    }
-            } else {
-                0
-            };
         let mut waves: Vec<Vec<ChunkInput>> = Vec::new();
         let mut bytes = 0u64;
         for c in inputs {
@@ -1037,7 +1055,7 @@ impl PenumbraCasting {
                 r.receivers,
                 r.chunks,
                 r.chunks_unsplit,
-                o.pc_chunk,
+                r.chunk_side,
                 r.chunks,
                 r.probe_time.as_secs_f64(),
                 r.waves,
@@ -1218,4 +1236,22 @@ fn sort_by_area<T: Clone>(tris: Vec<([DVec3; 3], T)>) -> Vec<([DVec3; 3], T)> {
         out[bucket(&t)].push(t);
     }
     out.into_iter().flatten().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::chunk_side;
+
+    /// The chunk side is the largest divisor of the option within half
+    /// the budget, down to one pixel.
+    #[test]
+    fn chunk_side_is_the_largest_divisor_within_the_budget() {
+        let gib = 1u64 << 30;
+        assert_eq!(chunk_side(256, 36, gib), 256);
+        // 4096 samples of a sphere light: 155,008 bytes a receiver.
+        assert_eq!(chunk_side(256, 155_008, gib), 32);
+        assert_eq!(chunk_side(100, 155_008, gib), 50);
+        assert_eq!(chunk_side(7, 1 << 40, 1), 1);
+        assert_eq!(chunk_side(0, 1, 1), 1);
+    }
 }
