@@ -319,7 +319,7 @@ struct ChunkInput {
 fn chunk_side(chunk: u32, per_receiver: u64, budget: u64) -> u32 {
     (1..=chunk.max(1))
         .rev()
-        .filter(|d| chunk % d == 0)
+        .filter(|d| chunk.is_multiple_of(*d))
         .find(|&d| u64::from(d) * u64::from(d) * per_receiver * 2 <= budget)
         .unwrap_or(1)
 }
