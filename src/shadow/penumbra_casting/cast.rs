@@ -136,7 +136,9 @@ pub struct Chunk<'a> {
 impl<'a> Chunk<'a> {
     /// A chunk over receivers at `pos` with sets `set` and sample keys
     /// `keys` (used only where each receiver has samples of its own,
-    /// [`SampleSets::per_receiver`]; may be empty otherwise); receiver `r`
+    /// [`SampleSets::per_receiver`]; may be empty otherwise; with the
+    /// projector's positions too where `projector`, for the translucent
+    /// pass that takes them over, [`Chunk::take_samples`]); receiver `r`
     /// of the chunk is input receiver `order[r]`.
     pub fn new(
         sets: &'a SampleSets,
@@ -145,6 +147,7 @@ impl<'a> Chunk<'a> {
         pos: Vec<[f64; 3]>,
         set: Vec<u16>,
         keys: Vec<SampleKey>,
+        projector: bool,
     ) -> Chunk<'a> {
         let r = pos.len();
         let g = sets.groups;
@@ -161,7 +164,7 @@ impl<'a> Chunk<'a> {
         let pos: Vec<[f64; 3]> = order.iter().map(|&i| pos[i as usize]).collect();
         let set: Vec<u16> = order.iter().map(|&i| set[i as usize]).collect();
         let own = sets.per_receiver().then(|| {
-            ReceiverSamples::new(order.iter().map(|&i| keys[i as usize]).collect(), false)
+            ReceiverSamples::new(order.iter().map(|&i| keys[i as usize]).collect(), projector)
         });
         // One scratch hard-volume set where no receivers share samples.
         let cache = if own.is_some() { 1 } else { sets.sets * g };
@@ -701,9 +704,11 @@ impl<'a> Chunk<'a> {
         }
     }
 
-    /// The receivers' sample keys where they have samples of their own.
-    pub fn sample_keys(&self) -> Option<&[SampleKey]> {
-        self.own.as_ref().map(ReceiverSamples::keys)
+    /// The receivers' own samples, where they have some, handed over
+    /// after the opaque cast (the translucent pass goes on with them: the
+    /// receivers not in full umbra keep theirs).
+    pub fn take_samples(&mut self) -> Option<ReceiverSamples> {
+        self.own.take()
     }
 
     /// Most receivers that held their own samples at once (0 where they

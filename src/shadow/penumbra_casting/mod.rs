@@ -540,21 +540,34 @@ impl PenumbraCasting {
         let cullable = |o: usize| {
             cull && light_outside.get(o) == Some(&true) && all_opaque.get(o) == Some(&true)
         };
-        let back_face = |tri: &[DVec3; 3]| {
-            let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-            sets.light.corners.iter().all(|c| n.dot(*c - tri[0]) < 0.0)
-        };
-        let rel = |t: usize| g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
+        // Opaque caster triangles with area: object, corners, and whether
+        // the caster may be culled and the light is wholly behind it.
+        let candidates: Vec<(usize, [DVec3; 3], bool)> = (0..g.triangles.len())
+            .filter_map(|t| {
+                let o = g.triangle_object[t] as usize;
+                let casts = ctx.scene.objects.get(o).is_some_and(|o| o.cast_shadows);
+                let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
+                if !(casts && mat.is_some_and(|m| m.is_opaque())) {
+                    return None;
+                }
+                let tri = g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                if !(n.length_squared() > 0.0) {
+                    return None;
+                }
+                let back =
+                    cullable(o) && sets.light.corners.iter().all(|c| n.dot(*c - tri[0]) < 0.0);
+                Some((o, tri, back))
+            })
+            .collect();
         // Open casters: the surfaces closing them (a fan per boundary
         // loop, in welded positions) and their boxes, widened. Only where
         // the caps are few against the back faces they let skip (a sheet,
         // whose cap is itself reversed, seals nothing).
+        let closed = |o: usize| g.object_closed.get(o) == Some(&true);
         let mut open_backs = vec![0usize; ctx.scene.objects.len()];
-        for (t, &o) in g.triangle_object.iter().enumerate() {
-            let o = o as usize;
-            if g.object_closed.get(o) == Some(&false) && cullable(o) && back_face(&rel(t)) {
-                open_backs[o] += 1;
-            }
+        for &(o, _, back) in &candidates {
+            open_backs[o] += usize::from(back && !closed(o));
         }
         let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
         let mut open = vec![false; ctx.scene.objects.len()];
@@ -580,32 +593,19 @@ impl PenumbraCasting {
                 open_boxes.push((lo.to_array(), hi.to_array()));
             }
         }
-        // Per opaque caster triangle: it and whether it is an open
-        // caster's back face (cast only where receivers are not sealed).
-        let tris: Vec<([DVec3; 3], bool)> = (0..g.triangles.len())
-            .filter(|&t| {
-                let obj = ctx.scene.objects.get(g.triangle_object[t] as usize);
-                let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
-                obj.is_some_and(|o| o.cast_shadows) && mat.is_some_and(|m| m.is_opaque())
-            })
-            .filter_map(|t| {
-                let tri = rel(t);
-                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-                if !(n.length_squared() > 0.0) {
+        // Per triangle cast: it and whether it is an open caster's back
+        // face (cast only where receivers are not sealed); closed
+        // casters' back faces are left out.
+        let tris: Vec<([DVec3; 3], bool)> = candidates
+            .into_iter()
+            .filter_map(|(o, tri, back)| {
+                if back && closed(o) {
+                    report.culled += 1;
                     return None;
                 }
-                let o = g.triangle_object[t] as usize;
-                if cullable(o) && back_face(&tri) {
-                    if g.object_closed.get(o) == Some(&true) {
-                        report.culled += 1;
-                        return None;
-                    }
-                    if open[o] {
-                        report.open_back += 1;
-                        return Some((tri, true));
-                    }
-                }
-                Some((tri, false))
+                let open_back = back && open[o];
+                report.open_back += usize::from(open_back);
+                Some((tri, open_back))
             })
             .collect();
         let tris = if self.options.pc_sort_blockers {
@@ -621,6 +621,8 @@ impl PenumbraCasting {
 
         // Translucent casters (semi-opaque layers, S-triangles).
         let casters = translucent::Casters::collect(ctx, &sets, centre);
+        // The S-triangles' projector reads the samples' f32 positions.
+        let projector = !casters.mattes.is_empty();
         report.translucent.layers = casters
             .tris
             .iter()
@@ -639,14 +641,9 @@ impl PenumbraCasting {
                 casters.record_bytes(sets.n)
             }
             + if sets.per_receiver() {
-                // Its own samples, in the opaque pass and again in the
-                // translucent one (with the projector's positions).
-                ReceiverSamples::bytes_per_receiver(sets.groups, false)
-                    + if casters.is_empty() {
-                        0
-                    } else {
-                        ReceiverSamples::bytes_per_receiver(sets.groups, !casters.mattes.is_empty())
-                    }
+                // Its own samples (with the projector's positions where
+                // the translucent pass needs them).
+                ReceiverSamples::bytes_per_receiver(sets.groups, projector)
             } else {
                 0
             };
@@ -737,7 +734,7 @@ impl PenumbraCasting {
                 let pos = probe.iter().map(|&i| receiver_pos(i)).collect();
                 let set = probe.iter().map(|&i| receiver_set(i)).collect();
                 let keys = receiver_keys(&probe);
-                let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys);
+                let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys, false);
                 let first = tris.len().div_ceil(PROBE_SHARE);
                 for ((t, v), &b) in tris[..first].iter().zip(&vl[..first]).zip(&open_back) {
                     chunk.process(t, v, b);
@@ -777,7 +774,7 @@ impl PenumbraCasting {
                     let pos = c.pixels.iter().map(|&i| receiver_pos(i)).collect();
                     let set = c.pixels.iter().map(|&i| receiver_set(i)).collect();
                     let keys = receiver_keys(&c.pixels);
-                    let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys);
+                    let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys, projector);
                     if any_open_back {
                         chunk.seal(&caps, &open_boxes);
                     }
@@ -811,8 +808,9 @@ impl PenumbraCasting {
             report.peak_mask_bytes = report.peak_mask_bytes.max(wave_masks);
             let tt = std::time::Instant::now();
             let records: Vec<Option<translucent::Records>> = chunks
-                .par_iter()
+                .par_iter_mut()
                 .map(|(px, c)| {
+                    let own = c.take_samples();
                     (!casters.is_empty()).then(|| {
                         let origins: Vec<Vec3> = px
                             .iter()
@@ -823,6 +821,7 @@ impl PenumbraCasting {
                             .collect();
                         translucent::cast(
                             c,
+                            own,
                             &sets,
                             &casters,
                             ctx.scene,

@@ -415,11 +415,6 @@ impl ReceiverSamples {
         }
     }
 
-    /// The receivers' keys.
-    pub fn keys(&self) -> &[SampleKey] {
-        &self.keys
-    }
-
     /// Makes receiver `r`'s samples of `sets` (a sphere light's) if it
     /// has none yet.
     pub fn ensure(&mut self, sets: &SampleSets, r: usize) {

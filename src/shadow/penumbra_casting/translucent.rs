@@ -223,12 +223,14 @@ impl Records {
 }
 
 /// Casts every translucent triangle of `casters` into chunk `c` (after
-/// its opaque pass), the receivers' `f32` shadow-ray origins `origin`
-/// (for the projector), with `slack` the penumbra volumes' and `simd` the
-/// hard-volume kernel's switch.
+/// its opaque pass; `own`: its receivers' own samples, where they have
+/// some, [`Chunk::take_samples`]), the receivers' `f32` shadow-ray
+/// origins `origin` (for the projector), with `slack` the penumbra
+/// volumes' and `simd` the hard-volume kernel's switch.
 #[allow(clippy::too_many_arguments)]
 pub fn cast(
     c: &Chunk,
+    mut own: Option<ReceiverSamples>,
     sets: &SampleSets,
     casters: &Casters,
     scene: &Scene,
@@ -264,12 +266,11 @@ pub fn cast(
     let mut gv = vec![PenumbraVolume::default(); g];
     // The hard-volume cache (`sets × groups × 4 KiB`) only for layers.
     let layers = casters.tris.iter().any(|t| matches!(t.1, Kind::Layer(_)));
-    // Sphere lights: each receiver's own samples (made on first need; the
-    // opaque pass dropped its own), one scratch hard-volume set, and no
-    // group volumes (every group's bound is the light's).
-    let mut own = c
-        .sample_keys()
-        .map(|keys| ReceiverSamples::new(keys.to_vec(), !casters.mattes.is_empty()));
+    // Sphere lights: each receiver's own samples (`own`, the opaque
+    // pass's, made there with the projector's positions where there are
+    // S-triangles; those it never reached are made here on first need),
+    // one scratch hard-volume set, and no group volumes (every group's
+    // bound is the light's).
     let cache = match (&own, layers) {
         (_, false) => 0,
         (Some(_), true) => 1,
