@@ -150,6 +150,7 @@ pub static UNSHADOWED: registry::TechniqueInfo = registry::TechniqueInfo {
         sphere_lights: registry::Support::Yes,
         textured_lights: registry::Support::Yes,
         enclosed_lights: registry::Support::Yes,
+        reached_lights: registry::Support::Yes,
         semi_opaque: registry::Support::Yes,
         s_triangles: registry::Support::Yes,
         output: registry::TermKind::Vcoef,

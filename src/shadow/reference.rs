@@ -101,6 +101,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
         enclosed_lights: Support::Yes,
+        reached_lights: Support::Yes,
         semi_opaque: Support::Yes,
         s_triangles: Support::Yes,
         output: TermKind::Radiance,

@@ -146,6 +146,15 @@ pub const SILHOUETTES_MISS_ENCLOSURE: Support = Support::Refused {
           everything outside it would be lost (use reference)",
 };
 
+/// What DCS says of a caster reaching into a light.
+pub const COUNTS_MISS_REACHED_LIGHT: Support = Support::Refused {
+    param: "--technique",
+    why: "its counts start on the segment to the light's centre and its edges stop at the \
+          light, so a caster part beyond the light's surface or inside its ball would be \
+          counted as the shadow rays never see it (use penumbra-casting or reference, or move \
+          the caster out of the light)",
+};
+
 /// What the shadow-map techniques say of a light inside a closed caster.
 pub const MAPS_MISS_ENCLOSURE: Support = Support::Refused {
     param: "--technique",
@@ -174,6 +183,8 @@ pub struct Capabilities {
     /// Lights inside (or touching) a closed caster
     /// ([`crate::shadow::kit::enclosure`]).
     pub enclosed_lights: Support,
+    /// Lights a caster reaches into ([`crate::shadow::kit::enclosure::reached_lights`]).
+    pub reached_lights: Support,
     /// Casters of constant opacity below 1.
     pub semi_opaque: Support,
     /// Casters with an opacity texture (S-triangles).
@@ -394,6 +405,8 @@ pub enum SceneContent {
     STriangles,
     /// A light inside or touching a closed caster.
     EnclosedLight,
+    /// A light some caster reaches into.
+    ReachedLight,
 }
 
 impl SceneContent {
@@ -406,6 +419,7 @@ impl SceneContent {
             SceneContent::SemiOpaqueCasters => "semi-opaque casters",
             SceneContent::STriangles => "opacity-textured casters (S-triangles)",
             SceneContent::EnclosedLight => "a light inside or touching a closed caster",
+            SceneContent::ReachedLight => "a caster reaching into a light",
         }
     }
 }
@@ -503,6 +517,13 @@ pub fn check_scene(
             present.push((SceneContent::EnclosedLight, caps.enclosed_lights));
         }
     }
+    let mut reached = String::new();
+    if caps.reached_lights != Support::Yes {
+        if let Some(e) = crate::shadow::kit::enclosure::reached_lights(scene, geometry).first() {
+            reached = format!(" (`{}` reaches into light {})", e.object, e.light);
+            present.push((SceneContent::ReachedLight, caps.reached_lights));
+        }
+    }
     let mut warnings = Vec::new();
     for (content, support) in present {
         match support {
@@ -524,10 +545,10 @@ pub fn check_scene(
                         "`{}` cannot render {}{}: {why}",
                         technique.name(),
                         content.describe(),
-                        if content == SceneContent::EnclosedLight {
-                            enclosed.as_str()
-                        } else {
-                            ""
+                        match content {
+                            SceneContent::EnclosedLight => enclosed.as_str(),
+                            SceneContent::ReachedLight => reached.as_str(),
+                            _ => "",
                         }
                     ),
                 ))

@@ -37,6 +37,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
         enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
+        reached_lights: Support::Yes,
         semi_opaque: super::registry::OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,

@@ -136,6 +136,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         },
         textured_lights: Support::Yes,
         enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
+        reached_lights: crate::shadow::registry::COUNTS_MISS_REACHED_LIGHT,
         semi_opaque: Support::Yes,
         s_triangles: Support::Yes,
         output: match o.dcs.mode {

@@ -105,3 +105,175 @@ pub fn enclosed_lights(scene: &Scene, geometry: &SceneGeometry, eye: DVec3) -> V
     }
     found
 }
+
+/// A shadow caster that reaches into a light: one of its triangles
+/// crosses a rect light's rectangle or enters a sphere light's ball.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReachedLight {
+    /// The light's index in the scene.
+    pub light: usize,
+    /// The object's name.
+    pub object: String,
+}
+
+/// The first caster (in triangle order) reaching into each light; lights
+/// no caster reaches are not listed.
+///
+/// Techniques that count occluders from the light's centre (DCS's start
+/// count, its edges clipped at the light) see a caster part beyond the
+/// light's surface, or inside its ball, as the shadow rays never do: the
+/// reference's segments end on the light. A triangle that only touches
+/// the light (a vertex or edge on it, or tangent to the sphere) is not
+/// listed: it changes no segment's crossings but on a set of measure
+/// zero. A triangle in the light's plane overlapping its rectangle is.
+pub fn reached_lights(scene: &Scene, geometry: &SceneGeometry) -> Vec<ReachedLight> {
+    let mut found = Vec::new();
+    for (k, light) in scene.lights.iter().enumerate() {
+        let reaches: Box<dyn Fn([DVec3; 3]) -> bool> = match light.shape {
+            LightShape::Rect { center, u, v, .. } => {
+                let (c, u, v) = (center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
+                Box::new(move |t| triangle_crosses_rect(t, c, u, v))
+            }
+            LightShape::Sphere { center, radius } => {
+                let (c, r) = (center.as_dvec3(), f64::from(radius));
+                Box::new(move |t| closest_point_on_triangle(c, t).distance(c) < r)
+            }
+        };
+        let hit = geometry.triangles.iter().enumerate().find(|&(t, tri)| {
+            let o = geometry.triangle_object[t] as usize;
+            scene.objects.get(o).is_some_and(|o| o.cast_shadows)
+                && reaches(tri.map(|i| geometry.positions[i as usize].as_dvec3()))
+        });
+        if let Some((t, _)) = hit {
+            found.push(ReachedLight {
+                light: k,
+                object: scene.objects[geometry.triangle_object[t] as usize]
+                    .name
+                    .clone(),
+            });
+        }
+    }
+    found
+}
+
+/// Whether triangle `t` crosses the rectangle `c ± u ± v` (its interior
+/// meets the rectangle's plane inside the rectangle), or lies in that
+/// plane overlapping it.
+fn triangle_crosses_rect(t: [DVec3; 3], c: DVec3, u: DVec3, v: DVec3) -> bool {
+    let n = u.cross(v);
+    let d = t.map(|p| (p - c).dot(n));
+    // The rectangle's own coordinates of a point in its plane: `u` and
+    // `v` need not be orthogonal, so through their Gram matrix.
+    let (uu, uv, vv) = (u.dot(u), u.dot(v), v.dot(v));
+    let det = uu * vv - uv * uv;
+    if !(det > 0.0) {
+        return false;
+    }
+    let st = |p: DVec3| {
+        let (a, b) = ((p - c).dot(u), (p - c).dot(v));
+        [(a * vv - b * uv) / det, (b * uu - a * uv) / det]
+    };
+    if d.iter().all(|&x| x == 0.0) {
+        return convex_polygons_overlap(
+            &t.map(st),
+            &[[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]],
+        );
+    }
+    let (lo, hi) = (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]));
+    if !(lo < 0.0 && hi > 0.0) {
+        return false;
+    }
+    // The segment where the triangle meets the plane: its two edges (or
+    // an edge and a vertex) with ends on both sides.
+    let mut ends = Vec::with_capacity(2);
+    for i in 0..3 {
+        let (a, b) = (i, (i + 1) % 3);
+        if d[a] == 0.0 {
+            ends.push(t[a]);
+        } else if (d[a] < 0.0) != (d[b] < 0.0) && d[b] != 0.0 {
+            ends.push(t[a] + (t[b] - t[a]) * (d[a] / (d[a] - d[b])));
+        }
+    }
+    let [Some(&q0), Some(&q1)] = [ends.first(), ends.get(1)] else {
+        return false;
+    };
+    segment_meets_square(st(q0), st(q1))
+}
+
+/// Whether segment `a → b` meets the square `[-1, 1]²` (Liang–Barsky).
+fn segment_meets_square(a: [f64; 2], b: [f64; 2]) -> bool {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..2 {
+        let (p, q) = (a[axis], b[axis] - a[axis]);
+        if q == 0.0 {
+            if p < -1.0 || p > 1.0 {
+                return false;
+            }
+            continue;
+        }
+        let (ta, tb) = ((-1.0 - p) / q, (1.0 - p) / q);
+        let (enter, leave) = if ta < tb { (ta, tb) } else { (tb, ta) };
+        t0 = t0.max(enter);
+        t1 = t1.min(leave);
+        if t0 > t1 {
+            return false;
+        }
+    }
+    true
+}
+
+/// Whether two convex polygons (either winding) overlap with positive
+/// area or touch: the separating axis test over both polygons' edges.
+fn convex_polygons_overlap(a: &[[f64; 2]], b: &[[f64; 2]]) -> bool {
+    let separated = |poly: &[[f64; 2]], other: &[[f64; 2]]| {
+        (0..poly.len()).any(|i| {
+            let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+            let axis = [q[1] - p[1], p[0] - q[0]];
+            let proj = |s: &[[f64; 2]]| {
+                s.iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                        let d = x[0] * axis[0] + x[1] * axis[1];
+                        (lo.min(d), hi.max(d))
+                    })
+            };
+            let ((a0, a1), (b0, b1)) = (proj(poly), proj(other));
+            a1 <= b0 || b1 <= a0
+        })
+    };
+    !separated(a, b) && !separated(b, a)
+}
+
+/// The point of triangle `t` closest to `p` (Ericson, *Real-Time
+/// Collision Detection*, 5.1.5).
+fn closest_point_on_triangle(p: DVec3, t: [DVec3; 3]) -> DVec3 {
+    let [a, b, c] = t;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}

@@ -67,6 +67,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
              the maps (the unshadowed light still uses it)",
         ),
         enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        reached_lights: Support::Yes,
         semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,

@@ -47,6 +47,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
         enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        reached_lights: Support::Yes,
         semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,

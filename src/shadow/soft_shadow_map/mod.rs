@@ -128,6 +128,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         },
         textured_lights: Support::Yes,
         enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        reached_lights: Support::Yes,
         semi_opaque: Support::Ignored(
             "the occluder map holds opaque casters only; casters of constant opacity below 1 \
              cast no shadow here (use dcs or reference)",

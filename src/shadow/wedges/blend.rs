@@ -202,6 +202,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         },
         textured_lights: Support::Yes,
         enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
+        reached_lights: Support::Yes,
         semi_opaque: OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
