@@ -79,11 +79,12 @@ enum Command {
         #[arg(long)]
         explain: bool,
         /// Exactness certificate: re-cast this many random (pixel, light
-        /// sample) relations, keyed by --seed, with the reference's shadow
+        /// sample) relations, keyed by --seed, or `all` of them (every
+        /// sample of every receiving pixel), with the reference's shadow
         /// rays and compare them with the technique's own decisions (dcs,
         /// penumbra-casting); a disagreement beyond the tie distance is an
         /// error.
-        #[arg(long, value_name = "K")]
+        #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount)]
         verify: Option<u64>,
         /// Render only band I of N (whole rows of 64-pixel tiles) into the
         /// part file -o; `merge-tiles` assembles the image.
@@ -174,7 +175,7 @@ enum Command {
         /// with shadow rays (a `verify` column; not timed). A run that
         /// declares itself exact and disagrees beyond the tie distance
         /// fails the command once the results are written.
-        #[arg(long, value_name = "K")]
+        #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount)]
         verify: Option<u64>,
         /// The techniques' own options, the base every quality setting
         /// starts from.

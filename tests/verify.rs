@@ -248,3 +248,29 @@ fn compare_reports_it_per_run() {
     assert!(md.contains("verify: disagreeing / checked"), "{md}");
     assert!(md.contains("/2000 ("), "{md}");
 }
+
+/// `--verify all` checks every sample of every receiving pixel (not a
+/// draw): on spheres at 48 × 36 with 8 samples, exact DCS passes it, the
+/// centre silhouettes fail it, and both count the same relations.
+#[test]
+fn verify_all_checks_every_relation() {
+    use penumbra::shadow::kit::verify::{parse_amount, EVERY_RELATION};
+    assert_eq!(parse_amount("all"), Ok(EVERY_RELATION));
+    assert_eq!(parse_amount("12"), Ok(12));
+    assert!(parse_amount("some").is_err());
+    let scene = common::shipped("spheres.toml");
+    let exact = verified(&scene, &options("dcs", 8, 48, 36, 0), EVERY_RELATION);
+    // Every surface pixel of this view receives shadows.
+    let frame = common::Frame::new(&scene, 48, 36);
+    let surface = (0..48 * 36)
+        .filter(|&i| frame.gbuffer.is_surface(i))
+        .count() as u64;
+    assert_eq!(exact.checked, surface * 8, "{exact:?}");
+    assert_saw_shadow(&exact);
+    assert_eq!(exact.beyond_tie, 0, "{exact:?}");
+    let mut o = options("dcs", 8, 48, 36, 0);
+    o.options.dcs.silhouettes = SilhouetteMode::Centre;
+    let centre = verified(&scene, &o, EVERY_RELATION);
+    assert_eq!(centre.checked, exact.checked);
+    assert!(centre.beyond_tie > 0, "{centre:?}");
+}

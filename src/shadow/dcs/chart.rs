@@ -105,6 +105,27 @@ impl ReceiverChart {
         }
     }
 
+    /// The light point at chart coordinates `xy` (the inverse of
+    /// [`point`](Self::point)): on a rect light's plane, or, for a sphere
+    /// light whose centre is `centre`, on the plane through the centre
+    /// across the axis.
+    pub fn light_point(&self, xy: [f64; 2], centre: DVec3) -> DVec3 {
+        match self {
+            ReceiverChart::Rect { frame, .. } => frame.center + frame.u * xy[0] + frame.v * xy[1],
+            ReceiverChart::Sphere {
+                p,
+                axis,
+                e1,
+                e2,
+                tan,
+                ..
+            } => {
+                let d = (centre - *p).dot(*axis);
+                *p + (*axis + (*e1 * xy[0] + *e2 * xy[1]) * *tan) * d
+            }
+        }
+    }
+
     /// The rect light's projection from the receiver, when the chart is
     /// one and the receiver is off the light's plane.
     #[inline]

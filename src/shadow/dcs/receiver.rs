@@ -364,6 +364,21 @@ impl LightPass<'_, '_> {
                 recorded,
             });
         }
+        // A start count taken where a projected edge passes through the
+        // light's centre is a tie between the stencil's (or the ray's)
+        // rounding and the chart's: the chart puts the centre on one side
+        // of the edge, the count may have taken the other, and half the
+        // light would flip (dabrovic.toml at 768×512, pixel (94, 341)).
+        // There the count is taken instead at a point of the chart clear
+        // of every edge and carried back to the centre through the
+        // chart's own test, so both sides agree by construction.
+        for (k, span) in scratch.spans.iter_mut().enumerate() {
+            let edges = &scratch.effective[span.first..span.end];
+            if span.recorded && centre_tied(edges) {
+                span.start = self.start_off_centre(k, &chart, p, edges);
+                recounted = true;
+            }
+        }
         let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
         // Whether anything but the opaque counts is read per sample.
         let per_sample = semi_opaque || direct || self.prepared.is_textured() || inspect.is_some();
@@ -771,6 +786,93 @@ impl LightPass<'_, '_> {
             d0 = counts[k];
         }
         (d0, recount)
+    }
+}
+
+/// How close (in chart units, the light's half-width) to the light's
+/// centre an edge's projection may pass before the start count there is
+/// a tie: a hundred times the rounding of the chart's `f32` ends and of
+/// the rays' `f32` positions, far below any sample's spacing.
+const CENTRE_TIE: f64 = 1e-5;
+
+/// Whether a projected edge of `edges` passes within [`CENTRE_TIE`] of
+/// the chart's origin, the light's centre.
+#[inline]
+fn centre_tied(edges: &[(OrientedEdge, i32)]) -> bool {
+    edges.iter().any(|(e, _)| {
+        let (a, b) = (e.lo().map(f64::from), e.hi().map(f64::from));
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len2 = d[0] * d[0] + d[1] * d[1];
+        let cross = a[0] * b[1] - a[1] * b[0];
+        // The line first (one product per edge), then the segment.
+        if cross * cross > CENTRE_TIE * CENTRE_TIE * len2 {
+            return false;
+        }
+        let t = -(a[0] * d[0] + a[1] * d[1]);
+        let closest = if t <= 0.0 {
+            a
+        } else if t >= len2 {
+            b
+        } else {
+            [a[0] + d[0] * t / len2, a[1] + d[1] * t / len2]
+        };
+        closest[0] * closest[0] + closest[1] * closest[1] <= CENTRE_TIE * CENTRE_TIE
+    })
+}
+
+/// Where [`LightPass::start_off_centre`] may take a start count: points
+/// at 1e-3 of the light's half-width from its centre (a hundred times
+/// [`CENTRE_TIE`]), in eight directions.
+const OFF_CENTRE: [[f32; 2]; 8] = [
+    [1e-3, 0.0],
+    [0.0, 1e-3],
+    [-1e-3, 0.0],
+    [0.0, -1e-3],
+    [7.071e-4, 7.071e-4],
+    [-7.071e-4, 7.071e-4],
+    [-7.071e-4, -7.071e-4],
+    [7.071e-4, -7.071e-4],
+];
+
+impl LightPass<'_, '_> {
+    /// Group `k`'s start count at the light's centre for a receiver (its
+    /// shadow-ray origin `p`) one of whose projected `edges` passes
+    /// through the centre: the count at a chart point `q` clear of every
+    /// edge, by one ray ([`ExactStart::counts_towards`]), less the
+    /// changes the chart's own test gives the edges between the centre
+    /// and `q`. Every sample then gets the count the rays see on its side
+    /// of that edge.
+    fn start_off_centre(
+        &self,
+        k: usize,
+        chart: &ReceiverChart,
+        p: DVec3,
+        edges: &[(OrientedEdge, i32)],
+    ) -> i32 {
+        let clear = |q: [f32; 2]| {
+            let shifted: Vec<(OrientedEdge, i32)> = edges
+                .iter()
+                .filter_map(|(e, d)| {
+                    let m = |v: [f32; 2]| [f64::from(v[0] - q[0]), f64::from(v[1] - q[1])];
+                    OrientedEdge::new(m(e.lo()), m(e.hi())).map(|e| (e, *d))
+                })
+                .collect();
+            !centre_tied(&shifted)
+        };
+        let q = OFF_CENTRE
+            .iter()
+            .copied()
+            .find(|&q| clear(q))
+            .unwrap_or(OFF_CENTRE[0]);
+        let target = chart.light_point([f64::from(q[0]), f64::from(q[1])], self.centre);
+        let mut counts = vec![0; self.groups.len()];
+        self.exact.counts_towards(p.as_vec3(), target, &mut counts);
+        let crossed: i32 = edges
+            .iter()
+            .filter(|(e, _)| e.covers(q))
+            .map(|(_, d)| d)
+            .sum();
+        counts[k] - crossed
     }
 }
 

@@ -24,7 +24,7 @@ use crate::error::Result;
 use crate::geom::{EdgeAdjacency, SceneGeometry};
 use crate::raster::Framebuffer;
 use crate::shadow::kit::volumes::{stencil_count_shifts, ShadowVolume};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
@@ -171,8 +171,8 @@ const NONE: u32 = u32::MAX;
 pub struct ExactStart<'a> {
     geometry: &'a SceneGeometry,
     tree: OnceLock<FaceTree>,
-    /// Per scene triangle: `group << 1 | weight` (weight 1 when the face
-    /// counts from the centre), or [`NONE`].
+    /// Per scene triangle: `group << 2 | closed << 1 | weight` (weight 1
+    /// when the face counts from the centre), or [`NONE`].
     table: Vec<u32>,
 }
 
@@ -183,12 +183,9 @@ impl<'a> ExactStart<'a> {
         let mut table = vec![NONE; geometry.triangles.len()];
         for (g, (adj, lit)) in groups.iter().enumerate() {
             for (slot, &f) in adj.faces.iter().enumerate() {
-                let weight = if adj.face_closed[slot] {
-                    u32::from(lit[slot])
-                } else {
-                    1
-                };
-                table[f as usize] = (g as u32) << 1 | weight;
+                let closed = adj.face_closed[slot];
+                let weight = if closed { u32::from(lit[slot]) } else { 1 };
+                table[f as usize] = (g as u32) << 2 | u32::from(closed) << 1 | weight;
             }
         }
         ExactStart {
@@ -299,10 +296,42 @@ impl<'a> ExactStart<'a> {
         };
         self.tree()
             .for_each_hit_of(origin, dir, t_max, weighted, |t| {
-                if let Some(c) = out.get_mut((self.table[t as usize] >> 1) as usize) {
+                if let Some(c) = out.get_mut((self.table[t as usize] >> 2) as usize) {
                     *c += 1;
                 }
                 true
             });
+    }
+
+    /// The count of each group on the segment from `origin` to the light
+    /// point `target`, into `out`, by the rule the counters follow: a
+    /// closed caster's face counts where `target` is in front of it (it
+    /// faces that light point), an open caster's every face. At the
+    /// centre this is [`counts`](Self::counts).
+    pub fn counts_towards(&self, origin: Vec3, target: DVec3, out: &mut [i32]) {
+        out.fill(0);
+        let dir = target.as_vec3() - origin;
+        let t_max = (1.0 - crate::shadow::kit::rays::END_SHORTEN) as f32;
+        let geometry = self.geometry;
+        self.tree().for_each_hit_of(
+            origin,
+            dir,
+            t_max,
+            |t| self.table[t as usize] != NONE,
+            |t| {
+                let e = self.table[t as usize];
+                let counts = if e & 2 == 0 {
+                    true
+                } else {
+                    let [a, b, c] = geometry.triangles[t as usize]
+                        .map(|i| geometry.positions[i as usize].as_dvec3());
+                    (b - a).cross(c - a).dot(target - a) > 0.0
+                };
+                if let (true, Some(c)) = (counts, out.get_mut((e >> 2) as usize)) {
+                    *c += 1;
+                }
+                true
+            },
+        );
     }
 }

@@ -224,13 +224,26 @@ pub fn verifiable() -> Vec<&'static str> {
         .collect()
 }
 
-/// Most relations one `--verify` checks (they are held in memory).
+/// Most relations one `--verify K` draws (they are held in memory).
 pub const MAX_RELATIONS: u64 = 10_000_000;
 
+/// `--verify all`: every relation of every receiving pixel, checked in
+/// chunks of pixels (so memory stays bounded), instead of `K` drawn ones.
+pub const EVERY_RELATION: u64 = u64::MAX;
+
+/// Parses `--verify`'s value: a count `K` or `all` ([`EVERY_RELATION`]).
+pub fn parse_amount(s: &str) -> std::result::Result<u64, String> {
+    if s.eq_ignore_ascii_case("all") {
+        return Ok(EVERY_RELATION);
+    }
+    s.parse::<u64>()
+        .map_err(|_| format!("`{s}` is neither a number of relations nor `all`"))
+}
+
 /// An error unless `technique` built from `params` exposes its decisions
-/// and `k` is in `1..=MAX_RELATIONS`.
+/// and `k` is in `1..=MAX_RELATIONS` or [`EVERY_RELATION`].
 pub fn check_verifiable(technique: Technique, params: &BuildParams, k: u64) -> Result<()> {
-    if !(1..=MAX_RELATIONS).contains(&k) {
+    if !(1..=MAX_RELATIONS).contains(&k) && k != EVERY_RELATION {
         return Err(Error::param(
             "--verify",
             format!("{k} relations is outside 1..={MAX_RELATIONS}"),
@@ -262,15 +275,7 @@ struct Relation {
 /// `k` relations keyed by `seed`: uniformly a light, a receiving surface
 /// pixel and a sample, with replacement. Deterministic.
 fn relations(ctx: &ShadowContext, k: u64, seed: u64) -> Vec<Relation> {
-    let receives = |o: u32| {
-        ctx.scene
-            .objects
-            .get(o as usize)
-            .is_none_or(|o| o.receive_shadows)
-    };
-    let pool: Vec<usize> = (0..ctx.gbuffer.len())
-        .filter(|&i| ctx.gbuffer.is_surface(i) && receives(ctx.gbuffer.sample(i).object))
-        .collect();
+    let pool = receiving_pixels(ctx);
     let lights = ctx.scene.lights.len();
     if pool.is_empty() || lights == 0 {
         return Vec::new();
@@ -286,6 +291,19 @@ fn relations(ctx: &ShadowContext, k: u64, seed: u64) -> Vec<Relation> {
                 u: (h2 >> 11) as f64 * (1.0 / (1u64 << 53) as f64),
             }
         })
+        .collect()
+}
+
+/// The surface pixels of shadow receivers, in order.
+fn receiving_pixels(ctx: &ShadowContext) -> Vec<usize> {
+    let receives = |o: u32| {
+        ctx.scene
+            .objects
+            .get(o as usize)
+            .is_none_or(|o| o.receive_shadows)
+    };
+    (0..ctx.gbuffer.len())
+        .filter(|&i| ctx.gbuffer.is_surface(i) && receives(ctx.gbuffer.sample(i).object))
         .collect()
 }
 
@@ -398,7 +416,76 @@ pub fn verify(
         ));
     };
     let exact = technique.capabilities(params.options).exact;
+    if k == EVERY_RELATION {
+        return verify_all(decisions, technique.name(), exact, ctx, params.samples);
+    }
     verify_with(decisions, technique.name(), exact, ctx, k, params.seed)
+}
+
+/// Relations per chunk of [`verify_all`]: the chunk's samples and
+/// decisions are held at once (~56 bytes a relation).
+const ALL_CHUNK_RELATIONS: usize = 1 << 22;
+
+/// Every relation of every receiving surface pixel and light (`samples`
+/// per pixel, as the technique was built), in chunks of pixels: each
+/// chunk runs the technique's light pass again with its inspector on
+/// those pixels, and every sample of every pixel is re-cast.
+fn verify_all(
+    decisions: &dyn SampleDecisions,
+    name: &str,
+    declared_exact: bool,
+    ctx: &ShadowContext,
+    samples: u32,
+) -> Result<VerifyReport> {
+    let pool = receiving_pixels(ctx);
+    let tracer: &ShadowTracer = ctx.cache.tracer();
+    let width = ctx.gbuffer.width.max(1) as usize;
+    let chunk = (ALL_CHUNK_RELATIONS / samples.max(1) as usize).max(1);
+    let (mut checked, mut blocked) = (0u64, 0u64);
+    let mut found: Vec<(Relation, usize, f64, f64, DVec3, DVec3)> = Vec::new();
+    for light in 0..ctx.scene.lights.len() {
+        for pixels in pool.chunks(chunk) {
+            let mut answers = decisions.sample_visibility(ctx, light, pixels)?;
+            answers.sort_by_key(|p| p.pixel);
+            let per_pixel: Vec<(u64, u64, Vec<_>)> = answers
+                .par_iter()
+                .map(|px| {
+                    let n = px.samples.len().min(px.visibility.len());
+                    let g = ctx.gbuffer.sample(px.pixel);
+                    let mut reference = vec![0.0f32; n];
+                    tracer.sample_visibility(&g, &px.samples[..n], &mut reference);
+                    let o = tracer.shadow_origin(g.position, g.geo_normal).as_dvec3();
+                    let mut bad = Vec::new();
+                    for (s, &r) in reference.iter().enumerate() {
+                        let (ours, r) = (px.visibility[s], f64::from(r));
+                        if (ours - r).abs() > VALUE_TOLERANCE {
+                            let relation = Relation {
+                                light,
+                                pixel: px.pixel,
+                                u: 0.0,
+                            };
+                            bad.push((relation, s, ours, r, o, px.samples[s].x.as_dvec3()));
+                        }
+                    }
+                    let shadowed = reference.iter().filter(|&&r| r < 1.0).count() as u64;
+                    (n as u64, shadowed, bad)
+                })
+                .collect();
+            for (n, shadowed, bad) in per_pixel {
+                checked += n;
+                blocked += shadowed;
+                found.extend(bad);
+            }
+        }
+    }
+    Ok(report(
+        ctx,
+        tracer,
+        width,
+        (name, declared_exact, EVERY_RELATION),
+        (checked, blocked),
+        found,
+    ))
 }
 
 /// [`verify`] with any [`SampleDecisions`] (named `name`, declaring itself
@@ -453,6 +540,26 @@ pub fn verify_with(
             }
         }
     }
+    Ok(report(
+        ctx,
+        tracer,
+        width,
+        (name, declared_exact, k),
+        (checked, blocked),
+        found,
+    ))
+}
+
+/// The report of the disagreements `found` among `checked` relations
+/// (`blocked` of them in shadow by the rays), with their tie distances.
+fn report(
+    ctx: &ShadowContext,
+    tracer: &ShadowTracer,
+    width: usize,
+    (name, declared_exact, k): (&str, bool, u64),
+    (checked, blocked): (u64, u64),
+    found: Vec<(Relation, usize, f64, f64, DVec3, DVec3)>,
+) -> VerifyReport {
     let casters = Casters::new(ctx);
     let textured = |o: DVec3, x: DVec3| {
         let mut any = false;
@@ -492,7 +599,7 @@ pub fn verify_with(
             a
         }
     });
-    Ok(VerifyReport {
+    VerifyReport {
         technique: name.to_string(),
         declared_exact,
         requested: k,
@@ -510,5 +617,5 @@ pub fn verify_with(
         max_tie_distance: found.iter().map(|d| d.tie_distance).fold(0.0, f64::max),
         tie_limit: TIE_DISTANCE,
         worst,
-    })
+    }
 }
