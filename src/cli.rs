@@ -546,15 +546,21 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             })
         }
         Command::Techniques { markdown, names } => {
-            if markdown {
-                print!("{}", crate::shadow::registry::markdown_table("algorithms/"));
+            // Checked writes, not print!: a full disk behind `>` is an
+            // error, a closed pipe a quiet end (never a panic).
+            let text = if markdown {
+                crate::shadow::registry::markdown_table("algorithms/")
             } else if names {
+                let mut s = String::new();
                 for name in crate::shadow::registry::names() {
-                    println!("{name}");
+                    s.push_str(name);
+                    s.push('\n');
                 }
+                s
             } else {
-                print!("{}", crate::shadow::registry::listing());
-            }
+                crate::shadow::registry::listing()
+            };
+            write_stdout(&text)?;
             Ok(Outcome::Success)
         }
         Command::Info { scene } => {
@@ -663,12 +669,32 @@ pub fn describe(scene: &Scene) -> String {
 /// Entry point for `main`: parses, runs, prints errors, returns the exit
 /// code.
 pub fn main_with_args() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return clap_exit(e),
+    };
     match run(cli) {
         Ok(Outcome::Success) => std::process::ExitCode::SUCCESS,
         Ok(Outcome::ToleranceExceeded) => std::process::ExitCode::from(1),
         Err(e) => {
             write_stderr(&format!("penumbra: error: {e}\n"));
+            std::process::ExitCode::from(2)
+        }
+    }
+}
+
+/// Ends on a clap "error": `--help` and `--version` go to stdout through
+/// the checked writer (a full disk is an error, a closed pipe is not);
+/// real usage errors go to stderr as clap prints them.
+fn clap_exit(e: clap::Error) -> std::process::ExitCode {
+    if e.use_stderr() {
+        let _ = e.print();
+        return std::process::ExitCode::from(e.exit_code().clamp(0, 255) as u8);
+    }
+    match write_stdout(&e.render().to_string()) {
+        Ok(()) => std::process::ExitCode::from(e.exit_code().clamp(0, 255) as u8),
+        Err(err) => {
+            write_stderr(&format!("penumbra: error: {err}\n"));
             std::process::ExitCode::from(2)
         }
     }
