@@ -7,7 +7,7 @@ use crate::compare::{
     write_results, CompareOptions,
 };
 use crate::error::{Error, Result};
-use crate::output::{check_output, write_stderr, write_stdout, OutputSet};
+use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
 use crate::raster::MAX_SIDE;
 use crate::render::{render, verify_render, with_threads, Aov, RenderOptions};
 use crate::report::Progress;
@@ -30,14 +30,17 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Render a scene to PNG (and optionally EXR with AOV layers).
+    /// Render a scene to PNG and/or EXR (with AOV layers).
     Render {
         /// Scene file (TOML).
         scene: PathBuf,
-        /// Output PNG (radiance, clamped, sRGB).
+        /// Output image, in the format of its extension: .png (radiance,
+        /// clamped, sRGB) or .exr (linear radiance plus the --aov layers).
+        /// With --tiles, the part file (any name).
         #[arg(short, long)]
         output: PathBuf,
-        /// Output EXR (linear radiance plus the --aov layers).
+        /// Also an EXR (linear radiance plus the --aov layers), beside the
+        /// -o image; all outputs are written, or none.
         #[arg(long)]
         exr: Option<PathBuf>,
         /// Comma-separated AOV layers for the EXR: depth, position, normal,
@@ -82,7 +85,8 @@ enum Command {
         /// sample) relations, keyed by --seed, with the reference's shadow
         /// rays and compare them with the technique's own decisions (dcs,
         /// penumbra-casting); a disagreement beyond the tie distance is an
-        /// error.
+        /// error, and then no output is written (verification runs before
+        /// the outputs are).
         #[arg(long, value_name = "K")]
         verify: Option<u64>,
         /// Render only band I of N (whole rows of 64-pixel tiles) into the
@@ -173,7 +177,9 @@ enum Command {
         /// decisions (dcs, penumbra-casting): this many relations re-cast
         /// with shadow rays (a `verify` column; not timed). A run that
         /// declares itself exact and disagrees beyond the tie distance
-        /// fails the command once the results are written.
+        /// fails the command (exit 2) once the results are written: unlike
+        /// render --verify, the results stay, with the failure in their
+        /// verify column.
         #[arg(long, value_name = "K")]
         verify: Option<u64>,
         /// The techniques' own options, the base every quality setting
@@ -266,10 +272,21 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             let tiles = tiles
                 .map(|t| crate::cluster::tiles::parse_share("--tiles", &t))
                 .transpose()?;
-            if !aovs.is_empty() && exr.is_none() && tiles.is_none() {
+            // Fail on a bad output path before the render, not after it;
+            // a part (--tiles) takes any name, an image's extension decides
+            // its format.
+            let images = match tiles {
+                Some(_) => {
+                    check_output(&output)?;
+                    Vec::new()
+                }
+                None => image_outputs(&output, exr.as_deref(), &[])?,
+            };
+            if !aovs.is_empty() && tiles.is_none() && !images.iter().any(|(_, f)| *f == Format::Exr)
+            {
                 return Err(Error::param(
                     "--aov",
-                    "AOV layers need an EXR output (--exr)",
+                    "AOV layers need an EXR output (-o NAME.exr or --exr)",
                 ));
             }
             let options = RenderOptions {
@@ -293,10 +310,6 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 if let Some(v) = v.filter(|v| !(1..=MAX_SIDE).contains(v)) {
                     return Err(Error::param(name, format!("{v} is outside 1..={MAX_SIDE}")));
                 }
-            }
-            // Fail on a bad output path before the render, not after it.
-            for path in std::iter::once(&output).chain(&exr) {
-                check_output(path)?;
             }
             if let Some(k) = verify {
                 // Refused before the render, not after it.
@@ -338,18 +351,26 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     write_stderr(&format!("{:>12}  note: {w}\n", "-"));
                 }
             }
-            // All outputs or none: both are staged, then moved into place.
-            let mut outputs = OutputSet::new();
-            outputs.png(&output, out.width, out.height, &out.radiance)?;
-            if let Some(exr) = exr {
-                outputs.exr(&exr, out.width, out.height, &out.radiance, &out.layers)?;
-            }
-            outputs.commit()?;
+            // Verified before anything is written: a failed certificate
+            // leaves no unverified image behind.
             if let Some(k) = verify {
                 let report = with_threads(threads, || verify_render(&scene, &options, k))??;
                 write_stderr(&format!("penumbra: {report}\n"));
                 report.check()?;
             }
+            // All outputs or none: all are staged, then moved into place.
+            let mut outputs = OutputSet::new();
+            for (path, format) in &images {
+                outputs.image(
+                    path,
+                    *format,
+                    out.width,
+                    out.height,
+                    &out.radiance,
+                    &out.layers,
+                )?;
+            }
+            outputs.commit()?;
             Ok(Outcome::Success)
         }
         Command::Compare {
