@@ -7,7 +7,7 @@ use crate::compare::{
     write_results, CompareOptions,
 };
 use crate::error::{Error, Result};
-use crate::output::{check_output, write_stderr, write_stdout, OutputSet};
+use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
 use crate::raster::MAX_SIDE;
 use crate::render::{render, verify_render, with_threads, Aov, RenderOptions};
 use crate::report::Progress;
@@ -30,14 +30,17 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Render a scene to PNG (and optionally EXR with AOV layers).
+    /// Render a scene to PNG and/or EXR (with AOV layers).
     Render {
         /// Scene file (TOML).
         scene: PathBuf,
-        /// Output PNG (radiance, clamped, sRGB).
+        /// Output image, in the format of its extension: .png (radiance,
+        /// clamped, sRGB) or .exr (linear radiance plus the --aov layers).
+        /// With --tiles, the part file (any name).
         #[arg(short, long)]
         output: PathBuf,
-        /// Output EXR (linear radiance plus the --aov layers).
+        /// Also an EXR (linear radiance plus the --aov layers), beside the
+        /// -o image; all outputs are written, or none.
         #[arg(long)]
         exr: Option<PathBuf>,
         /// Comma-separated AOV layers for the EXR: depth, position, normal,
@@ -83,7 +86,8 @@ enum Command {
         /// sample of every receiving pixel), with the reference's shadow
         /// rays and compare them with the technique's own decisions (dcs,
         /// penumbra-casting); a disagreement beyond the tie distance is an
-        /// error.
+        /// error, and then no output is written (verification runs before
+        /// the outputs are).
         #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount)]
         verify: Option<u64>,
         /// Render only band I of N (whole rows of 64-pixel tiles) into the
@@ -174,7 +178,9 @@ enum Command {
         /// decisions (dcs, penumbra-casting): this many relations re-cast
         /// with shadow rays (a `verify` column; not timed). A run that
         /// declares itself exact and disagrees beyond the tie distance
-        /// fails the command once the results are written.
+        /// fails the command (exit 2) once the results are written: unlike
+        /// render --verify, the results stay, with the failure in their
+        /// verify column. `all` checks every relation of every pixel.
         #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount)]
         verify: Option<u64>,
         /// The techniques' own options, the base every quality setting
@@ -267,10 +273,21 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             let tiles = tiles
                 .map(|t| crate::cluster::tiles::parse_share("--tiles", &t))
                 .transpose()?;
-            if !aovs.is_empty() && exr.is_none() && tiles.is_none() {
+            // Fail on a bad output path before the render, not after it;
+            // a part (--tiles) takes any name, an image's extension decides
+            // its format.
+            let images = match tiles {
+                Some(_) => {
+                    check_output(&output)?;
+                    Vec::new()
+                }
+                None => image_outputs(&output, exr.as_deref(), &[])?,
+            };
+            if !aovs.is_empty() && tiles.is_none() && !images.iter().any(|(_, f)| *f == Format::Exr)
+            {
                 return Err(Error::param(
                     "--aov",
-                    "AOV layers need an EXR output (--exr)",
+                    "AOV layers need an EXR output (-o NAME.exr or --exr)",
                 ));
             }
             let options = RenderOptions {
@@ -294,10 +311,6 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 if let Some(v) = v.filter(|v| !(1..=MAX_SIDE).contains(v)) {
                     return Err(Error::param(name, format!("{v} is outside 1..={MAX_SIDE}")));
                 }
-            }
-            // Fail on a bad output path before the render, not after it.
-            for path in std::iter::once(&output).chain(&exr) {
-                check_output(path)?;
             }
             if let Some(k) = verify {
                 // Refused before the render, not after it.
@@ -339,18 +352,26 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     write_stderr(&format!("{:>12}  note: {w}\n", "-"));
                 }
             }
-            // All outputs or none: both are staged, then moved into place.
-            let mut outputs = OutputSet::new();
-            outputs.png(&output, out.width, out.height, &out.radiance)?;
-            if let Some(exr) = exr {
-                outputs.exr(&exr, out.width, out.height, &out.radiance, &out.layers)?;
-            }
-            outputs.commit()?;
+            // Verified before anything is written: a failed certificate
+            // leaves no unverified image behind.
             if let Some(k) = verify {
                 let report = with_threads(threads, || verify_render(&scene, &options, k))??;
                 write_stderr(&format!("penumbra: {report}\n"));
                 report.check()?;
             }
+            // All outputs or none: all are staged, then moved into place.
+            let mut outputs = OutputSet::new();
+            for (path, format) in &images {
+                outputs.image(
+                    path,
+                    *format,
+                    out.width,
+                    out.height,
+                    &out.radiance,
+                    &out.layers,
+                )?;
+            }
+            outputs.commit()?;
             Ok(Outcome::Success)
         }
         Command::Compare {
@@ -547,15 +568,21 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             })
         }
         Command::Techniques { markdown, names } => {
-            if markdown {
-                print!("{}", crate::shadow::registry::markdown_table("algorithms/"));
+            // Checked writes, not print!: a full disk behind `>` is an
+            // error, a closed pipe a quiet end (never a panic).
+            let text = if markdown {
+                crate::shadow::registry::markdown_table("algorithms/")
             } else if names {
+                let mut s = String::new();
                 for name in crate::shadow::registry::names() {
-                    println!("{name}");
+                    s.push_str(name);
+                    s.push('\n');
                 }
+                s
             } else {
-                print!("{}", crate::shadow::registry::listing());
-            }
+                crate::shadow::registry::listing()
+            };
+            write_stdout(&text)?;
             Ok(Outcome::Success)
         }
         Command::Info { scene } => {
@@ -664,12 +691,32 @@ pub fn describe(scene: &Scene) -> String {
 /// Entry point for `main`: parses, runs, prints errors, returns the exit
 /// code.
 pub fn main_with_args() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return clap_exit(e),
+    };
     match run(cli) {
         Ok(Outcome::Success) => std::process::ExitCode::SUCCESS,
         Ok(Outcome::ToleranceExceeded) => std::process::ExitCode::from(1),
         Err(e) => {
             write_stderr(&format!("penumbra: error: {e}\n"));
+            std::process::ExitCode::from(2)
+        }
+    }
+}
+
+/// Ends on a clap "error": `--help` and `--version` go to stdout through
+/// the checked writer (a full disk is an error, a closed pipe is not);
+/// real usage errors go to stderr as clap prints them.
+fn clap_exit(e: clap::Error) -> std::process::ExitCode {
+    if e.use_stderr() {
+        let _ = e.print();
+        return std::process::ExitCode::from(e.exit_code().clamp(0, 255) as u8);
+    }
+    match write_stdout(&e.render().to_string()) {
+        Ok(()) => std::process::ExitCode::from(e.exit_code().clamp(0, 255) as u8),
+        Err(err) => {
+            write_stderr(&format!("penumbra: error: {err}\n"));
             std::process::ExitCode::from(2)
         }
     }

@@ -335,13 +335,22 @@ fn special_output_paths() {
         ]
     };
     if Path::new("/proc/version").exists() {
-        let (ok, msg) = penumbra(&args("/proc/version"));
+        // Through --exr, which takes any name (-o's extension picks the
+        // format, and `version` has none).
+        let dir = common::scratch_dir("cli-proc");
+        let png = dir.join("a.png");
+        let mut a = args("/proc/version").to_vec();
+        a[3] = png.to_str().unwrap();
+        a.extend(["--exr", "/proc/version"]);
+        let (ok, msg) = penumbra(&a);
         assert!(!ok);
+        assert!(!png.exists());
         assert!(
             msg.contains("/proc/version") && !msg.contains("No such file"),
             "{msg}"
         );
         assert!(msg.contains("does not accept new files"), "{msg}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
     if Path::new("/dev/null").exists() {
         let (ok, msg) = penumbra(&args("/dev/null"));

@@ -158,9 +158,27 @@ fn quote_path(p: &Path) -> String {
     shell_quote(&p.display().to_string())
 }
 
+/// Refuses a value that would not stay on its own line of a script: a
+/// newline in `--partition` would start a new `#SBATCH` directive (or a
+/// shell command), other control characters are never meant. `option`
+/// names the option.
+fn check_one_line(option: &str, value: &str) -> Result<()> {
+    if let Some(c) = value.chars().find(|c| c.is_control()) {
+        return Err(Error::param(
+            option,
+            format!(
+                "{value:?} holds the control character {c:?}; a script line \
+                 takes no newlines or control characters"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// One sbatch option from the user must be a single line starting `-`.
 fn check_sbatch_arg(a: &str) -> Result<()> {
-    if !a.starts_with('-') || a.contains('\n') {
+    check_one_line("--sbatch-arg", a)?;
+    if !a.starts_with('-') {
         return Err(Error::param(
             "--sbatch-arg",
             format!("`{a}` is not one sbatch option (such as --mail-type=END)"),
@@ -263,6 +281,37 @@ pub fn scripts(
     }
     for a in &slurm.sbatch_arg {
         check_sbatch_arg(a)?;
+    }
+    for (option, value) in [
+        ("--job-name", Some(slurm.job_name.as_str())),
+        ("--partition", slurm.partition.as_deref()),
+        ("--time", slurm.time.as_deref()),
+        ("--mem", slurm.mem.as_deref()),
+        ("--account", slurm.account.as_deref()),
+        ("--qos", slurm.qos.as_deref()),
+        ("--constraint", slurm.constraint.as_deref()),
+        ("--merge-time", slurm.merge_time.as_deref()),
+        ("--merge-mem", slurm.merge_mem.as_deref()),
+    ] {
+        if let Some(v) = value {
+            check_one_line(option, v)?;
+        }
+    }
+    for line in &slurm.setup {
+        check_one_line("--setup", line)?;
+    }
+    // Paths on #SBATCH lines are quoted, but a newline inside quotes
+    // still ends the directive.
+    let logs_text = slurm.log_dir.as_ref().map(|p| p.display().to_string());
+    for (option, path) in [
+        ("--out", Some(out.display().to_string())),
+        ("--log-dir", logs_text),
+        ("the working directory", Some(chdir.display().to_string())),
+        ("--penumbra", Some(penumbra.display().to_string())),
+    ] {
+        if let Some(p) = path {
+            check_one_line(option, &p)?;
+        }
     }
     if slurm.job_name.is_empty() || slurm.job_name.contains(['\n', '/']) {
         return Err(Error::param(
@@ -474,22 +523,95 @@ pub struct Submitted {
 /// failed task cancels the merge, given `kill_invalid_depend`, instead
 /// of leaving it pending).
 pub fn submit(sbatch_cmd: &Path, scripts: &Scripts) -> Result<Submitted> {
+    submit_counted(sbatch_cmd, scripts, &mut Vec::new())
+}
+
+/// [`submit`], recording each job id in `done` as it is queued (so that
+/// a failure knows what is already queued).
+fn submit_counted(
+    sbatch_cmd: &Path,
+    scripts: &Scripts,
+    done: &mut Vec<String>,
+) -> Result<Submitted> {
+    let mut queue = |extra: &[String], script: &Path| -> Result<String> {
+        let id = sbatch(sbatch_cmd, extra, script)?;
+        done.push(id.clone());
+        Ok(id)
+    };
     let references = match &scripts.references {
-        Some((path, _)) => Some(sbatch(sbatch_cmd, &[], path)?),
+        Some((path, _)) => Some(queue(&[], path)?),
         None => None,
     };
     let after = |id: &str| vec![format!("--dependency=afterok:{id}")];
-    let array = sbatch(
-        sbatch_cmd,
+    let array = queue(
         &references.as_deref().map(after).unwrap_or_default(),
         &scripts.array.0,
     )?;
-    let merge = sbatch(sbatch_cmd, &after(&array), &scripts.merge.0)?;
+    let merge = queue(&after(&array), &scripts.merge.0)?;
     Ok(Submitted {
         references,
         array,
         merge,
     })
+}
+
+/// Checks that `program` can be run: a path must be a file, a bare name
+/// must be found in `PATH`; the error names `--sbatch`.
+fn find_program(program: &Path) -> Result<()> {
+    let is_file = |p: &Path| p.metadata().is_ok_and(|m| m.is_file());
+    let found = if program.components().count() > 1 || program.is_absolute() {
+        is_file(program)
+    } else {
+        std::env::var_os("PATH")
+            .is_some_and(|path| std::env::split_paths(&path).any(|d| is_file(&d.join(program))))
+    };
+    if found {
+        Ok(())
+    } else {
+        Err(Error::param(
+            "--sbatch",
+            format!(
+                "{} not found (is Slurm installed here?); nothing was written. Without \
+                 --submit the scripts are written for submitting by hand",
+                program.display()
+            ),
+        ))
+    }
+}
+
+/// What one sweep created on disk (directories that did not exist, files
+/// that did not), to remove again when the sweep fails before anything
+/// was submitted.
+#[derive(Debug, Default)]
+struct Created {
+    dirs: Vec<PathBuf>,
+    files: Vec<PathBuf>,
+}
+
+impl Created {
+    /// `create_dir_all(dir)`, recording each directory it makes.
+    fn dirs(&mut self, dir: &Path) -> Result<()> {
+        let missing: Vec<PathBuf> = dir
+            .ancestors()
+            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+            .map(Path::to_path_buf)
+            .collect();
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        // Outermost first, so that removal in reverse goes inside out.
+        self.dirs.extend(missing.into_iter().rev());
+        Ok(())
+    }
+
+    /// Removes what was recorded: files, then directories inside out, and
+    /// only empty ones (anything else in them is not ours).
+    fn remove(&self) {
+        for f in &self.files {
+            let _ = std::fs::remove_file(f);
+        }
+        for d in self.dirs.iter().rev() {
+            let _ = std::fs::remove_dir(d);
+        }
+    }
 }
 
 /// `penumbra sweep`.
@@ -561,13 +683,30 @@ pub fn run_sweep(args: SweepArgs) -> Result<()> {
         Work::Compare { .. } => "shards",
         Work::Render { .. } => "tiles",
     };
-    for d in [out.join("slurm"), logs, out.join(sub)] {
-        std::fs::create_dir_all(&d).map_err(|e| Error::io(&d, e))?;
+    if args.submit {
+        // Before anything is written: without Slurm there is nothing to
+        // submit to, and no folders to leave behind.
+        find_program(&args.sbatch)?;
     }
-    for (path, text) in &all {
-        write_atomically(path, |tmp| {
-            std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
-        })?;
+    let mut created = Created::default();
+    let written = (|| -> Result<()> {
+        for d in [out.join("slurm"), logs, out.join(sub)] {
+            created.dirs(&d)?;
+        }
+        for (path, text) in &all {
+            let existed = path.exists();
+            write_atomically(path, |tmp| {
+                std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
+            })?;
+            if !existed {
+                created.files.push(path.clone());
+            }
+        }
+        Ok(())
+    })();
+    if let Err(e) = written {
+        created.remove();
+        return Err(e);
     }
     let rerun = format!(
         "re-run task I alone: sbatch --array=I {}; then sbatch {}\n",
@@ -575,7 +714,26 @@ pub fn run_sweep(args: SweepArgs) -> Result<()> {
         scripts.merge.0.display()
     );
     if args.submit {
-        let ids = submit(&args.sbatch, &scripts)?;
+        let mut done = Vec::new();
+        let ids = match submit_counted(&args.sbatch, &scripts, &mut done) {
+            Ok(ids) => ids,
+            // Nothing queued: nothing of this run is worth keeping.
+            Err(e) if done.is_empty() => {
+                created.remove();
+                return Err(e);
+            }
+            // A queued job needs its scripts and log folder: keep them.
+            Err(e) => {
+                return Err(Error::param(
+                    "--submit",
+                    format!(
+                        "{e}; job(s) {} were already submitted (scancel them, or \
+                         submit the rest by hand)",
+                        done.join(", ")
+                    ),
+                ))
+            }
+        };
         let mut s = String::new();
         if let Some(r) = &ids.references {
             s.push_str(&format!("references job {r}\n"));

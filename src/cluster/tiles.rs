@@ -28,14 +28,17 @@
 //! every band render is the full frame's) and bands are balanced to within
 //! one tile row.
 //!
-//! A part file is `PENUMBRA-TILE 1\n`, one line of JSON ([`PartHeader`]:
-//! full size, band rows, scene hash, options, version, channel names),
-//! then the band's channels as little-endian `f32`, channel after channel.
-//! It is written atomically.
+//! A part file is `PENUMBRA-TILE 2\n`, one line of JSON ([`PartHeader`]:
+//! full size, band rows, scene hash, options, version, channel names, the
+//! CRC-32 of the data), then the band's channels as little-endian `f32`,
+//! channel after channel. It is written atomically. The checksum catches
+//! a part damaged at the same length (a copy gone wrong, a bad disk),
+//! which would otherwise merge into a plausible but different image;
+//! format 1 (without it) is refused.
 
 use crate::compare::cache::{hash_scene, StableHasher};
 use crate::error::{Error, Result};
-use crate::output::{write_atomically, Layer, OutputSet};
+use crate::output::{image_outputs, write_atomically, Layer, OutputSet};
 use crate::raster::{MAX_SIDE, TILE_SIZE};
 use crate::render::{render_rows, view_for, RenderOptions, RenderOutput};
 use crate::report::Progress;
@@ -46,8 +49,14 @@ use serde::{Deserialize, Serialize};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-/// First line of a part file.
-const MAGIC: &[u8] = b"PENUMBRA-TILE 1\n";
+/// The part format this penumbra writes and reads (2: with a checksum).
+const FORMAT: u32 = 2;
+
+/// First line of a part file: `PENUMBRA-TILE {FORMAT}`.
+const MAGIC: &[u8] = b"PENUMBRA-TILE 2\n";
+
+/// The start of the first line of every format.
+const MAGIC_PREFIX: &[u8] = b"PENUMBRA-TILE ";
 
 /// `I/N` with `1 <= I <= N`, as `(I, N)`; `what` names the option.
 pub fn parse_share(what: &str, s: &str) -> Result<(u32, u32)> {
@@ -140,6 +149,8 @@ pub struct PartHeader {
     pub rows: [u32; 2],
     /// Layers after radiance: `(layer name, channel names)`.
     pub layers: Vec<(String, Vec<String>)>,
+    /// CRC-32 (IEEE) of the data after the header line, 8 hex digits.
+    pub crc32: String,
 }
 
 /// A part file read back.
@@ -179,6 +190,21 @@ pub fn render_part(
 
     let width = view.width as usize;
     let cut = (rows.start as usize * width)..(rows.end as usize * width);
+    let mut data = Vec::new();
+    let mut put = |values: &mut dyn Iterator<Item = f32>| {
+        for v in values {
+            data.extend(v.to_le_bytes());
+        }
+    };
+    let band = &radiance[cut.clone()];
+    put(&mut band.iter().map(|c| c.x));
+    put(&mut band.iter().map(|c| c.y));
+    put(&mut band.iter().map(|c| c.z));
+    for layer in &layers {
+        for (_, values) in &layer.channels {
+            put(&mut values[cut.clone()].iter().copied());
+        }
+    }
     let header = PartHeader {
         version: env!("CARGO_PKG_VERSION").to_string(),
         scene: scene.name.clone(),
@@ -198,24 +224,12 @@ pub fn render_part(
                 )
             })
             .collect(),
+        crc32: crc32_hex(&data),
     };
     let mut bytes = MAGIC.to_vec();
     bytes.extend(serde_json::to_vec(&header).map_err(|e| Error::param("--tiles", e.to_string()))?);
     bytes.push(b'\n');
-    let mut put = |values: &mut dyn Iterator<Item = f32>| {
-        for v in values {
-            bytes.extend(v.to_le_bytes());
-        }
-    };
-    let band = &radiance[cut.clone()];
-    put(&mut band.iter().map(|c| c.x));
-    put(&mut band.iter().map(|c| c.y));
-    put(&mut band.iter().map(|c| c.z));
-    for layer in &layers {
-        for (_, values) in &layer.channels {
-            put(&mut values[cut.clone()].iter().copied());
-        }
-    }
+    bytes.extend(data);
     write_atomically(path, |tmp| {
         std::fs::write(tmp, &bytes).map_err(|e| Error::io(tmp, e))
     })?;
@@ -239,13 +253,34 @@ pub fn options_key(options: &RenderOptions) -> String {
     )
 }
 
-/// Reads a part file.
+/// The CRC-32 of `data` as a part records it.
+fn crc32_hex(data: &[u8]) -> String {
+    format!("{:08x}", crc32fast::hash(data))
+}
+
+/// Reads a part file: refuses another format, a damaged header, a size
+/// that does not match it, and data whose checksum does not.
 pub fn read_part(path: &Path) -> Result<Part> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let bad = |m: &str| Error::file(path, None, format!("not a penumbra tile part: {m}"));
-    let rest = bytes
-        .strip_prefix(MAGIC)
-        .ok_or_else(|| bad("no PENUMBRA-TILE 1 header"))?;
+    let rest = match bytes.strip_prefix(MAGIC) {
+        Some(rest) => rest,
+        None => {
+            let Some(other) = bytes.strip_prefix(MAGIC_PREFIX) else {
+                return Err(bad(&format!("no PENUMBRA-TILE {FORMAT} header")));
+            };
+            let line = other.split(|&b| b == b'\n').next().unwrap_or_default();
+            let version = String::from_utf8_lossy(&line[..line.len().min(20)]);
+            return Err(Error::file(
+                path,
+                None,
+                format!(
+                    "part format {version}, this penumbra reads format {FORMAT} only \
+                     (format 2 adds a checksum); render the band again with this penumbra"
+                ),
+            ));
+        }
+    };
     let end = rest
         .iter()
         .position(|&b| b == b'\n')
@@ -280,6 +315,18 @@ pub fn read_part(path: &Path) -> Result<Part> {
             n * channels * 4
         )));
     }
+    let crc = crc32_hex(data);
+    if crc != header.crc32 {
+        return Err(Error::file(
+            path,
+            None,
+            format!(
+                "damaged: its data's CRC-32 is {crc}, the header says {:?}; render band \
+                 {}/{} again",
+                header.crc32, header.index, header.count
+            ),
+        ));
+    }
     let mut planes = data.chunks_exact(n * 4).map(|c| {
         c.chunks_exact(4)
             .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
@@ -309,13 +356,16 @@ pub fn read_part(path: &Path) -> Result<Part> {
     })
 }
 
-/// Assembles part files into the full image: PNG at `png`, and EXR
-/// (radiance and every layer) at `exr`. Refuses a missing, duplicated or
-/// mismatched band, naming it.
-pub fn merge_parts(paths: &[PathBuf], png: &Path, exr: Option<&Path>) -> Result<PartHeader> {
+/// Assembles part files into the full image at `output`, PNG or EXR
+/// (radiance and every layer) by its extension, and also an EXR at `exr`;
+/// all outputs or none. Refuses a missing, duplicated, mismatched or
+/// damaged band, naming it, and an output that is one of the parts.
+pub fn merge_parts(paths: &[PathBuf], output: &Path, exr: Option<&Path>) -> Result<PartHeader> {
     let first_path = paths
         .first()
         .ok_or_else(|| Error::param("merge-tiles", "no part files given"))?;
+    // Before reading anything: the parts are inputs, never outputs.
+    let images = image_outputs(output, exr, paths)?;
     let parts = paths
         .iter()
         .map(|p| read_part(p))
@@ -419,9 +469,8 @@ pub fn merge_parts(paths: &[PathBuf], png: &Path, exr: Option<&Path>) -> Result<
         }
     }
     let mut outputs = OutputSet::new();
-    outputs.png(png, first.width, first.height, &radiance)?;
-    if let Some(exr) = exr {
-        outputs.exr(exr, first.width, first.height, &radiance, &layers)?;
+    for (path, format) in &images {
+        outputs.image(path, *format, first.width, first.height, &radiance, &layers)?;
     }
     outputs.commit()?;
     Ok(first.clone())
@@ -434,19 +483,18 @@ pub struct MergeArgs {
     /// once).
     #[arg(required = true)]
     pub parts: Vec<PathBuf>,
-    /// Output PNG.
+    /// Output image, in the format of its extension: .png or .exr
+    /// (radiance and the parts' layers). Never one of the parts.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Output EXR (radiance and the parts' layers).
+    /// Also an EXR (radiance and the parts' layers), beside the -o image;
+    /// all outputs are written, or none.
     #[arg(long)]
     pub exr: Option<PathBuf>,
 }
 
 /// Runs `merge-tiles`.
 pub fn run_merge(args: &MergeArgs) -> Result<()> {
-    for path in std::iter::once(&args.output).chain(&args.exr) {
-        crate::output::check_output(path)?;
-    }
     let h = merge_parts(&args.parts, &args.output, args.exr.as_deref())?;
     crate::output::write_stderr(&format!(
         "penumbra: {} bands of {} ({}x{}) merged into {}\n",

@@ -10,6 +10,7 @@
 //! shard (or the shard that stopped early) with its runs, so that re-running
 //! just those shards completes it.
 
+use super::charts::slug;
 use super::shard::{Partial, PartialRun, PARTIAL_FORMAT};
 use super::{finish_scene, scene_dir, SceneComparison};
 use crate::error::{Error, Result};
@@ -157,20 +158,46 @@ fn check_same_sweep(partials: &[(Partial, PathBuf, PathBuf)]) -> Result<()> {
     Ok(())
 }
 
-/// Copies `rel` from `from` to `to` (atomically), unless they are the
-/// same file.
-fn copy_file(from: &Path, to: &Path, rel: &str) -> Result<()> {
-    let (src, dst) = (from.join(rel), to.join(rel));
-    if !src.exists() {
-        return Err(Error::io(
-            &src,
+/// Checks that the image `src` a partial result owes is there, as a
+/// regular file.
+fn check_source(src: &Path) -> Result<()> {
+    match std::fs::metadata(src) {
+        Ok(m) if m.is_file() => Ok(()),
+        Ok(_) => Err(Error::file(
+            src,
+            None,
+            "a partial result owes this image, but it is not a regular file",
+        )),
+        Err(e) => Err(Error::io(
+            src,
             std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                "a partial result names this image but it is missing",
+                e.kind(),
+                format!("a partial result owes this image, but it cannot be read: {e}"),
             ),
-        ));
+        )),
     }
-    if let (Ok(a), Ok(b)) = (std::fs::canonicalize(&src), std::fs::canonicalize(&dst)) {
+}
+
+/// The image and heat maps a run writes (relative to its scene's
+/// directory), derived from the run itself as `compare` names them:
+/// a partial's own names are never used as paths, only checked against
+/// these (a merge must not follow `../` out of the shard or `--out`).
+fn run_files(r: &PartialRun) -> (String, Vec<String>) {
+    let result = r.to_result();
+    let stem = slug(&format!("{}-{}", result.technique, result.setting));
+    let heatmaps = result
+        .vcoef
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.is_some())
+        .map(|(k, _)| format!("heatmaps/{stem}.vcoef{k}.png"))
+        .collect();
+    (format!("images/{stem}.png"), heatmaps)
+}
+
+/// Copies `src` to `dst` (atomically), unless they are the same file.
+fn copy_file(src: &Path, dst: &Path) -> Result<()> {
+    if let (Ok(a), Ok(b)) = (std::fs::canonicalize(src), std::fs::canonicalize(dst)) {
         if a == b {
             return Ok(());
         }
@@ -178,10 +205,10 @@ fn copy_file(from: &Path, to: &Path, rel: &str) -> Result<()> {
     if let Some(parent) = dst.parent() {
         std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
     }
-    write_atomically(&dst, |tmp| {
-        std::fs::copy(&src, tmp)
+    write_atomically(dst, |tmp| {
+        std::fs::copy(src, tmp)
             .map(|_| ())
-            .map_err(|e| Error::io(&src, e))
+            .map_err(|e| Error::io(src, e))
     })
 }
 
@@ -283,9 +310,15 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
         }
     }
 
-    let mut results = Vec::new();
+    // Everything is checked before anything is written, so that a refused
+    // merge leaves no half-filled --out: first the runs, images and heat
+    // maps of every scene, then the copies, then the charts.
+    let mut scenes_done = Vec::new();
+    let mut copies: Vec<(PathBuf, PathBuf)> = Vec::new();
     for (s, id) in scenes.iter().enumerate() {
         let dir = scene_dir(out, &id.name, scenes.len());
+        // Derived, like the file names, not read from the partial.
+        let rel_dir = scene_dir(Path::new(""), &id.name, scenes.len());
         // The header of the shard that computed the reference (its time is
         // the reference's), else of the first that read it.
         let with_header: Vec<(usize, &super::shard::PartialScene)> = partials
@@ -306,10 +339,24 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
         for e in plan.iter().filter(|e| e.scene == s) {
             let (r, k) = done[&(e.scene, e.index)];
             let mut result = r.to_result();
-            let src = partials[k].2.join(&id.dir);
+            let src = partials[k].2.join(&rel_dir);
             if images {
-                for rel in result.image.iter().chain(&result.heatmaps) {
-                    copy_file(&src, &dir, rel)?;
+                let (image, heatmaps) = run_files(r);
+                if result.image.as_ref() != Some(&image) || result.heatmaps != heatmaps {
+                    return Err(Error::file(
+                        &partials[k].1,
+                        None,
+                        format!(
+                            "run {} {} names its image and heat maps {:?} {:?}, not the \
+                             {image:?} {heatmaps:?} compare writes: the partial result is \
+                             damaged or edited",
+                            r.technique, r.setting, result.image, result.heatmaps
+                        ),
+                    ));
+                }
+                for rel in std::iter::once(&image).chain(&heatmaps) {
+                    check_source(&src.join(rel))?;
+                    copies.push((src.join(rel), dir.join(rel)));
                 }
             } else {
                 result.image = None;
@@ -318,12 +365,18 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
             runs.push(result);
         }
         if images {
-            copy_file(
-                &partials[header_from].2.join(&id.dir),
-                &dir,
-                "images/reference.png",
-            )?;
+            let rel = "images/reference.png";
+            let src = partials[header_from].2.join(&rel_dir).join(rel);
+            check_source(&src)?;
+            copies.push((src, dir.join(rel)));
         }
+        scenes_done.push((header, runs, dir));
+    }
+    for (src, dst) in &copies {
+        copy_file(src, dst)?;
+    }
+    let mut results = Vec::new();
+    for (header, runs, dir) in scenes_done {
         results.push((finish_scene(header, runs, &dir)?, dir));
     }
     Ok(Merged {

@@ -7,12 +7,17 @@
 //! |---|---|
 //! | nothing | the file is created (temporary file beside it, renamed) |
 //! | a regular file | replaced atomically, keeping its permissions |
-//! | a symlink | followed (through any chain of links, dangling ones too): its final target is created or replaced as above; the link stays |
+//! | a symlink | followed (through any chain of links, dangling ones too): its final target is created or replaced as above, by a rename in the target's own directory, so the target changes only when every output of the run was written; the link itself stays |
 //! | a FIFO or a character device (`/dev/null`, `/dev/stdout`, a tty) | written in place, never replaced: opened without creating, the bytes copied in (a FIFO waits for its reader, as any writer does) |
 //! | a directory, a block device, a socket | refused with an error naming the kind |
 //! | a file in a directory that accepts no new files (`/proc`, `/sys`) | refused with an error saying so |
+//! | a path ending in `/` (or `/.`, `/..`) | refused: it can only name a directory |
 //!
-//! A write that fails leaves every output path as it was.
+//! A write that fails leaves every output path as it was. Every path is
+//! resolved (and refused) before anything is written, and commit keeps a
+//! hard link to each file it replaces until all renames succeeded, so a
+//! late failure (the directory changed meanwhile) restores the old
+//! contents too.
 
 use crate::error::{Error, Result};
 use std::fs;
@@ -104,6 +109,15 @@ fn special_kind(ft: &fs::FileType) -> (&'static str, bool) {
 /// Resolves an output path: follows symlinks to the file that will be
 /// written and decides how (see the module table).
 fn resolve(path: &Path) -> Result<Target> {
+    // `Path` drops a trailing `/` (`o.exr/` has the file name `o.exr`),
+    // but the system does not: such a path can only be a directory.
+    if ends_like_a_directory(path) {
+        return Err(refuse(
+            path,
+            io::ErrorKind::InvalidInput,
+            "ends in /: an output must name a file, not a directory",
+        ));
+    }
     if path.file_name().is_none() {
         return Err(refuse(
             path,
@@ -154,7 +168,7 @@ fn resolve(path: &Path) -> Result<Target> {
                         return resolve(path);
                     }
                     Err(_) => {
-                        if file.file_name().is_none() {
+                        if file.file_name().is_none() || ends_like_a_directory(&file) {
                             return Err(refuse(
                                 path,
                                 io::ErrorKind::InvalidInput,
@@ -183,6 +197,71 @@ fn resolve(path: &Path) -> Result<Target> {
             check_dir(path, &parent_dir(path))?;
             Err(Error::io(path, e))
         }
+    }
+}
+
+/// Whether `path`'s text ends in a separator, `/.` or `/..` (what a
+/// directory path looks like, whatever is there).
+fn ends_like_a_directory(path: &Path) -> bool {
+    let text = path.as_os_str().to_string_lossy();
+    let sep = |c: char| std::path::is_separator(c);
+    text.ends_with(sep)
+        || text
+            .strip_suffix('.')
+            .is_some_and(|t| t.is_empty() || t.ends_with(sep))
+        || text
+            .strip_suffix("..")
+            .is_some_and(|t| t.is_empty() || t.ends_with(sep))
+}
+
+/// Whether `path` is written in place (a FIFO or a character device, see
+/// the module table) rather than replaced; an error as [`check_output`].
+pub(super) fn is_in_place(path: &Path) -> Result<bool> {
+    resolve(path).map(|t| t == Target::InPlace)
+}
+
+/// Refuses an output `path` that is the same file as one of `inputs` (the
+/// same device and inode, through any links), so that a command never
+/// overwrites what it reads: `merge-tiles p1 p2 -o p1`.
+pub fn check_not_input(path: &Path, inputs: &[PathBuf]) -> Result<()> {
+    let Ok(out) = fs::metadata(path) else {
+        return Ok(()); // nothing there yet: cannot be an input
+    };
+    for input in inputs {
+        let Ok(inp) = fs::metadata(input) else {
+            continue; // reading it will report the error
+        };
+        if same_file(&out, &inp)
+            || matches!(
+                (fs::canonicalize(path), fs::canonicalize(input)),
+                (Ok(a), Ok(b)) if a == b
+            )
+        {
+            return Err(refuse(
+                path,
+                io::ErrorKind::AlreadyExists,
+                format!(
+                    "is the same file as the input {}: writing it would destroy \
+                     the input; give another output path",
+                    input.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Same device and inode (Unix); elsewhere the canonical paths decide.
+fn same_file(a: &fs::Metadata, b: &fs::Metadata) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        a.dev() == b.dev() && a.ino() == b.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (a, b);
+        false
     }
 }
 
@@ -246,14 +325,16 @@ impl OutputSet {
                 ));
             }
         }
-        let name = path
-            .file_name()
-            .map_or("out".into(), |n| n.to_string_lossy());
-        let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-        let pid = std::process::id();
         let tmp = match &target {
-            Target::Replace { dir, .. } => dir.join(format!(".{name}.{pid}-{n}.tmp")),
-            Target::InPlace => std::env::temp_dir().join(format!("penumbra-{pid}-{n}-{name}.tmp")),
+            Target::Replace { dir, .. } => temp_name(dir, path, "tmp"),
+            Target::InPlace => {
+                let name = path
+                    .file_name()
+                    .map_or("out".into(), |n| n.to_string_lossy());
+                let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+                let pid = std::process::id();
+                std::env::temp_dir().join(format!("penumbra-{pid}-{n}-{name}.tmp"))
+            }
         };
         create_temp(path, &tmp, &target)?;
         // Only a file that is renamed into place needs to be on disk first.
@@ -300,7 +381,19 @@ impl OutputSet {
             }
             let _ = fs::remove_file(&s.tmp);
         }
+        // What the renames did so far, to undo on a failure: files
+        // created (removed again) and files replaced, with a hard link to
+        // their old content (moved back).
         let mut created: Vec<&Path> = Vec::new();
+        let mut replaced: Vec<(&Path, PathBuf)> = Vec::new();
+        let undo = |created: &[&Path], replaced: &[(&Path, PathBuf)]| {
+            for f in created {
+                let _ = fs::remove_file(f);
+            }
+            for (file, old) in replaced {
+                let _ = fs::rename(old, file);
+            }
+        };
         for (k, s) in renamed.iter().enumerate() {
             let Target::Replace {
                 file,
@@ -316,21 +409,32 @@ impl OutputSet {
                 let _ = fs::set_permissions(&s.tmp, p.clone());
             }
             let existed = fs::symlink_metadata(file).is_ok();
+            // Only needed when a later rename could fail; best effort (a
+            // file system without hard links just cannot undo).
+            let backup = (existed && k + 1 < renamed.len())
+                .then(|| temp_name(dir, file, "old"))
+                .filter(|old| fs::hard_link(file, old).is_ok());
             if let Err(e) = fs::rename(&s.tmp, file) {
                 cleanup(&renamed[k..]);
-                for f in created {
-                    let _ = fs::remove_file(f);
+                if let Some(old) = backup {
+                    let _ = fs::remove_file(old);
                 }
+                undo(&created, &replaced);
                 return Err(Error::io(&s.path, e));
             }
-            if !existed {
-                created.push(file);
+            match backup {
+                Some(old) => replaced.push((file, old)),
+                None if !existed => created.push(file),
+                None => {}
             }
             // Make the rename itself durable; a failure here loses nothing
             // that the caller could act on, so it is not an error.
             if let Ok(d) = fs::File::open(dir) {
                 let _ = d.sync_all();
             }
+        }
+        for (_, old) in replaced {
+            let _ = fs::remove_file(old);
         }
         Ok(())
     }
@@ -342,6 +446,17 @@ impl Drop for OutputSet {
             let _ = fs::remove_file(&s.tmp);
         }
     }
+}
+
+/// A hidden name in `dir` for a temporary file beside `path`'s file,
+/// unique to this process and call: `.NAME.PID-N.SUFFIX`.
+fn temp_name(dir: &Path, path: &Path, suffix: &str) -> PathBuf {
+    let name = path
+        .file_name()
+        .map_or("out".into(), |n| n.to_string_lossy());
+    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    let pid = std::process::id();
+    dir.join(format!(".{name}.{pid}-{n}.{suffix}"))
 }
 
 /// Creates the temporary file (exclusively, so it is ours), with an error

@@ -13,7 +13,7 @@ mod exr;
 mod png;
 mod stdio;
 
-pub use self::atomic::{check_output, write_atomically, OutputSet};
+pub use self::atomic::{check_not_input, check_output, write_atomically, OutputSet};
 pub use self::exr::write_exr;
 pub(crate) use self::png::write_rgb8;
 pub use self::png::{srgb_decode, srgb_encode_u8, write_png};
@@ -22,7 +22,7 @@ pub use self::stdio::{write_stderr, write_stdout};
 use crate::error::{Error, Result};
 use glam::Vec3;
 use std::fs;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A named multi-channel float image layer written to EXR as channels
 /// `<name>.<channel>`, e.g. name `"depth"` with channels `["Z"]`,
@@ -78,6 +78,80 @@ impl OutputSet {
     ) -> Result<()> {
         exr::stage_exr(self, path, width, height, radiance, layers)
     }
+}
+
+/// An image file format, chosen by the output path's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// 8-bit sRGB radiance (`.png`).
+    Png,
+    /// Linear float radiance plus the AOV layers (`.exr`).
+    Exr,
+}
+
+/// The format an image output at `path` is written in, from its extension
+/// (`.png`, `.exr`, any case); `param` names the option in the error for
+/// any other extension. A path without an extension that names a FIFO or
+/// a character device (`/dev/stdout`, `/dev/null`) gets PNG, as it always
+/// did: such names have no extension to choose by. Checks the path as
+/// [`check_output`] does first, so its errors come before this one's.
+pub fn image_format(param: &str, path: &Path) -> Result<Format> {
+    let special = atomic::is_in_place(path)?;
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("png") => Ok(Format::Png),
+        Some("exr") => Ok(Format::Exr),
+        None if special => Ok(Format::Png),
+        _ => Err(Error::param(
+            param,
+            format!(
+                "{}: the extension decides the image format; accepted: .png (8-bit sRGB), \
+                 .exr (linear float with the AOV layers)",
+                path.display()
+            ),
+        )),
+    }
+}
+
+impl OutputSet {
+    /// Stages an image at `path` in `format`: a PNG of `radiance`, or an
+    /// EXR of `radiance` and `layers`.
+    pub fn image(
+        &mut self,
+        path: &Path,
+        format: Format,
+        width: u32,
+        height: u32,
+        radiance: &[Vec3],
+        layers: &[Layer],
+    ) -> Result<()> {
+        match format {
+            Format::Png => self.png(path, width, height, radiance),
+            Format::Exr => self.exr(path, width, height, radiance, layers),
+        }
+    }
+}
+
+/// The image outputs of `render` or `merge-tiles`: `-o` in the format of
+/// its extension and, if given, `--exr` (always EXR, any name), each
+/// checked before any work (see [`check_output`]), with the outputs that
+/// must not be overwritten (`inputs`, e.g. the parts being merged).
+pub fn image_outputs(
+    output: &Path,
+    exr: Option<&Path>,
+    inputs: &[PathBuf],
+) -> Result<Vec<(PathBuf, Format)>> {
+    let mut list = vec![(output.to_path_buf(), image_format("--output", output)?)];
+    if let Some(exr) = exr {
+        check_output(exr)?;
+        list.push((exr.to_path_buf(), Format::Exr));
+    }
+    for (path, _) in &list {
+        check_not_input(path, inputs)?;
+    }
+    Ok(list)
 }
 
 /// Checks that `len` values make a `width × height` image with at least
