@@ -241,7 +241,7 @@ pub fn options_key(options: &RenderOptions) -> String {
 
 /// Reads a part file.
 pub fn read_part(path: &Path) -> Result<Part> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::scene::input::read(path).map_err(|e| Error::io(path, e))?;
     let bad = |m: &str| Error::file(path, None, format!("not a penumbra tile part: {m}"));
     let rest = bytes
         .strip_prefix(MAGIC)

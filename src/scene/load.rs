@@ -874,7 +874,7 @@ fn key_of_value(text: &str, offset: usize) -> Option<&str> {
 /// at the line that references it). Only failing to read the scene file
 /// itself is an [`Error::Io`].
 pub fn load_scene(path: &Path) -> Result<Scene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = super::input::read(path).map_err(|e| Error::io(path, e))?;
     let line_starts: Vec<usize> = std::iter::once(0)
         .chain(
             bytes

@@ -7,6 +7,7 @@
 
 mod assets;
 pub mod frame;
+pub mod input;
 mod load;
 mod obj;
 mod shapes;
