@@ -1,0 +1,78 @@
+//! What the command line tells the user besides the image: refusals
+//! before a render that cannot fit, warnings about scenes that render
+//! black and options that do not apply, and the help and technique
+//! listings.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Runs penumbra in `dir`: (exit code, stderr + stdout).
+#[allow(dead_code)]
+fn penumbra_in(dir: &Path, args: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run penumbra");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned() + &String::from_utf8_lossy(&out.stdout),
+    )
+}
+
+/// Writes `toml` as `scene.toml` in a scratch directory for `test`.
+fn scene(test: &str, toml: &str) -> (PathBuf, PathBuf) {
+    let dir = common::scratch_dir(test);
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, toml).unwrap();
+    (dir, path)
+}
+
+const QUAD: &str = "[camera]\neye = [0.0, 5.0, 6.0]\ntarget = [0.0, 0.0, 0.0]\nfov_y = 45\n\
+                    width = 16\nheight = 16\n\
+                    [[light]]\ntype = \"rect\"\ncenter = [0.0, 4.0, 0.0]\n\
+                    u = [0.5, 0.0, 0.0]\nv = [0.0, 0.0, 0.5]\nradiance = 10\n\
+                    [[object]]\nname = \"ground\"\nshape = \"quad\"\nsize = [6.0, 6.0]\n\
+                    [[object]]\nname = \"occluder\"\nshape = \"quad\"\nsize = [1.0, 1.0]\n\
+                    translate = [0.0, 1.0, 0.0]\n";
+
+/// Under an address-space limit (`ulimit -v`, 2 GiB) an 8192² render is
+/// refused with the estimate's message, not aborted by a failed
+/// allocation (fuzz repro `image-estimate-ignores-ulimit-abort`).
+#[test]
+fn image_estimate_honours_the_address_space_limit() {
+    let (dir, _) = scene("mem-ulimit", QUAD);
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 2097152 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_penumbra"))
+        .args([
+            "render",
+            "scene.toml",
+            "-o",
+            "big.png",
+            "--width",
+            "8192",
+            "--height",
+            "8192",
+            "--threads",
+            "1",
+            "--technique",
+            "dcs",
+            "--samples",
+            "1",
+        ])
+        .current_dir(&dir)
+        .output()
+        .expect("run penumbra under ulimit");
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("8192x8192 needs about") && msg.contains("GiB available"),
+        "{msg}"
+    );
+    assert!(!dir.join("big.png").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
