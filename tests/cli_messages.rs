@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Runs penumbra in `dir`: (exit code, stderr + stdout).
-#[allow(dead_code)]
 fn penumbra_in(dir: &Path, args: &[&str]) -> (i32, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
         .args(args)
@@ -75,4 +74,64 @@ fn image_estimate_honours_the_address_space_limit() {
     );
     assert!(!dir.join("big.png").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The warnings of a 16×16 `render` of `toml` (exit 0 expected).
+fn render_warnings(test: &str, toml: &str, extra: &[&str]) -> Vec<String> {
+    let (dir, _) = scene(test, toml);
+    let mut args = vec!["render", "scene.toml", "-o", "o.png", "--samples", "4"];
+    args.extend(extra);
+    let (code, msg) = penumbra_in(&dir, &args);
+    assert_eq!(code, 0, "{msg}");
+    let _ = std::fs::remove_dir_all(&dir);
+    msg.lines()
+        .filter(|l| l.contains("warning"))
+        .map(str::to_string)
+        .collect()
+}
+
+/// Scenes that render black, or partly, for a reason the author may not
+/// see: each gets a warning (no light; a one-sided rect light facing away
+/// from every object; surfaces of opacity below 0.5, which the camera sees
+/// through). The plain quad scene gets none.
+#[test]
+fn scenes_that_render_black_are_warned_about() {
+    assert_eq!(
+        render_warnings("warn-none", QUAD, &[]),
+        Vec::<String>::new()
+    );
+
+    let no_light = QUAD.replace(
+        "[[light]]\ntype = \"rect\"\ncenter = [0.0, 4.0, 0.0]\n\
+                                 u = [0.5, 0.0, 0.0]\nv = [0.0, 0.0, 0.5]\nradiance = 10\n",
+        "",
+    );
+    assert!(!no_light.contains("[[light]]"));
+    let w = render_warnings("warn-nolight", &no_light, &[]);
+    assert!(
+        w.len() == 1 && w[0].contains("no [[light]]") && w[0].contains("black"),
+        "{w:?}"
+    );
+
+    // u and v swapped: cross(u, v) points up, away from every object.
+    let away = QUAD.replace(
+        "u = [0.5, 0.0, 0.0]\nv = [0.0, 0.0, 0.5]",
+        "u = [0.0, 0.0, 0.5]\nv = [0.5, 0.0, 0.0]",
+    );
+    let w = render_warnings("warn-away", &away, &[]);
+    assert!(
+        w.len() == 1 && w[0].contains("light[0] (rect)") && w[0].contains("lights nothing"),
+        "{w:?}"
+    );
+    // Two-sided, it lights the scene: no warning.
+    let two = away.replace("radiance = 10\n", "radiance = 10\ntwo_sided = true\n");
+    assert_eq!(render_warnings("warn-two", &two, &[]), Vec::<String>::new());
+
+    // The occluder at opacity 0.3 (as in scenes/tinted.toml's pane).
+    let pane = format!("{QUAD}material = {{ opacity = 0.3 }}\n");
+    let w = render_warnings("warn-pane", &pane, &["--technique", "reference"]);
+    assert!(
+        w.len() == 1 && w[0].contains("object[1] `occluder`") && w[0].contains("below 0.5"),
+        "{w:?}"
+    );
 }

@@ -272,7 +272,10 @@ pub fn render_rows(
     Ok(RenderOutput {
         buffers,
         lights: shadows.lights,
-        warnings: shadows.warnings,
+        warnings: (crate::scene::lint::warnings(scene).into_iter())
+            .map(Warning::Scene)
+            .chain(shadows.warnings)
+            .collect(),
         width: view.width,
         height: view.height,
         radiance,

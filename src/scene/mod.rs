@@ -8,6 +8,7 @@
 mod assets;
 pub mod frame;
 pub mod input;
+pub mod lint;
 mod load;
 mod obj;
 mod shapes;

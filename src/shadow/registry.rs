@@ -423,6 +423,9 @@ pub enum Warning {
         /// What happens instead and what to use.
         why: &'static str,
     },
+    /// The scene renders (partly) black for a reason its author may not
+    /// expect ([`crate::scene::lint`]).
+    Scene(String),
 }
 
 impl fmt::Display for Warning {
@@ -437,6 +440,7 @@ impl fmt::Display for Warning {
                 "{}: NOT shadowed by `{technique}`: {why}",
                 content.describe()
             ),
+            Warning::Scene(message) => write!(f, "scene: {message}"),
         }
     }
 }
