@@ -26,6 +26,11 @@ use std::path::PathBuf;
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// The subcommand's options given on the command line (clap id and
+    /// `--long` name), not defaulted: only those warn when they do not
+    /// apply to the technique ([`main_with_args`] fills it in).
+    #[arg(skip)]
+    given: Vec<(String, String)>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -240,6 +245,7 @@ pub enum Outcome {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<Outcome> {
     crate::simd::level::check_env().map_err(|e| Error::param("PENUMBRA_SIMD", e))?;
+    let given = cli.given;
     match cli.command {
         Command::Render {
             scene,
@@ -303,6 +309,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 check_verifiable(options.technique, &options.build_params(), k)?;
             }
             let scene = load_scene(&scene)?;
+            warn_unread_options(&options, &scene, &given);
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
             if let Some((i, n)) = tiles {
                 with_threads(threads, || {
@@ -660,10 +667,40 @@ pub fn describe(scene: &Scene) -> String {
     s
 }
 
+/// Warns about each option the user gave that the render's technique does
+/// not read on `scene` (the registry's [`crate::shadow::registry::options_read`]).
+fn warn_unread_options(options: &RenderOptions, scene: &Scene, given: &[(String, String)]) {
+    let ids: Vec<String> = given.iter().map(|(id, _)| id.clone()).collect();
+    let unread =
+        crate::shadow::registry::unread_options(options.technique, &options.options, scene, &ids);
+    for (_, long) in given.iter().filter(|(id, _)| unread.contains(id)) {
+        write_stderr(&format!(
+            "penumbra: warning: {long} does not apply to `{}` and is ignored\n",
+            options.technique.name()
+        ));
+    }
+}
+
 /// Entry point for `main`: parses, runs, prints errors, returns the exit
 /// code.
 pub fn main_with_args() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    use clap::parser::ValueSource;
+    use clap::{CommandFactory, FromArgMatches};
+    let mut command = Cli::command();
+    let matches = command.get_matches_mut();
+    let mut cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.format(&mut command).exit());
+    if let Some((name, sub)) = matches.subcommand() {
+        let args = command.find_subcommand(name).map(|c| c.get_arguments());
+        cli.given = (args.into_iter().flatten())
+            .filter(|a| sub.value_source(a.get_id().as_str()) == Some(ValueSource::CommandLine))
+            .map(|a| {
+                let long = a
+                    .get_long()
+                    .map_or(a.get_id().to_string(), |l| format!("--{l}"));
+                (a.get_id().to_string(), long)
+            })
+            .collect();
+    }
     match run(cli) {
         Ok(Outcome::Success) => std::process::ExitCode::SUCCESS,
         Ok(Outcome::ToleranceExceeded) => std::process::ExitCode::from(1),

@@ -79,7 +79,7 @@ fn image_estimate_honours_the_address_space_limit() {
 /// The warnings of a 16×16 `render` of `toml` (exit 0 expected).
 fn render_warnings(test: &str, toml: &str, extra: &[&str]) -> Vec<String> {
     let (dir, _) = scene(test, toml);
-    let mut args = vec!["render", "scene.toml", "-o", "o.png", "--samples", "4"];
+    let mut args = vec!["render", "scene.toml", "-o", "o.png"];
     args.extend(extra);
     let (code, msg) = penumbra_in(&dir, &args);
     assert_eq!(code, 0, "{msg}");
@@ -134,4 +134,49 @@ fn scenes_that_render_black_are_warned_about() {
         w.len() == 1 && w[0].contains("object[1] `occluder`") && w[0].contains("below 0.5"),
         "{w:?}"
     );
+}
+
+/// An option given on the command line that the technique does not read
+/// warns, naming both (the registry's list of what each technique reads);
+/// defaulted options and options that apply do not.
+#[test]
+fn options_that_do_not_apply_are_warned_about() {
+    let w = render_warnings(
+        "opt-pattern",
+        QUAD,
+        &[
+            "--technique",
+            "shadow-map",
+            "--pattern",
+            "sobol",
+            "--map-size",
+            "64",
+        ],
+    );
+    assert!(
+        w.len() == 1 && w[0].contains("--pattern does not apply to `shadow-map`"),
+        "{w:?}"
+    );
+    let w = render_warnings(
+        "opt-dcs-mode",
+        QUAD,
+        &[
+            "--technique",
+            "reference",
+            "--dcs-mode",
+            "vcoef",
+            "--seed",
+            "3",
+        ],
+    );
+    assert!(
+        w.len() == 1 && w[0].contains("--dcs-mode does not apply to `reference`"),
+        "{w:?}"
+    );
+    let w = render_warnings(
+        "opt-fine",
+        QUAD,
+        &["--technique", "dcs", "--pattern", "sobol"],
+    );
+    assert_eq!(w, Vec::<String>::new());
 }
