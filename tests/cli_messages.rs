@@ -180,3 +180,16 @@ fn options_that_do_not_apply_are_warned_about() {
     );
     assert_eq!(w, Vec::<String>::new());
 }
+
+/// `penumbra techniques` keeps a gap between a name and its summary
+/// (`penumbra-casting` ran into `hierarchical`).
+#[test]
+fn techniques_listing_keeps_its_columns_apart() {
+    let (code, out) = penumbra_in(Path::new(env!("CARGO_MANIFEST_DIR")), &["techniques"]);
+    assert_eq!(code, 0, "{out}");
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("penumbra-casting"))
+        .expect("listed");
+    assert!(line.starts_with("penumbra-casting  "), "{line}");
+}

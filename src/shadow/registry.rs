@@ -575,12 +575,15 @@ pub fn markdown_table(pages: &str) -> String {
 
 /// The `penumbra techniques` listing.
 pub fn listing() -> String {
+    // The name column fits the longest name plus two spaces, so that no
+    // name runs into its summary ("penumbra-casting" is 16 characters).
+    let width = Technique::all().map(|t| t.name().len()).max().unwrap_or(0) + 2;
     let mut s = String::new();
     for t in Technique::all() {
         let caps = t.capabilities(&TechniqueOptions::default());
-        s.push_str(&format!("{:<16}{}\n", t.name(), t.info().summary));
+        s.push_str(&format!("{:<width$}{}\n", t.name(), t.info().summary));
         s.push_str(&format!(
-            "{:<16}{}, {}; rect lights: {}, sphere lights: {}, textured lights: {}, semi-opaque casters: {}, S-triangles: {}\n",
+            "{:<width$}{}, {}; rect lights: {}, sphere lights: {}, textured lights: {}, semi-opaque casters: {}, S-triangles: {}\n",
             "",
             if caps.exact { "exact" } else { "approximate" },
             term_name(caps.output),
@@ -758,5 +761,15 @@ mod option_tests {
         }
         assert_eq!(OPTIONS_READ.len(), TECHNIQUES.len());
         assert!(OptionGroup::Dcs.arg_ids().contains(&"mode".to_string()));
+    }
+
+    /// Every name is followed by at least two spaces before its summary.
+    #[test]
+    fn listing_columns_do_not_run_together() {
+        let text = listing();
+        for t in TECHNIQUES {
+            let line = text.lines().find(|l| l.starts_with(t.name)).unwrap();
+            assert!(line[t.name.len()..].starts_with("  "), "{line}");
+        }
     }
 }
