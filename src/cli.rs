@@ -40,20 +40,20 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
         /// Output PNG (radiance, clamped, sRGB).
-        #[arg(short, long)]
+        #[arg(short, long, help_heading = "Output")]
         output: PathBuf,
         /// Output EXR (linear radiance plus the --aov layers).
-        #[arg(long)]
+        #[arg(long, help_heading = "Output")]
         exr: Option<PathBuf>,
         /// Comma-separated AOV layers for the EXR: depth, position, normal,
         /// albedo, mask, vcoef.
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', help_heading = "Output")]
         aov: Vec<String>,
         /// Image width (overrides the scene's camera).
-        #[arg(long)]
+        #[arg(long, help_heading = "Image")]
         width: Option<u32>,
         /// Image height (overrides the scene's camera).
-        #[arg(long)]
+        #[arg(long, help_heading = "Image")]
         height: Option<u32>,
         /// Worker threads (default: all cores).
         #[arg(long)]
@@ -64,35 +64,36 @@ enum Command {
         technique: Technique,
         /// Light samples per pixel and light (sampling techniques; wedges,
         /// wedge-blend and shadow-volumes: for S-triangles only).
-        #[arg(long, default_value_t = 64)]
+        #[arg(long, default_value_t = 64, help_heading = "Light sampling")]
         samples: u32,
         /// Seed of the per-pixel random numbers.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, help_heading = "Light sampling")]
         seed: u64,
-        /// Placement of light samples (reference, dcs; S-triangles of the
-        /// others): stratified, correlated, rotated, poisson, sobol,
-        /// interleaved[:N].
-        #[arg(long, default_value = "stratified", value_parser = SamplePattern::parse)]
+        /// Placement of light samples (reference, dcs, multi-map,
+        /// penumbra-casting; S-triangles of the others): stratified,
+        /// correlated, rotated, poisson, sobol (also 02, sobol02), grid,
+        /// interleaved (4×4), interleavedN or interleaved:N (N in 2..=16).
+        #[arg(long, default_value = "stratified", value_parser = SamplePattern::parse, help_heading = "Light sampling")]
         pattern: SamplePattern,
         #[command(flatten)]
         options: TechniqueOptions,
         /// Print each pass's time to stderr.
-        #[arg(long)]
+        #[arg(long, help_heading = "Diagnostics")]
         timings: bool,
         /// Print which passes ran and which buffers the render allocated
         /// (or left out, and why), with their memory.
-        #[arg(long)]
+        #[arg(long, help_heading = "Diagnostics")]
         explain: bool,
         /// Exactness certificate: re-cast this many random (pixel, light
         /// sample) relations, keyed by --seed, with the reference's shadow
         /// rays and compare them with the technique's own decisions (dcs,
         /// penumbra-casting); a disagreement beyond the tie distance is an
         /// error.
-        #[arg(long, value_name = "K")]
+        #[arg(long, value_name = "K", help_heading = "Diagnostics")]
         verify: Option<u64>,
         /// Render only band I of N (whole rows of 64-pixel tiles) into the
         /// part file -o; `merge-tiles` assembles the image.
-        #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"])]
+        #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"], help_heading = "Output")]
         tiles: Option<String>,
     },
     /// Assemble `render --tiles` parts into the PNG (and EXR) a single

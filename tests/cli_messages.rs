@@ -193,3 +193,37 @@ fn techniques_listing_keeps_its_columns_apart() {
         .expect("listed");
     assert!(line.starts_with("penumbra-casting  "), "{line}");
 }
+
+/// `render -h` stays short, groups its options under headings, shows no
+/// rustdoc link syntax, and `--help` lists every `--pattern` value.
+#[test]
+fn render_help_is_short_grouped_and_plain() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (code, short) = penumbra_in(root, &["render", "-h"]);
+    assert_eq!(code, 0, "{short}");
+    assert!(
+        short.lines().count() < 200,
+        "{} lines",
+        short.lines().count()
+    );
+    for heading in [
+        "Output:",
+        "Image:",
+        "Light sampling:",
+        "DCS:",
+        "Shadow maps:",
+    ] {
+        assert!(short.contains(heading), "no `{heading}` in\n{short}");
+    }
+    let (code, long) = penumbra_in(root, &["render", "--help"]);
+    assert_eq!(code, 0, "{long}");
+    for text in [&short, &long] {
+        assert!(!text.contains("[`"), "doc-link syntax in the help");
+    }
+    for pattern in ["grid", "02", "sobol", "interleaved:N"] {
+        assert!(
+            long.contains(pattern),
+            "--pattern does not list `{pattern}`"
+        );
+    }
+}

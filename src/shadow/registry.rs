@@ -50,30 +50,33 @@ pub const DEFAULT_TECHNIQUE: &str = "dcs";
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct TechniqueOptions {
     /// Hard shadow volumes.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Shadow volumes")]
     pub shadow_volumes: ShadowVolumeOptions,
     /// Depth complexity sampling.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "DCS")]
     pub dcs: DcsOptions,
     /// Shadow maps.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Shadow maps")]
     pub shadow_map: ShadowMapOptions,
     /// Percentage-closer soft shadows (with the shadow-map options).
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "PCSS")]
     pub pcss: PcssOptions,
     /// Adaptive light-source sampling (the map options are the shadow
     /// maps').
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Adaptive maps")]
     pub adaptive_maps: AdaptiveMapsOptions,
     /// Soft shadow maps.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Soft shadow maps")]
     pub ssm: SsmOptions,
     /// Hierarchical penumbra casting.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Penumbra casting")]
     pub penumbra_casting: PenumbraCastingOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
-    #[command(flatten)]
+    #[command(
+        flatten,
+        next_help_heading = "S-triangles (soft textured shadow volumes)"
+    )]
     pub stsv: StsvOptions,
 }
 
