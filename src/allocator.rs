@@ -1,5 +1,5 @@
 //! Allocator settings for the `penumbra` command (and benches that want
-//! the command's behaviour).
+//! the command's behaviour), and how much memory is left to allocate.
 
 /// Keeps freed memory in the process: the raster pipeline allocates and
 /// frees tens of MB per pass (a shadow map's setup and tile buffers), and
@@ -30,3 +30,27 @@ pub fn keep_freed_memory() {
 /// Elsewhere the system allocator's defaults are kept.
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 pub fn keep_freed_memory() {}
+
+/// Memory this process can still allocate: the machine's available memory
+/// (`MemAvailable`) or, if lower, what an address-space limit (`ulimit
+/// -v`, `RLIMIT_AS`) leaves beside what is already mapped; `None` where
+/// neither is readable (not Linux). The one probe behind every "needs
+/// about N GiB, more than the M GiB available" refusal (images and
+/// built-in geometry), read from `/proc` so that no `unsafe` call is
+/// needed.
+pub fn memory_budget() -> Option<u64> {
+    let field = |file: &str, name: &str| -> Option<u64> {
+        let text = std::fs::read_to_string(file).ok()?;
+        let line = text.lines().find(|l| l.starts_with(name))?;
+        line[name.len()..].split_whitespace().next()?.parse().ok()
+    };
+    let available = field("/proc/meminfo", "MemAvailable:").map(|kib| kib * 1024);
+    // "Max address space   <soft> <hard> bytes"; the soft limit applies.
+    let limit = field("/proc/self/limits", "Max address space");
+    let mapped = field("/proc/self/status", "VmSize:").map_or(0, |kib| kib * 1024);
+    let address_space = limit.map(|l| l.saturating_sub(mapped));
+    match (available, address_space) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}

@@ -26,6 +26,11 @@ use std::path::PathBuf;
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// The subcommand's options given on the command line (clap id and
+    /// `--long` name), not defaulted: only those warn when they do not
+    /// apply to the technique ([`main_with_args`] fills it in).
+    #[arg(skip)]
+    given: Vec<(String, String)>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -37,21 +42,21 @@ enum Command {
         /// Output image, in the format of its extension: .png (radiance,
         /// clamped, sRGB) or .exr (linear radiance plus the --aov layers).
         /// With --tiles, the part file (any name).
-        #[arg(short, long)]
+        #[arg(short, long, help_heading = "Output")]
         output: PathBuf,
         /// Also an EXR (linear radiance plus the --aov layers), beside the
         /// -o image; all outputs are written, or none.
-        #[arg(long)]
+        #[arg(long, help_heading = "Output")]
         exr: Option<PathBuf>,
         /// Comma-separated AOV layers for the EXR: depth, position, normal,
         /// albedo, mask, vcoef.
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', help_heading = "Output")]
         aov: Vec<String>,
         /// Image width (overrides the scene's camera).
-        #[arg(long)]
+        #[arg(long, help_heading = "Image")]
         width: Option<u32>,
         /// Image height (overrides the scene's camera).
-        #[arg(long)]
+        #[arg(long, help_heading = "Image")]
         height: Option<u32>,
         /// Worker threads (default: all cores).
         #[arg(long)]
@@ -62,24 +67,25 @@ enum Command {
         technique: Technique,
         /// Light samples per pixel and light (sampling techniques; wedges,
         /// wedge-blend and shadow-volumes: for S-triangles only).
-        #[arg(long, default_value_t = 64)]
+        #[arg(long, default_value_t = 64, help_heading = "Light sampling")]
         samples: u32,
         /// Seed of the per-pixel random numbers.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, help_heading = "Light sampling")]
         seed: u64,
-        /// Placement of light samples (reference, dcs; S-triangles of the
-        /// others): stratified, correlated, rotated, poisson, sobol,
-        /// interleaved[:N].
-        #[arg(long, default_value = "stratified", value_parser = SamplePattern::parse)]
+        /// Placement of light samples (reference, dcs, multi-map,
+        /// penumbra-casting; S-triangles of the others): stratified,
+        /// correlated, rotated, poisson, sobol (also 02, sobol02), grid,
+        /// interleaved (4×4), interleavedN or interleaved:N (N in 2..=16).
+        #[arg(long, default_value = "stratified", value_parser = SamplePattern::parse, help_heading = "Light sampling")]
         pattern: SamplePattern,
         #[command(flatten)]
         options: TechniqueOptions,
         /// Print each pass's time to stderr.
-        #[arg(long)]
+        #[arg(long, help_heading = "Diagnostics")]
         timings: bool,
         /// Print which passes ran and which buffers the render allocated
         /// (or left out, and why), with their memory.
-        #[arg(long)]
+        #[arg(long, help_heading = "Diagnostics")]
         explain: bool,
         /// Exactness certificate: re-cast this many random (pixel, light
         /// sample) relations, keyed by --seed, or `all` of them (every
@@ -88,11 +94,11 @@ enum Command {
         /// penumbra-casting); a disagreement beyond the tie distance is an
         /// error, and then no output is written (verification runs before
         /// the outputs are).
-        #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount)]
+        #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount, help_heading = "Diagnostics")]
         verify: Option<u64>,
         /// Render only band I of N (whole rows of 64-pixel tiles) into the
         /// part file -o; `merge-tiles` assembles the image.
-        #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"])]
+        #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"], help_heading = "Output")]
         tiles: Option<String>,
     },
     /// Assemble `render --tiles` parts into the PNG (and EXR) a single
@@ -247,6 +253,7 @@ pub enum Outcome {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<Outcome> {
     crate::simd::level::check_env().map_err(|e| Error::param("PENUMBRA_SIMD", e))?;
+    let given = cli.given;
     match cli.command {
         Command::Render {
             scene,
@@ -317,6 +324,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                 check_verifiable(options.technique, &options.build_params(), k)?;
             }
             let scene = load_scene(&scene)?;
+            warn_unread_options(&options, &scene, &given);
             let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
             if let Some((i, n)) = tiles {
                 with_threads(threads, || {
@@ -688,13 +696,46 @@ pub fn describe(scene: &Scene) -> String {
     s
 }
 
+/// Warns about each option the user gave that the render's technique does
+/// not read on `scene` (the registry's [`crate::shadow::registry::options_read`]).
+fn warn_unread_options(options: &RenderOptions, scene: &Scene, given: &[(String, String)]) {
+    let ids: Vec<String> = given.iter().map(|(id, _)| id.clone()).collect();
+    let unread =
+        crate::shadow::registry::unread_options(options.technique, &options.options, scene, &ids);
+    for (_, long) in given.iter().filter(|(id, _)| unread.contains(id)) {
+        write_stderr(&format!(
+            "penumbra: warning: {long} does not apply to `{}` and is ignored\n",
+            options.technique.name()
+        ));
+    }
+}
+
 /// Entry point for `main`: parses, runs, prints errors, returns the exit
 /// code.
 pub fn main_with_args() -> std::process::ExitCode {
-    let cli = match Cli::try_parse() {
-        Ok(cli) => cli,
+    use clap::parser::ValueSource;
+    use clap::{CommandFactory, FromArgMatches};
+    let mut command = Cli::command();
+    let matches = match command.try_get_matches_from_mut(std::env::args_os()) {
+        Ok(m) => m,
         Err(e) => return clap_exit(e),
     };
+    let mut cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => return clap_exit(e.format(&mut command)),
+    };
+    if let Some((name, sub)) = matches.subcommand() {
+        let args = command.find_subcommand(name).map(|c| c.get_arguments());
+        cli.given = (args.into_iter().flatten())
+            .filter(|a| sub.value_source(a.get_id().as_str()) == Some(ValueSource::CommandLine))
+            .map(|a| {
+                let long = a
+                    .get_long()
+                    .map_or(a.get_id().to_string(), |l| format!("--{l}"));
+                (a.get_id().to_string(), long)
+            })
+            .collect();
+    }
     match run(cli) {
         Ok(Outcome::Success) => std::process::ExitCode::SUCCESS,
         Ok(Outcome::ToleranceExceeded) => std::process::ExitCode::from(1),

@@ -307,3 +307,53 @@ translate = [0.0, 4.0, 0.0]
     assert_eq!(difference(&zfail, &reference).1, 0.0);
     assert!(reference.contains(&1.0));
 }
+
+/// A tiny sphere light (radius 1e-9 .. 1e-3, which the docs accept) at
+/// `[0, 4, 0]`: a point on it rounded to f32 lands off the sphere by more
+/// than the radius. The light-view techniques render it, as a point light,
+/// with the reference's hard shadow of a box on the ground (fuzz repro
+/// `tiny-sphere-light-point-on-light`).
+#[test]
+fn tiny_sphere_lights_render_with_light_view_techniques() {
+    for radius in ["1e-9", "1e-5", "1e-4", "1e-3"] {
+        let scene = common::scene_in_scratch(
+            &format!("tiny-sphere-{radius}"),
+            &format!(
+                "[camera]\neye = [0, 5, 6]\ntarget = [0, 0, 0]\nfov_y = 45\n\
+                 width = 48\nheight = 48\n\
+                 [[light]]\ntype = \"sphere\"\ncenter = [0, 4, 0]\nradius = {radius}\n\
+                 radiance = 10\n\
+                 [[object]]\nname = \"ground\"\nshape = \"quad\"\nsize = [6.0, 6.0]\n\
+                 [[object]]\nshape = \"box\"\ntranslate = [0, 1, 0]\n"
+            ),
+            &[],
+        );
+        let reference = run(
+            &scene,
+            Technique::named("reference").unwrap(),
+            TechniqueOptions::default(),
+        )
+        .expect("reference renders");
+        let want = reference.lights[0].vcoef();
+        for name in ["shadow-map", "pcss", "multi-map"] {
+            let out = run(
+                &scene,
+                Technique::named(name).unwrap(),
+                TechniqueOptions::default(),
+            )
+            .unwrap_or_else(|e| panic!("radius {radius}, {name}: {e}"));
+            let got = out.lights[0].vcoef();
+            // A hard shadow: the pixels may differ only along its edge.
+            let differ = (got.iter().zip(want))
+                .filter(|(g, w)| (*g - *w).abs() > 0.5)
+                .count();
+            let shadowed = want.iter().filter(|&&w| w < 0.5).count();
+            assert!(shadowed > 20, "radius {radius}: the box casts a shadow");
+            assert!(
+                differ * 10 < shadowed,
+                "radius {radius}, {name}: {differ} pixels differ from the reference \
+                 ({shadowed} in its shadow)"
+            );
+        }
+    }
+}

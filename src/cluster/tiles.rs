@@ -261,7 +261,7 @@ fn crc32_hex(data: &[u8]) -> String {
 /// Reads a part file: refuses another format, a damaged header, a size
 /// that does not match it, and data whose checksum does not.
 pub fn read_part(path: &Path) -> Result<Part> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::scene::input::read(path).map_err(|e| Error::io(path, e))?;
     let bad = |m: &str| Error::file(path, None, format!("not a penumbra tile part: {m}"));
     let rest = match bytes.strip_prefix(MAGIC) {
         Some(rest) => rest,

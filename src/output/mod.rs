@@ -21,7 +21,6 @@ pub use self::stdio::{write_stderr, write_stdout};
 
 use crate::error::{Error, Result};
 use glam::Vec3;
-use std::fs;
 use std::path::{Path, PathBuf};
 
 /// A named multi-channel float image layer written to EXR as channels
@@ -184,7 +183,7 @@ pub(crate) fn check_size(
 /// Reads a PNG (decoded from sRGB to linear) or an EXR (all channels, by
 /// full name), recognised by their magic bytes rather than the extension.
 pub fn read_image(path: &Path) -> Result<LoadedImage> {
-    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::scene::input::read(path).map_err(|e| Error::io(path, e))?;
     if bytes.starts_with(&[0x89, b'P', b'N', b'G']) {
         png::read_png(path, &bytes)
     } else if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {

@@ -173,20 +173,13 @@ fn bytes_per_pixel(scene: &Scene, options: &RenderOptions) -> u64 {
     gbuffer + 8 + 12 + 12 + lights * 8 + 16 * 4 + options.aovs.len() as u64 * 12
 }
 
-/// Memory the machine can give us, from `/proc/meminfo` (`MemAvailable`),
-/// or `None` where that is not readable.
-fn available_memory() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
-}
-
-/// Refuses a render that cannot fit in memory, before allocating it.
+/// Refuses a render that cannot fit in memory, before allocating it:
+/// against [`crate::allocator::memory_budget`], which honours an
+/// address-space limit (`ulimit -v`) as well as the machine's memory.
 pub fn check_memory(scene: &Scene, options: &RenderOptions, view: &View) -> Result<()> {
     let pixels = view.width as u64 * view.height as u64;
     let need = pixels * bytes_per_pixel(scene, options);
-    if let Some(have) = available_memory() {
+    if let Some(have) = crate::allocator::memory_budget() {
         if need > have {
             return Err(Error::param(
                 "--width/--height",
@@ -279,7 +272,10 @@ pub fn render_rows(
     Ok(RenderOutput {
         buffers,
         lights: shadows.lights,
-        warnings: shadows.warnings,
+        warnings: (crate::scene::lint::warnings(scene).into_iter())
+            .map(Warning::Scene)
+            .chain(shadows.warnings)
+            .collect(),
         width: view.width,
         height: view.height,
         radiance,

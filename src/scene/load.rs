@@ -797,7 +797,7 @@ fn check_geometry_memory(
     before: u64,
 ) -> Result<()> {
     let need = (triangles + before).saturating_mul(BYTES_PER_TRIANGLE);
-    let Some(have) = memory_budget() else {
+    let Some(have) = crate::allocator::memory_budget() else {
         return Ok(());
     };
     if need <= have {
@@ -817,27 +817,6 @@ fn check_geometry_memory(
             gib(have)
         ),
     ))
-}
-
-/// Memory this process can still allocate: the machine's available memory
-/// (`MemAvailable`) or, if lower, what an address-space limit (`ulimit
-/// -v`) leaves beside what is already mapped; `None` where neither is
-/// readable (not Linux).
-fn memory_budget() -> Option<u64> {
-    let field = |file: &str, name: &str| -> Option<u64> {
-        let text = std::fs::read_to_string(file).ok()?;
-        let line = text.lines().find(|l| l.starts_with(name))?;
-        line[name.len()..].split_whitespace().next()?.parse().ok()
-    };
-    let available = field("/proc/meminfo", "MemAvailable:").map(|kib| kib * 1024);
-    // "Max address space   <soft> <hard> bytes"; the soft limit applies.
-    let limit = field("/proc/self/limits", "Max address space");
-    let mapped = field("/proc/self/status", "VmSize:").map_or(0, |kib| kib * 1024);
-    let address_space = limit.map(|l| l.saturating_sub(mapped));
-    match (available, address_space) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    }
 }
 
 /// The key whose value contains byte `offset` of `text`: the word before
@@ -874,7 +853,7 @@ fn key_of_value(text: &str, offset: usize) -> Option<&str> {
 /// at the line that references it). Only failing to read the scene file
 /// itself is an [`Error::Io`].
 pub fn load_scene(path: &Path) -> Result<Scene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = super::input::read(path).map_err(|e| Error::io(path, e))?;
     let line_starts: Vec<usize> = std::iter::once(0)
         .chain(
             bytes

@@ -7,6 +7,8 @@
 
 mod assets;
 pub mod frame;
+pub mod input;
+pub mod lint;
 mod load;
 mod obj;
 mod shapes;

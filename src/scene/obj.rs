@@ -25,18 +25,23 @@ use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-/// Reads a text file referenced from `from:line`. A missing or unreadable
-/// file is an error at the reference; invalid UTF-8 one in the file itself.
-/// A UTF-8 byte-order mark is dropped (it would glue itself to the first
-/// statement's keyword).
-fn read_text(path: &Path, what: &str, from: &Path, line: usize) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| {
+/// Reads a file referenced from `from:line` (through [`super::input`]: a
+/// missing, unreadable, special or oversized file is an error at the
+/// reference).
+fn read_bytes(path: &Path, what: &str, from: &Path, line: usize) -> Result<Vec<u8>> {
+    super::input::read(path).map_err(|e| {
         Error::file(
             from,
             Some(line),
             format!("cannot read {what} `{}`: {e}", path.display()),
         )
-    })?;
+    })
+}
+
+/// Decodes a file's bytes as text: invalid UTF-8 is an error in the file
+/// itself. A UTF-8 byte-order mark is dropped (it would glue itself to the
+/// first statement's keyword).
+fn decode_text(path: &Path, bytes: Vec<u8>) -> Result<String> {
     let mut text = String::from_utf8(bytes).map_err(|e| {
         let bad = e.utf8_error().valid_up_to();
         let line = e.as_bytes()[..bad].iter().filter(|&&b| b == b'\n').count() + 1;
@@ -46,6 +51,70 @@ fn read_text(path: &Path, what: &str, from: &Path, line: usize) -> Result<String
         text.drain(..'\u{feff}'.len_utf8());
     }
     Ok(text)
+}
+
+/// Reads a text file referenced from `from:line`.
+fn read_text(path: &Path, what: &str, from: &Path, line: usize) -> Result<String> {
+    decode_text(path, read_bytes(path, what, from, line)?)
+}
+
+/// The mesh format other than OBJ that `path` is, by its extension or its
+/// content, in words; `None` for anything else (read as OBJ). tobj reads
+/// any text as OBJ and skips what it does not know, so without this an
+/// ASCII PLY, STL, OFF or glTF file would load as an empty mesh.
+fn other_mesh_format(path: &Path, bytes: &[u8]) -> Option<&'static str> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_lowercase);
+    let by_extension = match ext.as_deref() {
+        Some("ply") => Some("PLY"),
+        Some("stl") => Some("STL"),
+        Some("off") => Some("OFF"),
+        Some("gltf") => Some("glTF"),
+        Some("glb") => Some("binary glTF (GLB)"),
+        Some("fbx") => Some("FBX"),
+        Some("dae") => Some("COLLADA"),
+        Some("3ds") => Some("3DS"),
+        Some("blend") => Some("Blender"),
+        Some("usd" | "usda" | "usdc" | "usdz") => Some("USD"),
+        _ => None,
+    };
+    if by_extension.is_some() {
+        return by_extension;
+    }
+    if bytes.starts_with(b"glTF") {
+        return Some("binary glTF (GLB)");
+    }
+    // A binary STL: an 80-byte header, a triangle count, 50 bytes each.
+    if let Some(count) = bytes.get(80..84) {
+        let count = u32::from_le_bytes([count[0], count[1], count[2], count[3]]) as u64;
+        if 84 + 50 * count == bytes.len() as u64 {
+            return Some("binary STL");
+        }
+    }
+    let text = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
+    let start = text.iter().position(|b| !b.is_ascii_whitespace())?;
+    let text = &text[start..];
+    let first_line = text.split(|&b| b == b'\n').next().unwrap_or(text);
+    let first_word = first_line
+        .split(|b| b.is_ascii_whitespace())
+        .next()
+        .unwrap_or(first_line);
+    match first_word {
+        b"ply" => Some("PLY"),
+        b"solid" => Some("ASCII STL"),
+        // OFF and its variants (COFF, NOFF, STCNOFF, 4OFF, ...).
+        w if w.ends_with(b"OFF")
+            && w.iter()
+                .all(|b| b.is_ascii_uppercase() || b.is_ascii_digit()) =>
+        {
+            Some("OFF")
+        }
+        // No OBJ statement starts with `{`; glTF's JSON does.
+        _ if text.starts_with(b"{") => Some("glTF (JSON)"),
+        _ => None,
+    }
 }
 
 /// True for a normal that cannot be made unit length (zero, too small or
@@ -542,7 +611,19 @@ pub(super) fn load_obj(
     material_override: Option<u32>,
     assets: &mut Assets,
 ) -> Result<Mesh> {
-    let text = read_text(path, "OBJ", from, line)?;
+    let bytes = read_bytes(path, "OBJ", from, line)?;
+    if let Some(format) = other_mesh_format(path, &bytes) {
+        return Err(Error::file(
+            from,
+            Some(line),
+            format!(
+                "`{}` is a {format} file; penumbra reads meshes only as Wavefront OBJ \
+                 (`.obj`, with its `.mtl` files)",
+                path.display()
+            ),
+        ));
+    }
+    let text = decode_text(path, bytes)?;
     let scan = scan_obj(path, &text)?;
     let dir = path.parent().unwrap_or(Path::new(""));
 
@@ -666,6 +747,15 @@ pub(super) fn load_obj(
                 .push([corner(t[0])?, corner(t[1])?, corner(t[2])?]);
             mesh.material_ids.push(material);
         }
+    }
+    if mesh.triangles.is_empty() {
+        // Vertices alone (a point cloud, or faces lost in export) render as
+        // nothing: refused rather than an invisible object.
+        return Err(Error::file(
+            path,
+            None,
+            "no faces (`f` lines): nothing to render (points and lines are not surfaces)",
+        ));
     }
     if all_normals && !mesh.positions.is_empty() {
         mesh.normals = Some(normals);

@@ -58,7 +58,7 @@ fn decode(path: &Path, referenced_from: &Path, line: Option<usize>) -> Result<Dy
             format!("texture `{}`: {why}", path.display()),
         )
     };
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    let bytes = super::input::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
     // TGA has no magic number: the extension is the hint, and content
     // sniffing overrides it for the formats that have one.
     let reader = || -> Result<ImageReader<Cursor<&[u8]>>> {

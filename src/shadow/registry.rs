@@ -50,30 +50,33 @@ pub const DEFAULT_TECHNIQUE: &str = "dcs";
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct TechniqueOptions {
     /// Hard shadow volumes.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Shadow volumes")]
     pub shadow_volumes: ShadowVolumeOptions,
     /// Depth complexity sampling.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "DCS")]
     pub dcs: DcsOptions,
     /// Shadow maps.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Shadow maps")]
     pub shadow_map: ShadowMapOptions,
     /// Percentage-closer soft shadows (with the shadow-map options).
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "PCSS")]
     pub pcss: PcssOptions,
     /// Adaptive light-source sampling (the map options are the shadow
     /// maps').
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Adaptive maps")]
     pub adaptive_maps: AdaptiveMapsOptions,
     /// Soft shadow maps.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Soft shadow maps")]
     pub ssm: SsmOptions,
     /// Hierarchical penumbra casting.
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Penumbra casting")]
     pub penumbra_casting: PenumbraCastingOptions,
     /// Soft textured shadow volumes (every technique that shadows
     /// S-triangles through the add-on, and DCS).
-    #[command(flatten)]
+    #[command(
+        flatten,
+        next_help_heading = "S-triangles (soft textured shadow volumes)"
+    )]
     pub stsv: StsvOptions,
 }
 
@@ -437,6 +440,9 @@ pub enum Warning {
         /// What happens instead and what to use.
         why: &'static str,
     },
+    /// The scene renders (partly) black for a reason its author may not
+    /// expect ([`crate::scene::lint`]).
+    Scene(String),
 }
 
 impl fmt::Display for Warning {
@@ -451,6 +457,7 @@ impl fmt::Display for Warning {
                 "{}: NOT shadowed by `{technique}`: {why}",
                 content.describe()
             ),
+            Warning::Scene(message) => write!(f, "scene: {message}"),
         }
     }
 }
@@ -592,12 +599,15 @@ pub fn markdown_table(pages: &str) -> String {
 
 /// The `penumbra techniques` listing.
 pub fn listing() -> String {
+    // The name column fits the longest name plus two spaces, so that no
+    // name runs into its summary ("penumbra-casting" is 16 characters).
+    let width = Technique::all().map(|t| t.name().len()).max().unwrap_or(0) + 2;
     let mut s = String::new();
     for t in Technique::all() {
         let caps = t.capabilities(&TechniqueOptions::default());
-        s.push_str(&format!("{:<16}{}\n", t.name(), t.info().summary));
+        s.push_str(&format!("{:<width$}{}\n", t.name(), t.info().summary));
         s.push_str(&format!(
-            "{:<16}{}, {}; rect lights: {}, sphere lights: {}, textured lights: {}, semi-opaque casters: {}, S-triangles: {}\n",
+            "{:<width$}{}, {}; rect lights: {}, sphere lights: {}, textured lights: {}, semi-opaque casters: {}, S-triangles: {}\n",
             "",
             if caps.exact { "exact" } else { "approximate" },
             term_name(caps.output),
@@ -624,5 +634,166 @@ fn support_name(s: Support) -> &'static str {
         Support::StsvAddOn => "yes (STSV add-on)",
         Support::Ignored(_) => "ignored (warning)",
         Support::Refused { .. } => "refused",
+    }
+}
+
+/// A group of `render` options that only some techniques read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OptionGroup {
+    /// `--samples`.
+    Samples,
+    /// `--pattern`.
+    Pattern,
+    /// `--seed`.
+    Seed,
+    /// [`ShadowVolumeOptions`].
+    ShadowVolumes,
+    /// [`DcsOptions`].
+    Dcs,
+    /// [`ShadowMapOptions`] (every map technique's).
+    ShadowMaps,
+    /// [`PcssOptions`].
+    Pcss,
+    /// [`AdaptiveMapsOptions`].
+    AdaptiveMaps,
+    /// [`SsmOptions`].
+    Ssm,
+    /// [`PenumbraCastingOptions`].
+    PenumbraCasting,
+    /// [`StsvOptions`] (DCS, penumbra casting and the S-triangle add-on).
+    Stsv,
+}
+
+impl OptionGroup {
+    /// The clap ids of the group's arguments (a field's name, which is
+    /// also what `ArgMatches` reports).
+    pub fn arg_ids(self) -> Vec<String> {
+        use clap::Args;
+        let augment: fn(clap::Command) -> clap::Command = match self {
+            OptionGroup::Samples => return vec!["samples".into()],
+            OptionGroup::Pattern => return vec!["pattern".into()],
+            OptionGroup::Seed => return vec!["seed".into()],
+            OptionGroup::ShadowVolumes => ShadowVolumeOptions::augment_args,
+            OptionGroup::Dcs => DcsOptions::augment_args,
+            OptionGroup::ShadowMaps => ShadowMapOptions::augment_args,
+            OptionGroup::Pcss => PcssOptions::augment_args,
+            OptionGroup::AdaptiveMaps => AdaptiveMapsOptions::augment_args,
+            OptionGroup::Ssm => SsmOptions::augment_args,
+            OptionGroup::PenumbraCasting => PenumbraCastingOptions::augment_args,
+            OptionGroup::Stsv => StsvOptions::augment_args,
+        };
+        augment(clap::Command::new("options"))
+            .get_arguments()
+            .map(|a| a.get_id().to_string())
+            .collect()
+    }
+}
+
+/// Which option groups each technique reads (by name, in [`TECHNIQUES`]
+/// order). The S-triangle add-on's (`--samples`, `--pattern`, `--seed`
+/// and the stsv options) come on top where it runs ([`options_read`]).
+static OPTIONS_READ: &[(&str, &[OptionGroup])] = {
+    use OptionGroup::*;
+    &[
+        ("none", &[]),
+        ("reference", &[Samples, Pattern, Seed]),
+        ("shadow-volumes", &[ShadowVolumes]),
+        ("wedges", &[]),
+        ("wedge-blend", &[]),
+        ("dcs", &[Samples, Pattern, Seed, Dcs, Stsv]),
+        ("shadow-map", &[Seed, ShadowMaps]),
+        ("pcss", &[Seed, ShadowMaps, Pcss]),
+        ("multi-map", &[Samples, Pattern, Seed, ShadowMaps]),
+        ("adaptive-maps", &[Seed, ShadowMaps, AdaptiveMaps]),
+        ("soft-shadow-map", &[ShadowMaps, Ssm]),
+        (
+            "penumbra-casting",
+            &[Samples, Pattern, Seed, PenumbraCasting, Stsv],
+        ),
+    ]
+};
+
+/// The option groups `technique` reads on `scene`: its own, and the
+/// S-triangle add-on's when it shadows the scene's S-triangles with it.
+pub fn options_read(
+    technique: Technique,
+    options: &TechniqueOptions,
+    scene: &Scene,
+) -> Vec<OptionGroup> {
+    let mut groups: Vec<OptionGroup> = OPTIONS_READ
+        .iter()
+        .find(|(name, _)| *name == technique.name())
+        .map_or(&[][..], |(_, g)| g)
+        .to_vec();
+    if technique.capabilities(options).s_triangles == Support::StsvAddOn && has_s_triangles(scene) {
+        use OptionGroup::*;
+        for g in [Samples, Pattern, Seed, Stsv] {
+            if !groups.contains(&g) {
+                groups.push(g);
+            }
+        }
+    }
+    groups
+}
+
+/// Of the options the user gave (`given`: clap ids), those that
+/// `technique` does not read on `scene`, in the order given.
+pub fn unread_options(
+    technique: Technique,
+    options: &TechniqueOptions,
+    scene: &Scene,
+    given: &[String],
+) -> Vec<String> {
+    use OptionGroup::*;
+    let all = [
+        Samples,
+        Pattern,
+        Seed,
+        ShadowVolumes,
+        Dcs,
+        ShadowMaps,
+        Pcss,
+        AdaptiveMaps,
+        Ssm,
+        PenumbraCasting,
+        Stsv,
+    ];
+    let read: Vec<String> = (options_read(technique, options, scene).into_iter())
+        .flat_map(OptionGroup::arg_ids)
+        .collect();
+    let technique_specific: Vec<String> = all.into_iter().flat_map(OptionGroup::arg_ids).collect();
+    given
+        .iter()
+        .filter(|id| technique_specific.contains(id) && !read.contains(id))
+        .cloned()
+        .collect()
+}
+
+#[cfg(test)]
+mod option_tests {
+    use super::*;
+
+    /// Every registered technique says which options it reads.
+    #[test]
+    fn every_technique_lists_the_options_it_reads() {
+        for t in TECHNIQUES {
+            assert!(
+                OPTIONS_READ.iter().any(|(name, _)| *name == t.name),
+                "{} is missing from OPTIONS_READ",
+                t.name
+            );
+        }
+        assert_eq!(OPTIONS_READ.len(), TECHNIQUES.len());
+        assert!(OptionGroup::Dcs.arg_ids().contains(&"mode".to_string()));
+    }
+
+    /// Every name is followed by at least two spaces before its summary.
+    #[test]
+    fn listing_columns_do_not_run_together() {
+        let text = listing();
+        for t in TECHNIQUES {
+            let line = text.lines().find(|l| l.starts_with(t.name)).unwrap();
+            assert!(line[t.name.len()..].starts_with("  "), "{line}");
+        }
     }
 }

@@ -206,7 +206,7 @@ fn segment_meets_square(a: [f64; 2], b: [f64; 2]) -> bool {
     for axis in 0..2 {
         let (p, q) = (a[axis], b[axis] - a[axis]);
         if q == 0.0 {
-            if p < -1.0 || p > 1.0 {
+            if !(-1.0..=1.0).contains(&p) {
                 return false;
             }
             continue;

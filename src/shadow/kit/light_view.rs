@@ -154,13 +154,27 @@ impl LightView {
         let p = check_point(point_on_light)?;
         let (c, r) = (center.as_dvec3(), radius as f64);
         let d = p - c;
-        if !((d.length() - r).abs() <= 1e-4 * r) {
+        // A point on the sphere computed in f64 is rounded to f32 (the
+        // caller's `Vec3`): off the sphere by up to half the f32 spacing at
+        // the centre per coordinate, which is more than the radius itself
+        // for a sphere of radius 1e-9 at 4. The check allows that rounding.
+        let noise =
+            4.0 * f64::from(f32::EPSILON) * c.abs().max_element().max(p.abs().max_element());
+        if !((d.length() - r).abs() <= 1e-4 * r + noise) {
             return Err(Error::param(
                 "point_on_light",
                 format!("{point_on_light} is not on the sphere light"),
             ));
         }
-        let normal = d.normalize();
+        // Where rounding swamps the radius the direction from the centre is
+        // noise (or zero): such a light is a point, and emits toward the
+        // casters as far as one view can see.
+        let normal = if d.length() > 16.0 * noise {
+            d.normalize()
+        } else {
+            let (lo, hi) = check_bounds("casters_bounds", casters_bounds)?;
+            (0.5 * (lo + hi) - c).normalize_or(DVec3::NEG_Y)
+        };
         // Up hint: the world axis least aligned with the view direction is
         // chosen in `fit` once the direction is known.
         fit(

@@ -45,11 +45,11 @@ const LANES: usize = 8;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Filter {
     /// Nearest texel (the contract's default and the reference's rule:
-    /// [`Texture::lookup_scalar`]).
+    /// `Texture::lookup_scalar`).
     #[default]
     Nearest,
     /// Bilinear between the four nearest texel centres, repeating
-    /// ([`bilinear_scalar`]).
+    /// (`bilinear_scalar`).
     Bilinear,
 }
 
