@@ -244,7 +244,8 @@ pub fn render_rows(
         depth: &depth,
         cache: &cache,
     };
-    let shadows = run_technique(options.technique, &options.build_params(), &ctx)?;
+    let mut shadows = run_technique(options.technique, &options.build_params(), &ctx)?;
+    unshadow_non_receivers(scene, &gbuffer, &mut shadows.lights);
     passes.extend(shadows.passes.iter().cloned());
     progress.step();
 
@@ -283,6 +284,36 @@ pub fn render_rows(
         passes,
         gbuffer_stats,
     })
+}
+
+/// Sets the Vcoef of every surface pixel of an object with
+/// `receive_shadows = false` to 1, as the scene contract says, whatever
+/// the technique computed there: shading already ignores it, but the
+/// `vcoef` AOV and `compare`'s Vcoef errors read it. One place for every
+/// technique (the reference and penumbra casting write 1 themselves).
+fn unshadow_non_receivers(scene: &Scene, gbuffer: &GBuffer, lights: &mut [LightTerm]) {
+    if scene.objects.iter().all(|o| o.receive_shadows) {
+        return;
+    }
+    let keeps: Vec<bool> = (0..gbuffer.len())
+        .map(|i| {
+            !gbuffer.is_surface(i)
+                || scene
+                    .objects
+                    .get(gbuffer.sample(i).object as usize)
+                    .is_none_or(|o| o.receive_shadows)
+        })
+        .collect();
+    for term in lights {
+        let vcoef = match term {
+            LightTerm::Vcoef(v) | LightTerm::Radiance { vcoef: v, .. } => v,
+        };
+        for (v, &keep) in vcoef.iter_mut().zip(&keeps) {
+            if !keep {
+                *v = 1.0;
+            }
+        }
+    }
 }
 
 /// `--verify k`: the G-buffer of the render `options` asks for, and `k` of
