@@ -240,6 +240,11 @@ fn an_obj_without_faces_is_refused() {
     ] {
         dir.write(name, body);
         let msg = load_error(name, dir.scene(&format!("obj = \"{name}\"")));
-        assert!(msg.contains(&format!("{name}: no faces")), "{name}: {msg}");
+        // Named at the scene's line, with the OBJ's name.
+        assert!(msg.contains("scene.toml:"), "{name}: {msg}");
+        assert!(
+            msg.contains(&format!("{name}` has no faces")),
+            "{name}: {msg}"
+        );
     }
 }

@@ -751,10 +751,16 @@ pub(super) fn load_obj(
     if mesh.triangles.is_empty() {
         // Vertices alone (a point cloud, or faces lost in export) render as
         // nothing: refused rather than an invisible object.
+        // The whole file is at fault, not one of its lines: named at the
+        // scene line that asked for it.
         return Err(Error::file(
-            path,
-            None,
-            "no faces (`f` lines): nothing to render (points and lines are not surfaces)",
+            from,
+            Some(line),
+            format!(
+                "OBJ `{}` has no faces (`f` lines): nothing to render (points and lines \
+                 are not surfaces)",
+                path.display()
+            ),
         ));
     }
     if all_normals && !mesh.positions.is_empty() {
