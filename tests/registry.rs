@@ -68,6 +68,7 @@ fn the_default_is_exact_dcs_and_equals_the_command_line_defaults() {
     assert_eq!(DEFAULT_TECHNIQUE, "dcs");
     let caps = options.technique.capabilities(&options.options);
     assert!(caps.exact, "the default technique must be exact: {caps:?}");
+    assert!(caps.exact_image, "and so must its image: {caps:?}");
     // The CLI's defaults are the library's: render with no options at all
     // and with the library defaults gives the same bits.
     let dir = common::scratch_dir("registry-default");

@@ -155,6 +155,7 @@ pub static UNSHADOWED: registry::TechniqueInfo = registry::TechniqueInfo {
         s_triangles: registry::Support::Yes,
         output: registry::TermKind::Vcoef,
         exact: false,
+        exact_image: false,
     },
     quality_settings: |s| vec![s.single("none", "unshadowed")],
     build: |_| Box::new(Unshadowed),

@@ -196,6 +196,11 @@ pub struct Capabilities {
     pub output: TermKind,
     /// Per-sample visibility equals the shadow rays' (up to ties).
     pub exact: bool,
+    /// The image converges to the contract's per-sample radiance: exact
+    /// visibility, and each sample's light weighted by its own visibility
+    /// (no Vcoef modulation of the unshadowed light, which is biased
+    /// wherever the shadow and the light's shading vary together).
+    pub exact_image: bool,
 }
 
 /// One quality setting of a technique in `compare`.
@@ -571,8 +576,8 @@ pub fn check_scene(
 /// the README).
 pub fn markdown_table(pages: &str) -> String {
     let mut s = String::from(
-        "| name | what it does | exact | output | sphere lights | semi-opaque | S-triangles | module | page |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+        "| name | what it does | exact visibility | exact image | output | sphere lights | semi-opaque | S-triangles | module | page |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
     );
     for t in Technique::all() {
         let info = t.info();
@@ -582,10 +587,11 @@ pub fn markdown_table(pages: &str) -> String {
             .map(|p| format!("[{p}]({pages}{p})"))
             .unwrap_or_else(|| "—".into());
         s.push_str(&format!(
-            "| `{}` | {} | {} | {} | {} | {} | {} | `{}` | {} |\n",
+            "| `{}` | {} | {} | {} | {} | {} | {} | {} | `{}` | {} |\n",
             info.name,
             info.summary,
             if caps.exact { "yes" } else { "no" },
+            if caps.exact_image { "yes" } else { "no" },
             term_name(caps.output),
             support_name(caps.sphere_lights),
             support_name(caps.semi_opaque),
@@ -609,7 +615,7 @@ pub fn listing() -> String {
         s.push_str(&format!(
             "{:<width$}{}, {}; rect lights: {}, sphere lights: {}, textured lights: {}, semi-opaque casters: {}, S-triangles: {}\n",
             "",
-            if caps.exact { "exact" } else { "approximate" },
+            exactness(&caps),
             term_name(caps.output),
             support_name(caps.rect_lights),
             support_name(caps.sphere_lights),
@@ -619,6 +625,15 @@ pub fn listing() -> String {
         ));
     }
     s
+}
+
+/// Whether the visibility and the image are exact, in words.
+fn exactness(caps: &Capabilities) -> &'static str {
+    match (caps.exact, caps.exact_image) {
+        (true, true) => "exact visibility and image",
+        (true, false) => "exact visibility, approximate image",
+        _ => "approximate",
+    }
 }
 
 fn term_name(t: TermKind) -> &'static str {

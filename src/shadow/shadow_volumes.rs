@@ -42,6 +42,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
+        exact_image: false,
     },
     quality_settings: |s| {
         let label = if s.base.shadow_volumes.zpass {

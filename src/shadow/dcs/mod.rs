@@ -69,11 +69,11 @@ use ties::depth_shifts;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum DcsMode {
     /// A visibility coefficient modulating the unshadowed direct light
-    /// (eq. 4.1).
-    #[default]
+    /// (eq. 4.1): an approximation of the image.
     Vcoef,
     /// The direct light integrated over the samples, each weighted by its
-    /// binary visibility (eq. 4.6).
+    /// binary visibility (eq. 4.6): the exact image, the default.
+    #[default]
     Direct,
 }
 
@@ -96,9 +96,11 @@ pub struct DcsOptions {
     /// other points of the light).
     #[arg(long, value_enum, default_value_t = SilhouetteMode::WholeLight)]
     pub silhouettes: SilhouetteMode,
-    /// Depth complexity sampling: `vcoef` (modulate the unshadowed light,
-    /// eq. 4.1) or `direct` (integrate the light per sample, eq. 4.6).
-    #[arg(long = "dcs-mode", value_enum, default_value_t = DcsMode::Vcoef)]
+    /// Depth complexity sampling: `direct` (integrate the light per
+    /// sample, eq. 4.6: the exact image, the default) or `vcoef` (modulate
+    /// the unshadowed light by the visibility coefficient, eq. 4.1: an
+    /// approximation, biased where shadow and shading vary together).
+    #[arg(long = "dcs-mode", value_enum, default_value_t = DcsMode::Direct)]
     pub mode: DcsMode,
     /// Depth complexity sampling: semi-opaque casters' transmittance,
     /// `exact` (the product of `1 − opacity` per layer) or `summed` (the
@@ -146,6 +148,10 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         exact: o.dcs.silhouettes == SilhouetteMode::WholeLight
             && o.dcs.coverage == CoverageTest::Exact
             && o.dcs.transmittance == TransmittanceMode::Exact,
+        exact_image: o.dcs.silhouettes == SilhouetteMode::WholeLight
+            && o.dcs.coverage == CoverageTest::Exact
+            && o.dcs.transmittance == TransmittanceMode::Exact
+            && o.dcs.mode == DcsMode::Direct,
     },
     quality_settings: |s| {
         // The default (exact) first, then the centre-silhouette

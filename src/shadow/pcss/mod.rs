@@ -136,6 +136,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
+        exact_image: false,
     },
     quality_settings: |s| {
         [(512u32, 16u32), (1024, 16), (1024, 32), (1024, 64), (2048, 64)]

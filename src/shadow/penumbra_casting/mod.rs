@@ -185,6 +185,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         s_triangles: Support::Yes,
         output: TermKind::Radiance,
         exact: true,
+        exact_image: true,
     },
     quality_settings: |s| s.per_sample_count("penumbra-casting", "", s.first_pattern(), |_| {}),
     build: |p| {

@@ -52,6 +52,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
+        exact_image: false,
     },
     quality_settings: |s| {
         let pcf = s.base.shadow_map.pcf;

@@ -136,6 +136,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
+        exact_image: false,
     },
     quality_settings: |s| {
         let mut out = Vec::new();

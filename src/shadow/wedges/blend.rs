@@ -207,6 +207,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
+        exact_image: false,
     },
     quality_settings: |s| vec![s.single("wedge-blend", "EOAH, 4 quarters")],
     build: |_| Box::new(WedgeBlending),

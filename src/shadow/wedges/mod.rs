@@ -55,6 +55,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
+        exact_image: false,
     },
     quality_settings: |s| vec![s.single("wedges", "centre silhouettes")],
     build: |_| Box::new(PenumbraWedges),
