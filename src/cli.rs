@@ -715,7 +715,7 @@ fn warn_unread_options(options: &RenderOptions, scene: &Scene, given: &[(String,
 pub fn main_with_args() -> std::process::ExitCode {
     use clap::parser::ValueSource;
     use clap::{CommandFactory, FromArgMatches};
-    let mut command = Cli::command();
+    let mut command = short_help_kept_short(Cli::command());
     let matches = match command.try_get_matches_from_mut(std::env::args_os()) {
         Ok(m) => m,
         Err(e) => return clap_exit(e),
@@ -744,6 +744,28 @@ pub fn main_with_args() -> std::process::ExitCode {
             std::process::ExitCode::from(2)
         }
     }
+}
+
+/// The option groups `-h` shows; each technique's own options (under its
+/// heading) are left to `--help`, so that the short help fits a screen.
+const SHORT_HELP_HEADINGS: [&str; 4] = ["Output", "Image", "Light sampling", "Diagnostics"];
+
+/// `command` with every technique's options hidden from `-h` (`--help`
+/// lists them all, grouped by technique), and a line saying so.
+fn short_help_kept_short(command: clap::Command) -> clap::Command {
+    let hide = |a: clap::Arg| match a.get_help_heading() {
+        Some(h) if !SHORT_HELP_HEADINGS.contains(&h) => a.hide_short_help(true),
+        _ => a,
+    };
+    let note = "Each technique's own options (DCS, shadow maps, PCSS, penumbra casting, ...): \
+                see --help.";
+    command
+        .mut_subcommand("render", |c| {
+            c.mut_args(hide).after_help(note).after_long_help("")
+        })
+        .mut_subcommand("compare", |c| {
+            c.mut_args(hide).after_help(note).after_long_help("")
+        })
 }
 
 /// Ends on a clap "error": `--help` and `--version` go to stdout through
