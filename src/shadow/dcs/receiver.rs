@@ -385,7 +385,12 @@ impl LightPass<'_, '_> {
         // The edges that change `D` over part of the light: what the
         // receiver's shadow depends on, whatever the culling let through.
         let edge_count = scratch.effective.len() as f32;
-        if scratch.effective.is_empty() && !per_sample {
+        // The direct light needs no samples either where every sample
+        // keeps the start count: the exact unshadowed integral, as for
+        // the receivers outside every wedge.
+        let uniform_direct =
+            direct && !semi_opaque && !self.prepared.is_textured() && inspect.is_none();
+        if scratch.effective.is_empty() && (!per_sample || uniform_direct) {
             // Every sample keeps the (corrected) start count: the
             // per-sample path's results without the samples (with one
             // opaque group and no radiance, its sums of 0 and 1 over the
@@ -568,7 +573,18 @@ impl LightPass<'_, '_> {
             // without the serial chain of float adds.
             counters.iter().filter(|&&c| c <= 0).count() as f32
         };
-        let radiance = if direct {
+        let radiance = if direct && visible == 0.0 {
+            // Every sample hidden (the visibilities are 0 and 1, or
+            // products in [0, 1], so a zero sum is all zero): what the
+            // per-sample sum gives, without shading the samples.
+            Vec3::ZERO
+        } else if direct && visible == count as f32 && !semi_opaque && !self.prepared.is_textured()
+        {
+            // Every sample seen, at full weight: the exact unshadowed
+            // integral, as where no edge reaches the receiver (the samples'
+            // estimate converges to it; this has no variance).
+            self.prepared.unshadowed_direct(&sp())
+        } else if direct {
             self.prepared
                 .direct_from_samples(&sp(), &scratch.samples, &scratch.visibility)
         } else if self.prepared.is_textured() {
