@@ -2440,7 +2440,10 @@ fn fuzz() {
                 )
             }
         };
-        findings.push(format!("case {index} seed {seed:#x}: {how}"));
+        let finding = format!("case {index} seed {seed:#x}: {how}");
+        // Said at once (a long run shows its hangs and crashes as it goes).
+        eprintln!("fuzz: {finding}");
+        findings.push(finding);
         // Case counts of a dead worker are lost; its findings are kept.
         next = index + 1;
     }
