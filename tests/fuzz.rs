@@ -10,6 +10,33 @@
 //!
 //! and never in a panic, a signal (abort, segfault) or a hang.
 //!
+//! Case kinds (`PENUMBRA_FUZZ_KIND=<name>` runs only one; a reported
+//! case of such a run is rerun with the same setting): `scene`, `obj`,
+//! `mtl`, `texture` (mutated inputs, loaded and rendered); `render-cli`,
+//! `print-cli` (`render`, `diff`, `info` command lines); `tiles` (two
+//! band parts made once per worker, one mutated at or off its length or
+//! in a header field, reordered, repeated or missing, merged to odd
+//! names: a clean error naming a part or an output with nothing replaced
+//! or left behind, or a merge equal bit for bit to the unmutated one);
+//! `partials` (two `compare --shard` results made once per worker, a
+//! shard's JSON mutated with names that leave the shard, numbers, types,
+//! truncation, then `compare --merge`: an error naming a shard file with
+//! no `--out` left, or success; either way nothing outside `--out`
+//! changes); `special` (a FIFO, `/dev/zero`, `/dev/null` or a directory
+//! as scene, OBJ, MTL, texture, `diff` image or tile part: refused naming
+//! it; `/dev/full` as stdout of `techniques`, `diff` and `--help`: exit 2
+//! naming `<stdout>`; a directory, a path ending in `/`, a link to an
+//! existing file, a FIFO with a reader as `render`/`merge-tiles` outputs:
+//! a failure replaces no file); `options` (random command lines of every
+//! subcommand, options enumerated from clap's `Cli::command()`, values
+//! valid, at the edges or garbage; `sweep` always a dry run, which must
+//! write nothing); `agreement` (casters touching, just short of or
+//! entering a rect or sphere light, objects with `receive_shadows =
+//! false`: every technique refuses naming `--technique` or gives a finite
+//! `vcoef` layer that is 1 on non-receiving pixels; an exact technique's
+//! layer differs from the reference's by more than 1/16 on at most 0.5 %
+//! of the surface pixels).
+//!
 //! `fuzz` runs the cases in a worker process (this test binary, test
 //! `fuzz_worker`) under a 4 GiB address-space limit (`ulimit -v`), so
 //! that a crash or a hang ends only the worker: the parent knows the case
@@ -585,6 +612,22 @@ impl Case {
     }
 }
 
+/// The case kinds (for `PENUMBRA_FUZZ_KIND`) and the first of their
+/// per-mille slots in [`run_case`]'s mix.
+const KINDS: [(&str, i64); 11] = [
+    ("scene", 0),
+    ("obj", 400),
+    ("mtl", 530),
+    ("texture", 600),
+    ("render-cli", 670),
+    ("print-cli", 800),
+    ("tiles", 860),
+    ("partials", 900),
+    ("special", 910),
+    ("options", 940),
+    ("agreement", 990),
+];
+
 /// Runs case `seed` in `dir` (emptied first). `Err` is a finding.
 fn run_case(seed: u64, dir: &Path) -> Result<Outcome, String> {
     let _ = std::fs::remove_dir_all(dir);
@@ -597,14 +640,32 @@ fn run_case(seed: u64, dir: &Path) -> Result<Outcome, String> {
     for (name, bytes) in small_files() {
         case.write(name, bytes);
     }
-    let kind = rng.range(0, 99);
+    let mut kind = rng.range(0, 999);
+    if let Ok(name) = std::env::var("PENUMBRA_FUZZ_KIND") {
+        kind = match KINDS.iter().find(|(n, _)| *n == name) {
+            Some((_, first)) => *first,
+            None => panic!("PENUMBRA_FUZZ_KIND={name}: not one of {KINDS:?}"),
+        };
+    }
+    let name = KINDS
+        .iter()
+        .rev()
+        .find(|(_, first)| *first <= kind)
+        .unwrap()
+        .0;
+    let _ = write!(case.log, "[kind {name}] ");
     let result = match kind {
-        0..=44 => scene_case(&mut rng, &mut case),
-        45..=59 => model_case(&mut rng, &mut case, "model.obj", SMALL_OBJ),
-        60..=67 => model_case(&mut rng, &mut case, "model.mtl", SMALL_MTL),
-        68..=75 => texture_case(&mut rng, &mut case),
-        76..=91 => render_cli_case(&mut rng, &mut case),
-        _ => print_cli_case(&mut rng, &mut case),
+        0..=399 => scene_case(&mut rng, &mut case),
+        400..=529 => model_case(&mut rng, &mut case, "model.obj", SMALL_OBJ),
+        530..=599 => model_case(&mut rng, &mut case, "model.mtl", SMALL_MTL),
+        600..=669 => texture_case(&mut rng, &mut case),
+        670..=799 => render_cli_case(&mut rng, &mut case),
+        800..=859 => print_cli_case(&mut rng, &mut case),
+        860..=899 => tile_case(&mut rng, &mut case),
+        900..=909 => partial_case(&mut rng, &mut case),
+        910..=939 => special_case(&mut rng, &mut case),
+        940..=989 => options_case(&mut rng, &mut case),
+        _ => agreement_case(&mut rng, &mut case),
     };
     result.map_err(|e| format!("{e}\n  inputs: {}\n  in {}", case.log, dir.display()))
 }
@@ -795,27 +856,10 @@ fn one<'a>(rng: &mut Rng, values: &[&'a str]) -> &'a str {
 /// how it ends; `paths` are the paths an I/O error may name.
 fn run_cli(args: &[String], paths: &[PathBuf], case: &mut Case) -> Result<Outcome, String> {
     let _ = write!(case.log, "args {args:?}");
-    let cli = match penumbra::cli::Cli::try_parse_from(args) {
-        Ok(cli) => cli,
-        Err(e) => {
-            return match e.kind() {
-                clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion => {
-                    Ok(Outcome::Printed)
-                }
-                _ if e.to_string().contains('-') => Ok(Outcome::CliUsage),
-                _ => Err(format!("usage error naming no parameter: {e}")),
-            }
-        }
-    };
-    match penumbra::cli::run(cli) {
-        Ok(_) => Ok(Outcome::Printed),
-        Err(e) => match &e {
-            Error::Io { path, .. }
-            | Error::File {
-                path, line: None, ..
-            } if paths.iter().any(|p| p == path) => Ok(Outcome::PathError),
-            _ => check_load_error(&e),
-        },
+    match cli(args) {
+        CliResult::Usage(u) => u,
+        CliResult::Ran(Ok(_)) => Ok(Outcome::Printed),
+        CliResult::Ran(Err(e)) => classify_error(&e, paths),
     }
 }
 
@@ -1050,6 +1094,1181 @@ fn print_cli_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
     run_cli(&args, &images, case)
 }
 
+// ------------------------------------------------- campaign surfaces ----
+
+/// What a command line did: refused by clap (with the outcome it counts
+/// as, or a finding) or ran (with the command's result).
+enum CliResult {
+    Usage(Result<Outcome, String>),
+    Ran(Result<penumbra::cli::Outcome, Error>),
+}
+
+/// Parses and runs a command line in-process.
+fn cli(args: &[String]) -> CliResult {
+    match penumbra::cli::Cli::try_parse_from(args) {
+        Ok(parsed) => CliResult::Ran(penumbra::cli::run(parsed)),
+        Err(e) => CliResult::Usage(match e.kind() {
+            clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion => {
+                Ok(Outcome::Printed)
+            }
+            _ if e.to_string().contains('-') => Ok(Outcome::CliUsage),
+            _ => Err(format!("usage error naming no parameter: {e}")),
+        }),
+    }
+}
+
+/// An error of a command must name one of `paths` or a parameter (or a
+/// file and line).
+fn classify_error(e: &Error, paths: &[PathBuf]) -> Result<Outcome, String> {
+    match e {
+        Error::Io { path, .. }
+        | Error::File {
+            path, line: None, ..
+        } if paths.iter().any(|p| p == path) => Ok(Outcome::PathError),
+        _ => check_load_error(e),
+    }
+}
+
+fn strings(args: &[&str]) -> Vec<String> {
+    args.iter().map(|s| s.to_string()).collect()
+}
+
+fn show(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// This worker's cache of inputs made once (tile parts, compare shards):
+/// beside the case directory, per process.
+fn worker_cache(case: &Case) -> PathBuf {
+    let dir = case
+        .dir
+        .parent()
+        .unwrap()
+        .join(format!("cache-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs a setup command line, which must succeed.
+fn must_run(args: &[String]) -> Result<(), String> {
+    match cli(args) {
+        CliResult::Ran(Ok(_)) => Ok(()),
+        CliResult::Ran(Err(e)) => Err(format!("setup {args:?}: {e}")),
+        CliResult::Usage(u) => Err(format!("setup {args:?}: usage {u:?}")),
+    }
+}
+
+/// A tiny scene for tile parts, compare shards and special outputs:
+/// 16 × 130 so that it has two bands of 64-row tiles.
+const TINY_SCENE: &str = r#"[camera]
+eye = [0, 5, 6]
+target = [0, 0, 0]
+fov_y = 45
+width = 16
+height = 130
+[[light]]
+type = "rect"
+center = [0, 4, 0]
+u = [0.5, 0, 0]
+v = [0, 0, 0.5]
+radiance = 10
+[[object]]
+name = "ground"
+shape = "quad"
+size = [6.0, 6.0]
+[[object]]
+name = "occ"
+shape = "box"
+size = [1.0, 0.5, 1.0]
+translate = [0.0, 1.0, 0.0]
+"#;
+
+/// Bit-for-bit equality of two decoded images (sizes, channel names and
+/// values).
+fn same_image(a: &penumbra::output::LoadedImage, b: &penumbra::output::LoadedImage) -> bool {
+    a.width == b.width
+        && a.height == b.height
+        && a.channels.len() == b.channels.len()
+        && a.channels
+            .iter()
+            .zip(&b.channels)
+            .all(|((na, va), (nb, vb))| {
+                na == nb
+                    && va.len() == vb.len()
+                    && va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits())
+            })
+}
+
+/// Everything under `root` (but `skip`): regular files by content,
+/// links by target, other files by kind; never read from a special file.
+fn snapshot(root: &Path, skip: &[PathBuf]) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            if skip.contains(&p) {
+                continue;
+            }
+            let Ok(meta) = std::fs::symlink_metadata(&p) else {
+                continue;
+            };
+            let content = if meta.file_type().is_symlink() {
+                let t = std::fs::read_link(&p).unwrap_or_default();
+                format!("link {}", t.display()).into_bytes()
+            } else if meta.is_dir() {
+                stack.push(p.clone());
+                b"dir".to_vec()
+            } else if meta.is_file() {
+                std::fs::read(&p).unwrap_or_default()
+            } else {
+                b"special".to_vec()
+            };
+            out.push((p, content));
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Names of paths that differ between two snapshots.
+fn changed(before: &[(PathBuf, Vec<u8>)], after: &[(PathBuf, Vec<u8>)]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for (p, c) in before {
+        match after.iter().find(|(q, _)| q == p) {
+            Some((_, d)) if d == c => {}
+            Some(_) => names.push(format!("{} changed", p.display())),
+            None => names.push(format!("{} removed", p.display())),
+        }
+    }
+    for (p, _) in after {
+        if !before.iter().any(|(q, _)| q == p) {
+            names.push(format!("{} created", p.display()));
+        }
+    }
+    names
+}
+
+/// Two band parts of [`TINY_SCENE`] and their merge (PNG and EXR),
+/// made once per worker.
+struct TileBase {
+    parts: [Vec<u8>; 2],
+    png: penumbra::output::LoadedImage,
+    exr: penumbra::output::LoadedImage,
+}
+
+fn tile_base(case: &Case) -> Result<&'static TileBase, String> {
+    static BASE: OnceLock<Result<TileBase, String>> = OnceLock::new();
+    BASE.get_or_init(|| {
+        let dir = worker_cache(case).join("tiles");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("scene.toml");
+        std::fs::write(&scene, TINY_SCENE).unwrap();
+        let (p1, p2) = (dir.join("p1"), dir.join("p2"));
+        for (i, p) in [("1/2", &p1), ("2/2", &p2)] {
+            let mut args = strings(&["penumbra", "render"]);
+            args.push(show(&scene));
+            args.extend(strings(&[
+                "--aov",
+                "vcoef,mask",
+                "--samples",
+                "4",
+                "--threads",
+                "1",
+                "--tiles",
+                i,
+                "-o",
+            ]));
+            args.push(show(p));
+            must_run(&args)?;
+        }
+        let (png, exr) = (dir.join("m.png"), dir.join("m.exr"));
+        let mut args = strings(&["penumbra", "merge-tiles"]);
+        args.extend([show(&p1), show(&p2), "-o".into(), show(&png)]);
+        args.extend(["--exr".into(), show(&exr)]);
+        must_run(&args)?;
+        let read = |p: &Path| read_image(p).map_err(|e| format!("base merge: {e}"));
+        Ok(TileBase {
+            parts: [std::fs::read(&p1).unwrap(), std::fs::read(&p2).unwrap()],
+            png: read(&png)?,
+            exr: read(&exr)?,
+        })
+    })
+    .as_ref()
+    .map_err(Clone::clone)
+}
+
+/// Mutates a tile part: bytes changed at the same length (header or
+/// data), truncated, lengthened, or one header field replaced.
+fn mutate_part(rng: &mut Rng, mut bytes: Vec<u8>, log: &mut String) -> Vec<u8> {
+    let header_end = bytes
+        .iter()
+        .enumerate()
+        .filter(|(_, &b)| b == b'\n')
+        .nth(1)
+        .map_or(bytes.len(), |(i, _)| i + 1);
+    let op = rng.range(0, 7);
+    let _ = write!(log, "part-op{op} ");
+    match op {
+        0 => flip_bytes(rng, bytes),
+        1 => {
+            // Overwrite one float of the data at the same length.
+            let data = bytes.len() - header_end;
+            if data >= 4 {
+                let at = header_end + rng.range(0, (data / 4 - 1) as i64) as usize * 4;
+                let v: f32 =
+                    [1.0, 0.0, -0.0, f32::NAN, f32::INFINITY, 1e-40][rng.range(0, 5) as usize];
+                bytes[at..at + 4].copy_from_slice(&v.to_le_bytes());
+            }
+            bytes
+        }
+        2 => {
+            // A byte of the header.
+            let i = rng.range(0, header_end.max(1) as i64 - 1) as usize;
+            if i < bytes.len() {
+                bytes[i] ^= 1 << rng.range(0, 7);
+            }
+            bytes
+        }
+        3 => truncate(rng, bytes),
+        4 => {
+            let extra = [0usize, 1, 3, 4, 64][rng.range(0, 4) as usize];
+            let fill = rng.next_u64() as u8;
+            bytes.extend(vec![fill; extra]);
+            if extra == 0 {
+                bytes.push(b'\n');
+            }
+            bytes
+        }
+        _ => {
+            // A field of the JSON header replaced.
+            let first = bytes.iter().position(|&b| b == b'\n').map_or(0, |i| i + 1);
+            let line = &bytes[first..header_end.max(first)];
+            let Ok(mut v) = serde_json::from_slice::<serde_json::Value>(line) else {
+                return bytes;
+            };
+            let mut leaves = Vec::new();
+            json_leaves(&v, String::new(), &mut leaves);
+            if leaves.is_empty() {
+                return bytes;
+            }
+            let at = leaves[rng.range(0, leaves.len() as i64 - 1) as usize].clone();
+            let with = json_edge(rng, &PathBuf::from("/nonexistent"));
+            let _ = write!(log, "{at} = {with} ");
+            if let Some(slot) = v.pointer_mut(&at) {
+                *slot = with;
+            }
+            let mut out = bytes[..first].to_vec();
+            out.extend(serde_json::to_vec(&v).unwrap());
+            out.push(b'\n');
+            out.extend(&bytes[header_end.min(bytes.len())..]);
+            out
+        }
+    }
+}
+
+/// JSON pointers of every leaf (and every array and object) of `v`.
+fn json_leaves(v: &serde_json::Value, at: String, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Array(a) => {
+            if !at.is_empty() {
+                out.push(at.clone());
+            }
+            for (i, x) in a.iter().enumerate() {
+                json_leaves(x, format!("{at}/{i}"), out);
+            }
+        }
+        serde_json::Value::Object(o) => {
+            if !at.is_empty() {
+                out.push(at.clone());
+            }
+            for (k, x) in o {
+                let k = k.replace('~', "~0").replace('/', "~1");
+                json_leaves(x, format!("{at}/{k}"), out);
+            }
+        }
+        _ => out.push(at),
+    }
+}
+
+/// A JSON value at the edges: paths that leave a directory, odd names,
+/// extreme numbers, other types.
+fn json_edge(rng: &mut Rng, victim: &Path) -> serde_json::Value {
+    use serde_json::json;
+    match rng.range(0, 20) {
+        0 => json!("../victim.txt"),
+        1 => json!("../../victim.txt"),
+        2 => json!("../../../victim.txt"),
+        3 => json!(show(victim)),
+        4 => json!(""),
+        5 => json!("."),
+        6 => json!(".."),
+        7 => json!("a/b.png"),
+        8 => json!("x\u{0}y"),
+        9 => json!("images/../../victim.txt"),
+        10 => json!("x".repeat(300)),
+        11 => json!(-1),
+        12 => json!(0),
+        13 => json!(1e308),
+        14 => json!(u64::MAX),
+        15 => json!(0.5),
+        16 => json!(null),
+        17 => json!([]),
+        18 => json!({}),
+        19 => json!(true),
+        _ => json!("x\ny"),
+    }
+}
+
+/// Tile parts: a copy of the cached parts, one mutated (or reordered,
+/// repeated, missing), merged with odd output names. Either a clean
+/// error naming a part or an output (and nothing replaced or left
+/// behind), or exit 0 with the merge equal bit for bit to the unmutated
+/// one.
+fn tile_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let base = tile_base(case)?;
+    let names = [["p1", "p2"], ["a.part", "b.part"], ["x.png", "y.exr"]][rng.range(0, 2) as usize];
+    let p: Vec<PathBuf> = names.iter().map(|n| case.dir.join(n)).collect();
+    let mut parts = base.parts.clone();
+    let mutate = rng.range(0, 4) != 0;
+    if mutate {
+        let k = rng.range(0, 1) as usize;
+        let _ = write!(case.log, "part {k}: ");
+        for _ in 0..rng.range(1, 2) {
+            parts[k] = mutate_part(rng, std::mem::take(&mut parts[k]), &mut case.log);
+        }
+    }
+    case.write(names[0], &parts[0]);
+    case.write(names[1], &parts[1]);
+    let existing = case.write("existing.png", b"old");
+    let mut inputs = vec![p[0].clone(), p[1].clone()];
+    match rng.range(0, 9) {
+        0 => inputs.reverse(),
+        1 => inputs[1] = inputs[0].clone(),
+        2 => inputs.truncate(1),
+        3 => inputs.push(case.dir.join("missing.part")),
+        _ => {}
+    }
+    let outs = [
+        case.dir.join("m.exr"),
+        case.dir.join("m.png"),
+        p[0].clone(),
+        p[1].clone(),
+        existing.clone(),
+        PathBuf::from(format!("{}/", case.dir.join("m.exr").display())),
+        case.dir.join("missing/m.png"),
+        case.dir.clone(),
+        case.dir.join("m.bmp"),
+    ];
+    let o = match rng.range(0, 12) {
+        k @ 0..=8 => outs[k as usize].clone(),
+        _ => outs[0].clone(),
+    };
+    let exr = match rng.range(0, 5) {
+        0 => Some(outs[rng.range(0, outs.len() as i64 - 1) as usize].clone()),
+        1 => Some(case.dir.join("e.exr")),
+        _ => None,
+    };
+    let mut args = strings(&["penumbra", "merge-tiles"]);
+    args.extend(inputs.iter().map(|p| show(p)));
+    args.extend(["-o".into(), show(&o)]);
+    if let Some(e) = &exr {
+        args.extend(["--exr".into(), show(e)]);
+    }
+    let _ = write!(case.log, "args {args:?}");
+    let mut paths = inputs.clone();
+    paths.push(o.clone());
+    paths.extend(exr.clone());
+    let before = snapshot(&case.dir, &[]);
+    match cli(&args) {
+        CliResult::Usage(u) => u,
+        CliResult::Ran(Err(e)) => {
+            let outcome = classify_error(&e, &paths)?;
+            let diff = changed(&before, &snapshot(&case.dir, &[]));
+            if !diff.is_empty() {
+                return Err(format!("merge refused ({e}) but changed files: {diff:?}"));
+            }
+            Ok(outcome)
+        }
+        CliResult::Ran(Ok(_)) => {
+            let clean = !mutate || parts[0] == base.parts[0] && parts[1] == base.parts[1];
+            for out in std::iter::once(&o).chain(exr.iter()) {
+                let img = read_image(out).map_err(|e| format!("merged output unreadable: {e}"))?;
+                // Compared with the base merge of the same format.
+                let png = std::fs::read(out).is_ok_and(|b| b.starts_with(b"\x89PNG"));
+                let want = if png { &base.png } else { &base.exr };
+                if !same_image(&img, want) {
+                    return Err(format!(
+                        "merge-tiles succeeded (parts {}) but {} differs from the unmutated merge",
+                        if clean { "unmutated" } else { "mutated" },
+                        out.display()
+                    ));
+                }
+            }
+            Ok(Outcome::Printed)
+        }
+    }
+}
+
+/// Two shards of a tiny compare of [`TINY_SCENE`], made once per worker.
+fn shard_base(case: &Case) -> Result<&'static (PathBuf, PathBuf), String> {
+    static BASE: OnceLock<Result<(PathBuf, PathBuf), String>> = OnceLock::new();
+    BASE.get_or_init(|| {
+        let dir = worker_cache(case).join("shards");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("scene.toml");
+        std::fs::write(&scene, TINY_SCENE).unwrap();
+        let shards = (dir.join("s1"), dir.join("s2"));
+        for (i, out) in [("1/2", &shards.0), ("2/2", &shards.1)] {
+            let mut args = strings(&["penumbra", "compare"]);
+            args.push(show(&scene));
+            args.extend(strings(&[
+                "--techniques",
+                "dcs,shadow-map",
+                "--samples",
+                "4,8",
+                "--reference-samples",
+                "16",
+                "--width",
+                "12",
+                "--height",
+                "12",
+                "--threads",
+                "1",
+                "--repeat",
+                "1",
+                "--shard",
+                i,
+                "--out",
+            ]));
+            args.push(show(out));
+            args.extend(["--cache-dir".into(), show(&dir.join("cache"))]);
+            must_run(&args)?;
+        }
+        Ok(shards)
+    })
+    .as_ref()
+    .map_err(Clone::clone)
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        let (src, dst) = (e.path(), to.join(e.file_name()));
+        if e.file_type().unwrap().is_dir() {
+            copy_tree(&src, &dst);
+        } else {
+            std::fs::copy(&src, &dst).unwrap();
+        }
+    }
+}
+
+/// Partial compare results: a shard's JSON mutated (names that leave the
+/// shard or `--out`, numbers, types, truncation), then `compare --merge`.
+/// Either an error naming a shard's file, with no `--out` left behind,
+/// or success with every file written under `--out`; in both, nothing
+/// outside `--out` (a canary beside it, the shards) changes.
+fn partial_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let (b1, b2) = shard_base(case)?;
+    let (s1, s2) = (case.dir.join("s1"), case.dir.join("s2"));
+    copy_tree(b1, &s1);
+    copy_tree(b2, &s2);
+    let victim = case.write("victim.txt", b"precious");
+    std::fs::create_dir_all(case.dir.join("res")).unwrap();
+    case.write("res/canary", b"canary");
+    let out = case.dir.join("res/out");
+    let (shard, file) = match rng.range(0, 1) {
+        0 => (&s1, s1.join("shard-1-of-2.json")),
+        _ => (&s2, s2.join("shard-2-of-2.json")),
+    };
+    let text = std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    let mutated = match rng.range(0, 5) {
+        0 => truncate(rng, text),
+        1 => flip_bytes(rng, text),
+        _ => {
+            let mut v: serde_json::Value =
+                serde_json::from_slice(&text).map_err(|e| format!("shard JSON: {e}"))?;
+            let mut leaves = Vec::new();
+            json_leaves(&v, String::new(), &mut leaves);
+            // Mostly the names of images and heatmaps.
+            let named: Vec<String> = leaves
+                .iter()
+                .filter(|l| l.contains("image") || l.contains("heatmap") || l.contains("dir"))
+                .cloned()
+                .collect();
+            let pool = if !named.is_empty() && rng.range(0, 1) == 0 {
+                &named
+            } else {
+                &leaves
+            };
+            for _ in 0..rng.range(1, 2) {
+                let at = pool[rng.range(0, pool.len() as i64 - 1) as usize].clone();
+                let with = json_edge(rng, &victim);
+                let _ = write!(case.log, "{}:{at} = {with} ", file.display());
+                if let Some(slot) = v.pointer_mut(&at) {
+                    *slot = with;
+                }
+            }
+            serde_json::to_vec(&v).unwrap()
+        }
+    };
+    std::fs::write(&file, mutated).unwrap();
+    let mut args = strings(&["penumbra", "compare", "--merge"]);
+    args.extend([show(&s1), show(&s2), "--out".into(), show(&out)]);
+    if rng.range(0, 3) == 0 {
+        args.push("--no-images".into());
+    }
+    let _ = write!(case.log, "args {args:?}");
+    let before = snapshot(&case.dir, &[]);
+    let result = cli(&args);
+    let diff = changed(&before, &snapshot(&case.dir, std::slice::from_ref(&out)));
+    if !diff.is_empty() {
+        return Err(format!(
+            "compare --merge changed files outside --out: {diff:?}"
+        ));
+    }
+    match result {
+        CliResult::Usage(u) => u,
+        CliResult::Ran(Ok(_)) => Ok(Outcome::Printed),
+        CliResult::Ran(Err(e)) => {
+            if out.exists() {
+                return Err(format!(
+                    "compare --merge failed ({e}) but left --out behind"
+                ));
+            }
+            let msg = e.to_string();
+            if !msg.contains(&show(shard)) && !msg.contains(&show(&s1)) && !msg.contains(&show(&s2))
+            {
+                return Err(format!("compare --merge error names no shard file: {msg}"));
+            }
+            Ok(Outcome::FileError)
+        }
+    }
+}
+
+/// Special files as inputs (a FIFO, `/dev/zero`, `/dev/null`, a
+/// directory) of every reader, and as outputs (`/dev/full` as stdout, a
+/// directory, a path ending in `/`, a link to an existing file). Inputs
+/// are refused naming them, without blocking; a failing output replaces
+/// no existing file and leaves nothing behind.
+fn special_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let fifo = case.dir.join("fifo");
+    let ok = Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        return Err("mkfifo failed".into());
+    }
+    let sub = case.dir.join("sub");
+    std::fs::create_dir_all(&sub).unwrap();
+    let specials = [
+        fifo.clone(),
+        PathBuf::from("/dev/zero"),
+        PathBuf::from("/dev/null"),
+        sub.clone(),
+    ];
+    let special = specials[rng.range(0, 3) as usize].clone();
+    let sp = show(&special);
+    let _ = write!(case.log, "special {sp}: ");
+    if rng.range(0, 1) == 0 {
+        // As an input.
+        let scene = case.dir.join("scene.toml");
+        let what = rng.range(0, 6);
+        let (path, args): (PathBuf, Vec<String>) = match what {
+            0 => (special.clone(), strings(&["penumbra", "info", &sp])),
+            1 => {
+                let text = SMALL_SCENE.replace("\"model.obj\"", &format!("{sp:?}"));
+                case.write("scene.toml", text.as_bytes());
+                (scene.clone(), strings(&["penumbra", "info", &show(&scene)]))
+            }
+            2 => {
+                let obj = SMALL_OBJ.replace("model.mtl", &sp);
+                case.write("model.obj", obj.as_bytes());
+                case.write("scene.toml", SMALL_SCENE.as_bytes());
+                (scene.clone(), strings(&["penumbra", "info", &show(&scene)]))
+            }
+            3 => {
+                let text = SMALL_SCENE.replace("\"tex.tga\"", &format!("{sp:?}"));
+                case.write("scene.toml", text.as_bytes());
+                (scene.clone(), strings(&["penumbra", "info", &show(&scene)]))
+            }
+            4 => {
+                let a = case.dir.join("a.png");
+                write_png(&a, 2, 2, &[Vec3::ONE; 4]).unwrap();
+                let mut args = strings(&["penumbra", "diff"]);
+                let mut pair = [show(&a), sp.clone()];
+                if rng.range(0, 1) == 0 {
+                    pair.reverse();
+                }
+                args.extend(pair);
+                if rng.range(0, 2) == 0 {
+                    args.extend(["--mask".into(), sp.clone()]);
+                }
+                (special.clone(), args)
+            }
+            5 => {
+                let base = tile_base(case)?;
+                let p1 = case.write("p1", &base.parts[0]);
+                let mut args = strings(&["penumbra", "merge-tiles"]);
+                args.extend([show(&p1), sp.clone(), "-o".into()]);
+                args.push(show(&case.dir.join("m.png")));
+                (special.clone(), args)
+            }
+            _ => {
+                let mut args = strings(&["penumbra", "render", &sp, "-o"]);
+                args.push(show(&case.dir.join("o.png")));
+                (special.clone(), args)
+            }
+        };
+        let _ = write!(case.log, "input {what} args {args:?}");
+        return match cli(&args) {
+            CliResult::Usage(u) => u,
+            CliResult::Ran(Ok(_)) => Err(format!("special input {sp} accepted")),
+            CliResult::Ran(Err(e)) => {
+                let msg = e.to_string();
+                let names_it = msg.contains(&sp) || special == sub && msg.contains("directory");
+                if !names_it {
+                    return Err(format!("special input {sp}: error not naming it: {msg}"));
+                }
+                classify_error(&e, &[path, special.clone()])
+            }
+        };
+    }
+    // As an output.
+    let existing = case.write("existing.png", b"old");
+    let existing_exr = case.write("existing.exr", b"old");
+    let link = case.dir.join("link.png");
+    std::os::unix::fs::symlink(&existing, &link).unwrap();
+    let outs = [
+        case.dir.join("new.png"),
+        PathBuf::from("/dev/full"),
+        PathBuf::from("/dev/full.png"),
+        sub.clone(),
+        PathBuf::from(format!("{}/", case.dir.join("d.png").display())),
+        PathBuf::from(format!("{}/", existing.display())),
+        link.clone(),
+        existing.clone(),
+        fifo.clone(),
+        case.dir.join("x.exr/."),
+    ];
+    let o = outs[rng.range(0, outs.len() as i64 - 1) as usize].clone();
+    let exr = match rng.range(0, 3) {
+        0 => Some(existing_exr.clone()),
+        1 => Some(outs[rng.range(0, outs.len() as i64 - 1) as usize].clone()),
+        _ => None,
+    };
+    let what = rng.range(0, 3);
+    if what == 3 {
+        // stdout on a full device, through the binary.
+        let args: Vec<String> = match rng.range(0, 4) {
+            0 => strings(&["techniques"]),
+            1 => strings(&["techniques", "--markdown"]),
+            2 => strings(&["--help"]),
+            3 => strings(&["techniques", "--names"]),
+            _ => {
+                let a = case.dir.join("a.png");
+                write_png(&a, 2, 2, &[Vec3::ONE; 4]).unwrap();
+                vec!["diff".into(), show(&a), show(&a)]
+            }
+        };
+        let _ = write!(case.log, "stdout /dev/full: {args:?}");
+        let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+            return Ok(Outcome::Printed);
+        };
+        let output = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            .args(&args)
+            .current_dir(&case.dir)
+            .stdin(Stdio::null())
+            .stdout(full)
+            .stderr(Stdio::piped())
+            .output()
+            .map_err(|e| format!("run penumbra: {e}"))?;
+        let err = String::from_utf8_lossy(&output.stderr);
+        if output.status.code() != Some(2) || !err.contains("<stdout>") || err.contains("panicked")
+        {
+            return Err(format!(
+                "stdout on /dev/full: {:?}, stderr {err:?}",
+                output.status
+            ));
+        }
+        return Ok(Outcome::PathError);
+    }
+    let mut args: Vec<String> = match what {
+        0 | 1 => {
+            let scene = case.write("scene.toml", SMALL_SCENE.as_bytes());
+            let mut a = strings(&["penumbra", "render", &show(&scene)]);
+            a.extend(strings(&[
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--samples",
+                "2",
+            ]));
+            a.extend(strings(&["--threads", "1"]));
+            a
+        }
+        _ => {
+            let base = tile_base(case)?;
+            let p1 = case.write("p1", &base.parts[0]);
+            let p2 = case.write("p2", &base.parts[1]);
+            vec![
+                "penumbra".into(),
+                "merge-tiles".into(),
+                show(&p1),
+                show(&p2),
+            ]
+        }
+    };
+    args.extend(["-o".into(), show(&o)]);
+    if let Some(e) = &exr {
+        args.extend(["--exr".into(), show(e)]);
+    }
+    let _ = write!(case.log, "output args {args:?}");
+    let mut paths = vec![o.clone()];
+    paths.extend(exr.clone());
+    // An output FIFO is written in place: like any writer, penumbra waits
+    // for a reader, so the case holds one open (the outputs here are far
+    // smaller than a pipe's buffer).
+    let _reader = {
+        use std::os::unix::fs::OpenOptionsExt;
+        std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc_o_nonblock())
+            .open(&fifo)
+            .map_err(|e| format!("open the FIFO's read end: {e}"))?
+    };
+    let before = snapshot(&case.dir, &[]);
+    match cli(&args) {
+        CliResult::Usage(u) => u,
+        CliResult::Ran(Ok(_)) => Ok(Outcome::Printed),
+        CliResult::Ran(Err(e)) => {
+            let outcome = classify_error(&e, &paths)?;
+            let diff = changed(&before, &snapshot(&case.dir, &[]));
+            if !diff.is_empty() {
+                return Err(format!("failed ({e}) but changed files: {diff:?}"));
+            }
+            Ok(outcome)
+        }
+    }
+}
+
+/// `O_NONBLOCK` on Linux (no libc dependency in the tests).
+fn libc_o_nonblock() -> i32 {
+    0o4000
+}
+
+/// Values for an option of a subcommand: valid, at the edges and
+/// garbage, bounded where a valid value would make a case slow.
+fn option_values(sub: &str, long: &str, arg: &clap::Arg, case: &Case) -> Vec<String> {
+    let d = |n: &str| show(&case.dir.join(n));
+    let v: &[&str] = match long {
+        "width" | "height" => &["1", "8", "16", "0", "-1", "16385", "x", ""],
+        "samples" if sub == "compare" => &["1", "2,4", "0", "4,", "x", "1048577", ""],
+        "samples" => &["1", "4", "0", "1048577", "x", "-1"],
+        "reference-samples" => &["1", "8", "0", "x", "1048577"],
+        "repeat" => &["1", "0", "2", "x"],
+        "threads" | "cpus-per-task" => &["1", "2", "0", "1025", "x"],
+        "seed" => &["0", "18446744073709551615", "-1", "x"],
+        "verify" => &["1", "all", "0", "x", "8"],
+        "tiles" if sub == "sweep" => &["1", "2", "0", "100000", "x"],
+        "tiles" | "shard" => &[
+            "1/2", "2/2", "0/2", "3/2", "1/0", "1/1", "x", "1/65536", "/",
+        ],
+        "shards" | "throttle" => &["1", "2", "0", "100000", "x"],
+        "map-size" => &["1", "16", "0", "16385", "x"],
+        "pcss-blocker-samples" | "pcss-filter-samples" => &["1", "4", "0", "65536", "x"],
+        "pc-sample-sets" => &["0", "1", "8", "1025", "x"],
+        "max-depth" | "adaptive-centre-depth" => &["0", "4", "12", "x", "-1"],
+        "ssm-passes" => &["1", "2", "0", "1000", "x"],
+        "patterns" | "pattern" => &[
+            "stratified",
+            "correlated",
+            "sobol02",
+            "interleaved4",
+            "interleaved0",
+            "stratified,sobol02",
+            "x",
+            "",
+        ],
+        "pcf" => &["1", "2x2", "3x3", "poisson:8", "poisson:0", "0x0", "x"],
+        "aov" => &["vcoef", "depth,mask", "", "x", "vcoef,vcoef"],
+        "channels-a" | "channels-b" | "mask-channel" => &["R", "R,G,B", "mask.Y", "", "X"],
+        "sbatch" => &["/nonexistent/sbatch"],
+        "penumbra" => &["/bin/true", "", "a b"],
+        "partition" | "job-name" | "time" | "mem" | "account" | "qos" | "constraint"
+        | "merge-time" | "merge-mem" | "setup" | "sbatch-arg" => &[
+            "p",
+            "",
+            "a b",
+            "1:00:00",
+            "p\n#SBATCH --evil",
+            "a\u{1b}b",
+            "--x",
+            "'",
+        ],
+        _ => &[],
+    };
+    if !v.is_empty() {
+        return strings(v);
+    }
+    match long {
+        "out" | "output" | "exr" | "report" | "log-dir" | "cache-dir" | "render" | "mask"
+        | "merge" => {
+            let mut p = vec![
+                d("out"),
+                d("o.png"),
+                d("o.exr"),
+                format!("{}/", d("o.png")),
+                d("missing/o.png"),
+                show(&case.dir),
+                d("scene.toml"),
+                String::new(),
+                "/dev/full".into(),
+            ];
+            if long == "mask" {
+                p.push(d("a.png"));
+            }
+            return p;
+        }
+        _ => {}
+    }
+    let mut values: Vec<String> = arg
+        .get_possible_values()
+        .iter()
+        .map(|p| p.get_name().to_string())
+        .collect();
+    if long == "technique" || long == "techniques" {
+        values.extend(strings(&["reference,dcs", "dcs,dcs", ""]));
+    }
+    values.extend(strings(&[
+        "0", "1", "2", "-1", "0.5", "x", "", "nan", "inf", "1e-9", "1e9",
+    ]));
+    values
+}
+
+/// Random command lines for every subcommand, their options enumerated
+/// from clap (`Cli::command()`): each option taken with probability
+/// 1/4, with a valid, edge or garbage value. Costly options get bounded
+/// defaults when not drawn; outputs stay in the case directory (and
+/// `sweep` is always a dry run, which must write nothing).
+fn options_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    use clap::CommandFactory;
+    let command = penumbra::cli::Cli::command();
+    let subs = [
+        "compare",
+        "merge-tiles",
+        "sweep",
+        "techniques",
+        "render",
+        "diff",
+        "info",
+    ];
+    let sub = subs[rng.range(0, subs.len() as i64 - 1) as usize];
+    let Some(c) = command.find_subcommand(sub) else {
+        return Err(format!("no subcommand {sub}"));
+    };
+    let scene = case.write("scene.toml", TINY_SCENE.as_bytes());
+    let a = case.dir.join("a.png");
+    write_png(&a, 2, 2, &[Vec3::ONE; 4]).unwrap();
+    let mut args = strings(&["penumbra", sub]);
+    let mut given: Vec<String> = Vec::new();
+    let mut trailing: Vec<String> = Vec::new();
+    for arg in c.get_arguments() {
+        let Some(long) = arg.get_long() else {
+            continue;
+        };
+        if long == "help" || long == "submit" || rng.range(0, 3) != 0 {
+            continue;
+        }
+        given.push(long.to_string());
+        args.push(format!("--{long}"));
+        if arg.get_action().takes_values() {
+            let values = option_values(sub, long, arg, case);
+            let v = values[rng.range(0, values.len() as i64 - 1) as usize].clone();
+            if long == "merge" {
+                // Directories of partials: the shards' or odd ones.
+                args.push(show(&case.dir));
+                if rng.range(0, 1) == 0 {
+                    args.push(v);
+                }
+            } else {
+                args.push(v);
+            }
+        }
+    }
+    if rng.range(0, 15) == 0 {
+        args.push(one(rng, &["--bogus", "extra", "--", "-"]).to_string());
+    }
+    let has = |n: &str| given.iter().any(|g| g == n);
+    let mut defaults = |pairs: &[(&str, String)]| {
+        for (n, v) in pairs {
+            if !has(n) {
+                args.extend([format!("--{n}"), v.clone()]);
+            }
+        }
+    };
+    let mut positional: Vec<String> = Vec::new();
+    let odd_scene = [
+        show(&scene),
+        show(&scene),
+        show(&case.dir.join("missing.toml")),
+        show(&case.dir),
+    ][rng.range(0, 3) as usize]
+        .clone();
+    match sub {
+        "compare" => {
+            defaults(&[
+                ("width", "8".into()),
+                ("height", "8".into()),
+                ("reference-samples", "8".into()),
+                ("samples", "2".into()),
+                ("repeat", "1".into()),
+                ("threads", "1".into()),
+                ("techniques", "dcs,shadow-map".into()),
+                ("out", show(&case.dir.join("out"))),
+                ("cache-dir", show(&case.dir.join("cache"))),
+            ]);
+            if !has("merge") {
+                positional.push(odd_scene);
+            }
+        }
+        "render" => {
+            defaults(&[
+                ("width", "16".into()),
+                ("height", "16".into()),
+                ("samples", "4".into()),
+                ("threads", "1".into()),
+                ("output", show(&case.dir.join("o.png"))),
+            ]);
+            positional.push(odd_scene);
+        }
+        "merge-tiles" => {
+            let base = tile_base(case)?;
+            let p1 = case.write("p1", &base.parts[0]);
+            let p2 = case.write("p2", &base.parts[1]);
+            defaults(&[("output", show(&case.dir.join("m.png")))]);
+            positional.extend([show(&p1), show(&p2)]);
+        }
+        "sweep" => {
+            defaults(&[("out", show(&case.dir.join("sweep")))]);
+            if !has("dry-run") {
+                positional.push("--dry-run".into());
+            }
+            trailing.push("--".into());
+            trailing.push(odd_scene);
+            if rng.range(0, 1) == 0 {
+                trailing.extend(strings(&["--techniques", "dcs", "--width", "8"]));
+            }
+        }
+        "diff" => positional.extend([show(&a), show(&a)]),
+        "info" => positional.push(odd_scene),
+        _ => {}
+    }
+    args.extend(positional);
+    args.extend(trailing);
+    let _ = write!(case.log, "args {args:?}");
+    let before = snapshot(&case.dir, &[]);
+    let mut paths: Vec<PathBuf> = args.iter().skip(2).map(PathBuf::from).collect();
+    paths.push(case.dir.join("o.png"));
+    let result = match cli(&args) {
+        CliResult::Usage(u) => u,
+        CliResult::Ran(Ok(_)) => Ok(Outcome::Printed),
+        CliResult::Ran(Err(e)) => classify_error(&e, &paths),
+    };
+    if sub == "sweep" {
+        let diff = changed(&before, &snapshot(&case.dir, &[]));
+        if !diff.is_empty() {
+            return Err(format!("sweep --dry-run wrote files: {diff:?}"));
+        }
+    }
+    result
+}
+
+/// The agreement property on scenes the random scenes of
+/// `tests/agreement.rs` do not make: an occluder touching or entering the
+/// light (rect or sphere), and objects with `receive_shadows = false`.
+/// Every technique either refuses naming `--technique` or renders a
+/// finite `vcoef` layer that is exactly 1 on non-receiving surfaces; the
+/// exact techniques' layer equals the reference's (same samples) on all
+/// but 0.5 % of the surface pixels, beyond one sample's weight.
+fn agreement_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    const SIDE: u32 = 24;
+    let sphere = rng.range(0, 1) == 1;
+    let size = [0.25, 0.5, 0.8][rng.range(0, 2) as usize];
+    let mut toml = String::from(
+        "[camera]\neye = [0, 5, 6]\ntarget = [0, 0, 0]\nfov_y = 45\nwidth = 24\nheight = 24\n",
+    );
+    let _ = match sphere {
+        true => write!(
+            toml,
+            "[[light]]\ntype = \"sphere\"\ncenter = [0, 4, 0]\nradius = {size}\nradiance = 10\n"
+        ),
+        false => write!(
+            toml,
+            "[[light]]\ntype = \"rect\"\ncenter = [0, 4, 0]\nu = [{size}, 0, 0]\nv = [0, 0, {size}]\nradiance = 10\n"
+        ),
+    };
+    let receive = |rng: &mut Rng| match rng.range(0, 2) {
+        0 => "receive_shadows = false\n",
+        _ => "",
+    };
+    let r = receive(rng);
+    let _ = write!(
+        toml,
+        "[[object]]\nname = \"ground\"\nshape = \"quad\"\nsize = [6.0, 6.0]\n{r}"
+    );
+    for k in 0..rng.range(0, 2) {
+        let shape = ["box", "sphere", "quad"][rng.range(0, 2) as usize];
+        let s = 0.3 + rng.f64() * 1.0;
+        let at = [
+            rng.f64() * 3.0 - 1.5,
+            0.3 + rng.f64() * 2.0,
+            rng.f64() * 3.0 - 1.5,
+        ];
+        let size = match shape {
+            "sphere" => format!("radius = {}", s / 2.0),
+            "quad" => format!("size = [{s}, {s}]\nrotate = [{}, 0, 0]", rng.range(0, 90)),
+            _ => format!("size = [{s}, {s}, {s}]"),
+        };
+        let opacity = match rng.range(0, 4) {
+            0 => "material = { opacity = 0.5 }\n",
+            _ => "",
+        };
+        let r = receive(rng);
+        let _ = write!(
+            toml,
+            "[[object]]\nname = \"o{k}\"\nshape = \"{shape}\"\n{size}\ntranslate = [{}, {}, {}]\n{opacity}{r}",
+            at[0], at[1], at[2]
+        );
+    }
+    // The caster at the light: touching it, just short of it, or into it.
+    let depth = [0.0, 0.0, -1e-3, 1e-3, 0.01, 0.2, 0.5][rng.range(0, 6) as usize];
+    let x = [0.0, 0.0, 0.3 * size, size, 2.0 * size][rng.range(0, 4) as usize];
+    let r = receive(rng);
+    let caster = match (sphere, rng.range(0, 1)) {
+        // A vertical unit quad whose top edge is `depth` into the light's
+        // plane (rect) or its ball (sphere).
+        (false, 0) => format!(
+            "shape = \"quad\"\nsize = [1, 1]\ntranslate = [{x}, {}, 0]\nrotate = [90, 0, 0]\n",
+            4.0 - 0.5 + depth
+        ),
+        (true, 0) => format!(
+            "shape = \"quad\"\nsize = [1, 1]\ntranslate = [{x}, {}, 0]\nrotate = [90, 0, 0]\n",
+            4.0 - size - 0.5 + depth
+        ),
+        // A unit box whose top face is `depth` into the light.
+        (false, _) => format!(
+            "shape = \"box\"\nsize = [1, 1, 1]\ntranslate = [{x}, {}, 0]\n",
+            4.0 - 0.5 + depth
+        ),
+        (true, _) => format!(
+            "shape = \"box\"\nsize = [1, 1, 1]\ntranslate = [{x}, {}, 0]\n",
+            4.0 - size - 0.5 + depth
+        ),
+    };
+    let _ = write!(toml, "[[object]]\nname = \"caster\"\n{caster}{r}");
+    let path = case.write("scene.toml", toml.as_bytes());
+    let _ = write!(case.log, "agreement scene {}", path.display());
+    let scene = load_scene(&path).map_err(|e| format!("generated scene: {e}"))?;
+    let frame = common::Frame::new(&scene, SIDE, SIDE);
+    let n = (SIDE * SIDE) as usize;
+    let surface: Vec<usize> = (0..n).filter(|&i| frame.gbuffer.is_surface(i)).collect();
+    let non_receiving: Vec<usize> = surface
+        .iter()
+        .copied()
+        .filter(|&i| !scene.objects[frame.gbuffer.sample(i).object as usize].receive_shadows)
+        .collect();
+    let vcoef_of = |technique: penumbra::shadow::Technique,
+                    reference: bool|
+     -> Result<(Vec<f32>, bool), Error> {
+        let (options, pattern) = common::matched_sampling(technique);
+        let options = RenderOptions {
+            technique: match reference {
+                true => penumbra::shadow::Technique::named("reference").unwrap(),
+                false => technique,
+            },
+            samples: 16,
+            seed: 3,
+            width: Some(SIDE),
+            height: Some(SIDE),
+            pattern,
+            options,
+            aovs: vec![Aov::Vcoef],
+        };
+        let out = render(&scene, &options, &Progress::hidden())?;
+        let layer = out.layers.iter().find(|l| l.name == "vcoef");
+        let v = layer.map(|l| l.channels[0].1.clone()).unwrap_or_default();
+        Ok((v, out.warnings.is_empty()))
+    };
+    let mut failures: Vec<String> = Vec::new();
+    for technique in penumbra::shadow::Technique::all() {
+        let name = technique.name();
+        let mut fail = |f: String| failures.push(f);
+        let (v, quiet) = match vcoef_of(technique, false) {
+            Ok(r) => r,
+            Err(e) => {
+                let msg = e.to_string();
+                if !msg.contains("--technique") {
+                    fail(format!("{name} refused without naming --technique: {msg}"));
+                }
+                continue;
+            }
+        };
+        if v.len() != n {
+            fail(format!("{name}: vcoef layer of {} values", v.len()));
+            continue;
+        }
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            fail(format!("{name}: non-finite vcoef {} at pixel {i}", v[i]));
+        }
+        let shadowed = non_receiving.iter().filter(|&&i| v[i] != 1.0).count();
+        if shadowed > 0 {
+            fail(format!(
+                "{name}: {shadowed} pixels of receive_shadows = false objects with vcoef below 1"
+            ));
+        }
+        if technique
+            .capabilities(&penumbra::shadow::TechniqueOptions::default())
+            .exact
+            && quiet
+            && name != "reference"
+        {
+            let r = match vcoef_of(technique, true) {
+                Ok((r, _)) => r,
+                Err(e) => {
+                    fail(format!("reference: {e}"));
+                    continue;
+                }
+            };
+            let differ: Vec<usize> = surface
+                .iter()
+                .copied()
+                .filter(|&i| (v[i] - r[i]).abs() > 1.0 / 16.0 + 1e-4)
+                .collect();
+            if differ.len() as f64 > 0.005 * surface.len() as f64 {
+                fail(format!(
+                    "{name}: {} of {} surface pixels differ from the reference by more than \
+                     1/16 (first {:?})",
+                    differ.len(),
+                    surface.len(),
+                    &differ[..differ.len().min(5)]
+                ));
+            }
+        }
+    }
+    match failures.is_empty() {
+        true => Ok(Outcome::Rendered),
+        false => Err(failures.join("; ")),
+    }
+}
+
 // ------------------------------------------------------------ driver ----
 
 /// The worker side: runs cases `FROM..TO` of run `SEED`, appending
@@ -1221,7 +2440,10 @@ fn fuzz() {
                 )
             }
         };
-        findings.push(format!("case {index} seed {seed:#x}: {how}"));
+        let finding = format!("case {index} seed {seed:#x}: {how}");
+        // Said at once (a long run shows its hangs and crashes as it goes).
+        eprintln!("fuzz: {finding}");
+        findings.push(finding);
         // Case counts of a dead worker are lost; its findings are kept.
         next = index + 1;
     }
