@@ -5,8 +5,9 @@
 //! light, which such casters break (before the refusal: 97 %, 83 % and
 //! 21 % of the pixels wrong, exit 0): it must refuse them with the reason,
 //! and the techniques that take them (penumbra casting, the reference)
-//! must agree with each other bit for bit. A caster just short of the
-//! light is not refused, and DCS agrees with the reference there.
+//! must agree with each other bit for bit; so is a quad standing with an
+//! edge on a rect light. A caster just short of the light is not refused,
+//! and DCS agrees with the reference there.
 
 mod common;
 
@@ -103,6 +104,12 @@ fn assert_refused_and_others_agree(case: &str, toml: &str, caster: &str) {
 }
 
 #[test]
+fn quad_standing_on_a_rect_light_is_refused_by_dcs() {
+    let toml = format!("{GROUND}{RECT}{}", quad_at(3.5));
+    assert_refused_and_others_agree("reach-touch", &toml, "blade");
+}
+
+#[test]
 fn open_quad_through_a_rect_light_is_refused_by_dcs() {
     let toml = format!("{GROUND}{RECT}{}", quad_at(4.0));
     assert_refused_and_others_agree("reach-rect", &toml, "blade");
@@ -148,15 +155,18 @@ fn casters_just_short_of_the_light_render_exactly() {
     }
 }
 
-/// The test behind the refusal, on its edge cases: touching the light
-/// (a vertex or an edge on it, tangent to the ball) is not reaching in.
+/// The test behind the refusal, on its edge cases: an edge lying on a
+/// rect light reaches in (DCS was wrong there: a fuzz campaign's quads
+/// standing on the light's plane under it), a box tangent to a sphere
+/// light's ball does not, nor does a quad crossing the rect's plane
+/// beside it.
 #[test]
-fn touching_is_not_reaching() {
+fn touching_a_rect_light_is_reaching_it() {
     use penumbra::geom::SceneGeometry;
     use penumbra::shadow::kit::enclosure::reached_lights;
     let cases = [
         // The quad's top edge exactly in a rect light's plane.
-        ("touch-rect", format!("{GROUND}{RECT}{}", quad_at(3.5)), 0),
+        ("touch-rect", format!("{GROUND}{RECT}{}", quad_at(3.5)), 1),
         // A box whose top face is tangent to the sphere light's ball.
         ("touch-sphere", format!("{GROUND}{SPHERE}{}", box_at(0.0, 3.0)), 0),
         // The quad 0.01 into the rect light.

@@ -122,10 +122,12 @@ pub struct ReachedLight {
 /// Techniques that count occluders from the light's centre (DCS's start
 /// count, its edges clipped at the light) see a caster part beyond the
 /// light's surface, or inside its ball, as the shadow rays never do: the
-/// reference's segments end on the light. A triangle that only touches
-/// the light (a vertex or edge on it, or tangent to the sphere) is not
-/// listed: it changes no segment's crossings but on a set of measure
-/// zero. A triangle in the light's plane overlapping its rectangle is.
+/// reference's segments end on the light. A triangle tangent to a sphere
+/// light's ball is not listed; a vertex or an edge on a rect light's
+/// rectangle is (an edge lying in the light's plane is clipped to nothing
+/// there while its faces still end on the light: a fuzz campaign found
+/// DCS wrong on such quads), and so is a triangle in the light's plane
+/// overlapping the rectangle.
 pub fn reached_lights(scene: &Scene, geometry: &SceneGeometry) -> Vec<ReachedLight> {
     let mut found = Vec::new();
     for (k, light) in scene.lights.iter().enumerate() {
@@ -180,8 +182,23 @@ fn triangle_crosses_rect(t: [DVec3; 3], c: DVec3, u: DVec3, v: DVec3) -> bool {
         );
     }
     let (lo, hi) = (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]));
-    if !(lo < 0.0 && hi > 0.0) {
+    if !(lo <= 0.0 && hi >= 0.0) {
         return false;
+    }
+    if !(lo < 0.0 && hi > 0.0) {
+        // Touching the plane from one side: a vertex or an edge in it. An
+        // edge lying in the light (a quad standing on the light's plane
+        // under it) is clipped to nothing at the light, yet its faces
+        // still end there: counted wrongly, so it reaches in too.
+        let on: Vec<DVec3> = (0..3).filter(|&i| d[i] == 0.0).map(|i| t[i]).collect();
+        return match on.as_slice() {
+            [p] => {
+                let [x, y] = st(*p);
+                x.abs() <= 1.0 && y.abs() <= 1.0
+            }
+            [a, b] => segment_meets_square(st(*a), st(*b)),
+            _ => false,
+        };
     }
     // The segment where the triangle meets the plane: its two edges (or
     // an edge and a vertex) with ends on both sides.

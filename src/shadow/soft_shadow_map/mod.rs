@@ -128,7 +128,17 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         },
         textured_lights: Support::Yes,
         enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
-        reached_lights: Support::Yes,
+        // A micro-patch at the light's plane back-projects onto the whole
+        // map (its reach grows as 1 / its depth from the light), so the
+        // accumulation's work has no bound: found by a fuzz campaign as
+        // minutes-long renders of 24 × 24 images.
+        reached_lights: Support::Refused {
+            param: "--technique",
+            why: "its occluder texels back-project onto the light, and a caster at or beyond \
+                  the light's plane would cover the whole map from every texel, without bound \
+                  on the work (use penumbra-casting or reference, or move the caster away \
+                  from the light)",
+        },
         semi_opaque: Support::Ignored(
             "the occluder map holds opaque casters only; casters of constant opacity below 1 \
              cast no shadow here (use dcs or reference)",
