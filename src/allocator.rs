@@ -6,7 +6,7 @@
 /// glibc's defaults hand large blocks back to the kernel (mmap'd blocks,
 /// trimmed thread-arena tops), so every pass page-faults fresh zeroed
 /// pages — a third of the many-map techniques' CPU time
-/// (docs/performance.md, issue 14). Serving blocks up to 32 MiB from the
+/// (docs/performance.md). Serving blocks up to 32 MiB from the
 /// heap and never trimming it removes those faults; the peak resident size
 /// is unchanged (freed memory is reused, not added to).
 #[cfg(all(target_os = "linux", target_env = "gnu"))]

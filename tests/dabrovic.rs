@@ -27,11 +27,9 @@ struct Relations {
     penumbra_pixels: usize,
 }
 
-fn dcs_relations(scene: &Scene, w: u32, h: u32, n: u32, seed: u64) -> Relations {
-    let frame = common::Frame::new(scene, w, h);
-    let ctx = frame.ctx(scene);
-    let tracer = ShadowTracer::new(scene, &frame.geometry);
-    let dcs = DepthComplexitySampling {
+/// Exact DCS (whole-light silhouettes) with `n` stratified samples.
+fn exact_dcs(n: u32, seed: u64) -> DepthComplexitySampling {
+    DepthComplexitySampling {
         samples: n,
         seed,
         silhouettes: SilhouetteMode::WholeLight,
@@ -40,7 +38,14 @@ fn dcs_relations(scene: &Scene, w: u32, h: u32, n: u32, seed: u64) -> Relations 
         transmittance: Default::default(),
         coverage: Default::default(),
         opacity_filter: Filter::Nearest,
-    };
+    }
+}
+
+fn dcs_relations(scene: &Scene, w: u32, h: u32, n: u32, seed: u64) -> Relations {
+    let frame = common::Frame::new(scene, w, h);
+    let ctx = frame.ctx(scene);
+    let tracer = ShadowTracer::new(scene, &frame.geometry);
+    let dcs = exact_dcs(n, seed);
     let counts: [AtomicUsize; 5] = Default::default();
     dcs.inspect_light(&ctx, 0, &|i, px| {
         let g = frame.gbuffer.sample(i);
@@ -153,16 +158,7 @@ fn a_pixel_whose_centre_ray_meets_an_edge_is_exact() {
     let frame = common::Frame::new(&scene, 768, 512);
     let ctx = frame.ctx(&scene);
     let tracer = ShadowTracer::new(&scene, &frame.geometry);
-    let dcs = DepthComplexitySampling {
-        samples: 64,
-        seed: 0,
-        silhouettes: SilhouetteMode::WholeLight,
-        mode: DcsMode::Vcoef,
-        pattern: SamplePattern::Stratified,
-        transmittance: Default::default(),
-        coverage: Default::default(),
-        opacity_filter: Filter::Nearest,
-    };
+    let dcs = exact_dcs(64, 0);
     // Sorted, as the hook takes them.
     let pixels = [210 * 768 + 384, 341 * 768 + 94];
     let answers = dcs.sample_visibility(&ctx, 0, &pixels).expect("dcs runs");

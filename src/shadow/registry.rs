@@ -680,6 +680,23 @@ pub enum OptionGroup {
 }
 
 impl OptionGroup {
+    /// Every group.
+    pub const ALL: [OptionGroup; 11] = [
+        OptionGroup::Samples,
+        OptionGroup::Pattern,
+        OptionGroup::Seed,
+        OptionGroup::ShadowVolumes,
+        OptionGroup::Dcs,
+        OptionGroup::ShadowMaps,
+        OptionGroup::Pcss,
+        OptionGroup::AdaptiveMaps,
+        OptionGroup::Ssm,
+        OptionGroup::PenumbraCasting,
+        OptionGroup::Stsv,
+    ];
+}
+
+impl OptionGroup {
     /// The clap ids of the group's arguments (a field's name, which is
     /// also what `ArgMatches` reports).
     pub fn arg_ids(self) -> Vec<String> {
@@ -759,24 +776,12 @@ pub fn unread_options(
     scene: &Scene,
     given: &[String],
 ) -> Vec<String> {
-    use OptionGroup::*;
-    let all = [
-        Samples,
-        Pattern,
-        Seed,
-        ShadowVolumes,
-        Dcs,
-        ShadowMaps,
-        Pcss,
-        AdaptiveMaps,
-        Ssm,
-        PenumbraCasting,
-        Stsv,
-    ];
     let read: Vec<String> = (options_read(technique, options, scene).into_iter())
         .flat_map(OptionGroup::arg_ids)
         .collect();
-    let technique_specific: Vec<String> = all.into_iter().flat_map(OptionGroup::arg_ids).collect();
+    let technique_specific: Vec<String> = (OptionGroup::ALL.into_iter())
+        .flat_map(OptionGroup::arg_ids)
+        .collect();
     given
         .iter()
         .filter(|id| technique_specific.contains(id) && !read.contains(id))

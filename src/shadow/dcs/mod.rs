@@ -127,7 +127,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     summary: "depth complexity sampling: exact per-sample occluder counts from shadow volumes and wedges (thesis ch. 4)",
     module: "shadow/dcs/",
     page: Some("dcs.md"),
-    capabilities: |o| Capabilities {
+    capabilities: |o| {
+        let exact = o.dcs.silhouettes == SilhouetteMode::WholeLight
+            && o.dcs.coverage == CoverageTest::Exact
+            && o.dcs.transmittance == TransmittanceMode::Exact;
+        Capabilities {
         rect_lights: Support::Yes,
         sphere_lights: match o.dcs.coverage {
             CoverageTest::Exact => Support::Yes,
@@ -145,13 +149,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             DcsMode::Vcoef => TermKind::Vcoef,
             DcsMode::Direct => TermKind::Radiance,
         },
-        exact: o.dcs.silhouettes == SilhouetteMode::WholeLight
-            && o.dcs.coverage == CoverageTest::Exact
-            && o.dcs.transmittance == TransmittanceMode::Exact,
-        exact_image: o.dcs.silhouettes == SilhouetteMode::WholeLight
-            && o.dcs.coverage == CoverageTest::Exact
-            && o.dcs.transmittance == TransmittanceMode::Exact
-            && o.dcs.mode == DcsMode::Direct,
+        exact,
+        exact_image: exact && o.dcs.mode == DcsMode::Direct,
+    }
     },
     quality_settings: |s| {
         // The default (exact) first, then the centre-silhouette
