@@ -4,28 +4,21 @@
 //! nothing). Every input file goes through `penumbra::scene::input::read`:
 //! scenes, OBJ and MTL files, textures, `diff` images and tile parts.
 
+mod common;
+
 use penumbra::scene::{input, load_scene};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-/// A scratch directory, unique per test, removed when dropped.
-struct Dir(PathBuf);
+use common::ScratchDir as Dir;
 
-impl Dir {
-    fn new(test: &str) -> Dir {
-        let dir =
-            std::env::temp_dir().join(format!("penumbra-inputs-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Dir(dir)
-    }
+/// This file's own uses of a scratch directory.
+trait InputsDir {
+    fn fifo(&self, name: &str) -> PathBuf;
+    fn scene(&self, object: &str) -> PathBuf;
+}
 
-    fn write(&self, name: &str, content: impl AsRef<[u8]>) -> PathBuf {
-        let path = self.0.join(name);
-        std::fs::write(&path, content).unwrap();
-        path
-    }
-
+impl InputsDir for Dir {
     /// A FIFO named `name` (nobody ever writes to it).
     fn fifo(&self, name: &str) -> PathBuf {
         let path = self.0.join(name);
@@ -49,12 +42,6 @@ impl Dir {
                  [[object]]\n{object}\n"
             ),
         )
-    }
-}
-
-impl Drop for Dir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

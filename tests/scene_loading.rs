@@ -2,38 +2,24 @@
 //! and line at fault, and the contract's conventions (shapes, transforms,
 //! materials, textures) hold on loaded scenes.
 
+mod common;
+
 use glam::{Vec2, Vec3};
 use penumbra::scene::{load_scene, LightShape, Scene, TextureData};
 use penumbra::Error;
 use std::path::{Path, PathBuf};
 
-/// A scratch directory, unique per test, removed when dropped.
-struct Dir(PathBuf);
+use common::ScratchDir as Dir;
 
-impl Dir {
-    fn new(test: &str) -> Dir {
-        let dir =
-            std::env::temp_dir().join(format!("penumbra-scene-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Dir(dir)
-    }
+/// This file's own uses of a scratch directory.
+trait SceneDir {
+    fn load(&self, body: &str) -> penumbra::Result<Scene>;
+}
 
-    fn write(&self, name: &str, content: impl AsRef<[u8]>) -> PathBuf {
-        let path = self.0.join(name);
-        std::fs::write(&path, content).unwrap();
-        path
-    }
-
+impl SceneDir for Dir {
     /// Writes `scene.toml` (camera block prepended) and loads it.
     fn load(&self, body: &str) -> penumbra::Result<Scene> {
         load_scene(&self.write("scene.toml", format!("{CAMERA}{body}")))
-    }
-}
-
-impl Drop for Dir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

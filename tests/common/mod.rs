@@ -32,6 +32,30 @@ pub fn scratch_dir(name: &str) -> std::path::PathBuf {
     dir
 }
 
+/// A scratch directory (see [`scratch_dir`]) removed when dropped.
+#[allow(dead_code)]
+pub struct ScratchDir(pub std::path::PathBuf);
+
+#[allow(dead_code)]
+impl ScratchDir {
+    pub fn new(name: &str) -> ScratchDir {
+        ScratchDir(scratch_dir(name))
+    }
+
+    /// Writes `content` to `name` in the directory; its path.
+    pub fn write(&self, name: &str, content: impl AsRef<[u8]>) -> std::path::PathBuf {
+        let path = self.0.join(name);
+        std::fs::write(&path, content).expect("write scratch file");
+        path
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
 /// Loads a scene file written, with extra files (name, bytes), into a
 /// scratch directory.
 pub fn scene_in_scratch(name: &str, toml: &str, files: &[(&str, &[u8])]) -> penumbra::scene::Scene {
