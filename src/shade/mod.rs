@@ -197,6 +197,24 @@ impl<'a> PreparedLight<'a> {
         }
     }
 
+    /// [`PreparedLight::direct_from_samples`] for an untextured rect
+    /// light's samples at chart points `(xs, ys)`, sample `k` at
+    /// `center + xs_k u + ys_k v` (padded to whole steps of eight),
+    /// evaluated in f32 lanes: see `estimate::estimate_rect_chart`. `None`
+    /// for a textured or sphere light, a receiver with a specular lobe, or
+    /// one the lanes do not suit (take the samples' path there).
+    pub fn direct_from_rect_chart(
+        &self,
+        sp: &SurfacePoint,
+        chart: (&[f32], &[f32]),
+        visibility: &[f32],
+    ) -> Option<Vec3> {
+        if self.texture.is_some() {
+            return None;
+        }
+        estimate::estimate_rect_chart(self.light, sp, chart, visibility)
+    }
+
     /// The Monte-Carlo estimate from given samples; see
     /// [`direct_from_samples`].
     pub fn direct_from_samples(

@@ -78,6 +78,8 @@ impl F32x8 {
         cmp_ge => _mm256_cmp_ps::<_CMP_GE_OQ>;
         /// Mask of `self < o` (false on NaN), as the facade's `cmp_lt`.
         cmp_lt => _mm256_cmp_ps::<_CMP_LT_OQ>;
+        /// Mask of `self > o` (false on NaN), as the facade's `cmp_gt`.
+        cmp_gt => _mm256_cmp_ps::<_CMP_GT_OQ>;
         /// Bitwise and (the facade's `&`, by its method name).
         bitand => _mm256_and_ps;
         /// Bitwise or (the facade's `|`, by its method name).
@@ -719,18 +721,20 @@ mod tests {
     #[target_feature(enable = "avx,avx2")]
     fn run_counts(a: [f32; 8], b: [f32; 8], c: [i32; 8], d: i32) -> (u32, u32, [i32; 8]) {
         let (x, y) = (F32x8::load(&a), F32x8::load(&b));
-        let (ge, lt) = (x.cmp_ge(y), x.cmp_lt(y));
+        let (ge, lt, gt) = (x.cmp_ge(y), x.cmp_lt(y), x.cmp_gt(y));
         let both = ge.bitand(lt.blend(ge, lt));
         let sum = I32x8::load(&c).add(I32x8::splat(d).masked(ge));
         (
-            _mm256_movemask_ps(ge.0) as u32 | (_mm256_movemask_ps(lt.0) as u32) << 8,
+            _mm256_movemask_ps(ge.0) as u32
+                | (_mm256_movemask_ps(lt.0) as u32) << 8
+                | (_mm256_movemask_ps(gt.0) as u32) << 16,
             _mm256_movemask_ps(both.0) as u32,
             sum.to_array(),
         )
     }
 
-    /// The counting kernel's operations against the scalar twin: `≥` and
-    /// `<` masks (false on NaN), mask `and`, and the masked wrapping
+    /// The counting kernel's operations against the scalar twin: `≥`, `<`
+    /// and `>` masks (false on NaN), mask `and`, and the masked wrapping
     /// integer sum.
     #[test]
     fn avx2_count_lanes_match_the_scalar_twin() {
@@ -758,8 +762,9 @@ mod tests {
             // SAFETY: AVX2 is available (checked above).
             let (masks, both, sum) = unsafe { run_counts(a, b, c, d) };
             let (sa, sb) = (S32::new(a), S32::new(b));
-            let (ge, lt) = (sa.cmp_ge(sb), sa.cmp_lt(sb));
-            assert_eq!(masks, ge.move_mask() | lt.move_mask() << 8, "{a:?} {b:?}");
+            let (ge, lt, gt) = (sa.cmp_ge(sb), sa.cmp_lt(sb), sa.cmp_gt(sb));
+            let want = ge.move_mask() | lt.move_mask() << 8 | gt.move_mask() << 16;
+            assert_eq!(masks, want, "{a:?} {b:?}");
             assert_eq!(both, (ge & lt.blend(ge, lt)).move_mask(), "{a:?} {b:?}");
             let want = I32::new(c) + (ge.cast_i32() & I32::splat(d));
             assert_eq!(sum, want.to_array(), "{a:?} {b:?}");

@@ -122,6 +122,12 @@ impl ChartSamples {
         self.xs.len()
     }
 
+    /// Every sample's chart coordinates as tested, `xs` and `ys`,
+    /// padded to [`ChartSamples::padded`].
+    pub fn padded_points(&self) -> (&[f32], &[f32]) {
+        (&self.xs, &self.ys)
+    }
+
     /// Sample `k`'s chart coordinates as tested.
     pub fn get(&self, k: usize) -> [f32; 2] {
         [self.xs[k], self.ys[k]]
@@ -686,6 +692,13 @@ impl SectorSamples {
                 }
             }
         }
+    }
+
+    /// The sorted samples as tested, `xs` and `ys`, padded as the
+    /// [`ChartSamples`] they came from (the order the counters of
+    /// [`SectorSamples::add_covered_all`] follow).
+    pub fn points(&self) -> (&[f32], &[f32]) {
+        (&self.xs, &self.ys)
     }
 
     /// The sorted samples as tested (for tests).

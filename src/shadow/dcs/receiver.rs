@@ -296,19 +296,16 @@ impl LightPass<'_, '_> {
         // Rect lights: the chart is the light's own `(2s − 1, 1 − 2t)`,
         // straight from the unit points; the world points are made only
         // when something reads them (the direct estimator, the texture,
-        // an inspector). Sphere lights chart the world points.
+        // an inspector), and only once the receiver is known to need
+        // per-sample work. Sphere lights chart the world points.
         let rect = matches!(self.bound, LightBound::Rect(_));
-        if !rect
-            || direct
-            || self.prepared.is_textured()
-            || inspect.is_some()
-            || !s_triangles.is_empty()
-        {
+        scratch.samples.clear();
+        if !rect {
             self.sampler
                 .samples_with(&self.pattern, position, pixel, &mut scratch.samples);
-        } else {
-            scratch.samples.clear();
         }
+        let rect_samples =
+            direct || self.prepared.is_textured() || inspect.is_some() || !s_triangles.is_empty();
         // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
         // rounds it): receivers on an occluder's own surface then see its
         // edges from the same side of its faces as the reference's rays.
@@ -418,6 +415,13 @@ impl LightPass<'_, '_> {
             .pattern
             .jittered(pixel)
             .filter(|(strata, _)| chart_rows_apply(*strata, n));
+        // The direct light of an untextured rect light straight from the
+        // chart points the counts use: no world points.
+        let chart_direct = rect
+            && direct
+            && !self.prepared.is_textured()
+            && inspect.is_none()
+            && s_triangles.is_empty();
         if let (true, Some((strata, key))) = (rect, rows) {
             // The same points, four cells at a time.
             let a = strata.a;
@@ -435,6 +439,10 @@ impl LightPass<'_, '_> {
                 .chart
                 .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
         }
+        if rect && rect_samples && !chart_direct {
+            self.sampler
+                .samples_with(&self.pattern, position, pixel, &mut scratch.samples);
+        }
         let count = scratch.chart.len();
         scratch.attenuation.clear();
         if semi_opaque {
@@ -449,8 +457,14 @@ impl LightPass<'_, '_> {
             }
         };
         // Only counts are read back where nothing else is per sample, so
-        // the counters may follow the sectors' order there.
-        let sorted = !per_sample
+        // the counters may follow the sectors' order there; so may the
+        // direct light from the chart points, from the points in that
+        // order (one opaque group, no lobe: where it applies).
+        let shading = chart_direct.then(&sp);
+        let sorted_direct = shading
+            .as_ref()
+            .is_some_and(|s| !semi_opaque && s.specular == Vec3::ZERO);
+        let sorted = (!per_sample || sorted_direct)
             && table.is_none()
             && scratch.effective.len() >= SECTOR_MIN
             && scratch.sectors.set(&scratch.chart);
@@ -585,8 +599,53 @@ impl LightPass<'_, '_> {
             // estimate converges to it; this has no variance).
             self.prepared.unshadowed_direct(&sp())
         } else if direct {
-            self.prepared
-                .direct_from_samples(&sp(), &scratch.samples, &scratch.visibility)
+            let sp = shading.unwrap_or_else(sp);
+            let points = if sorted {
+                scratch.sectors.points()
+            } else {
+                scratch.chart.padded_points()
+            };
+            let from_chart = chart_direct
+                .then(|| {
+                    self.prepared
+                        .direct_from_rect_chart(&sp, points, &scratch.visibility)
+                })
+                .flatten();
+            match from_chart {
+                Some(radiance) => radiance,
+                None => {
+                    // A specular lobe, or a receiver the chart's units do
+                    // not suit: the samples, with their visibilities in
+                    // the samples' order.
+                    if sorted {
+                        let span = scratch.spans[0];
+                        let counts = &mut scratch.layers;
+                        counts.clear();
+                        counts.resize(scratch.chart.padded(), span.start);
+                        for (edge, delta) in &scratch.effective[span.first..span.end] {
+                            add_covered(counts, &scratch.chart, edge, *delta);
+                        }
+                        scratch.visibility.clear();
+                        scratch.visibility.extend(counts[..count].iter().map(|&c| {
+                            if c <= 0 {
+                                1.0
+                            } else {
+                                0.0
+                            }
+                        }));
+                    }
+                    if scratch.samples.is_empty() {
+                        self.sampler.samples_with(
+                            &self.pattern,
+                            position,
+                            pixel,
+                            &mut scratch.samples,
+                        );
+                    }
+                    self.prepared
+                        .direct_from_samples(&sp, &scratch.samples, &scratch.visibility)
+                }
+            }
         } else if self.prepared.is_textured() {
             // Eq. 4.2: each sample's visibility weighted by its emitted
             // radiance, per channel, normalised so that a fully visible
