@@ -124,7 +124,8 @@ def run_peer(a, py, size, out):
            "--penumbra", a.penumbra, "--penumbra-runs", ",".join(f"{a.technique_name}:{n}" +
                                                                   (f":{a.technique_args}" if a.technique_args else "")
                                                                   for n in a.samples),
-           "--mitsuba-spp", spp_for(a.mitsuba_spp, size), "--cycles-spp", spp_for(a.cycles_spp, size), "--gt-samples", str(a.gt_samples)]
+           "--mitsuba-spp", spp_for(a.mitsuba_spp, size), "--cycles-spp", spp_for(a.cycles_spp, size), "--gt-samples", str(a.gt_samples),
+           "--normal-deg", str(a.normal_deg)]
     print(f"## {size}²: {shlex.join(cmd)}", file=sys.stderr, flush=True)
     t0 = time.monotonic()
     with open(os.path.join(out, "peer.log"), "w") as log:
@@ -214,7 +215,8 @@ def render(meta):
            f"- command: `{meta['command']}`",
            f"- peers: {versions(meta)}",
            f"- peer settings measured: {spp}; {meta['reps']} interleaved repetitions (medians), "
-           f"{meta['threads']} threads each; ground truth `reference --samples {meta['gt_samples']}`",
+           f"{meta['threads']} threads each; ground truth `reference --samples {meta['gt_samples']}`; "
+           f"mask: normals within {meta.get('normal_deg', 20):g}° of their neighbours",
            f"- run time: " + ", ".join(f"{s}² {t:.0f} s" for s, t in meta.get("elapsed", {}).items()),
            "",
            "penumbra's FLIP and RMSE on the masked interior against the ground truth; each peer's cell is "
@@ -254,6 +256,10 @@ def main():
     ap.add_argument("--metrics", nargs="+", default=["flip_m", "rmse_m"], choices=list(METRICS),
                     help="errors of the table (default flip_m rmse_m: FLIP and RMSE on the masked "
                          "interior; rmse_s: RMSE on the 1° mask, without flat-shaded facet edges)")
+    ap.add_argument("--normal-deg", type=float, default=20,
+                    help="the mask's normal threshold in degrees (the peer's --normal-deg): 1 leaves out "
+                         "the facet edges of flat-shaded meshes such as the bunny, across which the peers "
+                         "average the pixel's area and penumbra takes its centre (default %(default)s)")
     ap.add_argument("--out", required=True, help="output folder (one subfolder per size)")
     ap.add_argument("--table-only", action="store_true", help="print the table of an existing --out")
     a = ap.parse_args()
@@ -286,7 +292,8 @@ def main():
                                        if os.path.abspath(sys.argv[0]).startswith(ROOT) else sys.argv[0],
                                        *sys.argv[1:]]),
                 "load_before": loadavg(), "sizes": a.sizes, "reps": a.reps, "threads": a.threads,
-                "gt_samples": a.gt_samples, "metrics": a.metrics, "out": out, "elapsed": {}}
+                "gt_samples": a.gt_samples, "metrics": a.metrics, "out": out, "elapsed": {},
+                "normal_deg": a.normal_deg}
         os.makedirs(out, exist_ok=True)
         for size in a.sizes:
             meta["elapsed"][str(size)] = run_peer(a, py, size, os.path.join(out, str(size)))
