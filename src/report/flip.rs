@@ -28,8 +28,8 @@ pub const FLIP_PERCENTILES: [f64; 3] = [0.5, 0.9, 0.99];
 ///
 /// The mean is summed in `f64` in pixel order (the same bits every run);
 /// the percentiles are FLIP's own pooling (`FlipPool::get_percentile`
-/// unweighted: the nearest-rank value of the sorted errors), the maximum
-/// its largest value. An empty set gives zeros.
+/// unweighted: the nearest-rank value of the sorted errors); the maximum is
+/// the largest value. An empty set gives zeros.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct FlipMetrics {
     /// Pixels pooled.
@@ -157,13 +157,17 @@ fn pool(values: &[f32]) -> FlipMetrics {
     let row = nv_flip::FlipImageFloat::with_data(width, 1, values);
     let mut pool = nv_flip::FlipPool::from_image(&row);
     let [p50, p90, p99] = FLIP_PERCENTILES.map(|p| f64::from(pool.get_percentile(p as f32, false)));
+    // Our own maximum: FLIP's pool starts its maximum at the smallest
+    // positive float (`numeric_limits<float>::min()`), so an all-zero map
+    // would report 1.2e-38.
+    let max = values.iter().fold(0.0f32, |m, &v| m.max(v));
     FlipMetrics {
         count,
         mean,
         p50,
         p90,
         p99,
-        max: f64::from(pool.max_value()),
+        max: f64::from(max),
     }
 }
 
