@@ -204,8 +204,9 @@ enum Command {
         #[arg(long, conflicts_with = "markdown")]
         names: bool,
     },
-    /// Error metrics between two images (PNG or EXR); exits with 1 when a
-    /// tolerance is exceeded, 2 on an error.
+    /// Error metrics between two images (PNG or EXR), and with --flip the
+    /// perceptual FLIP error; exits with 1 when a tolerance is exceeded, 2
+    /// on an error.
     Diff {
         /// First image (the one under test).
         a: PathBuf,
@@ -230,6 +231,20 @@ enum Command {
         /// Fail when the RMSE over all compared values exceeds this.
         #[arg(long)]
         rmse: Option<f64>,
+        /// Also FLIP (NVlabs' perceptual error, 0..1) between the images'
+        /// R, G, B: both tone-mapped as the PNG output (clamped, sRGB,
+        /// 8-bit), 67 pixels per degree; A is the test, B the reference;
+        /// pooled over the --mask pixels if given. Prints its mean,
+        /// percentiles and max.
+        #[arg(long)]
+        flip: bool,
+        /// Fail (exit 1) when the FLIP mean exceeds this (implies --flip).
+        #[arg(long, value_name = "X")]
+        flip_threshold: Option<f64>,
+        /// Write FLIP's error map here as a PNG in its magma colours
+        /// (implies --flip); never over an input.
+        #[arg(long, value_name = "OUT.png")]
+        flip_map: Option<PathBuf>,
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
@@ -538,9 +553,16 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             mask_channel,
             max_abs,
             rmse,
+            flip,
+            flip_threshold,
+            flip_map,
             json,
         } => {
-            for (name, v) in [("--max-abs", max_abs), ("--rmse", rmse)] {
+            for (name, v) in [
+                ("--max-abs", max_abs),
+                ("--rmse", rmse),
+                ("--flip-threshold", flip_threshold),
+            ] {
                 if let Some(v) = v {
                     if !(v >= 0.0) || !v.is_finite() {
                         return Err(Error::param(
@@ -560,6 +582,9 @@ pub fn run(cli: Cli) -> Result<Outcome> {
                     mask_channel,
                     max_abs,
                     rmse,
+                    flip,
+                    flip_threshold,
+                    flip_map,
                 },
             )?;
             if json {

@@ -3,7 +3,7 @@
 
 mod common;
 
-use penumbra::compare::{compare_scene, CompareOptions, SceneComparison};
+use penumbra::compare::{compare_scene, CompareOptions, RunResult, SceneComparison};
 use penumbra::render::Technique;
 use penumbra::report::Progress;
 use std::path::Path;
@@ -122,6 +122,33 @@ fn compare_measures_every_setting_and_caches_the_reference() {
     // reference runs cannot both dominate each other.
     assert!(r4.pareto, "the fastest sampled run is on the front");
 
+    // The image's error: FLIP over the whole frame and the interior, and
+    // radiance over the interior's shading points; converging with the
+    // samples like the Vcoef error.
+    let pixels = u64::from(first.width) * u64::from(first.height);
+    assert!(first.interior_points > 0 && first.interior_points < first.shading_points);
+    for r in &first.runs {
+        assert_eq!(r.flip.all.count, pixels);
+        assert_eq!(r.flip.interior.count, first.interior_points);
+        assert_eq!(r.radiance.interior.count, 3 * first.interior_points);
+        let f = r.flip.all;
+        assert!(0.0 < f.mean && f.p50 <= f.p90 && f.p90 <= f.p99 && f.p99 <= f.max);
+    }
+    for flip in [
+        |r: &RunResult| r.flip.all.mean,
+        |r: &RunResult| r.flip.interior.mean,
+    ] {
+        assert!(flip(r64) < flip(r4), "{} vs {}", flip(r64), flip(r4));
+    }
+    assert!(first.reference.flip_halves.all.mean > 0.0);
+    for chart in [
+        "flip_vs_time.png",
+        "flip_vs_time_interior.png",
+        "radiance_vs_time.png",
+    ] {
+        assert!(out.join(chart).exists(), "{chart}");
+    }
+
     // Same scene, same options: read from the cache, same numbers.
     let second = run("compare-b", &quad_toml(1.0), &opts, &dir.join("out2"));
     assert!(second.reference.from_cache);
@@ -129,6 +156,8 @@ fn compare_measures_every_setting_and_caches_the_reference() {
     for (a, b) in first.runs.iter().zip(&second.runs) {
         assert_eq!(a.vcoef, b.vcoef, "{} {}", a.technique, a.setting);
         assert_eq!(a.radiance, b.radiance);
+        // FLIP gives the same bits every time.
+        assert_eq!(a.flip, b.flip);
     }
 
     // A changed scene misses the cache.
@@ -214,6 +243,37 @@ fn compare_command_writes_tables_chart_and_report() {
         md.contains("](../out/error_vs_time.png)"),
         "links relative to the report:\n{md}"
     );
+    // The image's error first (radiance RMSE and FLIP, whole image and
+    // interior, with its chart), then the Vcoef table.
+    let image = md.find("### Image error").expect("the image's table");
+    let vcoef = md.find("### Visibility (Vcoef)").expect("the Vcoef table");
+    assert!(image < vcoef, "{md}");
+    let header = md[image..vcoef]
+        .lines()
+        .find(|l| l.starts_with("| technique"))
+        .unwrap();
+    for column in [
+        "radiance RMSE",
+        "RMSE (interior)",
+        "FLIP mean",
+        "FLIP p50 / p90 / p99",
+        "FLIP max",
+        "FLIP mean (interior)",
+        "FLIP p50 / p90 / p99 (interior)",
+    ] {
+        assert!(
+            header.contains(&format!("| {column} |")),
+            "{column}: {header}"
+        );
+    }
+    assert!(
+        md[image..vcoef].contains("](../out/flip_vs_time.png)"),
+        "{md}"
+    );
+    assert!(md[vcoef..].contains("| Vcoef RMSE |"), "{md}");
+    assert!(!md[vcoef..].contains("FLIP"), "{md}");
+    assert!(csv.contains(",flip,all,") && csv.contains(",flip,interior,"));
+    assert!(csv.contains(",radiance,interior,"));
     assert!(out.join("results.md").exists());
     let chart = image::open(out.join("error_vs_time.png")).expect("chart is a PNG");
     assert!(chart.width() >= 400);

@@ -104,13 +104,16 @@ fn partial(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-const ERROR_COLUMNS: [&str; 6] = [
+const ERROR_COLUMNS: [&str; 9] = [
     "count",
     "rmse",
     "mean_abs",
     "max_abs",
     "frac_over",
     "non_finite",
+    "p50",
+    "p90",
+    "p99",
 ];
 
 #[test]
@@ -217,18 +220,31 @@ fn three_shards_merge_to_the_unsharded_numbers() {
             compared += 1;
         }
         assert_eq!(ra["samples"], rb["samples"]);
-        if key.1 != "reference-floor" {
+        if key.1 != "reference-floor" && key.1 != "reference-halves" {
             assert!(!rb["host"].is_empty(), "{key:?}");
             assert!(rb["median_ms"].parse::<f64>().unwrap() > 0.0);
         }
     }
     assert!(compared > 100, "{compared} error values compared");
     assert!(b.keys().any(|k| k.3 == "vcoef" && k.4 == "penumbra"));
+    // FLIP too (whole frame and interior), from the partials exactly.
+    for region in ["all", "interior"] {
+        assert!(
+            b.iter().any(|(k, r)| k.1 == "reference"
+                && k.3 == "flip"
+                && k.4 == region
+                && !r["p99"].is_empty()),
+            "{region}"
+        );
+    }
 
     // The same images, heat maps and charts, in the same places; the
     // markdown report regenerates the sweep without --shard.
     for scene in ["quad", "thin-occluder"] {
         for rel in [
+            "flip_vs_time.png",
+            "flip_vs_time_interior.png",
+            "radiance_vs_time.png",
             "error_vs_time.png",
             "error_vs_time_all.png",
             "images/reference.png",
@@ -389,6 +405,22 @@ fn partials_of_different_sweeps_are_refused_with_the_reason() {
     let (code, msg) = run(&merge);
     assert_eq!(code, Some(2), "{msg}");
     assert!(msg.contains("scene quad has different contents"), "{msg}");
+
+    // A partial of the format before FLIP (no FLIP, no interior): refused
+    // as such, never merged with missing figures.
+    let mut old = partial(&shards.join("shard-1-of-2.json"));
+    old["format"] = 1.into();
+    for r in old["runs"].as_array_mut().unwrap() {
+        r.as_object_mut().unwrap().remove("flip");
+    }
+    std::fs::write(&s2, serde_json::to_string(&old).unwrap()).unwrap();
+    let (code, msg) = run(&merge);
+    assert_eq!(code, Some(2), "{msg}");
+    assert!(
+        msg.contains("partial format 1 (this penumbra reads 2)"),
+        "{msg}"
+    );
+    std::fs::write(&s2, serde_json::to_string(&p).unwrap()).unwrap();
 
     // Partials of another shard count in the same directory.
     ok(&sweep(

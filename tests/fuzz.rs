@@ -1069,7 +1069,7 @@ fn print_cli_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
     let mut args: Vec<String> = vec!["penumbra".into(), "diff".into()];
     args.push(pick(rng, &images));
     args.push(pick(rng, &images));
-    let options: [(&str, &[&str]); 7] = [
+    let options: [(&str, &[&str]); 10] = [
         (
             "--channels-a",
             &["R", "R,G,B", "mask.Y", "depth.Z,R", "X", "", ",", "R,R"],
@@ -1080,12 +1080,20 @@ fn print_cli_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
         ("--rmse", &["0", "1e-9", "-0", "NaN", "-inf"]),
         ("--mask", &[]),
         ("--json", &[]),
+        ("--flip", &[]),
+        ("--flip-threshold", &["0", "0.05", "1", "-1", "nan", "inf"]),
+        ("--flip-map", &[]),
     ];
     for (name, values) in options {
         if rng.range(0, 2) == 0 {
             args.push(name.to_string());
             match name {
                 "--mask" => args.push(pick(rng, &images)),
+                // A new map, or onto an input (refused).
+                "--flip-map" => args.push(match rng.range(0, 2) {
+                    0 => pick(rng, &images),
+                    _ => case.dir.join("map.png").display().to_string(),
+                }),
                 _ if !values.is_empty() => args.push(one(rng, values).to_string()),
                 _ => {}
             }
@@ -1920,7 +1928,7 @@ fn option_values(sub: &str, long: &str, arg: &clap::Arg, case: &Case) -> Vec<Str
     }
     match long {
         "out" | "output" | "exr" | "report" | "log-dir" | "cache-dir" | "render" | "mask"
-        | "merge" => {
+        | "merge" | "flip-map" => {
             let mut p = vec![
                 d("out"),
                 d("o.png"),

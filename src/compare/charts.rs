@@ -1,5 +1,6 @@
 //! `compare`'s pictures: each run's image and Vcoef error heat maps, the
-//! error-vs-time chart points, their Pareto front and the charts.
+//! error-vs-time chart points, their Pareto fronts and the charts: the
+//! image's error first (FLIP, radiance RMSE), then Vcoef's.
 
 use super::reference::ReferenceImages;
 use super::run::RunResult;
@@ -61,6 +62,85 @@ pub(super) fn write_run_images(
         heatmaps.push(rel);
     }
     Ok((image, heatmaps))
+}
+
+/// The image's error-vs-time charts, relative to the output directory
+/// (`None` without a run).
+pub(super) struct ImageCharts {
+    /// FLIP mean over the whole frame.
+    pub flip: Option<String>,
+    /// FLIP mean over the interior.
+    pub flip_interior: Option<String>,
+    /// Radiance RMSE over all shading points.
+    pub radiance: Option<String>,
+}
+
+/// Marks the runs on the Pareto front of (time, FLIP mean) and writes the
+/// image's error-vs-time charts into `out`: FLIP mean over the whole frame
+/// (`flip_vs_time.png`) and over the interior (`flip_vs_time_interior.png`),
+/// and radiance RMSE over all shading points (`radiance_vs_time.png`,
+/// with the reference's noise floor `floor_radiance`). Every run has an
+/// image, so every run is charted.
+pub(super) fn image_charts(
+    out: &Path,
+    scene_name: &str,
+    runs: &mut [RunResult],
+    floor_radiance: f64,
+) -> Result<ImageCharts> {
+    let points = |error: &dyn Fn(&RunResult) -> f64| -> Vec<ChartPoint> {
+        runs.iter()
+            .map(|r| ChartPoint {
+                technique: r.technique.clone(),
+                label: r.setting.clone(),
+                seconds: r.median_ms / 1e3,
+                error: error(r),
+            })
+            .collect()
+    };
+    let flip = points(&|r| r.flip.all.mean);
+    let flip_interior = points(&|r| r.flip.interior.mean);
+    let radiance = points(&|r| r.radiance.all.rmse);
+    for (r, front) in runs.iter_mut().zip(pareto_front(&flip)) {
+        r.pareto_flip = front;
+    }
+    if runs.is_empty() {
+        return Ok(ImageCharts {
+            flip: None,
+            flip_interior: None,
+            radiance: None,
+        });
+    }
+    let charts = [
+        (
+            "flip_vs_time.png",
+            format!("{scene_name}: FLIP (whole image) vs time"),
+            "FLIP mean (whole image)",
+            &flip,
+            None,
+        ),
+        (
+            "flip_vs_time_interior.png",
+            format!("{scene_name}: FLIP away from geometric edges vs time"),
+            "FLIP mean (interior)",
+            &flip_interior,
+            None,
+        ),
+        (
+            "radiance_vs_time.png",
+            format!("{scene_name}: radiance error vs time"),
+            "radiance RMSE (all shading points)",
+            &radiance,
+            Some(floor_radiance),
+        ),
+    ];
+    for (file, title, y_label, points, floor) in &charts {
+        write_error_vs_time(&out.join(file), title, y_label, points, *floor)?;
+    }
+    Ok(ImageCharts {
+        flip: Some(charts[0].0.to_string()),
+        flip_interior: Some(charts[1].0.to_string()),
+        radiance: Some(charts[2].0.to_string()),
+    })
 }
 
 /// The error-vs-time points of the runs with a Vcoef for every light, with

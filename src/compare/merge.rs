@@ -61,6 +61,24 @@ fn read_partials(dirs: &[PathBuf]) -> Result<Vec<(Partial, PathBuf, PathBuf)>> {
         for name in names {
             let path = dir.join(&name);
             let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+            // The format first: a partial of another format is refused as
+            // such (re-run its shard), not read with missing figures.
+            #[derive(serde::Deserialize)]
+            struct Format {
+                format: u32,
+            }
+            if let Ok(Format { format }) = serde_json::from_str::<Format>(&text) {
+                if format != PARTIAL_FORMAT {
+                    return Err(Error::file(
+                        &path,
+                        None,
+                        format!(
+                            "partial format {format} (this penumbra reads {PARTIAL_FORMAT}): \
+                             re-run this shard with this penumbra"
+                        ),
+                    ));
+                }
+            }
             let partial: Partial = serde_json::from_str(&text).map_err(|e| {
                 Error::file(
                     &path,

@@ -6,6 +6,13 @@
 //! differences of the shadow term alone (plus, for radiance, the error of
 //! modulating unshadowed light by Vcoef).
 //!
+//! The headline error is the image's: radiance RMSE, and FLIP of the image
+//! tone-mapped as the PNG output against the reference's
+//! ([`crate::report::flip`]), over the whole frame and over the interior
+//! (shading points away from geometric edges, [`crate::report::interior`],
+//! from a shadowless render's G-buffer of the same view). Vcoef errors
+//! follow as a second table.
+//!
 //! The reference is two independent half-sample references (different
 //! seeds). Their mean is the reference every technique is measured
 //! against; half their difference estimates the reference's own error (its
@@ -44,7 +51,7 @@ use crate::report::Progress;
 use crate::scene::Scene;
 use crate::shadow::kit::verify::check_verifiable;
 pub use reference::reference_only;
-use reference::{reference, NoiseFloors, ReferenceImages};
+use reference::{interior_of, reference, NoiseFloors, ReferenceImages};
 use run::{run_result, time_setting};
 use serde::Serialize;
 use std::path::Path;
@@ -64,13 +71,22 @@ pub struct SceneComparison {
     pub shading_points: u64,
     /// Per light: shading points in the reference's penumbra.
     pub penumbra_points: Vec<u64>,
+    /// Shading points in the interior (away from geometric edges).
+    pub interior_points: u64,
     /// The reference.
     pub reference: ReferenceSummary,
     /// Every run, in order.
     pub runs: Vec<RunResult>,
-    /// Error-vs-time chart (penumbra), relative to the output directory.
+    /// FLIP-vs-time chart (mean over the whole frame), relative to the
+    /// output directory.
+    pub chart_flip: Option<String>,
+    /// FLIP-vs-time chart (mean over the interior).
+    pub chart_flip_interior: Option<String>,
+    /// Radiance-RMSE-vs-time chart (all shading points).
+    pub chart_radiance: Option<String>,
+    /// Vcoef-error-vs-time chart (penumbra).
     pub chart: Option<String>,
-    /// Error-vs-time chart (all shading points).
+    /// Vcoef-error-vs-time chart (all shading points).
     pub chart_all: Option<String>,
 }
 
@@ -157,9 +173,9 @@ pub(crate) fn prepare_scene(
 ) -> Result<PreparedScene> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let (cached, key, from_cache) = reference(scene, options, progress)?;
-    let reference = ReferenceImages::new(&cached);
-    let floors = NoiseFloors::new(&cached, &reference);
+    let reference = ReferenceImages::new(&cached, &interior_of(scene, options)?);
     let (width, height) = (key.width, key.height);
+    let floors = NoiseFloors::new(&cached, &reference, (width, height));
     if options.images {
         let dir = out.join("images");
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
@@ -181,6 +197,7 @@ pub(crate) fn prepare_scene(
             .iter()
             .map(|p| p.iter().filter(|&&b| b).count() as u64)
             .collect(),
+        interior_points: reference.interior.iter().filter(|&&b| b).count() as u64,
         reference: ReferenceSummary {
             samples: options.reference_samples,
             seeds: key.seeds,
@@ -194,8 +211,12 @@ pub(crate) fn prepare_scene(
             floor_vcoef: floors.vcoef,
             floor_vcoef_all_lights: floors.vcoef_all_lights,
             floor_radiance: floors.radiance,
+            flip_halves: floors.flip_halves,
         },
         runs: Vec::new(),
+        chart_flip: None,
+        chart_flip_interior: None,
+        chart_radiance: None,
         chart: None,
         chart_all: None,
     };
@@ -237,7 +258,14 @@ pub(crate) fn finish_scene(
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     for r in &mut runs {
         r.pareto = false;
+        r.pareto_flip = false;
     }
+    let image = charts::image_charts(
+        out,
+        &header.scene,
+        &mut runs,
+        header.reference.floor_radiance.rmse_all,
+    )?;
     let floor = header.reference.floor_vcoef_all_lights;
     let (chart, chart_all) = charts::pareto_and_charts(
         out,
@@ -247,6 +275,9 @@ pub(crate) fn finish_scene(
     )?;
     Ok(SceneComparison {
         runs,
+        chart_flip: image.flip,
+        chart_flip_interior: image.flip_interior,
+        chart_radiance: image.radiance,
         chart,
         chart_all,
         ..header

@@ -9,8 +9,11 @@ use super::cache::{
 use super::run::RegionMetrics;
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
+use crate::output::srgb8;
 use crate::render::{render, Aov, RenderOptions, RenderOutput, Technique};
-use crate::report::{error_metrics, ErrorAccumulator, Progress};
+use crate::report::{
+    error_metrics, flip_rgb8, interior_mask, ErrorAccumulator, FlipRegions, Progress,
+};
 use crate::scene::Scene;
 use glam::Vec3;
 use serde::Serialize;
@@ -27,6 +30,10 @@ pub struct NoiseFloor {
     pub rmse_penumbra: f64,
     /// Estimated mean absolute error over the penumbra.
     pub mae_penumbra: f64,
+    /// Estimated RMSE over the interior.
+    pub rmse_interior: f64,
+    /// Estimated mean absolute error over the interior.
+    pub mae_interior: f64,
 }
 
 impl NoiseFloor {
@@ -37,6 +44,8 @@ impl NoiseFloor {
             mae_all: m.all.mean_abs / 2.0,
             rmse_penumbra: m.penumbra.rmse / 2.0,
             mae_penumbra: m.penumbra.mean_abs / 2.0,
+            rmse_interior: m.interior.rmse / 2.0,
+            mae_interior: m.interior.mean_abs / 2.0,
         }
     }
 }
@@ -60,10 +69,14 @@ pub struct ReferenceSummary {
     pub floor_vcoef_all_lights: NoiseFloor,
     /// Noise floor of radiance.
     pub floor_radiance: NoiseFloor,
+    /// FLIP of one half against the other (each with half the samples):
+    /// how visible the reference's own noise is at half its samples. Not
+    /// a floor (FLIP is not linear in the error), an indication.
+    pub flip_halves: FlipRegions,
 }
 
 /// The reference's noise floors: Vcoef per light and over all lights,
-/// and radiance.
+/// and radiance; and FLIP between its halves.
 pub(super) struct NoiseFloors {
     /// Vcoef per light.
     pub vcoef: Vec<NoiseFloor>,
@@ -71,23 +84,26 @@ pub(super) struct NoiseFloors {
     pub vcoef_all_lights: NoiseFloor,
     /// Radiance.
     pub radiance: NoiseFloor,
+    /// FLIP of the second half against the first.
+    pub flip_halves: FlipRegions,
 }
 
 impl NoiseFloors {
-    /// The floors of `cached`'s two halves over `reference`'s regions.
-    pub fn new(cached: &CachedReference, reference: &ReferenceImages) -> Self {
+    /// The floors of `cached`'s two halves (`width × height` images) over
+    /// `reference`'s regions.
+    pub fn new(
+        cached: &CachedReference,
+        reference: &ReferenceImages,
+        (width, height): (u32, u32),
+    ) -> Self {
         let halves = &cached.halves;
         let vcoef: Vec<NoiseFloor> = (0..reference.vcoef.len())
             .map(|k| {
-                let m = RegionMetrics {
-                    all: error_metrics(&halves[0].vcoef[k], &halves[1].vcoef[k], |i| {
-                        reference.surface[i]
-                    }),
-                    penumbra: error_metrics(&halves[0].vcoef[k], &halves[1].vcoef[k], |i| {
-                        reference.penumbra[k][i]
-                    }),
-                };
-                NoiseFloor::from_halves(m)
+                NoiseFloor::from_halves(reference.vcoef_metrics_of(
+                    k,
+                    &halves[0].vcoef[k],
+                    &halves[1].vcoef[k],
+                ))
             })
             .collect();
         let half_a: Vec<Option<&[f32]>> =
@@ -99,10 +115,19 @@ impl NoiseFloors {
         let radiance = NoiseFloor::from_halves(
             reference.radiance_metrics(&halves[0].radiance, &halves[1].radiance),
         );
+        let flip_halves = flip_rgb8(
+            &srgb8(&halves[0].radiance),
+            &srgb8(&halves[1].radiance),
+            width,
+            height,
+        )
+        .map(|map| map.regions(&reference.interior))
+        .unwrap_or_default();
         NoiseFloors {
             vcoef,
             vcoef_all_lights,
             radiance,
+            flip_halves,
         }
     }
 }
@@ -111,8 +136,13 @@ impl NoiseFloors {
 pub(super) struct ReferenceImages {
     /// Per pixel: it sees a surface.
     pub surface: Vec<bool>,
+    /// Per pixel: a surface away from geometric edges
+    /// ([`crate::report::interior`]).
+    pub interior: Vec<bool>,
     /// The halves' mean radiance.
     pub radiance: Vec<Vec3>,
+    /// `radiance` tone-mapped as the PNG output is (FLIP's reference).
+    pub rgb8: Vec<u8>,
     /// Per light: the halves' mean Vcoef.
     pub vcoef: Vec<Vec<f32>>,
     /// Per light: reference Vcoef strictly inside (0, 1).
@@ -122,11 +152,15 @@ pub(super) struct ReferenceImages {
 }
 
 impl ReferenceImages {
-    /// The mean of `cached`'s halves and its penumbra regions.
-    pub fn new(cached: &CachedReference) -> Self {
+    /// The mean of `cached`'s halves and its regions: penumbra, and
+    /// `interior` (shading points of the reference only).
+    pub fn new(cached: &CachedReference, interior: &[bool]) -> Self {
         let [a, b] = &cached.halves;
         let surface: Vec<bool> = cached.mask.iter().map(|&m| m > 0.5).collect();
-        let radiance = a
+        let interior = (0..surface.len())
+            .map(|i| surface[i] && interior.get(i).copied().unwrap_or(false))
+            .collect();
+        let radiance: Vec<Vec3> = a
             .radiance
             .iter()
             .zip(&b.radiance)
@@ -152,6 +186,8 @@ impl ReferenceImages {
             .collect();
         ReferenceImages {
             surface,
+            interior,
+            rgb8: srgb8(&radiance),
             radiance,
             vcoef,
             penumbra,
@@ -161,10 +197,17 @@ impl ReferenceImages {
 
     /// Light `k`'s Vcoef error of `test`.
     pub fn vcoef_metrics(&self, k: usize, test: &[f32]) -> RegionMetrics {
-        let (s, p) = (&self.surface, &self.penumbra[k]);
+        self.vcoef_metrics_of(k, test, &self.vcoef[k])
+    }
+
+    /// Light `k`'s Vcoef error of `test` against `against`, over light
+    /// `k`'s regions.
+    fn vcoef_metrics_of(&self, k: usize, test: &[f32], against: &[f32]) -> RegionMetrics {
+        let (s, p, n) = (&self.surface, &self.penumbra[k], &self.interior);
         RegionMetrics {
-            all: error_metrics(test, &self.vcoef[k], |i| s[i]),
-            penumbra: error_metrics(test, &self.vcoef[k], |i| p[i]),
+            all: error_metrics(test, against, |i| s[i]),
+            penumbra: error_metrics(test, against, |i| p[i]),
+            interior: error_metrics(test, against, |i| n[i]),
         }
     }
 
@@ -177,6 +220,7 @@ impl ReferenceImages {
     ) -> Option<RegionMetrics> {
         let mut all = ErrorAccumulator::default();
         let mut pen = ErrorAccumulator::default();
+        let mut inner = ErrorAccumulator::default();
         for (k, test) in tests.iter().enumerate() {
             let test = (*test)?;
             for (i, (&t, &r)) in test.iter().zip(&against[k]).enumerate() {
@@ -186,11 +230,15 @@ impl ReferenceImages {
                 if self.penumbra[k][i] {
                     pen.add(t as f64, r as f64);
                 }
+                if self.interior[i] {
+                    inner.add(t as f64, r as f64);
+                }
             }
         }
         Some(RegionMetrics {
             all: all.finish(),
             penumbra: pen.finish(),
+            interior: inner.finish(),
         })
     }
 
@@ -198,6 +246,7 @@ impl ReferenceImages {
     pub fn radiance_metrics(&self, test: &[Vec3], against: &[Vec3]) -> RegionMetrics {
         let mut all = ErrorAccumulator::default();
         let mut pen = ErrorAccumulator::default();
+        let mut inner = ErrorAccumulator::default();
         for (i, (t, r)) in test.iter().zip(against).enumerate() {
             for c in 0..3 {
                 if self.surface[i] {
@@ -206,11 +255,15 @@ impl ReferenceImages {
                 if self.penumbra_any[i] {
                     pen.add(t[c] as f64, r[c] as f64);
                 }
+                if self.interior[i] {
+                    inner.add(t[c] as f64, r[c] as f64);
+                }
             }
         }
         RegionMetrics {
             all: all.finish(),
             penumbra: pen.finish(),
+            interior: inner.finish(),
         }
     }
 }
@@ -226,6 +279,54 @@ pub(super) fn vcoef_of(out: &RenderOutput, k: usize, surface: &[bool]) -> Option
             .map(|(&v, &s)| if s { v } else { 0.0 })
             .collect(),
     )
+}
+
+/// The interior of `scene`'s frame at the comparison's size
+/// ([`crate::report::interior`]), from the G-buffer's depth, normals and
+/// mask: a render without shadows (`none`) of the same view, so the same
+/// G-buffer as the reference's and every run's. Not cached: it costs a
+/// G-buffer pass.
+pub(super) fn interior_of(scene: &Scene, options: &CompareOptions) -> Result<Vec<bool>> {
+    let out = render(
+        scene,
+        &RenderOptions {
+            width: options.width,
+            height: options.height,
+            aovs: vec![Aov::Depth, Aov::Normal, Aov::Mask],
+            technique: Technique::named("none")?,
+            ..RenderOptions::default()
+        },
+        &Progress::hidden(),
+    )?;
+    let channel = |layer: &str, c: &str| -> Result<&[f32]> {
+        out.layers
+            .iter()
+            .find(|l| l.name == layer)
+            .and_then(|l| l.channels.iter().find(|(n, _)| n == c))
+            .map(|(_, v)| v.as_slice())
+            .ok_or_else(|| Error::param("compare", format!("the G-buffer has no {layer}.{c}")))
+    };
+    let depth = channel("depth", "Z")?;
+    let (x, y, z) = (
+        channel("normal", "X")?,
+        channel("normal", "Y")?,
+        channel("normal", "Z")?,
+    );
+    let normal: Vec<[f32; 3]> = (0..depth.len()).map(|i| [x[i], y[i], z[i]]).collect();
+    let foreground: Vec<bool> = channel("mask", "Y")?.iter().map(|&m| m > 0.5).collect();
+    interior_mask(
+        out.width as usize,
+        out.height as usize,
+        depth,
+        &normal,
+        &foreground,
+    )
+    .ok_or_else(|| {
+        Error::param(
+            "compare",
+            "the G-buffer's layers are not of the image's size",
+        )
+    })
 }
 
 /// Computes (or reads from the cache) the reference for `scene`.

@@ -1,10 +1,11 @@
 //! `compare`'s result files: CSV (one row per run, quantity and region),
-//! JSON (everything) and a markdown report.
+//! JSON (everything) and a markdown report. The image's error (radiance
+//! RMSE, FLIP) comes first everywhere; Vcoef's follows.
 
 use super::{NoiseFloor, RegionMetrics, RunResult, SceneComparison};
 use crate::error::{Error, Result};
 use crate::output::write_atomically;
-use crate::report::{ErrorMetrics, VISIBLE_ERROR};
+use crate::report::{ErrorMetrics, FlipMetrics, FlipRegions, FLIP_PPD, VISIBLE_ERROR};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -20,10 +21,18 @@ fn is_common_pass(name: &str) -> bool {
 }
 
 /// Writes `results.csv`: one row per (scene, run, quantity, region), and
-/// rows for each reference's noise floor (technique `reference-floor`).
+/// rows for each reference's noise floor (technique `reference-floor`)
+/// and FLIP between its halves (technique `reference-halves`).
+///
+/// Quantities, in this order: `radiance` and `flip` (the image's error),
+/// then `vcoef.<k>` per light and `vcoef` (all lights). Regions: `all`
+/// (every shading point; for `flip` the whole frame), `penumbra` (not for
+/// `flip`) and `interior`. A `flip` row's `mean_abs` is the FLIP mean,
+/// `max_abs` its maximum and `p50, p90, p99` its percentiles (empty in
+/// other rows); its `rmse`, `frac_over` and `non_finite` are empty.
 pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
     let mut s = String::from(
-        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,host,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,pareto,verify_checked,verify_disagreements,verify_beyond_tie,verify_max_tie\n",
+        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,host,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,p50,p90,p99,pareto_flip,pareto,verify_checked,verify_disagreements,verify_beyond_tie,verify_max_tie\n",
     );
     for sc in scenes {
         for r in &sc.runs {
@@ -33,10 +42,10 @@ pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
                     v.checked, v.disagreements, v.beyond_tie, v.max_tie_distance
                 )
             });
-            let mut row = |quantity: &str, region: &str, m: &ErrorMetrics| {
+            let mut row = |quantity: &str, region: &str, cells: String| {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{:.4},{:.4},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{:e},{:e},{:e},{:e},{},{},{verify}",
+                    "{},{},{},{},{:.4},{:.4},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{cells},{},{},{verify}",
                     csv_field(&sc.scene),
                     csv_field(&r.technique),
                     csv_field(&r.setting),
@@ -52,38 +61,43 @@ pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
                     r.pass_ms(|n| n == "shading"),
                     quantity,
                     region,
-                    m.count,
-                    m.rmse,
-                    m.mean_abs,
-                    m.max_abs,
-                    m.frac_over,
-                    m.non_finite,
+                    r.pareto_flip,
                     r.pareto
                 );
             };
-            let mut both = |quantity: &str, m: &RegionMetrics| {
-                row(quantity, "all", &m.all);
-                row(quantity, "penumbra", &m.penumbra);
+            let regions = |quantity: String, m: &RegionMetrics| {
+                [
+                    (quantity.clone(), "all", error_cells(&m.all)),
+                    (quantity.clone(), "penumbra", error_cells(&m.penumbra)),
+                    (quantity, "interior", error_cells(&m.interior)),
+                ]
             };
+            let mut rows: Vec<(String, &str, String)> = Vec::new();
+            rows.extend(regions("radiance".into(), &r.radiance));
+            rows.push(("flip".into(), "all", flip_cells(&r.flip.all)));
+            rows.push(("flip".into(), "interior", flip_cells(&r.flip.interior)));
             for (k, m) in r.vcoef.iter().enumerate() {
                 if let Some(m) = m {
-                    both(&format!("vcoef.{k}"), m);
+                    rows.extend(regions(format!("vcoef.{k}"), m));
                 }
             }
             if let Some(m) = &r.vcoef_all_lights {
-                both("vcoef", m);
+                rows.extend(regions("vcoef".into(), m));
             }
-            both("radiance", &r.radiance);
+            for (quantity, region, cells) in rows {
+                row(&quantity, region, cells);
+            }
         }
         let floor = &sc.reference;
         let mut floor_row = |quantity: &str, f: &NoiseFloor| {
             for (region, rmse, mae) in [
                 ("all", f.rmse_all, f.mae_all),
                 ("penumbra", f.rmse_penumbra, f.mae_penumbra),
+                ("interior", f.rmse_interior, f.mae_interior),
             ] {
                 let _ = writeln!(
                     s,
-                    "{},reference-floor,{} spp,{},,,,,,,,,,{},{},,{:e},{:e},,,,,,,,",
+                    "{},reference-floor,{} spp,{},,,,,,,,,,{},{},,{:e},{:e},,,,,,,,,,,,",
                     csv_field(&sc.scene),
                     floor.samples,
                     floor.samples,
@@ -94,13 +108,44 @@ pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
                 );
             }
         };
+        floor_row("radiance", &floor.floor_radiance);
         for (k, f) in floor.floor_vcoef.iter().enumerate() {
             floor_row(&format!("vcoef.{k}"), f);
         }
         floor_row("vcoef", &floor.floor_vcoef_all_lights);
-        floor_row("radiance", &floor.floor_radiance);
+        for (region, m) in [
+            ("all", &floor.flip_halves.all),
+            ("interior", &floor.flip_halves.interior),
+        ] {
+            let _ = writeln!(
+                s,
+                "{},reference-halves,{} spp vs {} spp,{},,,,,,,,,,flip,{region},{},,,,,,",
+                csv_field(&sc.scene),
+                floor.samples / 2,
+                floor.samples / 2,
+                floor.samples / 2,
+                flip_cells(m)
+            );
+        }
     }
     write_text(path, &s)
+}
+
+/// `count,rmse,mean_abs,max_abs,frac_over,non_finite,p50,p90,p99` of a
+/// per-value error.
+fn error_cells(m: &ErrorMetrics) -> String {
+    format!(
+        "{},{:e},{:e},{:e},{:e},{},,,",
+        m.count, m.rmse, m.mean_abs, m.max_abs, m.frac_over, m.non_finite
+    )
+}
+
+/// The same cells of a FLIP error (mean as `mean_abs`, max as `max_abs`).
+fn flip_cells(m: &FlipMetrics) -> String {
+    format!(
+        "{},,{:e},{:e},,,{:e},{:e},{:e}",
+        m.count, m.mean, m.max, m.p50, m.p90, m.p99
+    )
 }
 
 fn csv_field(s: &str) -> String {
@@ -144,6 +189,9 @@ fn percent(x: f64) -> String {
 /// Writes the markdown report. `scenes` pairs each comparison with the path
 /// of its output directory relative to the report's directory (for image
 /// links); `command` is the command line that regenerates the report.
+///
+/// Per scene, the image's error first (radiance RMSE and FLIP, with the
+/// FLIP-vs-time chart), then the visibility (Vcoef) table.
 pub fn write_markdown(
     path: &Path,
     scenes: &[(SceneComparison, String)],
@@ -160,17 +208,28 @@ pub fn write_markdown(
         s,
         "Each technique renders the scene at the same receiver points (the same \
          G-buffer) as the ray-traced reference. Times are wall-clock medians of \
-         whole renders (scene loading excluded) on this machine, with the share of \
-         the geometry + G-buffer passes, the shadow technique's passes and shading. \
-         Errors: RMSE / mean absolute / max absolute error of the visibility \
-         coefficient (Vcoef, all lights together) and of linear radiance (R, G, B \
-         together), over all shading points and over the penumbra only (pixels \
-         whose reference Vcoef is strictly between 0 and 1, as Atty et al. \
-         measure); \"> 1/255\" is the share of penumbra values off by more than \
-         {VISIBLE_ERROR:.5}. A `*` marks an error at or below the reference's own \
-         noise floor (estimated from two independent half-sample references): the \
-         reference cannot tell it from zero. Pareto: no other run is both faster \
-         and more accurate in the penumbra.\n"
+         whole renders (scene loading excluded) on this machine.\n\n\
+         **The image's error** comes first: the RMSE of linear radiance (R, G, B \
+         together) over all shading points, over the interior and over the \
+         penumbra, and FLIP (NVlabs' perceptual error, 0 to 1) between the image \
+         and the reference's, both tone-mapped as the PNG output (clamped to \
+         [0, 1], sRGB, 8-bit) and seen at {FLIP_PPD} pixels per degree: its mean, \
+         percentiles and maximum over the whole frame and over the interior. The \
+         interior is the shading points farther than 2 pixels from the background \
+         and from depth and normal discontinuities, where the error is the \
+         shading's rather than a silhouette's. Pareto (image): no other run is \
+         both faster and lower in FLIP mean.\n\n\
+         **Visibility** follows: the shares of the geometry + G-buffer passes, \
+         the shadow technique's passes and shading, and RMSE / mean absolute / \
+         max absolute error of the visibility coefficient (Vcoef, all lights \
+         together) over all shading points, over the penumbra only (pixels whose \
+         reference Vcoef is strictly between 0 and 1, as Atty et al. measure) and \
+         over the interior; \"> 1/255\" is the share of penumbra values off by \
+         more than {VISIBLE_ERROR:.5}. Pareto (Vcoef): no other run is both faster \
+         and more accurate in the penumbra.\n\n\
+         A `*` marks an error at or below the reference's own noise floor \
+         (estimated from two independent half-sample references): the reference \
+         cannot tell it from zero.\n"
     );
     for (sc, dir) in scenes {
         let link = |rel: &str| {
@@ -198,12 +257,17 @@ pub fn write_markdown(
             .collect();
         let r = &sc.reference;
         let f = &r.floor_vcoef_all_lights;
+        let fr = &r.floor_radiance;
         let _ = writeln!(
             s,
-            "{} shading points; in penumbra: {}.\n\nReference: {} samples per light \
-             (two halves of {}), {:.1} s{}. Its noise floor: Vcoef RMSE {} over all \
-             points, {} in the penumbra; radiance RMSE {} / {}.\n",
+            "{} shading points; interior: {} ({}); in penumbra: {}.\n\nReference: {} \
+             samples per light (two halves of {}), {:.1} s{}. Its noise floor: radiance \
+             RMSE {} over all points, {} in the interior, {} in the penumbra; Vcoef \
+             RMSE {} / {} / {}. FLIP between its two halves ({} samples each): mean {} \
+             (interior {}).\n",
             sc.shading_points,
+            sc.interior_points,
+            percent(sc.interior_points as f64 / sc.shading_points.max(1) as f64),
             if pen.is_empty() {
                 "no lights".to_string()
             } else {
@@ -217,11 +281,48 @@ pub fn write_markdown(
             } else {
                 ""
             },
+            err(fr.rmse_all, None),
+            err(fr.rmse_interior, None),
+            err(fr.rmse_penumbra, None),
             err(f.rmse_all, None),
+            err(f.rmse_interior, None),
             err(f.rmse_penumbra, None),
-            err(r.floor_radiance.rmse_all, None),
-            err(r.floor_radiance.rmse_penumbra, None),
+            r.samples / 2,
+            err(r.flip_halves.all.mean, None),
+            err(r.flip_halves.interior.mean, None),
         );
+
+        // The image's error.
+        let _ = writeln!(s, "### Image error\n");
+        if let Some(c) = &sc.chart_flip {
+            let _ = writeln!(
+                s,
+                "![FLIP over the whole image against time]({})\n",
+                link(c)
+            );
+        }
+        let _ = writeln!(
+            s,
+            "| technique | setting | time (ms) | radiance RMSE | RMSE (interior) | RMSE (penumbra) | FLIP mean | FLIP p50 / p90 / p99 | FLIP max | FLIP mean (interior) | FLIP p50 / p90 / p99 (interior) | Pareto |"
+        );
+        let _ = writeln!(s, "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|");
+        for run in &sc.runs {
+            image_row(&mut s, run, sc);
+        }
+        let _ = writeln!(s);
+        let charts: Vec<String> = [
+            ("FLIP in the interior", &sc.chart_flip_interior),
+            ("radiance RMSE", &sc.chart_radiance),
+        ]
+        .iter()
+        .filter_map(|(what, c)| c.as_ref().map(|c| format!("[{what}]({})", link(c))))
+        .collect();
+        if !charts.is_empty() {
+            let _ = writeln!(s, "Against time, also: {}.\n", charts.join(", "));
+        }
+
+        // Visibility.
+        let _ = writeln!(s, "### Visibility (Vcoef)\n");
         if let Some(c) = &sc.chart {
             let _ = writeln!(
                 s,
@@ -233,18 +334,18 @@ pub fn write_markdown(
         let verified = sc.runs.iter().any(|r| r.verify.is_some());
         let _ = writeln!(
             s,
-            "| technique | setting | time (ms) | G-buffer | shadows | shading | Vcoef RMSE | Vcoef RMSE (penumbra) | MAE (penumbra) | max abs | > 1/255 (penumbra) | radiance RMSE | radiance RMSE (penumbra) | Pareto |{}",
+            "| technique | setting | time (ms) | G-buffer | shadows | shading | Vcoef RMSE | Vcoef RMSE (penumbra) | MAE (penumbra) | max abs | > 1/255 (penumbra) | Vcoef RMSE (interior) | Pareto |{}",
             if verified { " verify: disagreeing / checked (beyond tie), max tie |" } else { "" }
         );
         let _ = writeln!(
             s,
-            "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|{}",
+            "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|{}",
             if verified { "--:|" } else { "" }
         );
         for run in &sc.runs {
-            row(&mut s, run, sc);
+            vcoef_row(&mut s, run, sc);
             if verified {
-                // `row` ends the line with `|\n`: append the cell.
+                // `vcoef_row` ends the line with `|\n`: append the cell.
                 s.pop();
                 let cell = run.verify.as_ref().map_or("—".to_string(), |v| v.cell());
                 let _ = writeln!(s, " {cell} |");
@@ -274,30 +375,61 @@ pub fn write_markdown(
     write_text(path, &s)
 }
 
-fn row(s: &mut String, run: &RunResult, sc: &SceneComparison) {
-    let f = &sc.reference.floor_vcoef_all_lights;
+/// `p50 / p90 / p99` of a FLIP error.
+fn percentiles(m: &FlipMetrics) -> String {
+    format!(
+        "{} / {} / {}",
+        err(m.p50, None),
+        err(m.p90, None),
+        err(m.p99, None)
+    )
+}
+
+/// A run's row of the image-error table.
+fn image_row(s: &mut String, run: &RunResult, sc: &SceneComparison) {
     let fr = &sc.reference.floor_radiance;
-    let (rmse, rmse_p, mae_p, max, over) = match &run.vcoef_all_lights {
+    let FlipRegions { all, interior } = &run.flip;
+    let _ = writeln!(
+        s,
+        "| {} | {} | {:.1} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+        run.technique,
+        run.setting,
+        run.median_ms,
+        err(run.radiance.all.rmse, Some(fr.rmse_all)),
+        err(run.radiance.interior.rmse, Some(fr.rmse_interior)),
+        err(run.radiance.penumbra.rmse, Some(fr.rmse_penumbra)),
+        err(all.mean, None),
+        percentiles(all),
+        err(all.max, None),
+        err(interior.mean, None),
+        percentiles(interior),
+        if run.pareto_flip { "●" } else { "" }
+    );
+}
+
+/// A run's row of the visibility table.
+fn vcoef_row(s: &mut String, run: &RunResult, sc: &SceneComparison) {
+    let f = &sc.reference.floor_vcoef_all_lights;
+    let (rmse, rmse_p, mae_p, max, over, rmse_i) = match &run.vcoef_all_lights {
         Some(m) => (
             err(m.all.rmse, Some(f.rmse_all)),
             err(m.penumbra.rmse, Some(f.rmse_penumbra)),
             err(m.penumbra.mean_abs, Some(f.mae_penumbra)),
             err(m.all.max_abs, None),
             percent(m.penumbra.frac_over),
+            err(m.interior.rmse, Some(f.rmse_interior)),
         ),
         None => Default::default(),
     };
     let _ = writeln!(
         s,
-        "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {rmse} | {rmse_p} | {mae_p} | {max} | {over} | {} | {} | {} |",
+        "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {rmse} | {rmse_p} | {mae_p} | {max} | {over} | {rmse_i} | {} |",
         run.technique,
         run.setting,
         run.median_ms,
         run.pass_ms(|n| n == "gbuffer" || n == "geometry"),
         run.pass_ms(|n| !is_common_pass(n)),
         run.pass_ms(|n| n == "shading"),
-        err(run.radiance.all.rmse, Some(fr.rmse_all)),
-        err(run.radiance.penumbra.rmse, Some(fr.rmse_penumbra)),
         if run.pareto { "●" } else { "" }
     );
 }

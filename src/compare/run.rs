@@ -6,15 +6,17 @@ use super::charts::{slug, write_run_images};
 use super::reference::{vcoef_of, ReferenceImages};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
+use crate::output::srgb8;
 use crate::render::{render, RenderOptions, RenderOutput};
-use crate::report::{ErrorMetrics, Progress};
+use crate::report::{flip_rgb8, ErrorMetrics, FlipRegions, Progress};
 use crate::shadow::kit::verify::VerifyReport;
 use crate::shadow::registry::QualitySetting;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
-/// Errors over all shading points and over the penumbra only.
+/// Errors over all shading points, over the penumbra only and over the
+/// interior (shading points away from geometric edges).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct RegionMetrics {
     /// Every shading point.
@@ -22,6 +24,9 @@ pub struct RegionMetrics {
     /// Points whose reference Vcoef is strictly between 0 and 1 (for
     /// radiance: for some light).
     pub penumbra: ErrorMetrics,
+    /// Points farther than 2 px from the background and from depth and
+    /// normal discontinuities ([`crate::report::interior`]).
+    pub interior: ErrorMetrics,
 }
 
 /// Median time of one pass over the repeats.
@@ -60,6 +65,11 @@ pub struct RunResult {
     pub vcoef_all_lights: Option<RegionMetrics>,
     /// Radiance error over R, G and B values together.
     pub radiance: RegionMetrics,
+    /// FLIP of the image (tone-mapped as the PNG output) against the
+    /// reference's, over the whole frame and over the interior.
+    pub flip: FlipRegions,
+    /// On the Pareto front of (time, FLIP mean over the whole frame).
+    pub pareto_flip: bool,
     /// On the Pareto front of (time, penumbra Vcoef RMSE).
     pub pareto: bool,
     /// Radiance image, relative to the output directory.
@@ -209,6 +219,18 @@ pub(super) fn run_result(
         vcoef_all_lights: reference.vcoef_all_lights(&tests, &reference.vcoef),
         vcoef,
         radiance: reference.radiance_metrics(&rendered.radiance, &reference.radiance),
+        flip: flip_rgb8(&reference.rgb8, &srgb8(&rendered.radiance), width, height)
+            .map(|map| map.regions(&reference.interior))
+            .ok_or_else(|| {
+                Error::param(
+                    "--technique",
+                    format!(
+                        "{name} ({}) gave an image of another size than the reference",
+                        setting.label
+                    ),
+                )
+            })?,
+        pareto_flip: false,
         pareto: false,
         image,
         heatmaps,

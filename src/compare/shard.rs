@@ -29,15 +29,18 @@ use super::settings::CompareOptions;
 use super::{prepare_scene, run_planned, scene_dir, scene_runs, SceneComparison};
 use crate::error::{Error, Result};
 use crate::output::write_atomically;
-use crate::report::{ErrorMetrics, Progress};
+use crate::report::{ErrorMetrics, FlipMetrics, FlipRegions, Progress};
 use crate::scene::Scene;
 use crate::shadow::kit::verify::{Disagreement, VerifyReport};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-/// Bumped whenever the partial format changes.
-pub const PARTIAL_FORMAT: u32 = 1;
+/// Bumped whenever the partial format changes. 2: FLIP per run (whole
+/// frame and interior), the interior region of every error, the interior
+/// noise floors and FLIP between the reference's halves; a partial of
+/// format 1 lacks them and is refused, never read with zeros.
+pub const PARTIAL_FORMAT: u32 = 2;
 
 /// This machine's host name (`/proc/sys/kernel/hostname`, else
 /// `$HOSTNAME`, else `unknown`).
@@ -234,14 +237,20 @@ impl From<&PartialMetrics> for ErrorMetrics {
 pub(crate) struct PartialRegion {
     all: PartialMetrics,
     penumbra: PartialMetrics,
+    interior: PartialMetrics,
 }
 
 impl From<RegionMetrics> for PartialRegion {
     fn from(m: RegionMetrics) -> Self {
-        let RegionMetrics { all, penumbra } = m;
+        let RegionMetrics {
+            all,
+            penumbra,
+            interior,
+        } = m;
         PartialRegion {
             all: all.into(),
             penumbra: penumbra.into(),
+            interior: interior.into(),
         }
     }
 }
@@ -251,6 +260,76 @@ impl From<&PartialRegion> for RegionMetrics {
         RegionMetrics {
             all: (&m.all).into(),
             penumbra: (&m.penumbra).into(),
+            interior: (&m.interior).into(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct PartialFlip {
+    count: u64,
+    mean: Exact,
+    p50: Exact,
+    p90: Exact,
+    p99: Exact,
+    max: Exact,
+}
+
+impl From<FlipMetrics> for PartialFlip {
+    fn from(m: FlipMetrics) -> Self {
+        let FlipMetrics {
+            count,
+            mean,
+            p50,
+            p90,
+            p99,
+            max,
+        } = m;
+        PartialFlip {
+            count,
+            mean: Exact(mean),
+            p50: Exact(p50),
+            p90: Exact(p90),
+            p99: Exact(p99),
+            max: Exact(max),
+        }
+    }
+}
+
+impl From<&PartialFlip> for FlipMetrics {
+    fn from(m: &PartialFlip) -> Self {
+        FlipMetrics {
+            count: m.count,
+            mean: m.mean.0,
+            p50: m.p50.0,
+            p90: m.p90.0,
+            p99: m.p99.0,
+            max: m.max.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct PartialFlipRegions {
+    all: PartialFlip,
+    interior: PartialFlip,
+}
+
+impl From<FlipRegions> for PartialFlipRegions {
+    fn from(m: FlipRegions) -> Self {
+        let FlipRegions { all, interior } = m;
+        PartialFlipRegions {
+            all: all.into(),
+            interior: interior.into(),
+        }
+    }
+}
+
+impl From<&PartialFlipRegions> for FlipRegions {
+    fn from(m: &PartialFlipRegions) -> Self {
+        FlipRegions {
+            all: (&m.all).into(),
+            interior: (&m.interior).into(),
         }
     }
 }
@@ -378,6 +457,7 @@ pub(crate) struct PartialRun {
     vcoef: Vec<Option<PartialRegion>>,
     vcoef_all_lights: Option<PartialRegion>,
     radiance: PartialRegion,
+    flip: PartialFlipRegions,
     /// Radiance image, relative to the scene's directory.
     pub image: Option<String>,
     /// Heat maps, relative to the scene's directory.
@@ -403,7 +483,9 @@ impl PartialRun {
             vcoef,
             vcoef_all_lights,
             radiance,
-            pareto: _, // decided by the merge, over every run
+            flip,
+            pareto_flip: _, // decided by the merge, over every run
+            pareto: _,
             image,
             heatmaps,
             verify,
@@ -426,6 +508,7 @@ impl PartialRun {
             vcoef: vcoef.into_iter().map(|m| m.map(Into::into)).collect(),
             vcoef_all_lights: vcoef_all_lights.map(Into::into),
             radiance: radiance.into(),
+            flip: flip.into(),
             image,
             heatmaps,
             verify: verify.as_ref().map(Into::into),
@@ -460,6 +543,8 @@ impl PartialRun {
                 .collect(),
             vcoef_all_lights: self.vcoef_all_lights.as_ref().map(Into::into),
             radiance: (&self.radiance).into(),
+            flip: (&self.flip).into(),
+            pareto_flip: false,
             pareto: false,
             image: self.image.clone(),
             heatmaps: self.heatmaps.clone(),
@@ -474,6 +559,8 @@ pub(crate) struct PartialFloor {
     mae_all: Exact,
     rmse_penumbra: Exact,
     mae_penumbra: Exact,
+    rmse_interior: Exact,
+    mae_interior: Exact,
 }
 
 impl From<NoiseFloor> for PartialFloor {
@@ -483,12 +570,16 @@ impl From<NoiseFloor> for PartialFloor {
             mae_all,
             rmse_penumbra,
             mae_penumbra,
+            rmse_interior,
+            mae_interior,
         } = f;
         PartialFloor {
             rmse_all: Exact(rmse_all),
             mae_all: Exact(mae_all),
             rmse_penumbra: Exact(rmse_penumbra),
             mae_penumbra: Exact(mae_penumbra),
+            rmse_interior: Exact(rmse_interior),
+            mae_interior: Exact(mae_interior),
         }
     }
 }
@@ -500,6 +591,8 @@ impl From<&PartialFloor> for NoiseFloor {
             mae_all: f.mae_all.0,
             rmse_penumbra: f.rmse_penumbra.0,
             mae_penumbra: f.mae_penumbra.0,
+            rmse_interior: f.rmse_interior.0,
+            mae_interior: f.mae_interior.0,
         }
     }
 }
@@ -514,6 +607,7 @@ pub(crate) struct PartialScene {
     height: u32,
     shading_points: u64,
     penumbra_points: Vec<u64>,
+    interior_points: u64,
     reference_samples: u32,
     seeds: [u64; 2],
     reference_seconds: Exact,
@@ -523,6 +617,7 @@ pub(crate) struct PartialScene {
     floor_vcoef: Vec<PartialFloor>,
     floor_vcoef_all_lights: PartialFloor,
     floor_radiance: PartialFloor,
+    flip_halves: PartialFlipRegions,
 }
 
 impl PartialScene {
@@ -536,6 +631,7 @@ impl PartialScene {
             floor_vcoef,
             floor_vcoef_all_lights,
             floor_radiance,
+            flip_halves,
         } = h.reference.clone();
         PartialScene {
             scene: h.scene.clone(),
@@ -544,6 +640,7 @@ impl PartialScene {
             height: h.height,
             shading_points: h.shading_points,
             penumbra_points: h.penumbra_points.clone(),
+            interior_points: h.interior_points,
             reference_samples: samples,
             seeds,
             reference_seconds: Exact(seconds),
@@ -552,6 +649,7 @@ impl PartialScene {
             floor_vcoef: floor_vcoef.into_iter().map(Into::into).collect(),
             floor_vcoef_all_lights: floor_vcoef_all_lights.into(),
             floor_radiance: floor_radiance.into(),
+            flip_halves: flip_halves.into(),
         }
     }
 
@@ -564,6 +662,7 @@ impl PartialScene {
             height: self.height,
             shading_points: self.shading_points,
             penumbra_points: self.penumbra_points.clone(),
+            interior_points: self.interior_points,
             reference: ReferenceSummary {
                 samples: self.reference_samples,
                 seeds: self.seeds,
@@ -573,8 +672,12 @@ impl PartialScene {
                 floor_vcoef: self.floor_vcoef.iter().map(Into::into).collect(),
                 floor_vcoef_all_lights: (&self.floor_vcoef_all_lights).into(),
                 floor_radiance: (&self.floor_radiance).into(),
+                flip_halves: (&self.flip_halves).into(),
             },
             runs: Vec::new(),
+            chart_flip: None,
+            chart_flip_interior: None,
+            chart_radiance: None,
             chart: None,
             chart_all: None,
         }

@@ -16,7 +16,7 @@ mod stdio;
 pub use self::atomic::{check_not_input, check_output, write_atomically, OutputSet};
 pub use self::exr::write_exr;
 pub(crate) use self::png::write_rgb8;
-pub use self::png::{srgb_decode, srgb_encode_u8, write_png};
+pub use self::png::{srgb8, srgb_decode, srgb_encode_u8, write_png};
 pub use self::stdio::{write_stderr, write_stdout};
 
 use crate::error::{Error, Result};

@@ -56,12 +56,19 @@ pub(super) fn stage_png(
     radiance: &[Vec3],
 ) -> Result<()> {
     check_size(path, width, height, radiance.len(), "radiance")?;
-    let bytes: Vec<u8> = radiance
+    stage_rgb8(set, path, width, height, &srgb8(radiance))
+}
+
+/// The 8-bit sRGB codes of linear `radiance` (R, G, B per pixel), as the
+/// PNG output stores them: each value through [`srgb_encode_u8`]. The one
+/// tone mapping of every display-referred image here (the PNG output,
+/// FLIP's inputs).
+pub fn srgb8(radiance: &[Vec3]) -> Vec<u8> {
+    radiance
         .iter()
         .flat_map(|c| [c.x, c.y, c.z])
         .map(srgb_encode_u8)
-        .collect();
-    stage_rgb8(set, path, width, height, &bytes)
+        .collect()
 }
 
 /// Writes 8-bit RGB `bytes` (`width × height × 3`, row 0 at the top) as a

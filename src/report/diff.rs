@@ -1,9 +1,12 @@
 //! `penumbra diff`: error metrics between two images, channel by channel,
-//! optionally under a mask, checked against tolerances.
+//! optionally under a mask, checked against tolerances; with `--flip`,
+//! FLIP between their colours too ([`super::flip`]).
 
+use super::flip::{flip_radiance, FlipMetrics, FLIP_PPD};
 use super::metrics::{ErrorAccumulator, ErrorMetrics};
 use crate::error::{Error, Result};
-use crate::output::{read_image, LoadedImage};
+use crate::output::{check_not_input, image_format, read_image, Format, LoadedImage};
+use glam::Vec3;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -27,6 +30,37 @@ pub struct DiffOptions {
     pub max_abs: Option<f64>,
     /// Fail when the RMSE over all compared channels exceeds this.
     pub rmse: Option<f64>,
+    /// Also measure FLIP between the images' colours (`R, G, B` of both,
+    /// tone-mapped as the PNG output is; A is the test, B the reference),
+    /// pooled over the mask's pixels when there is a mask.
+    pub flip: bool,
+    /// Fail when the FLIP mean exceeds this (implies `flip`).
+    pub flip_threshold: Option<f64>,
+    /// Write the FLIP error map here, a PNG in FLIP's magma colours
+    /// (implies `flip`); never over an input.
+    pub flip_map: Option<PathBuf>,
+}
+
+impl DiffOptions {
+    /// FLIP is measured (asked for, or needed by a threshold or a map).
+    pub fn wants_flip(&self) -> bool {
+        self.flip || self.flip_threshold.is_some() || self.flip_map.is_some()
+    }
+}
+
+/// FLIP between the images of a [`diff_images`].
+#[derive(Debug, Clone, Serialize)]
+pub struct FlipDiff {
+    /// The error map pooled over the compared pixels (every pixel, or the
+    /// mask's).
+    pub metrics: FlipMetrics,
+    /// Pooled under the mask.
+    pub masked: bool,
+    /// Pixels per degree it was computed at.
+    pub pixels_per_degree: f32,
+    /// `R, G, B` values that were NaN or infinite in either image (the
+    /// tone mapping makes them 0 or 1, so FLIP alone would not tell).
+    pub non_finite: u64,
 }
 
 /// The metrics of one channel pair.
@@ -51,6 +85,8 @@ pub struct DiffReport {
     pub channels: Vec<ChannelDiff>,
     /// All channels' values together.
     pub overall: ErrorMetrics,
+    /// FLIP, when asked for.
+    pub flip: Option<FlipDiff>,
     /// Each exceeded tolerance, in words; empty when the diff passes.
     pub failures: Vec<String>,
 }
@@ -104,6 +140,25 @@ impl DiffReport {
             }
             out.push_str(line.trim_end());
             out.push('\n');
+        }
+        if let Some(f) = &self.flip {
+            let m = &f.metrics;
+            let _ = writeln!(
+                out,
+                "FLIP (sRGB 8-bit, {} ppd) over {} pixels{}: mean {}  p50 {}  p90 {}  p99 {}  max {}{}",
+                f.pixels_per_degree,
+                m.count,
+                if f.masked { " under the mask" } else { "" },
+                short(m.mean),
+                short(m.p50),
+                short(m.p90),
+                short(m.p99),
+                short(m.max),
+                match f.non_finite {
+                    0 => String::new(),
+                    n => format!("  ({n} non-finite R, G, B values)"),
+                }
+            );
         }
         if self.passed() {
             out.push_str("PASS\n");
@@ -163,7 +218,11 @@ fn short(v: f64) -> String {
 /// that differ, channels an image lacks, a bad tolerance, a mask channel
 /// without a mask.
 pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffReport> {
-    for (name, tolerance) in [("--max-abs", options.max_abs), ("--rmse", options.rmse)] {
+    for (name, tolerance) in [
+        ("--max-abs", options.max_abs),
+        ("--rmse", options.rmse),
+        ("--flip-threshold", options.flip_threshold),
+    ] {
         if let Some(t) = tolerance {
             if !(t >= 0.0) {
                 return Err(Error::param(
@@ -178,6 +237,21 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
             "--mask-channel",
             "picks a channel of the mask image, so it needs --mask",
         ));
+    }
+    // The map is checked before any work, and never written over an input.
+    if let Some(map) = &options.flip_map {
+        if image_format("--flip-map", map)? != Format::Png {
+            return Err(Error::param(
+                "--flip-map",
+                format!(
+                    "{}: the error map is an 8-bit PNG in FLIP's magma colours; give a .png path",
+                    map.display()
+                ),
+            ));
+        }
+        let mut inputs = vec![a.to_path_buf(), b.to_path_buf()];
+        inputs.extend(options.mask.clone());
+        check_not_input(map, &inputs)?;
     }
     let image_a = read_image(a)?;
     let image_b = read_image(b)?;
@@ -226,6 +300,29 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
     }
     let overall = overall.finish();
 
+    let flip = if options.wants_flip() {
+        let (test, bad_a) = colours(a, &image_a)?;
+        let (reference, bad_b) = colours(b, &image_b)?;
+        let (w, h) = (image_a.width, image_a.height);
+        let map = flip_radiance(&reference, &test, w, h)
+            .ok_or_else(|| Error::file(a, None, "an empty image has no FLIP"))?;
+        let metrics = match &mask {
+            Some(m) => map.metrics(|i| m.get(i).is_some_and(|v| *v > 0.5)),
+            None => map.metrics_all(),
+        };
+        if let Some(path) = &options.flip_map {
+            map.write_png(path)?;
+        }
+        Some(FlipDiff {
+            metrics,
+            masked: mask.is_some(),
+            pixels_per_degree: FLIP_PPD,
+            non_finite: bad_a + bad_b,
+        })
+    } else {
+        None
+    };
+
     let mut failures = Vec::new();
     if let Some(t) = options.max_abs {
         // The overall maximum is the largest channel maximum, so naming
@@ -257,13 +354,56 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
             ));
         }
     }
+    if let (Some(t), Some(f)) = (options.flip_threshold, &flip) {
+        if f.non_finite > 0 {
+            failures.push(format!(
+                "FLIP cannot pass --flip-threshold {}: {} non-finite R, G, B values",
+                short(t),
+                f.non_finite
+            ));
+        } else if !(f.metrics.mean <= t) {
+            failures.push(format!(
+                "FLIP mean {} > {} (--flip-threshold; over {} pixels{})",
+                short(f.metrics.mean),
+                short(t),
+                f.metrics.count,
+                if f.masked { " under the mask" } else { "" }
+            ));
+        }
+    }
     Ok(DiffReport {
         width: image_a.width,
         height: image_a.height,
         channels,
         overall,
+        flip,
         failures,
     })
+}
+
+/// An image's colours for FLIP: its `R, G, B` channels (linear; a PNG's
+/// are decoded from sRGB, so re-encoding gives its codes back), with the
+/// count of non-finite values among them.
+fn colours(path: &Path, image: &LoadedImage) -> Result<(Vec<Vec3>, u64)> {
+    let (Some(r), Some(g), Some(b)) = (image.channel("R"), image.channel("G"), image.channel("B"))
+    else {
+        return Err(Error::param(
+            "--flip",
+            format!(
+                "{} has no R, G, B channels (it has {}); FLIP compares colour images",
+                path.display(),
+                channel_list(image)
+            ),
+        ));
+    };
+    let bad = [r, g, b]
+        .iter()
+        .map(|c| c.iter().filter(|v| !v.is_finite()).count() as u64)
+        .sum();
+    let colours = (r.iter().zip(g).zip(b))
+        .map(|((r, g), b)| Vec3::new(*r, *g, *b))
+        .collect();
+    Ok((colours, bad))
 }
 
 /// The `(A name, B name)` pairs to compare, every name checked present.

@@ -1,9 +1,11 @@
-//! Reporting: progress, error metrics, `diff` between images, error heat
-//! maps and error-vs-time charts.
+//! Reporting: progress, error metrics (per value, FLIP, the interior
+//! mask), `diff` between images, error heat maps and error-vs-time charts.
 
 pub mod chart;
 pub mod diff;
+pub mod flip;
 pub mod heatmap;
+pub mod interior;
 pub mod metrics;
 mod progress;
 
@@ -12,6 +14,8 @@ pub use chart::{
     MIN_CHART_SIZE,
 };
 pub use diff::{diff_images, ChannelDiff, DiffOptions, DiffReport};
+pub use flip::{flip_radiance, flip_rgb8, FlipMap, FlipMetrics, FlipRegions, FLIP_PPD};
 pub use heatmap::{heatmap_colour, write_error_heatmap, HEATMAP_BACKGROUND, HEATMAP_NON_FINITE};
+pub use interior::interior_mask;
 pub use metrics::{error_metrics, ErrorAccumulator, ErrorMetrics, VISIBLE_ERROR};
 pub use progress::{estimate_render, format_duration, Progress, RenderCost, MANY_SAMPLES};
