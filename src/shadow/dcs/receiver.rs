@@ -596,8 +596,12 @@ impl LightPass<'_, '_> {
         {
             // Every sample seen, at full weight: the exact unshadowed
             // integral, as where no edge reaches the receiver (the samples'
-            // estimate converges to it; this has no variance).
-            self.prepared.unshadowed_direct(&sp())
+            // estimate converges to it; this has no variance). The
+            // shading point made for the chart estimate, if it was.
+            match &shading {
+                Some(point) => self.prepared.unshadowed_direct(point),
+                None => self.prepared.unshadowed_direct(&sp()),
+            }
         } else if direct {
             let sp = shading.unwrap_or_else(sp);
             let points = if sorted {
