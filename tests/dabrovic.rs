@@ -11,7 +11,7 @@ use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use penumbra::shadow::kit::rays::ShadowTracer;
-use penumbra::shadow::stsv::Filter;
+use penumbra::shadow::kit::stsv::Filter;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// `(pixel, sample)` relations of exact DCS (whole-light silhouettes)

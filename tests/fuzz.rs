@@ -60,8 +60,8 @@ use penumbra::report::Progress;
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::load_scene;
 use penumbra::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
+use penumbra::shadow::kit::stsv::Filter;
 use penumbra::shadow::soft_shadow_map::{Accumulate, Lookup};
-use penumbra::shadow::stsv::Filter;
 use penumbra::Error;
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -781,7 +781,7 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
                     [rng.range(0, 1) as usize],
                 coverage: [CoverageTest::Exact, CoverageTest::BitField][rng.range(0, 1) as usize],
             },
-            stsv: penumbra::shadow::stsv::StsvOptions {
+            stsv: penumbra::shadow::kit::stsv::StsvOptions {
                 opacity_filter: [Filter::Nearest, Filter::Bilinear][rng.range(0, 1) as usize],
             },
             adaptive_maps: penumbra::shadow::adaptive_maps::AdaptiveMapsOptions {

@@ -12,9 +12,9 @@ use glam::{DVec3, Vec3};
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::kit::rays::{scene_diagonal, ShadowTracer, END_SHORTEN, MERGE_SCENE};
+use penumbra::shadow::kit::stsv::{Filter, STriangle, STriangles};
 use penumbra::shadow::penumbra_casting::samples::SampleKey;
 use penumbra::shadow::penumbra_casting::{LightMasks, PenumbraCasting, PenumbraCastingOptions};
-use penumbra::shadow::stsv::{Filter, STriangle, STriangles};
 use penumbra::shadow::ShadowTechnique;
 use std::collections::HashMap;
 

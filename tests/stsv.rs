@@ -1,4 +1,4 @@
-//! Soft textured shadow volumes (`penumbra::shadow::stsv`) against the
+//! Soft textured shadow volumes (`penumbra::shadow::kit::stsv`) against the
 //! ray-traced reference, relation by relation: per (receiver, light
 //! sample, S-triangle) the per-sample opacity look-up must equal the
 //! reference's opacity of that triangle on the shadow ray, except at
@@ -14,7 +14,7 @@ use penumbra::scene::{LightShape, Scene};
 use penumbra::shade::LightSample;
 use penumbra::shadow::kit::membership::light_bound;
 use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
-use penumbra::shadow::stsv::{
+use penumbra::shadow::kit::stsv::{
     build_volumes, membership, Filter, STriangle, STriangles, SamplePositions, SampleProjector,
     ShadowOrigin, StsvMembership, VolumeParams,
 };

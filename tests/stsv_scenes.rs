@@ -10,8 +10,8 @@ use penumbra::render::{render, RenderOptions, Technique};
 use penumbra::report::Progress;
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
+use penumbra::shadow::kit::stsv::{Filter, StsvSampling};
 use penumbra::shadow::reference::Reference;
-use penumbra::shadow::stsv::{Filter, StsvSampling};
 use penumbra::shadow::ShadowTechnique;
 
 /// The shipped fence with its light made a sphere of the same half-size.
@@ -58,7 +58,7 @@ fn run_with(
     ctx: &penumbra::shadow::ShadowContext,
 ) -> penumbra::Result<penumbra::shadow::ShadowOutput> {
     let options = penumbra::shadow::TechniqueOptions {
-        stsv: penumbra::shadow::stsv::StsvOptions {
+        stsv: penumbra::shadow::kit::stsv::StsvOptions {
             opacity_filter: sampling.filter,
         },
         ..Default::default()
@@ -188,7 +188,7 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
                 seed,
                 pattern,
                 options: penumbra::shadow::TechniqueOptions {
-                    stsv: penumbra::shadow::stsv::StsvOptions {
+                    stsv: penumbra::shadow::kit::stsv::StsvOptions {
                         opacity_filter: filter,
                     },
                     ..Default::default()

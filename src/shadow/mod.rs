@@ -17,7 +17,7 @@ pub mod registry;
 pub mod shadow_map;
 pub mod shadow_volumes;
 pub mod soft_shadow_map;
-pub mod stsv;
+
 pub mod wedges;
 
 pub use kit::cache::ShadowCache;
@@ -197,13 +197,13 @@ pub fn run_technique(
     let built = technique.build(params);
     let mut out = built.compute(ctx)?;
     if technique.capabilities(params.options).s_triangles == registry::Support::StsvAddOn {
-        let sampling = stsv::StsvSampling {
+        let sampling = kit::stsv::StsvSampling {
             samples: params.samples,
             seed: params.seed,
             pattern: params.pattern,
             filter: params.options.stsv.opacity_filter,
         };
-        stsv::addon::apply(ctx, technique.name(), sampling, &mut out)?;
+        kit::stsv::addon::apply(ctx, technique.name(), sampling, &mut out)?;
     }
     out.warnings.extend(warnings);
     Ok(out)

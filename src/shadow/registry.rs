@@ -10,12 +10,12 @@
 
 use super::adaptive_maps::AdaptiveMapsOptions;
 use super::dcs::DcsOptions;
+use super::kit::stsv::StsvOptions;
 use super::pcss::PcssOptions;
 use super::penumbra_casting::PenumbraCastingOptions;
 use super::shadow_map::ShadowMapOptions;
 use super::shadow_volumes::ShadowVolumeOptions;
 use super::soft_shadow_map::SsmOptions;
-use super::stsv::StsvOptions;
 use super::ShadowTechnique;
 use crate::error::{Error, Result};
 use crate::geom::SceneGeometry;

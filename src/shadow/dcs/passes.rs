@@ -35,13 +35,13 @@ use crate::shade::gather::{gather_filter, GatherParams};
 use crate::shadow::kit::groups::Attenuation;
 use crate::shadow::kit::membership::{draw_wedges, HalfSink, LightStart, MembershipTile};
 use crate::shadow::kit::rays::scene_diagonal;
+use crate::shadow::kit::stsv::{
+    membership as stsv_membership, STriangles, ShadowOrigin, StsvMembership,
+};
 use crate::shadow::kit::tiles::TilePixels;
 use crate::shadow::kit::timing::{timed, PassTimer};
 use crate::shadow::kit::volumes::{build_volume, stencil_counts, ShadowVolume};
 use crate::shadow::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
-use crate::shadow::stsv::{
-    membership as stsv_membership, STriangles, ShadowOrigin, StsvMembership,
-};
 use crate::shadow::{PassTiming, ShadowContext};
 use crate::simd::level::runs_v3;
 use crate::view::View;

@@ -18,8 +18,8 @@ use crate::shade::{surface_point, LightSample, PreparedLight, SurfacePoint};
 use crate::shadow::kit::groups::Attenuation;
 use crate::shadow::kit::light_frame::RectProjection;
 use crate::shadow::kit::rays::ShadowOrigin;
+use crate::shadow::kit::stsv::{STriangles, SamplePositions};
 use crate::shadow::kit::wedge_geometry::LightBound;
-use crate::shadow::stsv::{STriangles, SamplePositions};
 use crate::shadow::ShadowContext;
 use glam::{DVec3, Vec3};
 

@@ -6,8 +6,8 @@ use crate::geom::{EdgeAdjacency, SceneGeometry};
 use crate::scene::Scene;
 use crate::shadow::kit::groups::{semi_opaque_groups, Attenuation};
 use crate::shadow::kit::rays::ShadowTracer;
+use crate::shadow::kit::stsv::STriangles;
 use crate::shadow::kit::volumes::caster_adjacency;
-use crate::shadow::stsv::STriangles;
 use std::borrow::Cow;
 use std::sync::OnceLock;
 

@@ -31,6 +31,7 @@ pub mod map_fit;
 pub mod membership;
 pub mod rays;
 pub mod shadow_maps;
+pub mod stsv;
 pub mod tiles;
 pub mod timing;
 pub mod verify;

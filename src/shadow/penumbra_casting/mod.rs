@@ -31,10 +31,10 @@ pub mod translucent;
 pub mod volume;
 
 use super::kit::rays::{scene_diagonal, ShadowOrigin};
+use super::kit::stsv::Filter;
 use super::kit::timing::PassTimer;
 use super::kit::verify::{PixelVisibility, SampleDecisions};
 use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
-use super::stsv::Filter;
 use super::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::{Error, Result};
 use crate::output::Layer;

@@ -34,7 +34,7 @@
 use super::volume::{ChunkBoxes, GroupSoa};
 use crate::sampling::{mix64, pixel_key, LightSampler, PatternSampler, SamplePattern};
 use crate::shade::LightSample;
-use crate::shadow::stsv::SamplePositions;
+use crate::shadow::kit::stsv::SamplePositions;
 use glam::{DVec3, Vec3};
 
 /// Samples per group (the paper's 32: one `u32` mask word).

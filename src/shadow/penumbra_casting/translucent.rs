@@ -13,7 +13,7 @@
 //!   as DCS counts them) through the same hard shadow volumes as the
 //!   opaque pass: each relation it holds (and that no opaque triangle
 //!   blocks) counts one more layer `n_g`;
-//! - an **S-triangle** ([`STriangles`](crate::shadow::stsv::STriangles)) through the
+//! - an **S-triangle** ([`STriangles`](crate::shadow::kit::stsv::STriangles)) through the
 //!   [`SampleProjector`] of soft textured shadow volumes: the segment's
 //!   crossing barycentrics, the opacity `d × map_d(uv)` there (nearest or
 //!   bilinear, `--opacity-filter`), and its optical depth
@@ -45,7 +45,7 @@ use super::volume::PenumbraVolume;
 use super::volume::{hard_bits_scalar, hard_bits_simd, penumbra_volume, BoxTest, HardVolumes};
 use crate::scene::Scene;
 use crate::shadow::kit::groups::{Attenuation, TransmittanceMode};
-use crate::shadow::stsv::{Filter, STriangle, SamplePositions, SampleProjector};
+use crate::shadow::kit::stsv::{Filter, STriangle, SamplePositions, SampleProjector};
 use crate::shadow::ShadowContext;
 use glam::{DVec3, Vec3};
 use std::time::Duration;

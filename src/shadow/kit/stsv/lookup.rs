@@ -260,7 +260,7 @@ mod tests {
     use super::*;
     use glam::DVec3;
 
-    use crate::shadow::stsv::test_triangle as tri;
+    use crate::shadow::kit::stsv::test_triangle as tri;
 
     fn sample(x: Vec3) -> LightSample {
         LightSample {

@@ -526,7 +526,7 @@ mod tests {
     use crate::shadow::kit::light_frame::RectFrame;
     use std::collections::HashMap;
 
-    use crate::shadow::stsv::test_triangle as tri;
+    use crate::shadow::kit::stsv::test_triangle as tri;
 
     struct Rng(u64);
     impl Rng {
