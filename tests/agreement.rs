@@ -28,7 +28,7 @@ mod common;
 use common::Rng;
 use penumbra::render::{render, Aov, RenderOptions};
 use penumbra::report::Progress;
-use penumbra::shadow::registry::Support;
+use penumbra::shadow::technique::Support;
 use penumbra::shadow::{Technique, TechniqueOptions};
 
 /// Image side of each case.

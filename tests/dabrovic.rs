@@ -153,7 +153,7 @@ fn every_technique_renders() {
 /// the other pixel on such a line, now agrees with the shadow rays.
 #[test]
 fn a_pixel_whose_centre_ray_meets_an_edge_is_exact() {
-    use penumbra::shadow::kit::verify::SampleDecisions;
+    use penumbra::shadow::technique::SampleDecisions;
     let scene = common::shipped("dabrovic.toml");
     let frame = common::Frame::new(&scene, 768, 512);
     let ctx = frame.ctx(&scene);

@@ -148,7 +148,7 @@ fn dcs_gives_the_references_image_at_the_same_samples() {
         // Opacity-textured casters (fence) have no edges: their receivers
         // take the samples wherever the light is partly hidden. (Constant
         // semi-opaque casters, tinted, give constant partial values.)
-        let constant_layers = penumbra::shadow::registry::has_semi_opaque_casters(&scene);
+        let constant_layers = penumbra::shadow::technique::has_semi_opaque_casters(&scene);
         let pixels: Vec<usize> = surface(&scene)
             .into_iter()
             .filter(|&i| {

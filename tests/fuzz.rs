@@ -761,68 +761,73 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
         "sobol",
         "interleaved:3",
     ];
+    let samples = [1, 2, 4, 9, 16][rng.range(0, 4) as usize];
+    let seed = rng.next_u64();
+    let pattern = SamplePattern::parse(patterns[rng.range(0, 5) as usize]).unwrap();
+    // Field by field (in this order, which is the generator's), so that a
+    // new options group needs no edit here.
+    let mut technique_options = penumbra::shadow::TechniqueOptions::default();
+    technique_options.shadow_volumes = penumbra::shadow::shadow_volumes::ShadowVolumeOptions {
+        zpass: rng.range(0, 1) == 1,
+    };
+    technique_options.dcs = penumbra::shadow::dcs::DcsOptions {
+        silhouettes: [SilhouetteMode::Centre, SilhouetteMode::WholeLight][rng.range(0, 1) as usize],
+        mode: [DcsMode::Vcoef, DcsMode::Direct][rng.range(0, 1) as usize],
+        transmittance: [TransmittanceMode::Exact, TransmittanceMode::Summed]
+            [rng.range(0, 1) as usize],
+        coverage: [CoverageTest::Exact, CoverageTest::BitField][rng.range(0, 1) as usize],
+    };
+    technique_options.stsv = penumbra::shadow::kit::stsv::StsvOptions {
+        opacity_filter: [Filter::Nearest, Filter::Bilinear][rng.range(0, 1) as usize],
+    };
+    technique_options.adaptive_maps = penumbra::shadow::adaptive_maps::AdaptiveMapsOptions {
+        adaptive_threshold: [0, 3][rng.range(0, 1) as usize],
+        max_depth: rng.range(0, 2) as u32,
+        comparison_scale: [1.0, 0.5, 0.01][rng.range(0, 2) as usize],
+        adaptive_centre_depth: rng.range(0, 2) as u32,
+        adaptive_split_all: rng.range(0, 3) == 0,
+        adaptive_band_low: 0.5,
+        adaptive_band_high: [0.0, 4.0][rng.range(0, 1) as usize],
+    };
+    technique_options.shadow_map = penumbra::shadow::shadow_map::ShadowMapOptions {
+        map_size: [1, 16, 64][rng.range(0, 2) as usize],
+        pcf: ["1", "2x2", "3x3", "poisson:8"][rng.range(0, 3) as usize]
+            .parse()
+            .unwrap(),
+        ..Default::default()
+    };
+    technique_options.pcss = penumbra::shadow::pcss::PcssOptions {
+        pcss_blocker_samples: [1, 4, 16][rng.range(0, 2) as usize],
+        pcss_filter_samples: [1, 4, 16][rng.range(0, 2) as usize],
+        pcss_kernel: [
+            penumbra::shadow::pcss::PcssKernel::Poisson,
+            penumbra::shadow::pcss::PcssKernel::Box,
+        ][rng.range(0, 1) as usize],
+        pcss_flat_receiver: rng.range(0, 1) == 1,
+    };
+    technique_options.ssm = penumbra::shadow::soft_shadow_map::SsmOptions {
+        ssm_passes: [1, 2][rng.range(0, 1) as usize],
+        ssm_bottom_patches: rng.range(0, 1) == 1,
+        ssm_accumulate: [Accumulate::F32, Accumulate::F16, Accumulate::F16Batched]
+            [rng.range(0, 2) as usize],
+        ssm_lookup: [Lookup::Nearest, Lookup::Bilinear][rng.range(0, 1) as usize],
+    };
+    technique_options.penumbra_casting =
+        penumbra::shadow::penumbra_casting::PenumbraCastingOptions {
+            pc_sample_sets: [1, 2, 8][rng.range(0, 2) as usize],
+            pc_umbra_bits: rng.range(0, 1) == 1,
+            pc_on_demand_masks: rng.range(0, 1) == 1,
+            ..Default::default()
+        };
     let options = RenderOptions {
         width: Some(16),
         height: Some(16),
         aovs: Aov::ALL.to_vec(),
         technique: technique.parse().unwrap(),
-        samples: [1, 2, 4, 9, 16][rng.range(0, 4) as usize],
-        seed: rng.next_u64(),
-        pattern: SamplePattern::parse(patterns[rng.range(0, 5) as usize]).unwrap(),
-        options: penumbra::shadow::TechniqueOptions {
-            shadow_volumes: penumbra::shadow::shadow_volumes::ShadowVolumeOptions {
-                zpass: rng.range(0, 1) == 1,
-            },
-            dcs: penumbra::shadow::dcs::DcsOptions {
-                silhouettes: [SilhouetteMode::Centre, SilhouetteMode::WholeLight]
-                    [rng.range(0, 1) as usize],
-                mode: [DcsMode::Vcoef, DcsMode::Direct][rng.range(0, 1) as usize],
-                transmittance: [TransmittanceMode::Exact, TransmittanceMode::Summed]
-                    [rng.range(0, 1) as usize],
-                coverage: [CoverageTest::Exact, CoverageTest::BitField][rng.range(0, 1) as usize],
-            },
-            stsv: penumbra::shadow::kit::stsv::StsvOptions {
-                opacity_filter: [Filter::Nearest, Filter::Bilinear][rng.range(0, 1) as usize],
-            },
-            adaptive_maps: penumbra::shadow::adaptive_maps::AdaptiveMapsOptions {
-                adaptive_threshold: [0, 3][rng.range(0, 1) as usize],
-                max_depth: rng.range(0, 2) as u32,
-                comparison_scale: [1.0, 0.5, 0.01][rng.range(0, 2) as usize],
-                adaptive_centre_depth: rng.range(0, 2) as u32,
-                adaptive_split_all: rng.range(0, 3) == 0,
-                adaptive_band_low: 0.5,
-                adaptive_band_high: [0.0, 4.0][rng.range(0, 1) as usize],
-            },
-            shadow_map: penumbra::shadow::shadow_map::ShadowMapOptions {
-                map_size: [1, 16, 64][rng.range(0, 2) as usize],
-                pcf: ["1", "2x2", "3x3", "poisson:8"][rng.range(0, 3) as usize]
-                    .parse()
-                    .unwrap(),
-                ..Default::default()
-            },
-            pcss: penumbra::shadow::pcss::PcssOptions {
-                pcss_blocker_samples: [1, 4, 16][rng.range(0, 2) as usize],
-                pcss_filter_samples: [1, 4, 16][rng.range(0, 2) as usize],
-                pcss_kernel: [
-                    penumbra::shadow::pcss::PcssKernel::Poisson,
-                    penumbra::shadow::pcss::PcssKernel::Box,
-                ][rng.range(0, 1) as usize],
-                pcss_flat_receiver: rng.range(0, 1) == 1,
-            },
-            ssm: penumbra::shadow::soft_shadow_map::SsmOptions {
-                ssm_passes: [1, 2][rng.range(0, 1) as usize],
-                ssm_bottom_patches: rng.range(0, 1) == 1,
-                ssm_accumulate: [Accumulate::F32, Accumulate::F16, Accumulate::F16Batched]
-                    [rng.range(0, 2) as usize],
-                ssm_lookup: [Lookup::Nearest, Lookup::Bilinear][rng.range(0, 1) as usize],
-            },
-            penumbra_casting: penumbra::shadow::penumbra_casting::PenumbraCastingOptions {
-                pc_sample_sets: [1, 2, 8][rng.range(0, 2) as usize],
-                pc_umbra_bits: rng.range(0, 1) == 1,
-                pc_on_demand_masks: rng.range(0, 1) == 1,
-                ..Default::default()
-            },
-        },
+        samples,
+        seed,
+        pattern,
+        options: technique_options,
     };
     let _ = write!(case.log, "| render {options:?}");
     match render(&scene, &options, &Progress::new(5, false)) {

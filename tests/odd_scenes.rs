@@ -147,7 +147,7 @@ fn enclosed(scene: &Scene, object: &str) {
                 let e = e.to_string();
                 let other_refusal = matches!(
                     t.capabilities(&TechniqueOptions::default()).sphere_lights,
-                    penumbra::shadow::registry::Support::Refused { .. }
+                    penumbra::shadow::technique::Support::Refused { .. }
                 ) && e.contains("sphere lights");
                 assert!(
                     other_refusal

@@ -17,7 +17,7 @@ use penumbra::report::Progress;
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::pcss::PcssKernel;
-use penumbra::shadow::registry::BuildParams;
+use penumbra::shadow::technique::BuildParams;
 use penumbra::shadow::{run_technique, Technique, TechniqueOptions};
 
 /// Light (half-vectors `light_uv`), ground and camera of the test scenes,

@@ -7,9 +7,8 @@ mod common;
 use penumbra::geom::SceneGeometry;
 use penumbra::render::{render, view_for, RenderOptions};
 use penumbra::report::Progress;
-use penumbra::shadow::registry::{
-    check_scene, markdown_table, names, Support, TermKind, Warning, DEFAULT_TECHNIQUE,
-};
+use penumbra::shadow::registry::{markdown_table, names, DEFAULT_TECHNIQUE};
+use penumbra::shadow::technique::{check_scene, Support, TermKind, Warning};
 use penumbra::shadow::{Technique, TechniqueOptions};
 use std::process::Command;
 
@@ -150,7 +149,7 @@ translate = [0.0, 1.0, 0.0]
     let sphere_view = view_for(&sphere, &RenderOptions::default()).unwrap();
     for t in Technique::all() {
         let caps = t.capabilities(&defaults);
-        let checked = check_scene(t, &defaults, &sphere, &sphere_geometry, &sphere_view);
+        let checked = check_scene(t.info(), &defaults, &sphere, &sphere_geometry, &sphere_view);
         match caps.sphere_lights {
             Support::Refused { param, .. } => {
                 let e = checked.expect_err("refused").to_string();
@@ -173,8 +172,14 @@ translate = [0.0, 1.0, 0.0]
     let mut bitfield = TechniqueOptions::default();
     bitfield.dcs.coverage = penumbra::shadow::dcs::CoverageTest::BitField;
     let dcs = Technique::named("dcs").unwrap();
-    let e =
-        check_scene(dcs, &bitfield, &sphere, &sphere_geometry, &sphere_view).expect_err("refused");
+    let e = check_scene(
+        dcs.info(),
+        &bitfield,
+        &sphere,
+        &sphere_geometry,
+        &sphere_view,
+    )
+    .expect_err("refused");
     assert!(e.to_string().contains("--coverage"), "{e}");
     assert!(!dcs.capabilities(&bitfield).exact);
 }
@@ -186,7 +191,8 @@ fn semi_opaque_casters_warn_with_techniques_that_ignore_them() {
     let view = view_for(&scene, &RenderOptions::default()).unwrap();
     let defaults = TechniqueOptions::default();
     for t in Technique::all() {
-        let warnings = check_scene(t, &defaults, &scene, &geometry, &view).expect("accepted");
+        let warnings =
+            check_scene(t.info(), &defaults, &scene, &geometry, &view).expect("accepted");
         match t.capabilities(&defaults).semi_opaque {
             Support::Ignored(_) => assert!(
                 matches!(warnings.as_slice(), [Warning::Ignored { technique, .. }] if *technique == t.name()),
@@ -234,7 +240,7 @@ fn every_technique_has_quality_settings_and_a_listing_line() {
     let defaults = TechniqueOptions::default();
     for t in Technique::all() {
         assert!(text.lines().any(|l| l.starts_with(t.name())), "{text}");
-        let sweep = penumbra::shadow::registry::Sweep {
+        let sweep = penumbra::shadow::technique::Sweep {
             samples: &[4, 16],
             patterns: &[penumbra::sampling::SamplePattern::Stratified],
             semi_opaque: true,
@@ -245,5 +251,49 @@ fn every_technique_has_quality_settings_and_a_listing_line() {
         for q in &settings {
             assert!(q.curve.starts_with(t.name()), "{}: {}", t.name(), q.curve);
         }
+    }
+}
+
+/// "Adding a technique is its folder plus one line in the list"
+/// (docs/architecture.md) holds only if the list and the folders agree:
+/// every technique's module exists, and every folder or file under
+/// `src/shadow/` is either a registered technique's or one of the named
+/// shared layers.
+#[test]
+fn the_list_and_the_technique_folders_agree() {
+    /// What `src/shadow/` holds besides the techniques.
+    const SHARED: &[&str] = &[
+        "mod.rs",
+        "technique.rs",
+        "registry.rs",
+        "options.rs",
+        "defaults.rs",
+        "run.rs",
+        "verify.rs",
+        "kit",
+    ];
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let modules: Vec<&str> = Technique::all().map(|t| t.info().module).collect();
+    for module in &modules {
+        assert!(
+            src.join(module).exists(),
+            "a registered technique's module {module} does not exist"
+        );
+    }
+    for entry in std::fs::read_dir(src.join("shadow")).unwrap() {
+        let name = entry.unwrap().file_name().into_string().unwrap();
+        if SHARED.contains(&name.as_str()) {
+            continue;
+        }
+        let as_module = if name.ends_with(".rs") {
+            format!("shadow/{name}")
+        } else {
+            format!("shadow/{name}/")
+        };
+        assert!(
+            modules.iter().any(|m| m.starts_with(&as_module)),
+            "src/shadow/{name} is neither a registered technique (add it to \
+             shadow/registry.rs's TECHNIQUES) nor a shared layer"
+        );
     }
 }

@@ -63,7 +63,7 @@ fn run_with(
         },
         ..Default::default()
     };
-    let params = penumbra::shadow::registry::BuildParams {
+    let params = penumbra::shadow::technique::BuildParams {
         samples: sampling.samples,
         seed: sampling.seed,
         pattern: sampling.pattern,

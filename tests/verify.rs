@@ -10,9 +10,8 @@ use penumbra::render::{verify_render, RenderOptions, Technique};
 use penumbra::sampling::SamplePattern;
 use penumbra::scene::Scene;
 use penumbra::shadow::dcs::{DepthComplexitySampling, SilhouetteMode};
-use penumbra::shadow::kit::verify::{
-    verify_with, PixelVisibility, SampleDecisions, VerifyReport, TIE_DISTANCE,
-};
+use penumbra::shadow::kit::verify::{verify_with, VerifyReport, TIE_DISTANCE};
+use penumbra::shadow::technique::{PixelVisibility, SampleDecisions};
 use penumbra::shadow::ShadowContext;
 use std::process::Command;
 

@@ -43,7 +43,7 @@ use crate::raster::{MAX_SIDE, TILE_SIZE};
 use crate::render::{render_rows, view_for, RenderOptions, RenderOutput};
 use crate::report::Progress;
 use crate::scene::Scene;
-use crate::shadow::registry::Bands;
+use crate::shadow::technique::Bands;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;

@@ -36,7 +36,7 @@ mod run;
 mod settings;
 pub mod shard;
 
-pub use crate::shadow::registry::{has_semi_opaque_casters, QualitySetting};
+pub use crate::shadow::technique::{has_semi_opaque_casters, QualitySetting};
 pub use charts::HEATMAP_SCALE;
 pub use merge::merge_partials;
 pub use reference::{NoiseFloor, ReferenceSummary};
@@ -49,7 +49,7 @@ use crate::output::write_png;
 use crate::render::{verify_render, RenderOptions};
 use crate::report::Progress;
 use crate::scene::Scene;
-use crate::shadow::kit::verify::check_verifiable;
+use crate::shadow::verify::check_verifiable;
 pub use reference::reference_only;
 use reference::{interior_of, reference, NoiseFloors, ReferenceImages};
 use run::{run_result, time_setting};

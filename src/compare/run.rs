@@ -10,7 +10,7 @@ use crate::output::srgb8;
 use crate::render::{render, RenderOptions, RenderOutput};
 use crate::report::{flip_rgb8, ErrorMetrics, FlipRegions, Progress};
 use crate::shadow::kit::verify::VerifyReport;
-use crate::shadow::registry::QualitySetting;
+use crate::shadow::technique::QualitySetting;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

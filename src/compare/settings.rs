@@ -4,7 +4,7 @@
 use crate::error::{Error, Result};
 use crate::render::{RenderOptions, Technique};
 use crate::sampling::SamplePattern;
-use crate::shadow::registry::{QualitySetting, Sweep};
+use crate::shadow::technique::{QualitySetting, Sweep};
 use crate::shadow::TechniqueOptions;
 use std::path::PathBuf;
 

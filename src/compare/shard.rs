@@ -32,6 +32,7 @@ use crate::output::write_atomically;
 use crate::report::{ErrorMetrics, FlipMetrics, FlipRegions, Progress};
 use crate::scene::Scene;
 use crate::shadow::kit::verify::{Disagreement, VerifyReport};
+use crate::shadow::technique::CostClass;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
@@ -103,17 +104,11 @@ impl std::fmt::Display for ShardSpec {
 }
 
 /// Rough relative cost of one run: pixels × (a fixed part for geometry,
-/// G-buffer and shading + a per-sample part by technique class). Only
-/// ratios matter (for balancing), and only the inputs, never a timing.
-pub fn estimated_cost(technique: &str, samples: Option<u32>, pixels: u64, repeat: u32) -> u64 {
-    // Per light sample and pixel: a ray-traced shadow ray costs far more
-    // than a rasterised or counted sample.
-    let per_sample: u64 = match technique {
-        "none" => 0,
-        t if t.starts_with("reference") => 8,
-        _ => 1,
-    };
-    let per_pixel = 4 + per_sample * samples.unwrap_or(4) as u64;
+/// G-buffer and shading + a per-sample part by the technique's declared
+/// [`CostClass`]). Only ratios matter (for balancing), and only the inputs,
+/// never a timing.
+pub fn estimated_cost(cost: CostClass, samples: Option<u32>, pixels: u64, repeat: u32) -> u64 {
+    let per_pixel = 4 + cost.per_sample() * samples.unwrap_or(4) as u64;
     pixels
         .saturating_mul(per_pixel)
         .saturating_mul(repeat as u64)
@@ -792,7 +787,7 @@ pub(crate) fn plan(scenes: &[Scene], options: &CompareOptions, shards: u32) -> R
                 technique: run.setting.curve.clone(),
                 setting: run.setting.label.clone(),
                 cost: estimated_cost(
-                    run.options.technique.name(),
+                    run.options.technique.info().cost,
                     run.setting.samples,
                     pixels,
                     options.repeat,

@@ -12,9 +12,10 @@ use crate::raster::DrawStats;
 use crate::report::Progress;
 use crate::sampling::SamplePattern;
 use crate::scene::Scene;
-use crate::shadow::kit::verify::{self, VerifyReport};
+use crate::shadow::kit::verify::VerifyReport;
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::BuildParams;
+use crate::shadow::technique::BuildParams;
+use crate::shadow::verify;
 use crate::shadow::{
     run_technique, BufferNote, LightTerm, PassTiming, ShadowCache, ShadowContext, TechniqueOptions,
     Warning,
@@ -337,8 +338,8 @@ pub fn verify_render(scene: &Scene, options: &RenderOptions, k: u64) -> Result<V
         depth: &depth,
         cache: &cache,
     };
-    crate::shadow::registry::check_scene(
-        options.technique,
+    crate::shadow::technique::check_scene(
+        options.technique.info(),
         &options.options,
         scene,
         &geometry,

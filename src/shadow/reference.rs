@@ -26,7 +26,7 @@ use crate::gbuffer::GSample;
 use crate::sampling::{PatternSampler, SamplePattern};
 use crate::shade::LightSample;
 use crate::shadow::kit::timing::PassTimer;
-use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
 use std::time::Duration;
 
@@ -119,6 +119,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[Samples, Pattern, Seed]
+    },
+    cost: crate::shadow::technique::CostClass::Rays,
 };
 
 impl Reference {

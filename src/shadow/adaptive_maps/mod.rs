@@ -62,65 +62,17 @@ use crate::shadow::kit::many_maps::{
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::shadow_maps::{DepthBias, ShadowMapOptions};
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{
+use crate::shadow::technique::{
     Bands, Capabilities, QualitySetting, Support, TechniqueInfo, TermKind,
 };
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::Vec3;
+pub use options::{AdaptiveMapsOptions, MAX_DEPTH};
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 
 pub mod dump;
-
-/// Deepest `--max-depth` accepted: 65 × 65 = 4225 points.
-pub const MAX_DEPTH: u32 = 6;
-
-/// Adaptive maps' command-line options (map size, PCF and biases are the
-/// shadow maps').
-#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
-pub struct AdaptiveMapsOptions {
-    /// Adaptive maps: a quad splits when more receivers than this fail the
-    /// banding test (0, the paper's, splits on one).
-    #[arg(long, default_value_t = 0)]
-    pub adaptive_threshold: u64,
-    /// Adaptive maps: deepest light subdivision (4: at most 17 × 17 = 289
-    /// maps).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=MAX_DEPTH as i64))]
-    pub max_depth: u32,
-    /// Adaptive maps: size of the comparison target as a fraction of the
-    /// image's (§3.3.2: smaller → fewer maps, banding).
-    #[arg(long, default_value_t = 1.0)]
-    pub comparison_scale: f64,
-    /// Adaptive maps: quads shallower than this get a centre probe when
-    /// their corners alone do not split them (the fix for occluders whose
-    /// shadows fall between all four corner maps); 0 turns it off (the
-    /// paper).
-    #[arg(long, default_value_t = 2)]
-    pub adaptive_centre_depth: u32,
-    /// Adaptive maps: split every quad down to --max-depth (the regular
-    /// (2^D+1)² grid through the adaptive machinery; for tests).
-    #[arg(long)]
-    pub adaptive_split_all: bool,
-    /// Adaptive maps: low end of the bias band of the banding test, a normal
-    /// offset in texels without slope bias (capped at the run's own). A
-    /// receiver whose hard test from one of the quad's corners differs
-    /// between the band's ends is acne or light leak, not banding: the test
-    /// leaves it out.
-    #[arg(long, default_value_t = 0.5)]
-    pub adaptive_band_low: f64,
-    /// Adaptive maps: high end of the bias band, normal offset and slope
-    /// bias in texels (at least the run's own); 0 turns the band off (the
-    /// paper's test).
-    #[arg(long, default_value_t = 4.0)]
-    pub adaptive_band_high: f64,
-}
-
-impl Default for AdaptiveMapsOptions {
-    /// The command line's defaults.
-    fn default() -> Self {
-        crate::shadow::TechniqueOptions::default().adaptive_maps
-    }
-}
+pub mod options;
 
 /// The adaptive-maps technique.
 #[derive(Debug, Clone, Copy)]
@@ -150,9 +102,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             "the weights are the subdivision's (eq. 3): the light's radiance texture does \
              not weight the maps (the unshadowed light still uses it)",
         ),
-        enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::MAPS_MISS_ENCLOSURE,
         reached_lights: Support::Yes,
-        semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
+        semi_opaque: crate::shadow::technique::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
@@ -187,6 +139,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
          maps for every receiver it sees, so a band's result depends on the pixels \
          of the whole frame",
     ),
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[Seed, ShadowMaps, AdaptiveMaps]
+    },
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 /// A quad of the light's quadtree, in units of the finest grid (`2^D`

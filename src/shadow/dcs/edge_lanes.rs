@@ -15,10 +15,10 @@
 //! types have: `add`, `sub`, `mul`, `div`, `bitand`, `bitor`, `not`,
 //! `cmp_*`, `blend`, `move_mask`, `to_array`, `splat` and `new`.
 
+use super::block_extras::{BlockExtras, BLOCK};
 use super::counters::OrientedEdge;
 use super::edges::{CandidateEdge, CandidateEdges};
-use super::receiver::{BlockExtras, BLOCK};
-use super::SilhouetteMode;
+use super::options::SilhouetteMode;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::avx;
 use crate::simd::f64x4;

@@ -26,6 +26,7 @@
 //! between `p` and `p'` (the half-wedge the rasterizer found `p` in says
 //! which side the stencil took) the constant is moved across that quad.
 
+pub use super::options::SilhouetteMode;
 use crate::geom::silhouette::{area_silhouettes, sphere_silhouettes};
 use crate::geom::EdgeAdjacency;
 use crate::shadow::kit::volumes::side_quad;
@@ -62,32 +63,6 @@ pub struct CandidateEdge {
     /// The quad's copies (its multiplicity from the centre); 1 otherwise.
     pub quad_weight: u32,
     faces: (u32, u32),
-}
-
-/// Which edges get wedges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum SilhouetteMode {
-    /// Silhouettes from the light's centre (the thesis's default; fast,
-    /// but misses edges that are silhouettes only from other parts of the
-    /// light).
-    #[value(alias = "center")]
-    Centre,
-    /// Edges that are silhouettes from some point of the light (§4.1.4):
-    /// every edge that can change `D` for some receiver. Exact; our
-    /// default.
-    #[default]
-    #[value(name = "light", alias = "whole-light")]
-    WholeLight,
-}
-
-impl SilhouetteMode {
-    /// Command-line name.
-    pub fn name(self) -> &'static str {
-        match self {
-            SilhouetteMode::Centre => "centre",
-            SilhouetteMode::WholeLight => "light",
-        }
-    }
 }
 
 /// The shape silhouettes are found against.

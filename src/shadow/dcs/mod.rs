@@ -30,6 +30,7 @@
 //! receiver's counting in `receiver.rs`.
 
 pub mod bitfield;
+pub mod block_extras;
 pub mod blocks;
 pub mod chart;
 mod chart_lanes;
@@ -37,9 +38,11 @@ pub mod counters;
 mod edge_lanes;
 pub mod edges;
 pub mod faces;
+pub mod options;
 mod passes;
 mod receiver;
 pub mod region;
+pub mod settings;
 pub mod ties;
 
 use super::kit::groups::Attenuation;
@@ -48,78 +51,23 @@ use super::kit::membership::{light_start, light_start_shifted};
 use super::kit::rays::ShadowOrigin;
 use super::kit::stsv::{Filter, STriangles};
 use super::kit::timing::{timed, PassTimer};
-use super::kit::verify::{PixelVisibility, SampleDecisions};
-use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use super::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use super::technique::{PixelVisibility, SampleDecisions};
 use super::{BufferNote, LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::output::Layer;
 use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::shade::{LightSample, PreparedLight};
 use blocks::BlockGrid;
-pub use edges::SilhouetteMode;
+pub use options::{CoverageTest, DcsMode, DcsOptions, SilhouetteMode};
 use passes::{
     assemble, build_wedges, candidate_edges, count_tiles, coverage_tables, gather, group_starts,
     recount_ties, s_triangle_membership, wedge_membership,
 };
 use receiver::LightPass;
 pub use receiver::{CounterInspector, InspectedPixel};
+pub use settings::{DcsLightReport, DepthComplexitySampling};
 use ties::depth_shifts;
-
-/// What the counters are turned into.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum DcsMode {
-    /// A visibility coefficient modulating the unshadowed direct light
-    /// (eq. 4.1): an approximation of the image.
-    Vcoef,
-    /// The direct light integrated over the samples, each weighted by its
-    /// binary visibility (eq. 4.6): the exact image, the default.
-    #[default]
-    Direct,
-}
-
-impl DcsMode {
-    /// Command-line name.
-    pub fn name(self) -> &'static str {
-        match self {
-            DcsMode::Vcoef => "vcoef",
-            DcsMode::Direct => "direct",
-        }
-    }
-}
-
-/// Depth complexity sampling's command-line options.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
-pub struct DcsOptions {
-    /// Depth complexity sampling: wedges on the silhouettes from the whole
-    /// light (`light`, exact, the default) or from the light's centre
-    /// (`centre`, faster, misses edges that are silhouettes only from
-    /// other points of the light).
-    #[arg(long, value_enum, default_value_t = SilhouetteMode::WholeLight)]
-    pub silhouettes: SilhouetteMode,
-    /// Depth complexity sampling: `direct` (integrate the light per
-    /// sample, eq. 4.6: the exact image, the default) or `vcoef` (modulate
-    /// the unshadowed light by the visibility coefficient, eq. 4.1: an
-    /// approximation, biased where shadow and shading vary together).
-    #[arg(long = "dcs-mode", value_enum, default_value_t = DcsMode::Direct)]
-    pub mode: DcsMode,
-    /// Depth complexity sampling: semi-opaque casters' transmittance,
-    /// `exact` (the product of `1 − opacity` per layer) or `summed` (the
-    /// thesis's summed-opacity approximation).
-    #[arg(long, value_enum, default_value_t = TransmittanceMode::Exact)]
-    pub transmittance: TransmittanceMode,
-    /// Depth complexity sampling: covered samples by the exact per-sample
-    /// test (`exact`) or the thesis's precomputed bit fields (`bitfield`,
-    /// approximate; correlated or interleaved patterns on rect lights).
-    #[arg(long, value_enum, default_value_t = CoverageTest::Exact)]
-    pub coverage: CoverageTest,
-}
-
-impl Default for DcsOptions {
-    /// The command line's defaults (exact: whole-light silhouettes).
-    fn default() -> Self {
-        crate::shadow::TechniqueOptions::default().dcs
-    }
-}
 
 /// Depth complexity sampling in the technique registry.
 pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
@@ -141,8 +89,8 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             },
         },
         textured_lights: Support::Yes,
-        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
-        reached_lights: crate::shadow::registry::COUNTS_MISS_REACHED_LIGHT,
+        enclosed_lights: crate::shadow::technique::SILHOUETTES_MISS_ENCLOSURE,
+        reached_lights: crate::shadow::technique::COUNTS_MISS_REACHED_LIGHT,
         semi_opaque: Support::Yes,
         s_triangles: Support::Yes,
         output: match o.dcs.mode {
@@ -194,50 +142,12 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[Samples, Pattern, Seed, Dcs, Stsv]
+    },
+    cost: crate::shadow::technique::CostClass::Raster,
 };
-
-/// The depth-complexity-sampling technique.
-#[derive(Debug, Clone, Copy)]
-pub struct DepthComplexitySampling {
-    /// Light samples per receiver and light (any `N ≥ 1`).
-    pub samples: u32,
-    /// Seed of the light samples (the reference's, for the same pixel).
-    pub seed: u64,
-    /// Which edges get wedges.
-    pub silhouettes: SilhouetteMode,
-    /// Vcoef or direct-lighting output.
-    pub mode: DcsMode,
-    /// How samples are placed on the light (shared with the reference).
-    pub pattern: SamplePattern,
-    /// How semi-opaque casters' layer counts become transmittance.
-    pub transmittance: TransmittanceMode,
-    /// How covered samples are found.
-    pub coverage: CoverageTest,
-    /// Look-up of S-triangles' opacity textures.
-    pub opacity_filter: Filter,
-}
-
-/// How the samples an edge covers are found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum CoverageTest {
-    /// The exact per-sample test, SIMD over samples.
-    #[default]
-    Exact,
-    /// The thesis's precomputed bit fields (Fig. 4.9), approximate; only
-    /// for sample sets shared by many pixels on rect lights.
-    #[value(name = "bitfield")]
-    BitField,
-}
-
-impl CoverageTest {
-    /// Command-line name.
-    pub fn name(self) -> &'static str {
-        match self {
-            CoverageTest::Exact => "exact",
-            CoverageTest::BitField => "bitfield",
-        }
-    }
-}
 
 /// What DCS counts besides the opaque casters, from the render's cache
 /// (found once per render, not per light): the semi-opaque groups and the
@@ -254,29 +164,6 @@ impl<'a> SceneCasters<'a> {
             s_triangles: ctx.cache.s_triangles(),
         }
     }
-}
-
-/// Per-light buffers for `--explain`.
-#[derive(Debug, Clone, Default)]
-pub struct DcsLightReport {
-    /// Candidate edges (wedges requested), over all caster groups.
-    pub candidate_edges: usize,
-    /// Semi-opaque caster groups (one per distinct opacity).
-    pub semi_opaque_groups: usize,
-    /// Edges with no bounded wedge (applied to every receiver).
-    pub unbounded_edges: usize,
-    /// Half-wedge triangles drawn.
-    pub wedge_triangles: usize,
-    /// (pixel, edge) pairs recorded.
-    pub pairs: usize,
-    /// (pixel, edge) pairs from edges without a bounded wedge.
-    pub unbounded_pairs: usize,
-    /// Receivers that needed per-sample counters.
-    pub sampled_pixels: usize,
-    /// Receivers whose start count was recounted by a ray because a
-    /// quad's plane passes between the raster's receiver and the
-    /// shadow-ray origin.
-    pub quad_recounts: usize,
 }
 
 impl DepthComplexitySampling {

@@ -18,13 +18,15 @@
 //! 7. [`assemble`] and, for interleaved sampling, [`gather`]: the images.
 
 use super::bitfield::{CoverageTables, TableResolution};
+use super::block_extras::{BlockExtras, BLOCK};
 use super::chart::ReceiverChart;
 use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
-use super::receiver::{BlockExtras, Extras, GroupPass, LightPass, PixelResult, Scratch, BLOCK};
+use super::options::{CoverageTest, SilhouetteMode};
+use super::receiver::{Extras, GroupPass, LightPass, PixelResult, Scratch};
 use super::region::{ReceiverBlock, RegionBound};
+use super::settings::{DcsLightReport, DepthComplexitySampling};
 use super::ties::{cap_segment, own_face_change, tied_from_changes, tied_pixels, ExactStart, Tie};
-use super::{CoverageTest, DcsLightReport, DepthComplexitySampling, SilhouetteMode};
 use crate::error::{Error, Result};
 use crate::geom::silhouette::faces_point;
 use crate::geom::EdgeAdjacency;

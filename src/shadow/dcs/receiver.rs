@@ -5,14 +5,16 @@
 //! into transmittance, and from them its Vcoef or direct light.
 
 use super::bitfield::CoverageTables;
+use super::block_extras::{BlockExtras, MadeExtras, BLOCK};
 use super::blocks::{BlockCounts, BlockGrid, BlockSamples};
 use super::chart::ReceiverChart;
 use super::chart_lanes::{chart_rows, chart_rows_apply};
 use super::counters::{add_covered, ChartSamples, OrientedEdge, SectorSamples, LANES};
 use super::edge_lanes::{self, EdgeSource, GroupInputs, GROUPS};
 use super::edges::{side_of, CandidateEdge, CandidateEdges};
+use super::options::{DcsMode, SilhouetteMode};
+use super::settings::DepthComplexitySampling;
 use super::ties::{ExactStart, Tie};
-use super::{DcsMode, DepthComplexitySampling, SilhouetteMode};
 use crate::sampling::{LightSampler, PatternSampler};
 use crate::shade::{surface_point, LightSample, PreparedLight, SurfacePoint};
 use crate::shadow::kit::groups::Attenuation;
@@ -99,41 +101,6 @@ pub(super) enum Extras<'a> {
     Ids(&'a [u32]),
     /// The opaque group's, made for the receiver's block.
     Made(MadeExtras<'a>),
-}
-
-/// One receiver's share of [`BlockExtras`].
-#[derive(Debug, Clone, Copy)]
-pub(super) struct MadeExtras<'a> {
-    /// The effective edges among them, in id order.
-    effective: &'a [(OrientedEdge, i32)],
-    /// Whether one's quad plane lies between the raster's receiver and
-    /// `p'` (its start count is then recounted).
-    recount: bool,
-    /// How many reached the receiver.
-    pub(super) admitted: usize,
-}
-
-/// The unbounded edges of a 4² block's receivers ([`BLOCK`] of them,
-/// row by row), made in lanes ([`LightPass::block_extras`]).
-#[derive(Debug, Default)]
-pub(super) struct BlockExtras {
-    pub(super) effective: [Vec<(OrientedEdge, i32)>; BLOCK],
-    pub(super) recount: [bool; BLOCK],
-    pub(super) admitted: [usize; BLOCK],
-}
-
-/// Receivers of a block.
-pub(super) const BLOCK: usize = 16;
-
-impl BlockExtras {
-    /// Block receiver `k`'s share.
-    pub(super) fn of(&self, k: usize) -> MadeExtras<'_> {
-        MadeExtras {
-            effective: &self.effective[k],
-            recount: self.recount[k],
-            admitted: self.admitted[k],
-        }
-    }
 }
 
 /// One group's edges at one receiver ([`LightPass::group_edges`]).

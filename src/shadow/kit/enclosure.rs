@@ -7,7 +7,7 @@
 //! is a silhouette, so its volume has no sides and its shadow is lost),
 //! nor do maps rendered from a point inside the casters' bounds. Such
 //! techniques refuse these scenes (their capability
-//! [`crate::shadow::registry::Capabilities::enclosed_lights`]) rather than
+//! [`crate::shadow::technique::Capabilities::enclosed_lights`]) rather than
 //! give a silently different image — unless the eye is inside the same
 //! closed caster (a light in a closed room seen from inside it): every
 //! visible receiver is then inside it too, where the caster's own edges

@@ -28,6 +28,7 @@ pub mod light_frame;
 pub mod light_view;
 pub mod many_maps;
 pub mod map_fit;
+pub mod map_options;
 pub mod membership;
 pub mod rays;
 pub mod shadow_maps;

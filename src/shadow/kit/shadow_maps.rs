@@ -19,7 +19,8 @@
 //!   along its geometric normal by that many texel footprints before it is
 //!   projected.
 
-use crate::error::{Error, Result};
+pub use super::map_options::{DepthBias, Pcf, ShadowMapOptions, MAX_MAP_SIZE};
+use crate::error::Result;
 use crate::gbuffer::{GBuffer, GSample};
 use crate::geom::SceneGeometry;
 use crate::scene::{Light, LightShape, Scene};
@@ -27,86 +28,6 @@ use crate::shadow::kit::light_view::{depth_map, Bounds, DepthMap, LightView};
 use crate::view::View;
 use glam::{DVec2, Vec3};
 use rayon::prelude::*;
-use std::fmt;
-use std::str::FromStr;
-
-/// Largest map side `--map-size` accepts (the light view's own limit).
-pub const MAX_MAP_SIZE: u32 = 16384;
-
-/// The percentage-closer filter of a map look-up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Pcf {
-    /// One tap: the texel holding the receiver's projection.
-    #[default]
-    Nearest,
-    /// The four nearest texels, weighted bilinearly.
-    Bilinear2x2,
-    /// A 3×3 box of texels around the nearest.
-    Box3x3,
-    /// `n` taps of a Poisson disk (radius 1.5 texels), rotated per pixel.
-    Poisson(u32),
-}
-
-impl FromStr for Pcf {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Pcf, String> {
-        match s.trim() {
-            "1" | "none" => Ok(Pcf::Nearest),
-            "2x2" => Ok(Pcf::Bilinear2x2),
-            "3x3" => Ok(Pcf::Box3x3),
-            other => {
-                let n = other
-                    .strip_prefix("poisson:")
-                    .and_then(|n| n.parse::<u32>().ok())
-                    .ok_or_else(|| {
-                        format!("unknown filter `{other}` (known: 1, 2x2, 3x3, poisson:N)")
-                    })?;
-                if n == 0 || n > 256 {
-                    return Err(format!("poisson:{n}: N must be in 1..=256"));
-                }
-                Ok(Pcf::Poisson(n))
-            }
-        }
-    }
-}
-
-impl fmt::Display for Pcf {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Pcf::Nearest => f.write_str("1"),
-            Pcf::Bilinear2x2 => f.write_str("2x2"),
-            Pcf::Box3x3 => f.write_str("3x3"),
-            Pcf::Poisson(n) => write!(f, "poisson:{n}"),
-        }
-    }
-}
-
-/// The three depth biases, as the options give them.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DepthBias {
-    /// Constant bias, a fraction of the receiver's depth.
-    pub constant: f64,
-    /// Slope-scaled bias, in texels.
-    pub slope: f64,
-    /// Normal offset, in texels.
-    pub normal_offset: f64,
-}
-
-impl DepthBias {
-    /// Refuses negative or absurd values, naming the parameter.
-    pub fn validate(&self) -> Result<()> {
-        for (name, v, max) in [
-            ("--depth-bias", self.constant, 1.0),
-            ("--slope-bias", self.slope, 1e3),
-            ("--normal-offset", self.normal_offset, 1e3),
-        ] {
-            if !(v >= 0.0 && v <= max) {
-                return Err(Error::param(name, format!("{v} is outside 0..={max}")));
-            }
-        }
-        Ok(())
-    }
-}
 
 /// Whether triangle `t` is in the maps: an opaque caster (casters of
 /// constant opacity below 1 are not; S-triangles are, as opaque, and the
@@ -316,44 +237,4 @@ pub fn poisson_disk(n: u32, radius: f64) -> Vec<DVec2> {
         taps.push(p);
     }
     taps
-}
-
-/// Shadow maps' command-line options.
-#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
-pub struct ShadowMapOptions {
-    /// Shadow maps: texels per side of each light's depth map.
-    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=MAX_MAP_SIZE as i64))]
-    pub map_size: u32,
-    /// Shadow maps: percentage-closer filter, 1 | 2x2 | 3x3 | poisson:N.
-    #[arg(long, default_value = "1")]
-    pub pcf: Pcf,
-    /// Shadow maps: constant depth bias, a fraction of the receiver's depth
-    /// (defaults of the three biases: the bias study in
-    /// docs/algorithms/shadow-maps.md).
-    #[arg(long, default_value_t = 1e-4)]
-    pub depth_bias: f64,
-    /// Shadow maps: slope-scaled depth bias, in texels.
-    #[arg(long, default_value_t = 0.0)]
-    pub slope_bias: f64,
-    /// Shadow maps: normal offset of the receiver, in texels.
-    #[arg(long, default_value_t = 0.5)]
-    pub normal_offset: f64,
-}
-
-impl Default for ShadowMapOptions {
-    /// The command line's defaults.
-    fn default() -> Self {
-        crate::shadow::TechniqueOptions::default().shadow_map
-    }
-}
-
-impl ShadowMapOptions {
-    /// The depth biases these options ask for.
-    pub fn bias(&self) -> DepthBias {
-        DepthBias {
-            constant: self.depth_bias,
-            slope: self.slope_bias,
-            normal_offset: self.normal_offset,
-        }
-    }
 }

@@ -21,9 +21,7 @@
 use super::rays::ShadowTracer;
 use crate::error::{Error, Result};
 use crate::sampling::mix64;
-use crate::shade::LightSample;
-use crate::shadow::registry::{BuildParams, Technique, TechniqueOptions};
-use crate::shadow::ShadowContext;
+use crate::shadow::technique::{SampleDecisions, ShadowContext};
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -37,30 +35,6 @@ pub const TIE_DISTANCE: f64 = 1e-4;
 /// reference stores f32, and products of semi-opaque layers may round in a
 /// different order.
 pub const VALUE_TOLERANCE: f64 = 1e-5;
-
-/// One pixel's per-sample decisions as the technique made them.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PixelVisibility {
-    /// Pixel index (row-major).
-    pub pixel: usize,
-    /// The light samples it used, in its sample order.
-    pub samples: Vec<LightSample>,
-    /// Its visibility `V·T` per sample (0 blocked, 1 visible).
-    pub visibility: Vec<f64>,
-}
-
-/// A technique's per-sample decisions, for `--verify`.
-pub trait SampleDecisions: Sync {
-    /// The decisions of light `light` at `pixels` (sorted, no duplicates,
-    /// surface pixels of shadow receivers); pixels the technique has no
-    /// samples for may be left out.
-    fn sample_visibility(
-        &self,
-        ctx: &ShadowContext,
-        light: usize,
-        pixels: &[usize],
-    ) -> Result<Vec<PixelVisibility>>;
-}
 
 /// One disagreement.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -209,21 +183,6 @@ fn short(x: f64) -> String {
     }
 }
 
-/// The names of the techniques that expose their decisions.
-pub fn verifiable() -> Vec<&'static str> {
-    let options = TechniqueOptions::default();
-    let params = BuildParams {
-        samples: 1,
-        seed: 0,
-        pattern: Default::default(),
-        options: &options,
-    };
-    Technique::all()
-        .filter(|t| t.build(&params).sample_decisions().is_some())
-        .map(|t| t.name())
-        .collect()
-}
-
 /// Most relations one `--verify K` draws (they are held in memory).
 pub const MAX_RELATIONS: u64 = 10_000_000;
 
@@ -238,29 +197,6 @@ pub fn parse_amount(s: &str) -> std::result::Result<u64, String> {
     }
     s.parse::<u64>()
         .map_err(|_| format!("`{s}` is neither a number of relations nor `all`"))
-}
-
-/// An error unless `technique` built from `params` exposes its decisions
-/// and `k` is in `1..=MAX_RELATIONS` or [`EVERY_RELATION`].
-pub fn check_verifiable(technique: Technique, params: &BuildParams, k: u64) -> Result<()> {
-    if !(1..=MAX_RELATIONS).contains(&k) && k != EVERY_RELATION {
-        return Err(Error::param(
-            "--verify",
-            format!("{k} relations is outside 1..={MAX_RELATIONS}"),
-        ));
-    }
-    if technique.build(params).sample_decisions().is_some() {
-        return Ok(());
-    }
-    Err(Error::param(
-        "--verify",
-        format!(
-            "`{}` does not expose its per-sample decisions, so it cannot be verified \
-             (verifiable: {})",
-            technique.name(),
-            verifiable().join(", ")
-        ),
-    ))
 }
 
 /// One relation to check.
@@ -398,30 +334,6 @@ impl Casters {
     }
 }
 
-/// Checks `k` relations of `technique` (built from `params`) on `ctx`.
-/// The technique's light passes run again through its
-/// [`SampleDecisions`] (deterministic: the render's own decisions).
-pub fn verify(
-    technique: Technique,
-    params: &BuildParams,
-    ctx: &ShadowContext,
-    k: u64,
-) -> Result<VerifyReport> {
-    check_verifiable(technique, params, k)?;
-    let built = technique.build(params);
-    let Some(decisions) = built.sample_decisions() else {
-        return Err(Error::param(
-            "--verify",
-            format!("{} has no per-sample decisions to verify", technique.name()),
-        ));
-    };
-    let exact = technique.capabilities(params.options).exact;
-    if k == EVERY_RELATION {
-        return verify_all(decisions, technique.name(), exact, ctx, params.samples);
-    }
-    verify_with(decisions, technique.name(), exact, ctx, k, params.seed)
-}
-
 /// Relations per chunk of [`verify_all`]: the chunk's samples and
 /// decisions are held at once (~56 bytes a relation).
 const ALL_CHUNK_RELATIONS: usize = 1 << 22;
@@ -430,7 +342,7 @@ const ALL_CHUNK_RELATIONS: usize = 1 << 22;
 /// per pixel, as the technique was built), in chunks of pixels: each
 /// chunk runs the technique's light pass again with its inspector on
 /// those pixels, and every sample of every pixel is re-cast.
-fn verify_all(
+pub(crate) fn verify_all(
     decisions: &dyn SampleDecisions,
     name: &str,
     declared_exact: bool,

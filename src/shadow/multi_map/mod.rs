@@ -26,7 +26,7 @@ use crate::shadow::kit::many_maps::{
 use crate::shadow::kit::shadow_maps::ShadowMapOptions;
 use crate::shadow::kit::shadow_maps::{poisson_disk, Pcf};
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{
+use crate::shadow::technique::{
     Bands, Capabilities, QualitySetting, Support, TechniqueInfo, TermKind,
 };
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
@@ -66,9 +66,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             "every map has the same weight: the light's radiance texture does not weight \
              the maps (the unshadowed light still uses it)",
         ),
-        enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::MAPS_MISS_ENCLOSURE,
         reached_lights: Support::Yes,
-        semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
+        semi_opaque: crate::shadow::technique::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
@@ -98,6 +98,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[Samples, Pattern, Seed, ShadowMaps]
+    },
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 impl ShadowTechnique for MultiMap {

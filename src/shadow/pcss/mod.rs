@@ -34,7 +34,9 @@
 //! rectangle (`--pcss-kernel box`, `k = ⌈√N⌉`, not rotated: deterministic
 //! and dense, the exact linear ramp of a straight edge).
 
-use crate::error::{Error, Result};
+pub mod options;
+
+use crate::error::Result;
 use crate::scene::{Light, LightShape};
 use crate::shadow::kit::light_view::{fully_lit, map_bounds, DepthMap};
 use crate::shadow::kit::map_fit::tight_light_view;
@@ -44,70 +46,11 @@ use crate::shadow::kit::shadow_maps::{
     project_receiver, MapReceiver,
 };
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::View;
 use glam::DVec2;
-
-/// Most taps of either PCSS stage.
-pub const MAX_PCSS_SAMPLES: u32 = 4096;
-
-/// The tap pattern of PCSS's blocker search and filter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum PcssKernel {
-    /// A Poisson disk, rotated per pixel (NVIDIA's code, ours rotated).
-    #[default]
-    Poisson,
-    /// A regular `⌈√N⌉²` grid over the light's whole rectangle, not
-    /// rotated: dense and deterministic (a box filter).
-    Box,
-}
-
-/// PCSS's command-line options (the map itself takes the shadow-map
-/// options `--map-size`, `--depth-bias`, `--slope-bias`, `--normal-offset`).
-#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
-pub struct PcssOptions {
-    /// PCSS: taps of the blocker search (the paper's figure uses 64).
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=MAX_PCSS_SAMPLES as i64))]
-    pub pcss_blocker_samples: u32,
-    /// PCSS: taps of the percentage-closer filter (the paper's figure uses 64).
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=MAX_PCSS_SAMPLES as i64))]
-    pub pcss_filter_samples: u32,
-    /// PCSS: tap pattern, `poisson` (rotated per pixel) or `box` (a regular
-    /// grid over the light's rectangle).
-    #[arg(long, value_enum, default_value_t = PcssKernel::Poisson)]
-    pub pcss_kernel: PcssKernel,
-    /// PCSS: compare every tap with the receiver's own depth instead of
-    /// its plane's depth at the tap (no receiver-plane depth bias).
-    #[arg(long)]
-    pub pcss_flat_receiver: bool,
-}
-
-impl Default for PcssOptions {
-    /// The command line's defaults.
-    fn default() -> Self {
-        crate::shadow::TechniqueOptions::default().pcss
-    }
-}
-
-impl PcssOptions {
-    /// Refuses sample counts outside `1..=MAX_PCSS_SAMPLES`, naming the
-    /// option.
-    pub fn validate(&self) -> Result<()> {
-        for (name, n) in [
-            ("--pcss-blocker-samples", self.pcss_blocker_samples),
-            ("--pcss-filter-samples", self.pcss_filter_samples),
-        ] {
-            if !(1..=MAX_PCSS_SAMPLES).contains(&n) {
-                return Err(Error::param(
-                    name,
-                    format!("{n} is outside 1..={MAX_PCSS_SAMPLES}"),
-                ));
-            }
-        }
-        Ok(())
-    }
-}
+pub use options::{PcssKernel, PcssOptions, MAX_PCSS_SAMPLES};
 
 /// The PCSS technique.
 #[derive(Debug, Clone, Copy)]
@@ -130,9 +73,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
-        enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::MAPS_MISS_ENCLOSURE,
         reached_lights: Support::Yes,
-        semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
+        semi_opaque: crate::shadow::technique::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
@@ -160,6 +103,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[Seed, ShadowMaps, Pcss]
+    },
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 /// Unit taps of one stage: the Poisson disk of radius 1, or the regular

@@ -31,7 +31,7 @@
 //! own samples are computed on first need by [`ReceiverSamples`] — the
 //! reference's samples at its pixel, for every pattern.
 
-use super::volume::{ChunkBoxes, GroupSoa};
+use super::volume::{ChunkBoxes, GroupSoa, LightBox};
 use crate::sampling::{mix64, pixel_key, LightSampler, PatternSampler, SamplePattern};
 use crate::shade::LightSample;
 use crate::shadow::kit::stsv::SamplePositions;
@@ -41,14 +41,6 @@ use glam::{DVec3, Vec3};
 pub const GROUP: usize = 32;
 /// Most groups: the umbra bits are one `u128`.
 pub const MAX_GROUPS: usize = 128;
-
-/// A convex light part as a box in the light's frame: its 8 corners,
-/// relative to the light's centre.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LightBox {
-    /// Corners `lo + (i&1, i&2, i&4)·(hi − lo)` in world axes.
-    pub corners: [DVec3; 8],
-}
 
 /// The sample sets of one light.
 #[derive(Debug, Clone)]

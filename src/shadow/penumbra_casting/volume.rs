@@ -13,9 +13,16 @@
 //! inside points (the active-plane-set rule gives the point test's
 //! answer, bit for bit).
 
-use super::samples::LightBox;
 use crate::simd::f64x4;
 use glam::DVec3;
+
+/// A convex light part as a box in the light's frame: its 8 corners,
+/// relative to the light's centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightBox {
+    /// Corners `lo + (i&1, i&2, i&4)·(hi − lo)` in world axes.
+    pub corners: [DVec3; 8],
+}
 
 /// Most planes kept per penumbra volume (a `u32` active set); further
 /// separating planes are dropped, which only loosens the volume.

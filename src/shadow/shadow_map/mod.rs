@@ -24,7 +24,7 @@ use crate::shadow::kit::shadow_maps::{
 };
 pub use crate::shadow::kit::shadow_maps::{Pcf, MAX_MAP_SIZE};
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 
 /// The hard shadow-map technique.
@@ -46,9 +46,9 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
-        enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::MAPS_MISS_ENCLOSURE,
         reached_lights: Support::Yes,
-        semi_opaque: crate::shadow::registry::MAPS_OPAQUE_ONLY,
+        semi_opaque: crate::shadow::technique::MAPS_OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
@@ -74,6 +74,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[Seed, ShadowMaps]
+    },
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 impl ShadowTechnique for ShadowMap {

@@ -24,8 +24,10 @@
 
 mod accumulate;
 pub mod geometry;
+pub mod options;
 
 pub use accumulate::{add_f16, batch_size, Params, Patches, TILE};
+pub use options::{Accumulate, Lookup, SsmOptions};
 
 use crate::error::{Error, Result};
 use crate::geom::SceneGeometry;
@@ -42,66 +44,13 @@ use crate::shadow::kit::shadow_maps::{
     opaque_caster, per_receiver, project_receiver, DepthBias, MapReceiver,
 };
 use crate::shadow::kit::PassTimer;
-use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{BufferNote, LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::view::{Extent, View};
 use geometry::{patch_occlusion, reach};
 use glam::Vec3;
 use half::f16;
 use rayon::prelude::*;
-
-/// Precision the micro-patches' occlusion is summed in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum Accumulate {
-    /// f32 (what fp32 blending would have given; the default).
-    #[default]
-    F32,
-    /// IEEE half precision, rounded once per blend as 2006 fp16 blending
-    /// did (appendix A): fails where eq. 4 says.
-    F16,
-    /// f16 in `⌊√M⌋` batches of patches, each batch summed on its own and
-    /// added to an intermediate sum (appendix A's workaround).
-    F16Batched,
-}
-
-/// How a receiver reads the SSM.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum Lookup {
-    /// The texel the receiver projects into.
-    Nearest,
-    /// The four nearest texels, weighted bilinearly.
-    #[default]
-    Bilinear,
-}
-
-/// Soft shadow maps' own options (the map size and the depth biases are
-/// the shadow maps' `--map-size`, `--depth-bias`, `--slope-bias`,
-/// `--normal-offset`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
-pub struct SsmOptions {
-    /// Soft shadow maps: 1 = the front (nearest) faces' patches; 2 = also
-    /// the nearest back faces', in a second SSM, merged by max (§3.5).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=2))]
-    pub ssm_passes: u8,
-    /// Soft shadow maps: in one pass, add a patch at the back faces' depth
-    /// under each outline texel of the occluder map (our reading of
-    /// Fig. 11b "one pass with bottom patches").
-    #[arg(long)]
-    pub ssm_bottom_patches: bool,
-    /// Soft shadow maps: accumulation precision, f32 | f16 | f16-batched.
-    #[arg(long, value_enum, default_value_t = Accumulate::F32)]
-    pub ssm_accumulate: Accumulate,
-    /// Soft shadow maps: look-up of the SSM per receiver, nearest | bilinear.
-    #[arg(long, value_enum, default_value_t = Lookup::Bilinear)]
-    pub ssm_lookup: Lookup,
-}
-
-impl Default for SsmOptions {
-    /// The command line's defaults.
-    fn default() -> Self {
-        crate::shadow::TechniqueOptions::default().ssm
-    }
-}
 
 /// The soft-shadow-map technique.
 #[derive(Debug, Clone, Copy)]
@@ -127,7 +76,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
                   such closed form (use dcs or reference)",
         },
         textured_lights: Support::Yes,
-        enclosed_lights: crate::shadow::registry::MAPS_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::MAPS_MISS_ENCLOSURE,
         // A micro-patch at the light's plane back-projects onto the whole
         // map (its reach grows as 1 / its depth from the light), so the
         // accumulation's work has no bound: found by a fuzz campaign as
@@ -174,6 +123,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[ShadowMaps, Ssm]
+    },
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 /// One light's soft shadow map and what was built for it.

@@ -46,8 +46,8 @@ use crate::shadow::kit::volumes::{
     build_volume, cap_triangles, light_point, side_quad, stencil_counts_of,
 };
 use crate::shadow::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
-use crate::shadow::registry::OPAQUE_ONLY;
-use crate::shadow::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use crate::shadow::technique::OPAQUE_ONLY;
+use crate::shadow::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use crate::shadow::{LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -201,7 +201,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             why: "blending splits rect lights into quarters (use wedges or reference)",
         },
         textured_lights: Support::Yes,
-        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::SILHOUETTES_MISS_ENCLOSURE,
         reached_lights: Support::Yes,
         semi_opaque: OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
@@ -214,6 +214,8 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: &[],
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 /// The penumbra-wedge blending technique. S-triangles are shadowed by

@@ -24,8 +24,8 @@ use super::kit::tiles::{local_xy, TilePixels};
 use super::kit::timing::PassTimer;
 use super::kit::volumes::silhouette_quads;
 use super::kit::wedge_geometry::{HalfWedge, LightBound, SilhouetteQuad, Wedges};
-use super::registry::OPAQUE_ONLY;
-use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use super::technique::OPAQUE_ONLY;
+use super::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use super::{LightTerm, PassTiming, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::Result;
 use crate::gbuffer::GBuffer;
@@ -49,7 +49,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
-        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::SILHOUETTES_MISS_ENCLOSURE,
         reached_lights: Support::Yes,
         semi_opaque: OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
@@ -62,6 +62,8 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: &[],
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 /// One tile's state of the wedge pass (besides its membership counts).

@@ -6,21 +6,12 @@
 //! technique whose capabilities declare [`Support::StsvAddOn`] for
 //! S-triangles, the same way for all of them.
 //!
-//! [`Support::StsvAddOn`]: crate::shadow::registry::Support::StsvAddOn
+//! [`Support::StsvAddOn`]: crate::shadow::technique::Support::StsvAddOn
 
-use super::{occlusion_note, stsv_occlusion, Filter, StsvSampling};
+use super::{occlusion_note, stsv_occlusion, StsvSampling};
 use crate::error::Result;
 use crate::output::Layer;
 use crate::shadow::{LightTerm, ShadowContext, ShadowOutput};
-
-/// Soft textured shadow volumes' command-line option.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::Args)]
-pub struct StsvOptions {
-    /// Opacity textures of S-triangles (soft textured shadow volumes):
-    /// `nearest` texel (the contract's rule) or `bilinear`.
-    #[arg(long, value_enum, default_value_t = Filter::Nearest)]
-    pub opacity_filter: Filter,
-}
 
 /// Adds the S-triangles' occluded fraction `f` to a Vcoef technique's
 /// result (thesis §5.2.1: the STSV Vcoef is added to the wedges' one):

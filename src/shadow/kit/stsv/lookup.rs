@@ -41,18 +41,6 @@ use glam::{Vec2, Vec3};
 /// Samples per SIMD step.
 const LANES: usize = 8;
 
-/// How the opacity texture is read at a crossing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum Filter {
-    /// Nearest texel (the contract's default and the reference's rule:
-    /// `Texture::lookup_scalar`).
-    #[default]
-    Nearest,
-    /// Bilinear between the four nearest texel centres, repeating
-    /// (`bilinear_scalar`).
-    Bilinear,
-}
-
 /// Light sample positions as structure of arrays, padded to a multiple
 /// of eight: laid out once per receiver, tested against each of its
 /// S-triangles.

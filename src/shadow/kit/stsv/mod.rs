@@ -32,12 +32,14 @@ pub mod addon;
 pub mod lookup;
 pub mod membership;
 pub mod occlusion;
+pub mod options;
 pub mod volume;
 
-pub use addon::{subtract_occlusion, StsvOptions};
-pub use lookup::{bilinear_scalar, Filter, SamplePositions, SampleProjector};
+pub use addon::subtract_occlusion;
+pub use lookup::{bilinear_scalar, SamplePositions, SampleProjector};
 pub use membership::{membership, raster_mesh, StsvMembership};
 pub use occlusion::{occlusion_note, stsv_occlusion, StsvOcclusion, StsvSampling};
+pub use options::{Filter, StsvOptions};
 pub use volume::{build_volumes, stsv_planes, HalfSpace, Stsv, VolumeParams};
 
 use crate::geom::{SceneGeometry, TriangleFrame};

@@ -11,34 +11,29 @@
 //! (s = ±1 the face's facing). The stencil then counts occluding layers;
 //! zero means lit either way.
 
+pub mod options;
+
 use super::kit::timing::timed;
 use super::kit::volumes::{build_volume, light_point, stencil_counts};
-use super::registry::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
+use super::technique::{Bands, Capabilities, Support, TechniqueInfo, TermKind};
 use super::{LightTerm, ShadowContext, ShadowOutput, ShadowTechnique};
 use crate::error::{Error, Result};
 use crate::output::Layer;
-
-/// Hard shadow volumes' command-line options.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::Args)]
-pub struct ShadowVolumeOptions {
-    /// Shadow volumes: count with z-pass instead of z-fail.
-    #[arg(long)]
-    pub zpass: bool,
-}
+pub use options::ShadowVolumeOptions;
 
 /// Hard shadow volumes in the technique registry.
 pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     name: "shadow-volumes",
     summary: "hard shadow volumes from each light's centre: exact integer stencil counts, z-fail or z-pass (thesis §2.2.1)",
-    module: "shadow/shadow_volumes.rs",
+    module: "shadow/shadow_volumes/",
     page: Some("shadow-volumes.md"),
     capabilities: |_| Capabilities {
         rect_lights: Support::Yes,
         sphere_lights: Support::Yes,
         textured_lights: Support::Yes,
-        enclosed_lights: crate::shadow::registry::SILHOUETTES_MISS_ENCLOSURE,
+        enclosed_lights: crate::shadow::technique::SILHOUETTES_MISS_ENCLOSURE,
         reached_lights: Support::Yes,
-        semi_opaque: super::registry::OPAQUE_ONLY,
+        semi_opaque: super::technique::OPAQUE_ONLY,
         s_triangles: Support::StsvAddOn,
         output: TermKind::Vcoef,
         exact: false,
@@ -60,6 +55,11 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
     // Per-pixel results from the pixel's own sample, the full-frame depth
     // buffer, the scene and per-pixel-keyed samples.
     bands: Bands::Rows,
+    reads: {
+        use crate::shadow::options::OptionGroup::*;
+        &[ShadowVolumes]
+    },
+    cost: crate::shadow::technique::CostClass::Raster,
 };
 
 /// The hard-shadow technique.
