@@ -16,6 +16,9 @@
 //! hard-shadow passes, `../shared/peers/glsv`) is measured in the same
 //! session by the command in docs/performance.md.
 
+// `criterion_main!` defines an undocumented `pub fn main`.
+#![allow(missing_docs)]
+
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};

@@ -18,6 +18,9 @@
 //! medians and the median per-round ratio, which is what to quote on a
 //! shared machine, where criterion's separate runs see different loads.
 
+// `criterion_main!` defines an undocumented `pub fn main`.
+#![allow(missing_docs)]
+
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use penumbra::sampling::{PatternSampler, SamplePattern};
 use penumbra::shadow::dcs::bitfield::{CoverageTables, TableResolution};

@@ -16,6 +16,9 @@
 //!
 //! Run: `cargo bench --bench dcs_image`.
 
+// `criterion_main!` defines an undocumented `pub fn main`.
+#![allow(missing_docs)]
+
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};

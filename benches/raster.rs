@@ -5,6 +5,9 @@
 //! Run: `cargo bench --bench raster` (set `RAYON_NUM_THREADS=2` to compare
 //! with llvmpipe's two-thread figures, see docs/performance.md).
 
+// `criterion_main!` defines an undocumented `pub fn main`.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use penumbra::gbuffer::{depth_pass, gbuffer_pass, transform_vertices, GBufferPass};
 use penumbra::geom::SceneGeometry;

@@ -13,6 +13,9 @@
 //! Run: `cargo bench --bench reference`. Criterion reports the throughput
 //! in elements/s = shadow rays (BVH traversals) per second.
 
+// `criterion_main!` defines an undocumented `pub fn main`.
+#![allow(missing_docs)]
+
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};

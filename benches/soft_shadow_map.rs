@@ -8,6 +8,9 @@
 //! Run: `cargo bench --bench soft_shadow_map`; the time against polygon
 //! count is `scripts/ssm-scaling.sh` (docs/performance.md).
 
+// `criterion_main!` defines an undocumented `pub fn main`.
+#![allow(missing_docs)]
+
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};

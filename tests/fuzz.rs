@@ -746,6 +746,9 @@ fn any_nan(values: &[f32]) -> bool {
 }
 
 /// Loads `path` and renders it at 16 × 16 with random options.
+// The technique options are set field by field (see below) so that a new
+// options group needs no edit here.
+#[allow(clippy::field_reassign_with_default)]
 fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcome, String> {
     let scene = match load_scene(path) {
         Ok(s) => s,

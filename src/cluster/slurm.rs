@@ -104,6 +104,7 @@ pub struct SweepArgs {
     /// The sbatch command.
     #[arg(long, default_value = "sbatch")]
     pub sbatch: PathBuf,
+    /// The job's resources and Slurm options.
     #[command(flatten)]
     pub job: SlurmArgs,
     /// The arguments of `compare` (scenes, --techniques, ...) or `render`

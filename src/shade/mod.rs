@@ -19,11 +19,15 @@
 //! `docs/shading.md` gives the formulas and the error of each
 //! approximation.
 
+#[forbid(unsafe_code)]
 mod brdf;
 mod estimate;
+#[forbid(unsafe_code)]
 mod rect;
+#[forbid(unsafe_code)]
 mod sphere;
 
+#[forbid(unsafe_code)]
 pub mod gather;
 
 pub use brdf::brdf;

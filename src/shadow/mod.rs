@@ -17,23 +17,38 @@
 //! - [`options`]: every technique's options gathered from the leaf
 //!   `options.rs` files; [`defaults`].
 
+#[forbid(unsafe_code)]
 pub mod adaptive_maps;
 pub mod dcs;
+#[forbid(unsafe_code)]
 pub(crate) mod defaults;
 pub mod kit;
+#[forbid(unsafe_code)]
 pub mod multi_map;
+#[forbid(unsafe_code)]
 pub mod none;
+#[forbid(unsafe_code)]
 pub mod options;
+#[forbid(unsafe_code)]
 pub mod pcss;
 pub mod penumbra_casting;
+#[forbid(unsafe_code)]
 pub mod reference;
+#[forbid(unsafe_code)]
 pub mod registry;
+#[forbid(unsafe_code)]
 pub mod run;
+#[forbid(unsafe_code)]
 pub mod shadow_map;
+#[forbid(unsafe_code)]
 pub mod shadow_volumes;
+#[forbid(unsafe_code)]
 pub mod soft_shadow_map;
+#[forbid(unsafe_code)]
 pub mod technique;
+#[forbid(unsafe_code)]
 pub mod verify;
+#[forbid(unsafe_code)]
 pub mod wedges;
 
 pub use kit::cache::ShadowCache;

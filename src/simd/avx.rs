@@ -516,6 +516,152 @@ impl F64x4 {
     }
 }
 
+impl F64x4 {
+    /// Each lane rounded to `f32` (`vcvtpd2ps`: round to nearest even, as
+    /// `as f32`), in order.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX code, call only where [`available`] is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn to_f32_array(self) -> [f32; 4] {
+        let mut out = [0.0f32; 4];
+        // SAFETY: `out` is four `f32` (16 bytes), exactly what an
+        // unaligned 128-bit store writes.
+        unsafe { _mm_storeu_ps(out.as_mut_ptr(), _mm256_cvtpd_ps(self.0)) };
+        out
+    }
+}
+
+/// Four `u64` lanes in a `__m256i`, with wrapping integer arithmetic (as
+/// `u64::wrapping_*`): what hashing several keys at once needs. Its
+/// operations need AVX2. Only constructible inside AVX2 code.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub struct U64x4(__m256i);
+
+#[cfg(target_arch = "x86_64")]
+impl U64x4 {
+    /// The lanes `a`, in order.
+    ///
+    /// # Safety
+    ///
+    /// Outside AVX2 code, call only where the CPU has AVX2
+    /// ([`super::level::runs_v3`]).
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn new(a: [u64; 4]) -> Self {
+        U64x4(_mm256_setr_epi64x(
+            a[0] as i64,
+            a[1] as i64,
+            a[2] as i64,
+            a[3] as i64,
+        ))
+    }
+
+    /// Every lane `v`.
+    ///
+    /// # Safety
+    ///
+    /// As [`U64x4::new`].
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn splat(v: u64) -> Self {
+        U64x4(_mm256_set1_epi64x(v as i64))
+    }
+
+    /// `self + o` per lane, wrapping.
+    ///
+    /// # Safety
+    ///
+    /// As [`U64x4::new`].
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn wrapping_add(self, o: Self) -> Self {
+        U64x4(_mm256_add_epi64(self.0, o.0))
+    }
+
+    /// `self ^ o` per lane.
+    ///
+    /// # Safety
+    ///
+    /// As [`U64x4::new`].
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn xor(self, o: Self) -> Self {
+        U64x4(_mm256_xor_si256(self.0, o.0))
+    }
+
+    /// `self >> N` per lane (logical).
+    ///
+    /// # Safety
+    ///
+    /// As [`U64x4::new`].
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn shr<const N: i32>(self) -> Self {
+        U64x4(_mm256_srli_epi64::<N>(self.0))
+    }
+
+    /// `self · c` per lane, wrapping (mod 2⁶⁴): AVX2 multiplies only
+    /// 32-bit halves, so the low halves' full product plus the cross
+    /// products shifted up (the high halves' product falls off the top).
+    ///
+    /// # Safety
+    ///
+    /// As [`U64x4::new`].
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn wrapping_mul(self, c: u64) -> Self {
+        let (c_lo, c_hi) = (
+            _mm256_set1_epi64x((c & 0xffff_ffff) as i64),
+            _mm256_set1_epi64x((c >> 32) as i64),
+        );
+        let low = _mm256_mul_epu32(self.0, c_lo);
+        let cross = _mm256_add_epi64(
+            _mm256_mul_epu32(_mm256_srli_epi64::<32>(self.0), c_lo),
+            _mm256_mul_epu32(self.0, c_hi),
+        );
+        U64x4(_mm256_add_epi64(low, _mm256_slli_epi64::<32>(cross)))
+    }
+
+    /// Each lane's high 32 bits as an `f64`, exactly (`(v >> 32) as
+    /// f64`): below 2³², so OR-ing them into the mantissa of 2⁵² and
+    /// subtracting 2⁵² is exact.
+    ///
+    /// # Safety
+    ///
+    /// As [`U64x4::new`].
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn high_half_to_f64(self) -> F64x4 {
+        let biased = _mm256_or_si256(
+            _mm256_srli_epi64::<32>(self.0),
+            _mm256_set1_epi64x(0x4330_0000_0000_0000),
+        );
+        F64x4(_mm256_sub_pd(
+            _mm256_castsi256_pd(biased),
+            _mm256_set1_pd(4_503_599_627_370_496.0),
+        ))
+    }
+
+    /// The lanes as an array.
+    ///
+    /// # Safety
+    ///
+    /// As [`U64x4::new`].
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    pub fn to_array(self) -> [u64; 4] {
+        let mut out = [0u64; 4];
+        // SAFETY: `out` is four `u64` (32 bytes), exactly what an
+        // unaligned 256-bit store writes.
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), self.0) };
+        out
+    }
+}
+
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::super::scalar;
@@ -768,6 +914,48 @@ mod tests {
             assert_eq!(both, (ge & lt.blend(ge, lt)).move_mask(), "{a:?} {b:?}");
             let want = I32::new(c) + (ge.cast_i32() & I32::splat(d));
             assert_eq!(sum, want.to_array(), "{a:?} {b:?}");
+        }
+    }
+
+    #[target_feature(enable = "avx,avx2")]
+    fn run_u64(a: [u64; 4], b: [u64; 4], c: u64) -> [[u64; 4]; 5] {
+        let (x, y) = (U64x4::new(a), U64x4::new(b));
+        let f = x.high_half_to_f64().to_array().map(f64::to_bits);
+        let g = F64x4::new(a.map(|v| (v >> 7) as f64)).to_f32_array();
+        [
+            x.wrapping_add(y).to_array(),
+            x.xor(U64x4::splat(c)).shr::<29>().to_array(),
+            x.wrapping_mul(c).to_array(),
+            f,
+            [0, 1, 2, 3].map(|k| u64::from(g[k].to_bits())),
+        ]
+    }
+
+    /// Every `U64x4` operation (and `F64x4::to_f32_array`) against `u64`
+    /// and `as` arithmetic, bit for bit.
+    #[test]
+    fn u64_lanes_match_scalar_arithmetic() {
+        if !crate::simd::level::runs_v3() {
+            eprintln!("no AVX2 on this CPU: nothing to check");
+            return;
+        }
+        let mut lcg = lcg(0x9e37_79b9_7f4a_7c15);
+        for _ in 0..100_000 {
+            let a: [u64; 4] = std::array::from_fn(|_| lcg());
+            let b: [u64; 4] = std::array::from_fn(|_| lcg());
+            let c = lcg();
+            // SAFETY: the CPU has AVX2 (checked above).
+            let [add, shifted, mul, high, narrowed] = unsafe { run_u64(a, b, c) };
+            for k in 0..4 {
+                assert_eq!(add[k], a[k].wrapping_add(b[k]));
+                assert_eq!(shifted[k], (a[k] ^ c) >> 29);
+                assert_eq!(mul[k], a[k].wrapping_mul(c));
+                assert_eq!(high[k], ((a[k] >> 32) as f64).to_bits());
+                assert_eq!(
+                    narrowed[k],
+                    u64::from((((a[k] >> 7) as f64) as f32).to_bits())
+                );
+            }
         }
     }
 }

@@ -28,9 +28,12 @@
 #![allow(non_camel_case_types)]
 
 pub mod avx;
+#[forbid(unsafe_code)]
 pub mod level;
+#[forbid(unsafe_code)]
 pub mod scalar;
 #[cfg(test)]
+#[forbid(unsafe_code)]
 mod tests;
 
 use std::ops::{

@@ -76,7 +76,8 @@ fn chart_rows_scalar(
     }
 }
 
-/// [`chart_rows`] with AVX2, four cells per step.
+/// [`chart_rows`] with AVX2, four cells per step, on the SIMD facade's
+/// AVX lane types.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
 fn chart_rows_avx2(
@@ -88,53 +89,26 @@ fn chart_rows_avx2(
     ys: &mut [f32],
 ) {
     use crate::sampling::{GOLDEN, MIX_1, MIX_2};
-    use core::arch::x86_64::*;
-    // `z · c` (mod 2⁶⁴) for 64-bit lanes `z` and a constant `c`: the low
-    // halves' full product plus the cross products shifted up (the high
-    // halves' product falls off the top).
-    let mul = |z: __m256i, c: u64| {
-        let (c_lo, c_hi) = (
-            _mm256_set1_epi64x((c & 0xffff_ffff) as i64),
-            _mm256_set1_epi64x((c >> 32) as i64),
-        );
-        let low = _mm256_mul_epu32(z, c_lo);
-        let cross = _mm256_add_epi64(
-            _mm256_mul_epu32(_mm256_srli_epi64::<32>(z), c_lo),
-            _mm256_mul_epu32(z, c_hi),
-        );
-        _mm256_add_epi64(low, _mm256_slli_epi64::<32>(cross))
+    use crate::simd::avx::{F64x4, U64x4};
+    // SplitMix64's output function, four lanes at once (`mix64`).
+    let mix = |z: U64x4| {
+        let z = z.xor(z.shr::<30>()).wrapping_mul(MIX_1);
+        let z = z.xor(z.shr::<27>()).wrapping_mul(MIX_2);
+        z.xor(z.shr::<31>())
     };
-    let mix = |z: __m256i| {
-        let z = mul(_mm256_xor_si256(z, _mm256_srli_epi64::<30>(z)), MIX_1);
-        let z = mul(_mm256_xor_si256(z, _mm256_srli_epi64::<27>(z)), MIX_2);
-        _mm256_xor_si256(z, _mm256_srli_epi64::<31>(z))
-    };
-    // `(h >> 32)` as f64, then × 2⁻³²: below 2³², so OR-ing it into the
-    // mantissa of 2⁵² and subtracting 2⁵² is exact.
-    let bias = _mm256_set1_epi64x(0x4330_0000_0000_0000);
-    let two52 = _mm256_set1_pd(4_503_599_627_370_496.0);
-    let scale = _mm256_set1_pd(1.0 / 4_294_967_296.0);
-    let to_unit = |h: __m256i| {
-        let v = _mm256_or_si256(_mm256_srli_epi64::<32>(h), bias);
-        _mm256_mul_pd(_mm256_sub_pd(_mm256_castsi256_pd(v), two52), scale)
-    };
-    let g2 = GOLDEN.wrapping_mul(2);
-    let (g, g8) = (
-        _mm256_set1_epi64x(GOLDEN as i64),
-        _mm256_set1_epi64x(GOLDEN.wrapping_mul(8) as i64),
-    );
-    let (two, one, four) = (
-        _mm256_set1_pd(2.0),
-        _mm256_set1_pd(1.0),
-        _mm256_set1_pd(4.0),
-    );
-    let (inv_a, inv_b) = (_mm256_set1_pd(inv_a), _mm256_set1_pd(inv_b));
-    let first_col = _mm256_setr_pd(
+    // `(h >> 32) as f64 × 2⁻³²`, as `uniform_pair`.
+    let scale = F64x4::splat(1.0 / 4_294_967_296.0);
+    let to_unit = |h: U64x4| h.high_half_to_f64().mul(scale);
+    let golden_2 = GOLDEN.wrapping_mul(2);
+    let (golden, golden_8) = (U64x4::splat(GOLDEN), U64x4::splat(GOLDEN.wrapping_mul(8)));
+    let (two, one, four) = (F64x4::splat(2.0), F64x4::splat(1.0), F64x4::splat(4.0));
+    let (inv_a, inv_b) = (F64x4::splat(inv_a), F64x4::splat(inv_b));
+    let first_col = F64x4::new([
         f64::from(i0),
         f64::from(i0 + 1),
         f64::from(i0 + 2),
         f64::from(i0 + 3),
-    );
+    ]);
     let rows = xs.chunks_exact_mut(w).zip(ys.chunks_exact_mut(w));
     for (j, (xs, ys)) in (j0..).zip(rows) {
         // Lane `l` of cell `k = k0 + l` hashes `key + (2k + 1) G` and
@@ -143,29 +117,23 @@ fn chart_rows_avx2(
         // products).
         let k0 = u64::from(j * a + i0);
         let first = key.wrapping_add((2 * k0 + 1).wrapping_mul(GOLDEN));
-        let mut h1 = _mm256_setr_epi64x(
-            first as i64,
-            first.wrapping_add(g2) as i64,
-            first.wrapping_add(g2.wrapping_mul(2)) as i64,
-            first.wrapping_add(g2.wrapping_mul(3)) as i64,
-        );
-        let row = _mm256_set1_pd(f64::from(j));
+        let mut hash = U64x4::new([
+            first,
+            first.wrapping_add(golden_2),
+            first.wrapping_add(golden_2.wrapping_mul(2)),
+            first.wrapping_add(golden_2.wrapping_mul(3)),
+        ]);
+        let row = F64x4::splat(f64::from(j));
         let mut col = first_col;
         for (xs, ys) in xs.chunks_exact_mut(4).zip(ys.chunks_exact_mut(4)) {
-            let xi = to_unit(mix(h1));
-            let xi2 = to_unit(mix(_mm256_add_epi64(h1, g)));
-            let s = _mm256_mul_pd(_mm256_add_pd(col, xi), inv_a);
-            let t = _mm256_mul_pd(_mm256_add_pd(row, xi2), inv_b);
-            let x = _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_mul_pd(two, s), one));
-            let y = _mm256_cvtpd_ps(_mm256_sub_pd(one, _mm256_mul_pd(two, t)));
-            // SAFETY: `xs` and `ys` are chunks of exactly four `f32` (16
-            // bytes), what an unaligned 128-bit store writes.
-            unsafe {
-                _mm_storeu_ps(xs.as_mut_ptr(), x);
-                _mm_storeu_ps(ys.as_mut_ptr(), y);
-            }
-            h1 = _mm256_add_epi64(h1, g8);
-            col = _mm256_add_pd(col, four);
+            let xi = to_unit(mix(hash));
+            let xi2 = to_unit(mix(hash.wrapping_add(golden)));
+            let s = col.add(xi).mul(inv_a);
+            let t = row.add(xi2).mul(inv_b);
+            xs.copy_from_slice(&two.mul(s).sub(one).to_f32_array());
+            ys.copy_from_slice(&one.sub(two.mul(t)).to_f32_array());
+            hash = hash.wrapping_add(golden_8);
+            col = col.add(four);
         }
     }
 }

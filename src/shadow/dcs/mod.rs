@@ -29,20 +29,28 @@
 //! orchestration; the passes themselves are in `passes.rs`, one
 //! receiver's counting in `receiver.rs`.
 
+#[forbid(unsafe_code)]
 pub mod bitfield;
+#[forbid(unsafe_code)]
 pub mod block_extras;
 pub mod blocks;
+#[forbid(unsafe_code)]
 pub mod chart;
 mod chart_lanes;
 pub mod counters;
 mod edge_lanes;
+#[forbid(unsafe_code)]
 pub mod edges;
+#[forbid(unsafe_code)]
 pub mod faces;
+#[forbid(unsafe_code)]
 pub mod options;
 mod passes;
 mod receiver;
 pub mod region;
+#[forbid(unsafe_code)]
 pub mod settings;
+#[forbid(unsafe_code)]
 pub mod ties;
 
 use super::kit::groups::Attenuation;

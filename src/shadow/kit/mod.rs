@@ -21,22 +21,38 @@
 //! - [`tiles`]: tile-local to image pixel mapping.
 //! - [`verify`]: `--verify`, re-casting relations with shadow rays.
 
+#[forbid(unsafe_code)]
 pub mod cache;
+#[forbid(unsafe_code)]
 pub mod enclosure;
+#[forbid(unsafe_code)]
 pub mod groups;
+#[forbid(unsafe_code)]
 pub mod light_frame;
+#[forbid(unsafe_code)]
 pub mod light_view;
+#[forbid(unsafe_code)]
 pub mod many_maps;
+#[forbid(unsafe_code)]
 pub mod map_fit;
+#[forbid(unsafe_code)]
 pub mod map_options;
+#[forbid(unsafe_code)]
 pub mod membership;
 pub mod rays;
+#[forbid(unsafe_code)]
 pub mod shadow_maps;
+#[forbid(unsafe_code)]
 pub mod stsv;
+#[forbid(unsafe_code)]
 pub mod tiles;
+#[forbid(unsafe_code)]
 pub mod timing;
+#[forbid(unsafe_code)]
 pub mod verify;
+#[forbid(unsafe_code)]
 pub mod volumes;
+#[forbid(unsafe_code)]
 pub mod wedge_geometry;
 
 pub use cache::ShadowCache;

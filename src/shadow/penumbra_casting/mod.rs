@@ -25,9 +25,13 @@
 //! See `docs/algorithms/penumbra-casting.md`.
 
 pub mod cast;
+#[forbid(unsafe_code)]
 pub mod hierarchy;
+#[forbid(unsafe_code)]
 pub mod options;
+#[forbid(unsafe_code)]
 pub mod samples;
+#[forbid(unsafe_code)]
 pub mod translucent;
 pub mod volume;
 
