@@ -60,16 +60,8 @@ const MAGIC_PREFIX: &[u8] = b"PENUMBRA-TILE ";
 
 /// `I/N` with `1 <= I <= N`, as `(I, N)`; `what` names the option.
 pub fn parse_share(what: &str, s: &str) -> Result<(u32, u32)> {
-    let bad = || Error::param(what, format!("`{s}` is not I/N with 1 <= I <= N"));
-    let (i, n) = s.split_once('/').ok_or_else(bad)?;
-    let (i, n): (u32, u32) = (
-        i.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if i == 0 || i > n {
-        return Err(bad());
-    }
-    Ok((i, n))
+    crate::compare::share::parse_share(s)
+        .map_err(|_| Error::param(what, format!("`{s}` is not I/N with 1 <= I <= N")))
 }
 
 /// Rows of band `index` (1-based) of `count` over an image `height` rows

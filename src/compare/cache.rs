@@ -8,6 +8,7 @@
 //! image size, the sample count, the seeds and a format version bumped
 //! whenever the reference's algorithm changes.
 
+use super::host::host_name;
 use crate::error::{Error, Result};
 use crate::output::{read_image, write_atomically, write_exr, Layer};
 use crate::scene::{LightShape, Scene, TextureData};
@@ -397,7 +398,7 @@ fn lock_owner(path: &Path) -> Option<LockOwner> {
 /// longer exists (`/proc` tells). Other hosts' holders are judged by
 /// their heartbeat only.
 fn owner_dead(owner: &LockOwner) -> bool {
-    owner.host == crate::compare::shard::host_name()
+    owner.host == host_name()
         && Path::new("/proc/self").exists()
         && !Path::new(&format!("/proc/{}", owner.pid)).exists()
 }
@@ -423,7 +424,7 @@ pub fn lock_reference(
         return Ok(Locked::Unavailable(format!("{}: {e}", dir.display())));
     }
     let path = dir.join(format!("{}.lock", key.stem()));
-    let host = crate::compare::shard::host_name();
+    let host = host_name();
     let pid = std::process::id();
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)

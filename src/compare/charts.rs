@@ -2,8 +2,8 @@
 //! error-vs-time chart points, their Pareto fronts and the charts: the
 //! image's error first (FLIP, radiance RMSE), then Vcoef's.
 
+use super::model::RunResult;
 use super::reference::ReferenceImages;
-use super::run::RunResult;
 use crate::error::{Error, Result};
 use crate::output::write_png;
 use crate::render::RenderOutput;

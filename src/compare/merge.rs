@@ -1,6 +1,6 @@
 //! `compare --merge DIR...`: the partial results of a sharded sweep
 //! ([`shard`](super::shard)) joined into the results an unsharded run
-//! writes, through the same code ([`finish_scene`](super::finish_scene)
+//! writes, through the same code ([`finish_scene`](super::pipeline::finish_scene)
 //! for the Pareto front and charts, [`write_results`](super::write_results)
 //! for the tables).
 //!
@@ -11,8 +11,10 @@
 //! just those shards completes it.
 
 use super::charts::slug;
-use super::shard::{Partial, PartialRun, PARTIAL_FORMAT};
-use super::{finish_scene, scene_dir, SceneComparison};
+use super::model::RunResult;
+use super::model::SceneComparison;
+use super::pipeline::{finish_scene, scene_dir};
+use super::shard::{Partial, PartialRun, PartialScene, PlanEntry, SceneId, PARTIAL_FORMAT};
 use crate::error::{Error, Result};
 use crate::output::write_atomically;
 use std::collections::BTreeMap;
@@ -30,6 +32,14 @@ pub struct Merged {
     pub partials: usize,
 }
 
+/// A partial read from disk: the partial, its file and the directory it
+/// was found in (its shard's `--out`).
+type FoundPartial = (Partial, PathBuf, PathBuf);
+
+/// Every finished run of the plan by (scene, index among the scene's
+/// runs), with the index of the partial that holds it.
+type RunsFound<'a> = BTreeMap<(usize, usize), (&'a PartialRun, usize)>;
+
 /// `shard-I-of-N.json` → (I, N).
 fn parse_name(name: &str) -> Option<(u32, u32)> {
     let rest = name.strip_prefix("shard-")?.strip_suffix(".json")?;
@@ -38,7 +48,7 @@ fn parse_name(name: &str) -> Option<(u32, u32)> {
 }
 
 /// Reads every partial in `dirs`, with the directory each came from.
-fn read_partials(dirs: &[PathBuf]) -> Result<Vec<(Partial, PathBuf, PathBuf)>> {
+fn read_partials(dirs: &[PathBuf]) -> Result<Vec<FoundPartial>> {
     let mut found = Vec::new();
     for dir in dirs {
         let mut names: Vec<String> = std::fs::read_dir(dir)
@@ -103,7 +113,7 @@ fn read_partials(dirs: &[PathBuf]) -> Result<Vec<(Partial, PathBuf, PathBuf)>> {
 }
 
 /// Refuses partials that are not of one sweep, with the reason.
-fn check_same_sweep(partials: &[(Partial, PathBuf, PathBuf)]) -> Result<()> {
+fn check_same_sweep(partials: &[FoundPartial]) -> Result<()> {
     let (first, first_path, _) = &partials[0];
     let refuse = |path: &Path, what: String| {
         Err(Error::param(
@@ -240,57 +250,126 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
     let mut partials = read_partials(dirs)?;
     check_same_sweep(&partials)?;
     partials.sort_by_key(|(p, _, _)| p.shard);
-    for w in partials.windows(2) {
-        if w[0].0.shard == w[1].0.shard {
+    check_each_shard_once(&partials)?;
+    let first = &partials[0].0;
+    let (shards, plan, scenes) = (first.shards, first.plan.clone(), first.scenes.clone());
+    let done = runs_of_plan(&partials, &plan)?;
+    check_complete(&partials, &plan, &scenes, shards, &done)?;
+    if images {
+        check_images_written(&partials)?;
+    }
+
+    // Everything is checked before anything is written, so that a refused
+    // merge leaves no half-filled --out: first the runs, images and heat
+    // maps of every scene, then the copies, then the charts.
+    let mut scenes_done = Vec::new();
+    let mut copies: Vec<(PathBuf, PathBuf)> = Vec::new();
+    let sweep = MergeSweep {
+        partials: &partials,
+        plan: &plan,
+        done: &done,
+        scenes: scenes.len(),
+        images,
+    };
+    for (index, id) in scenes.iter().enumerate() {
+        if let Some(scene) = sweep.scene(index, id, out, &mut copies)? {
+            scenes_done.push(scene);
+        }
+    }
+    for (src, dst) in &copies {
+        copy_file(src, dst)?;
+    }
+    let mut results = Vec::new();
+    for (header, runs, dir) in scenes_done {
+        results.push((finish_scene(header, runs, &dir)?, dir));
+    }
+    Ok(Merged {
+        results,
+        command: first.command.clone(),
+        partials: partials.len(),
+    })
+}
+
+/// Refuses the same shard twice (`partials` sorted by shard).
+fn check_each_shard_once(partials: &[FoundPartial]) -> Result<()> {
+    for pair in partials.windows(2) {
+        if pair[0].0.shard == pair[1].0.shard {
             return Err(Error::param(
                 "--merge",
                 format!(
                     "shard {}/{} is there twice: {} and {} (keep one)",
-                    w[0].0.shard,
-                    w[0].0.shards,
-                    w[0].1.display(),
-                    w[1].1.display()
+                    pair[0].0.shard,
+                    pair[0].0.shards,
+                    pair[0].1.display(),
+                    pair[1].1.display()
                 ),
             ));
         }
     }
-    let first = &partials[0].0;
-    let (shards, plan, scenes) = (first.shards, first.plan.clone(), first.scenes.clone());
+    Ok(())
+}
 
-    // Every run of the plan, found exactly once, in its own shard.
-    let mut done: BTreeMap<(usize, usize), (&PartialRun, usize)> = BTreeMap::new();
-    for (k, (p, path, _)) in partials.iter().enumerate() {
-        for r in &p.runs {
+/// Every finished run of the plan, by (scene, index), with the index of
+/// its partial; an error for a run found twice or in another shard than
+/// its own.
+fn runs_of_plan<'a>(partials: &'a [FoundPartial], plan: &[PlanEntry]) -> Result<RunsFound<'a>> {
+    let mut done = RunsFound::new();
+    for (from, (partial, path, _)) in partials.iter().enumerate() {
+        for run in &partial.runs {
             let owner = plan
                 .iter()
-                .find(|e| (e.scene, e.index) == (r.scene, r.index))
-                .map(|e| e.shard);
-            if owner != Some(p.shard) || done.insert((r.scene, r.index), (r, k)).is_some() {
+                .find(|entry| (entry.scene, entry.index) == (run.scene, run.index))
+                .map(|entry| entry.shard);
+            if owner != Some(partial.shard)
+                || done.insert((run.scene, run.index), (run, from)).is_some()
+            {
                 return Err(Error::file(
                     path,
                     None,
                     format!(
                         "holds run {} {} of scene {} that is not shard {}'s own",
-                        r.technique, r.setting, r.scene, p.shard
+                        run.technique, run.setting, run.scene, partial.shard
                     ),
                 ));
             }
         }
     }
+    Ok(done)
+}
+
+/// Refuses a sweep with runs missing, naming each shard that owes runs
+/// (absent, or stopped early) with its runs.
+fn check_complete(
+    partials: &[FoundPartial],
+    plan: &[PlanEntry],
+    scenes: &[SceneId],
+    shards: u32,
+    done: &RunsFound,
+) -> Result<()> {
     let mut missing = String::new();
-    for i in 1..=shards {
+    for shard in 1..=shards {
         let owed: Vec<String> = plan
             .iter()
-            .filter(|e| e.shard == i && !done.contains_key(&(e.scene, e.index)))
-            .map(|e| format!("{}: {} {}", scenes[e.scene].name, e.technique, e.setting))
+            .filter(|entry| entry.shard == shard && !done.contains_key(&(entry.scene, entry.index)))
+            .map(|entry| {
+                format!(
+                    "{}: {} {}",
+                    scenes[entry.scene].name, entry.technique, entry.setting
+                )
+            })
             .collect();
         if owed.is_empty() {
             continue;
         }
-        let total = plan.iter().filter(|e| e.shard == i).count();
-        let why = match partials.iter().find(|(p, _, _)| p.shard == i) {
+        let total = plan.iter().filter(|entry| entry.shard == shard).count();
+        let why = match partials
+            .iter()
+            .find(|(partial, _, _)| partial.shard == shard)
+        {
             None => {
-                format!("no partial result (shard-{i}-of-{shards}.json in none of the directories)")
+                format!(
+                    "no partial result (shard-{shard}-of-{shards}.json in none of the directories)"
+                )
             }
             Some((_, path, _)) => format!(
                 "{} stopped after {} of its {total} runs",
@@ -300,7 +379,7 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
         };
         let _ = writeln!(
             missing,
-            "  shard {i}/{shards}: {why}; missing {} run(s): {}",
+            "  shard {shard}/{shards}: {why}; missing {} run(s): {}",
             owed.len(),
             owed.join("; ")
         );
@@ -314,61 +393,88 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
             ),
         ));
     }
-    if images {
-        if let Some((p, path, _)) = partials.iter().find(|(p, _, _)| !p.images) {
-            return Err(Error::param(
-                "--merge",
-                format!(
-                    "shard {}/{} ({}) was run with --no-images: merge with --no-images",
-                    p.shard,
-                    p.shards,
-                    path.display()
-                ),
-            ));
-        }
-    }
+    Ok(())
+}
 
-    // Everything is checked before anything is written, so that a refused
-    // merge leaves no half-filled --out: first the runs, images and heat
-    // maps of every scene, then the copies, then the charts.
-    let mut scenes_done = Vec::new();
-    let mut copies: Vec<(PathBuf, PathBuf)> = Vec::new();
-    for (s, id) in scenes.iter().enumerate() {
-        let dir = scene_dir(out, &id.name, scenes.len());
+/// Refuses to merge images that a shard run with `--no-images` did not
+/// write.
+fn check_images_written(partials: &[FoundPartial]) -> Result<()> {
+    if let Some((partial, path, _)) = partials.iter().find(|(partial, _, _)| !partial.images) {
+        return Err(Error::param(
+            "--merge",
+            format!(
+                "shard {}/{} ({}) was run with --no-images: merge with --no-images",
+                partial.shard,
+                partial.shards,
+                path.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A checked sweep, read to gather each scene's part.
+struct MergeSweep<'a> {
+    partials: &'a [FoundPartial],
+    plan: &'a [PlanEntry],
+    done: &'a RunsFound<'a>,
+    /// Scenes in the sweep.
+    scenes: usize,
+    /// Images and heat maps are merged.
+    images: bool,
+}
+
+impl MergeSweep<'_> {
+    /// Scene `scene_index` (`id`): its header, its runs in order and its directory
+    /// under `out`, with the images to copy appended to `copies` after
+    /// checking they are there; `None` for a scene without runs.
+    fn scene(
+        &self,
+        scene_index: usize,
+        id: &SceneId,
+        out: &Path,
+        copies: &mut Vec<(PathBuf, PathBuf)>,
+    ) -> Result<Option<(SceneComparison, Vec<RunResult>, PathBuf)>> {
+        let (partials, images) = (self.partials, self.images);
+        let dir = scene_dir(out, &id.name, self.scenes);
         // Derived, like the file names, not read from the partial.
-        let rel_dir = scene_dir(Path::new(""), &id.name, scenes.len());
+        let rel_dir = scene_dir(Path::new(""), &id.name, self.scenes);
         // The header of the shard that computed the reference (its time is
         // the reference's), else of the first that read it.
-        let with_header: Vec<(usize, &super::shard::PartialScene)> = partials
+        let with_header: Vec<(usize, &PartialScene)> = partials
             .iter()
             .enumerate()
-            .filter_map(|(k, (p, _, _))| p.headers[s].as_ref().map(|h| (k, h)))
+            .filter_map(|(from, (partial, _, _))| {
+                partial.headers[scene_index]
+                    .as_ref()
+                    .map(|partial_header| (from, partial_header))
+            })
             .collect();
         let header = with_header
             .iter()
-            .find(|(_, h)| !h.from_cache)
+            .find(|(_, partial_header)| !partial_header.from_cache)
             .or(with_header.first())
-            .map(|&(k, h)| (k, h.to_header()));
+            .map(|&(from, partial_header)| (from, partial_header.to_header()));
         let Some((header_from, header)) = header else {
             // A scene without runs (no technique had a setting).
-            continue;
+            return Ok(None);
         };
         let mut runs = Vec::new();
-        for e in plan.iter().filter(|e| e.scene == s) {
-            let (r, k) = done[&(e.scene, e.index)];
-            let mut result = r.to_result();
-            let src = partials[k].2.join(&rel_dir);
+        for entry in self.plan.iter().filter(|entry| entry.scene == scene_index) {
+            let (run, from) = self.done[&(entry.scene, entry.index)];
+            let mut result = run.to_result();
+            let src = partials[from].2.join(&rel_dir);
             if images {
-                let (image, heatmaps) = run_files(r);
+                let (image, heatmaps) = run_files(run);
                 if result.image.as_ref() != Some(&image) || result.heatmaps != heatmaps {
                     return Err(Error::file(
-                        &partials[k].1,
+                        &partials[from].1,
                         None,
                         format!(
                             "run {} {} names its image and heat maps {:?} {:?}, not the \
                              {image:?} {heatmaps:?} compare writes: the partial result is \
                              damaged or edited",
-                            r.technique, r.setting, result.image, result.heatmaps
+                            run.technique, run.setting, result.image, result.heatmaps
                         ),
                     ));
                 }
@@ -388,18 +494,6 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
             check_source(&src)?;
             copies.push((src, dir.join(rel)));
         }
-        scenes_done.push((header, runs, dir));
+        Ok(Some((header, runs, dir)))
     }
-    for (src, dst) in &copies {
-        copy_file(src, dst)?;
-    }
-    let mut results = Vec::new();
-    for (header, runs, dir) in scenes_done {
-        results.push((finish_scene(header, runs, &dir)?, dir));
-    }
-    Ok(Merged {
-        results,
-        command: first.command.clone(),
-        partials: partials.len(),
-    })
 }

@@ -6,7 +6,7 @@
 use super::cache::{
     self, CachedReference, ReferenceHalf, ReferenceKey, StableHasher, REFERENCE_VERSION,
 };
-use super::run::RegionMetrics;
+use super::model::{NoiseFloor, RegionMetrics};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
@@ -16,25 +16,7 @@ use crate::report::{
 };
 use crate::scene::Scene;
 use glam::Vec3;
-use serde::Serialize;
 use std::time::Instant;
-
-/// The reference's own error, estimated from its two halves.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
-pub struct NoiseFloor {
-    /// Estimated RMSE of the reference over all shading points.
-    pub rmse_all: f64,
-    /// Estimated mean absolute error over all shading points.
-    pub mae_all: f64,
-    /// Estimated RMSE over the penumbra.
-    pub rmse_penumbra: f64,
-    /// Estimated mean absolute error over the penumbra.
-    pub mae_penumbra: f64,
-    /// Estimated RMSE over the interior.
-    pub rmse_interior: f64,
-    /// Estimated mean absolute error over the interior.
-    pub mae_interior: f64,
-}
 
 impl NoiseFloor {
     /// Half the error between the two halves (see the module docs).
@@ -48,31 +30,6 @@ impl NoiseFloor {
             mae_interior: m.interior.mean_abs / 2.0,
         }
     }
-}
-
-/// The reference every run is measured against.
-#[derive(Debug, Clone, Serialize)]
-pub struct ReferenceSummary {
-    /// Samples per light (both halves together).
-    pub samples: u32,
-    /// Seeds of the halves.
-    pub seeds: [u64; 2],
-    /// Wall-clock seconds it took when computed.
-    pub seconds: f64,
-    /// Read from the cache instead of computed.
-    pub from_cache: bool,
-    /// The cache file.
-    pub cache_file: String,
-    /// Noise floor of Vcoef per light.
-    pub floor_vcoef: Vec<NoiseFloor>,
-    /// Noise floor of Vcoef over all lights.
-    pub floor_vcoef_all_lights: NoiseFloor,
-    /// Noise floor of radiance.
-    pub floor_radiance: NoiseFloor,
-    /// FLIP of one half against the other (each with half the samples):
-    /// how visible the reference's own noise is at half its samples. Not
-    /// a floor (FLIP is not linear in the error), an indication.
-    pub flip_halves: FlipRegions,
 }
 
 /// The reference's noise floors: Vcoef per light and over all lights,

@@ -2,16 +2,16 @@
 //! JSON (everything) and a markdown report. The image's error (radiance
 //! RMSE, FLIP) comes first everywhere; Vcoef's follows.
 
-use super::{NoiseFloor, RegionMetrics, RunResult, SceneComparison};
+use super::model::{NoiseFloor, RegionMetrics, RunResult, SceneComparison};
 use crate::error::{Error, Result};
 use crate::output::write_atomically;
 use crate::report::{ErrorMetrics, FlipMetrics, FlipRegions, FLIP_PPD, VISIBLE_ERROR};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-fn write_text(path: &Path, text: &str) -> Result<()> {
+fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomically(path, |tmp| {
-        std::fs::write(tmp, text.as_bytes()).map_err(|e| Error::io(tmp, e))
+        std::fs::write(tmp, bytes).map_err(|e| Error::io(tmp, e))
     })
 }
 
@@ -19,6 +19,44 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
 fn is_common_pass(name: &str) -> bool {
     matches!(name, "geometry" | "gbuffer" | "shading")
 }
+
+/// The columns of `results.csv`.
+const CSV_COLUMNS: [&str; 30] = [
+    "scene",
+    "technique",
+    "setting",
+    "samples",
+    "median_ms",
+    "min_ms",
+    "max_ms",
+    "runs",
+    "host",
+    "geometry_ms",
+    "gbuffer_ms",
+    "shadow_ms",
+    "shading_ms",
+    "quantity",
+    "region",
+    "count",
+    "rmse",
+    "mean_abs",
+    "max_abs",
+    "frac_over",
+    "non_finite",
+    "p50",
+    "p90",
+    "p99",
+    "pareto_flip",
+    "pareto",
+    "verify_checked",
+    "verify_disagreements",
+    "verify_beyond_tie",
+    "verify_max_tie",
+];
+
+/// `results.csv` being written: quoted only where a cell needs it (a
+/// comma, quote or line break), records ended by `\n`.
+type CsvTable = csv::Writer<Vec<u8>>;
 
 /// Writes `results.csv`: one row per (scene, run, quantity, region), and
 /// rows for each reference's noise floor (technique `reference-floor`)
@@ -31,136 +69,200 @@ fn is_common_pass(name: &str) -> bool {
 /// `max_abs` its maximum and `p50, p90, p99` its percentiles (empty in
 /// other rows); its `rmse`, `frac_over` and `non_finite` are empty.
 pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
-    let mut s = String::from(
-        "scene,technique,setting,samples,median_ms,min_ms,max_ms,runs,host,geometry_ms,gbuffer_ms,shadow_ms,shading_ms,quantity,region,count,rmse,mean_abs,max_abs,frac_over,non_finite,p50,p90,p99,pareto_flip,pareto,verify_checked,verify_disagreements,verify_beyond_tie,verify_max_tie\n",
-    );
+    let csv_error = |e: csv::Error| Error::param("results.csv", e.to_string());
+    let mut table = csv::WriterBuilder::new()
+        .quote_style(csv::QuoteStyle::Necessary)
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::new());
+    table.write_record(CSV_COLUMNS).map_err(csv_error)?;
     for sc in scenes {
-        for r in &sc.runs {
-            let verify = r.verify.as_ref().map_or(",,,".to_string(), |v| {
-                format!(
-                    "{},{},{},{:e}",
-                    v.checked, v.disagreements, v.beyond_tie, v.max_tie_distance
-                )
-            });
-            let mut row = |quantity: &str, region: &str, cells: String| {
-                let _ = writeln!(
-                    s,
-                    "{},{},{},{},{:.4},{:.4},{:.4},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{cells},{},{},{verify}",
-                    csv_field(&sc.scene),
-                    csv_field(&r.technique),
-                    csv_field(&r.setting),
-                    r.samples.map_or(String::new(), |n| n.to_string()),
-                    r.median_ms,
-                    r.min_ms,
-                    r.max_ms,
-                    r.runs,
-                    csv_field(&r.host),
-                    r.pass_ms(|n| n == "geometry"),
-                    r.pass_ms(|n| n == "gbuffer"),
-                    r.pass_ms(|n| !is_common_pass(n)),
-                    r.pass_ms(|n| n == "shading"),
-                    quantity,
-                    region,
-                    r.pareto_flip,
-                    r.pareto
-                );
-            };
-            let regions = |quantity: String, m: &RegionMetrics| {
-                [
-                    (quantity.clone(), "all", error_cells(&m.all)),
-                    (quantity.clone(), "penumbra", error_cells(&m.penumbra)),
-                    (quantity, "interior", error_cells(&m.interior)),
-                ]
-            };
-            let mut rows: Vec<(String, &str, String)> = Vec::new();
-            rows.extend(regions("radiance".into(), &r.radiance));
-            rows.push(("flip".into(), "all", flip_cells(&r.flip.all)));
-            rows.push(("flip".into(), "interior", flip_cells(&r.flip.interior)));
-            for (k, m) in r.vcoef.iter().enumerate() {
-                if let Some(m) = m {
-                    rows.extend(regions(format!("vcoef.{k}"), m));
-                }
-            }
-            if let Some(m) = &r.vcoef_all_lights {
-                rows.extend(regions("vcoef".into(), m));
-            }
-            for (quantity, region, cells) in rows {
-                row(&quantity, region, cells);
-            }
+        for run in &sc.runs {
+            write_run_rows(&mut table, sc, run).map_err(csv_error)?;
         }
-        let floor = &sc.reference;
-        let mut floor_row = |quantity: &str, f: &NoiseFloor| {
-            for (region, rmse, mae) in [
-                ("all", f.rmse_all, f.mae_all),
-                ("penumbra", f.rmse_penumbra, f.mae_penumbra),
-                ("interior", f.rmse_interior, f.mae_interior),
-            ] {
-                let _ = writeln!(
-                    s,
-                    "{},reference-floor,{} spp,{},,,,,,,,,,{},{},,{:e},{:e},,,,,,,,,,,,",
-                    csv_field(&sc.scene),
-                    floor.samples,
-                    floor.samples,
-                    quantity,
-                    region,
-                    rmse,
-                    mae
-                );
-            }
-        };
-        floor_row("radiance", &floor.floor_radiance);
-        for (k, f) in floor.floor_vcoef.iter().enumerate() {
-            floor_row(&format!("vcoef.{k}"), f);
-        }
-        floor_row("vcoef", &floor.floor_vcoef_all_lights);
-        for (region, m) in [
-            ("all", &floor.flip_halves.all),
-            ("interior", &floor.flip_halves.interior),
-        ] {
-            let _ = writeln!(
-                s,
-                "{},reference-halves,{} spp vs {} spp,{},,,,,,,,,,flip,{region},{},,,,,,",
-                csv_field(&sc.scene),
-                floor.samples / 2,
-                floor.samples / 2,
-                floor.samples / 2,
-                flip_cells(m)
-            );
+        write_reference_rows(&mut table, sc).map_err(csv_error)?;
+    }
+    let bytes = table
+        .into_inner()
+        .map_err(|e| Error::param("results.csv", e.to_string()))?;
+    write_bytes(path, &bytes)
+}
+
+/// A run's rows: radiance and FLIP, then Vcoef per light and over all
+/// lights, each per region.
+fn write_run_rows(
+    table: &mut CsvTable,
+    scene: &SceneComparison,
+    run: &RunResult,
+) -> csv::Result<()> {
+    let run_cells: [String; 13] = [
+        scene.scene.clone(),
+        run.technique.clone(),
+        run.setting.clone(),
+        run.samples.map_or(String::new(), |n| n.to_string()),
+        format!("{:.4}", run.median_ms),
+        format!("{:.4}", run.min_ms),
+        format!("{:.4}", run.max_ms),
+        run.runs.to_string(),
+        run.host.clone(),
+        format!("{:.4}", run.pass_ms(|n| n == "geometry")),
+        format!("{:.4}", run.pass_ms(|n| n == "gbuffer")),
+        format!("{:.4}", run.pass_ms(|n| !is_common_pass(n))),
+        format!("{:.4}", run.pass_ms(|n| n == "shading")),
+    ];
+    let pareto_cells = [run.pareto_flip.to_string(), run.pareto.to_string()];
+    let verify_cells: [String; 4] = run.verify.as_ref().map_or(Default::default(), |verify| {
+        [
+            verify.checked.to_string(),
+            verify.disagreements.to_string(),
+            verify.beyond_tie.to_string(),
+            format!("{:e}", verify.max_tie_distance),
+        ]
+    });
+    let regions = |quantity: String, metrics: &RegionMetrics| {
+        [
+            (quantity.clone(), "all", error_cells(&metrics.all)),
+            (quantity.clone(), "penumbra", error_cells(&metrics.penumbra)),
+            (quantity, "interior", error_cells(&metrics.interior)),
+        ]
+    };
+    let mut rows: Vec<(String, &str, [String; 9])> = Vec::new();
+    rows.extend(regions("radiance".into(), &run.radiance));
+    rows.push(("flip".into(), "all", flip_cells(&run.flip.all)));
+    rows.push(("flip".into(), "interior", flip_cells(&run.flip.interior)));
+    for (light, metrics) in run.vcoef.iter().enumerate() {
+        if let Some(metrics) = metrics {
+            rows.extend(regions(format!("vcoef.{light}"), metrics));
         }
     }
-    write_text(path, &s)
+    if let Some(metrics) = &run.vcoef_all_lights {
+        rows.extend(regions("vcoef".into(), metrics));
+    }
+    for (quantity, region, cells) in &rows {
+        table.write_record(
+            run_cells
+                .iter()
+                .map(String::as_str)
+                .chain([quantity.as_str(), region])
+                .chain(cells.iter().map(String::as_str))
+                .chain(pareto_cells.iter().map(String::as_str))
+                .chain(verify_cells.iter().map(String::as_str)),
+        )?;
+    }
+    Ok(())
+}
+
+/// The reference's rows: its noise floors (radiance, Vcoef per light and
+/// over all lights, per region), then FLIP between its halves.
+fn write_reference_rows(table: &mut CsvTable, scene: &SceneComparison) -> csv::Result<()> {
+    let reference = &scene.reference;
+    // A reference row: the run columns empty after the setting and
+    // samples, no Pareto or verify cells.
+    let mut reference_row = |technique: &str,
+                             setting: String,
+                             samples: u32,
+                             quantity: &str,
+                             region: &str,
+                             cells: [String; 9]| {
+        table.write_record(
+            [
+                scene.scene.as_str(),
+                technique,
+                &setting,
+                &samples.to_string(),
+            ]
+            .into_iter()
+            .chain([""; 9])
+            .chain([quantity, region])
+            .chain(cells.iter().map(String::as_str))
+            .chain([""; 6]),
+        )
+    };
+    let mut floor_rows = |quantity: &str, floor: &NoiseFloor| -> csv::Result<()> {
+        for (region, rmse, mae) in [
+            ("all", floor.rmse_all, floor.mae_all),
+            ("penumbra", floor.rmse_penumbra, floor.mae_penumbra),
+            ("interior", floor.rmse_interior, floor.mae_interior),
+        ] {
+            let cells = [
+                String::new(),
+                format!("{rmse:e}"),
+                format!("{mae:e}"),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+            ];
+            reference_row(
+                "reference-floor",
+                format!("{} spp", reference.samples),
+                reference.samples,
+                quantity,
+                region,
+                cells,
+            )?;
+        }
+        Ok(())
+    };
+    floor_rows("radiance", &reference.floor_radiance)?;
+    for (light, floor) in reference.floor_vcoef.iter().enumerate() {
+        floor_rows(&format!("vcoef.{light}"), floor)?;
+    }
+    floor_rows("vcoef", &reference.floor_vcoef_all_lights)?;
+    let half = reference.samples / 2;
+    for (region, metrics) in [
+        ("all", &reference.flip_halves.all),
+        ("interior", &reference.flip_halves.interior),
+    ] {
+        reference_row(
+            "reference-halves",
+            format!("{half} spp vs {half} spp"),
+            half,
+            "flip",
+            region,
+            flip_cells(metrics),
+        )?;
+    }
+    Ok(())
 }
 
 /// `count,rmse,mean_abs,max_abs,frac_over,non_finite,p50,p90,p99` of a
 /// per-value error.
-fn error_cells(m: &ErrorMetrics) -> String {
-    format!(
-        "{},{:e},{:e},{:e},{:e},{},,,",
-        m.count, m.rmse, m.mean_abs, m.max_abs, m.frac_over, m.non_finite
-    )
+fn error_cells(m: &ErrorMetrics) -> [String; 9] {
+    [
+        m.count.to_string(),
+        format!("{:e}", m.rmse),
+        format!("{:e}", m.mean_abs),
+        format!("{:e}", m.max_abs),
+        format!("{:e}", m.frac_over),
+        m.non_finite.to_string(),
+        String::new(),
+        String::new(),
+        String::new(),
+    ]
 }
 
 /// The same cells of a FLIP error (mean as `mean_abs`, max as `max_abs`).
-fn flip_cells(m: &FlipMetrics) -> String {
-    format!(
-        "{},,{:e},{:e},,,{:e},{:e},{:e}",
-        m.count, m.mean, m.max, m.p50, m.p90, m.p99
-    )
-}
-
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
+fn flip_cells(m: &FlipMetrics) -> [String; 9] {
+    [
+        m.count.to_string(),
+        String::new(),
+        format!("{:e}", m.mean),
+        format!("{:e}", m.max),
+        String::new(),
+        String::new(),
+        format!("{:e}", m.p50),
+        format!("{:e}", m.p90),
+        format!("{:e}", m.p99),
+    ]
 }
 
 /// Writes `results.json`: every measurement of every scene.
 pub fn write_json(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
     let text = serde_json::to_string_pretty(scenes)
         .map_err(|e| Error::param("results.json", e.to_string()))?;
-    write_text(path, &(text + "\n"))
+    write_bytes(path, (text + "\n").as_bytes())
 }
 
 /// An error figure, marked with `*` when at or below the reference's noise
@@ -198,14 +300,25 @@ pub fn write_markdown(
     command: &str,
 ) -> Result<()> {
     let mut s = String::new();
-    let _ = writeln!(s, "# Error against run time\n");
+    markdown_intro(&mut s, command);
+    for (sc, dir) in scenes {
+        scene_summary(&mut s, sc);
+        image_section(&mut s, sc, dir);
+        visibility_section(&mut s, sc, dir);
+    }
+    write_bytes(path, s.as_bytes())
+}
+
+/// The report's title, how to regenerate it and what its figures mean.
+fn markdown_intro(out: &mut String, command: &str) {
+    let _ = writeln!(out, "# Error against run time\n");
     let _ = writeln!(
-        s,
+        out,
         "Generated by penumbra {}. Regenerate with:\n\n```sh\n{command}\n```\n",
         env!("CARGO_PKG_VERSION")
     );
     let _ = writeln!(
-        s,
+        out,
         "Each technique renders the scene at the same receiver points (the same \
          G-buffer) as the ray-traced reference. Times are wall-clock medians of \
          whole renders (scene loading excluded) on this machine.\n\n\
@@ -231,148 +344,164 @@ pub fn write_markdown(
          (estimated from two independent half-sample references): the reference \
          cannot tell it from zero.\n"
     );
-    for (sc, dir) in scenes {
-        let link = |rel: &str| {
-            if dir.is_empty() || dir == "." {
-                rel.to_string()
-            } else {
-                format!("{}/{rel}", dir.trim_end_matches('/'))
-            }
-        };
-        let _ = writeln!(
-            s,
-            "## {} (`{}`), {}×{}\n",
-            sc.scene, sc.path, sc.width, sc.height
-        );
-        let pen: Vec<String> = sc
-            .penumbra_points
-            .iter()
-            .enumerate()
-            .map(|(k, &n)| {
-                format!(
-                    "light {k}: {n} ({})",
-                    percent(n as f64 / sc.shading_points.max(1) as f64)
-                )
-            })
-            .collect();
-        let r = &sc.reference;
-        let f = &r.floor_vcoef_all_lights;
-        let fr = &r.floor_radiance;
-        let _ = writeln!(
-            s,
-            "{} shading points; interior: {} ({}); in penumbra: {}.\n\nReference: {} \
-             samples per light (two halves of {}), {:.1} s{}. Its noise floor: radiance \
-             RMSE {} over all points, {} in the interior, {} in the penumbra; Vcoef \
-             RMSE {} / {} / {}. FLIP between its two halves ({} samples each): mean {} \
-             (interior {}).\n",
-            sc.shading_points,
-            sc.interior_points,
-            percent(sc.interior_points as f64 / sc.shading_points.max(1) as f64),
-            if pen.is_empty() {
-                "no lights".to_string()
-            } else {
-                pen.join(", ")
-            },
-            r.samples,
-            r.samples / 2,
-            r.seconds,
-            if r.from_cache {
-                " when computed (read from the cache this time)"
-            } else {
-                ""
-            },
-            err(fr.rmse_all, None),
-            err(fr.rmse_interior, None),
-            err(fr.rmse_penumbra, None),
-            err(f.rmse_all, None),
-            err(f.rmse_interior, None),
-            err(f.rmse_penumbra, None),
-            r.samples / 2,
-            err(r.flip_halves.all.mean, None),
-            err(r.flip_halves.interior.mean, None),
-        );
+}
 
-        // The image's error.
-        let _ = writeln!(s, "### Image error\n");
-        if let Some(c) = &sc.chart_flip {
-            let _ = writeln!(
-                s,
-                "![FLIP over the whole image against time]({})\n",
-                link(c)
-            );
-        }
-        let _ = writeln!(
-            s,
-            "| technique | setting | time (ms) | radiance RMSE | RMSE (interior) | RMSE (penumbra) | FLIP mean | FLIP p50 / p90 / p99 | FLIP max | FLIP mean (interior) | FLIP p50 / p90 / p99 (interior) | Pareto |"
-        );
-        let _ = writeln!(s, "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|");
-        for run in &sc.runs {
-            image_row(&mut s, run, sc);
-        }
-        let _ = writeln!(s);
-        let charts: Vec<String> = [
-            ("FLIP in the interior", &sc.chart_flip_interior),
-            ("radiance RMSE", &sc.chart_radiance),
-        ]
+/// `rel` (relative to a scene's directory) as a link from the report:
+/// under `dir`, the scene's directory relative to the report's.
+fn link(dir: &str, rel: &str) -> String {
+    if dir.is_empty() || dir == "." {
+        rel.to_string()
+    } else {
+        format!("{}/{rel}", dir.trim_end_matches('/'))
+    }
+}
+
+/// A scene's heading and summary: shading points, interior, penumbra per
+/// light, and the reference with its noise floor.
+fn scene_summary(out: &mut String, scene: &SceneComparison) {
+    let _ = writeln!(
+        out,
+        "## {} (`{}`), {}×{}\n",
+        scene.scene, scene.path, scene.width, scene.height
+    );
+    let penumbra: Vec<String> = scene
+        .penumbra_points
         .iter()
-        .filter_map(|(what, c)| c.as_ref().map(|c| format!("[{what}]({})", link(c))))
+        .enumerate()
+        .map(|(k, &n)| {
+            format!(
+                "light {k}: {n} ({})",
+                percent(n as f64 / scene.shading_points.max(1) as f64)
+            )
+        })
         .collect();
-        if !charts.is_empty() {
-            let _ = writeln!(s, "Against time, also: {}.\n", charts.join(", "));
-        }
+    let reference = &scene.reference;
+    let floor_vcoef = &reference.floor_vcoef_all_lights;
+    let floor_radiance = &reference.floor_radiance;
+    let _ = writeln!(
+        out,
+        "{} shading points; interior: {} ({}); in penumbra: {}.\n\nReference: {} \
+         samples per light (two halves of {}), {:.1} s{}. Its noise floor: radiance \
+         RMSE {} over all points, {} in the interior, {} in the penumbra; Vcoef \
+         RMSE {} / {} / {}. FLIP between its two halves ({} samples each): mean {} \
+         (interior {}).\n",
+        scene.shading_points,
+        scene.interior_points,
+        percent(scene.interior_points as f64 / scene.shading_points.max(1) as f64),
+        if penumbra.is_empty() {
+            "no lights".to_string()
+        } else {
+            penumbra.join(", ")
+        },
+        reference.samples,
+        reference.samples / 2,
+        reference.seconds,
+        if reference.from_cache {
+            " when computed (read from the cache this time)"
+        } else {
+            ""
+        },
+        err(floor_radiance.rmse_all, None),
+        err(floor_radiance.rmse_interior, None),
+        err(floor_radiance.rmse_penumbra, None),
+        err(floor_vcoef.rmse_all, None),
+        err(floor_vcoef.rmse_interior, None),
+        err(floor_vcoef.rmse_penumbra, None),
+        reference.samples / 2,
+        err(reference.flip_halves.all.mean, None),
+        err(reference.flip_halves.interior.mean, None),
+    );
+}
 
-        // Visibility.
-        let _ = writeln!(s, "### Visibility (Vcoef)\n");
-        if let Some(c) = &sc.chart {
-            let _ = writeln!(
-                s,
-                "![Vcoef error in the penumbra against time]({})\n",
-                link(c)
-            );
-        }
-        // The `--verify` column only when something was verified.
-        let verified = sc.runs.iter().any(|r| r.verify.is_some());
+/// A scene's image error: the FLIP chart, one row per run, links to the
+/// other image charts.
+fn image_section(out: &mut String, scene: &SceneComparison, dir: &str) {
+    let _ = writeln!(out, "### Image error\n");
+    if let Some(chart) = &scene.chart_flip {
         let _ = writeln!(
-            s,
-            "| technique | setting | time (ms) | G-buffer | shadows | shading | Vcoef RMSE | Vcoef RMSE (penumbra) | MAE (penumbra) | max abs | > 1/255 (penumbra) | Vcoef RMSE (interior) | Pareto |{}",
-            if verified { " verify: disagreeing / checked (beyond tie), max tie |" } else { "" }
+            out,
+            "![FLIP over the whole image against time]({})\n",
+            link(dir, chart)
         );
+    }
+    let _ = writeln!(
+        out,
+        "| technique | setting | time (ms) | radiance RMSE | RMSE (interior) | RMSE (penumbra) | FLIP mean | FLIP p50 / p90 / p99 | FLIP max | FLIP mean (interior) | FLIP p50 / p90 / p99 (interior) | Pareto |"
+    );
+    let _ = writeln!(out, "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|");
+    for run in &scene.runs {
+        image_row(out, run, scene);
+    }
+    let _ = writeln!(out);
+    let charts: Vec<String> = [
+        ("FLIP in the interior", &scene.chart_flip_interior),
+        ("radiance RMSE", &scene.chart_radiance),
+    ]
+    .iter()
+    .filter_map(|(what, chart)| {
+        chart
+            .as_ref()
+            .map(|chart| format!("[{what}]({})", link(dir, chart)))
+    })
+    .collect();
+    if !charts.is_empty() {
+        let _ = writeln!(out, "Against time, also: {}.\n", charts.join(", "));
+    }
+}
+
+/// A scene's visibility (Vcoef) error: the chart, one row per run (with
+/// `--verify`'s column when something was verified), the hosts that timed
+/// the runs when several, and the chart over all shading points.
+fn visibility_section(out: &mut String, scene: &SceneComparison, dir: &str) {
+    let _ = writeln!(out, "### Visibility (Vcoef)\n");
+    if let Some(chart) = &scene.chart {
         let _ = writeln!(
-            s,
-            "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|{}",
-            if verified { "--:|" } else { "" }
+            out,
+            "![Vcoef error in the penumbra against time]({})\n",
+            link(dir, chart)
         );
-        for run in &sc.runs {
-            vcoef_row(&mut s, run, sc);
-            if verified {
-                // `vcoef_row` ends the line with `|\n`: append the cell.
-                s.pop();
-                let cell = run.verify.as_ref().map_or("—".to_string(), |v| v.cell());
-                let _ = writeln!(s, " {cell} |");
-            }
-        }
-        let _ = writeln!(s);
-        // A sharded sweep's times come from several machines: say which.
-        let mut hosts: Vec<&str> = sc.runs.iter().map(|r| r.host.as_str()).collect();
-        hosts.sort_unstable();
-        hosts.dedup();
-        if hosts.len() > 1 {
-            let _ = writeln!(
-                s,
-                "Times measured on {} hosts ({}); results.csv names each run's.\n",
-                hosts.len(),
-                hosts.join(", ")
-            );
-        }
-        if let Some(c) = &sc.chart_all {
-            let _ = writeln!(
-                s,
-                "Over all shading points: ![Vcoef error over all shading points against time]({})\n",
-                link(c)
-            );
+    }
+    // The `--verify` column only when something was verified.
+    let verified = scene.runs.iter().any(|run| run.verify.is_some());
+    let _ = writeln!(
+        out,
+        "| technique | setting | time (ms) | G-buffer | shadows | shading | Vcoef RMSE | Vcoef RMSE (penumbra) | MAE (penumbra) | max abs | > 1/255 (penumbra) | Vcoef RMSE (interior) | Pareto |{}",
+        if verified { " verify: disagreeing / checked (beyond tie), max tie |" } else { "" }
+    );
+    let _ = writeln!(
+        out,
+        "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|:-:|{}",
+        if verified { "--:|" } else { "" }
+    );
+    for run in &scene.runs {
+        vcoef_row(out, run, scene);
+        if verified {
+            // `vcoef_row` ends the line with `|\n`: append the cell.
+            out.pop();
+            let cell = run.verify.as_ref().map_or("—".to_string(), |v| v.cell());
+            let _ = writeln!(out, " {cell} |");
         }
     }
-    write_text(path, &s)
+    let _ = writeln!(out);
+    // A sharded sweep's times come from several machines: say which.
+    let mut hosts: Vec<&str> = scene.runs.iter().map(|run| run.host.as_str()).collect();
+    hosts.sort_unstable();
+    hosts.dedup();
+    if hosts.len() > 1 {
+        let _ = writeln!(
+            out,
+            "Times measured on {} hosts ({}); results.csv names each run's.\n",
+            hosts.len(),
+            hosts.join(", ")
+        );
+    }
+    if let Some(chart) = &scene.chart_all {
+        let _ = writeln!(
+            out,
+            "Over all shading points: ![Vcoef error over all shading points against time]({})\n",
+            link(dir, chart)
+        );
+    }
 }
 
 /// `p50 / p90 / p99` of a FLIP error.

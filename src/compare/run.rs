@@ -3,94 +3,17 @@
 //! reference.
 
 use super::charts::{slug, write_run_images};
+use super::host::host_name;
+use super::model::{PassMedian, RegionMetrics, RunResult};
 use super::reference::{vcoef_of, ReferenceImages};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
 use crate::render::{render, RenderOptions, RenderOutput};
-use crate::report::{flip_rgb8, ErrorMetrics, FlipRegions, Progress};
-use crate::shadow::kit::verify::VerifyReport;
+use crate::report::{flip_rgb8, Progress};
 use crate::shadow::technique::QualitySetting;
-use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
-
-/// Errors over all shading points, over the penumbra only and over the
-/// interior (shading points away from geometric edges).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct RegionMetrics {
-    /// Every shading point.
-    pub all: ErrorMetrics,
-    /// Points whose reference Vcoef is strictly between 0 and 1 (for
-    /// radiance: for some light).
-    pub penumbra: ErrorMetrics,
-    /// Points farther than 2 px from the background and from depth and
-    /// normal discontinuities ([`crate::report::interior`]).
-    pub interior: ErrorMetrics,
-}
-
-/// Median time of one pass over the repeats.
-#[derive(Debug, Clone, Serialize)]
-pub struct PassMedian {
-    /// Pass name.
-    pub name: String,
-    /// Median wall-clock milliseconds.
-    pub median_ms: f64,
-}
-
-/// One technique at one setting.
-#[derive(Debug, Clone, Serialize)]
-pub struct RunResult {
-    /// Technique name.
-    pub technique: String,
-    /// Setting label.
-    pub setting: String,
-    /// Light samples, where the technique samples.
-    pub samples: Option<u32>,
-    /// Median wall-clock time of a whole render (scene loading excluded).
-    pub median_ms: f64,
-    /// Fastest run.
-    pub min_ms: f64,
-    /// Slowest run.
-    pub max_ms: f64,
-    /// Timed runs.
-    pub runs: u32,
-    /// The host that timed it (sharded sweeps run on many).
-    pub host: String,
-    /// Per-pass medians, in execution order.
-    pub passes: Vec<PassMedian>,
-    /// Vcoef error per light (`None` where the technique gives no Vcoef).
-    pub vcoef: Vec<Option<RegionMetrics>>,
-    /// Vcoef error over every light's values together.
-    pub vcoef_all_lights: Option<RegionMetrics>,
-    /// Radiance error over R, G and B values together.
-    pub radiance: RegionMetrics,
-    /// FLIP of the image (tone-mapped as the PNG output) against the
-    /// reference's, over the whole frame and over the interior.
-    pub flip: FlipRegions,
-    /// On the Pareto front of (time, FLIP mean over the whole frame).
-    pub pareto_flip: bool,
-    /// On the Pareto front of (time, penumbra Vcoef RMSE).
-    pub pareto: bool,
-    /// Radiance image, relative to the output directory.
-    pub image: Option<String>,
-    /// Vcoef heat maps per light, relative to the output directory.
-    pub heatmaps: Vec<String>,
-    /// `--verify`: its exactness certificate (techniques that expose their
-    /// decisions).
-    pub verify: Option<VerifyReport>,
-}
-
-impl RunResult {
-    /// Sum of the median times of passes whose name starts with `prefix`.
-    pub fn pass_ms(&self, pred: impl Fn(&str) -> bool) -> f64 {
-        self.passes
-            .iter()
-            .filter(|p| pred(&p.name))
-            .map(|p| p.median_ms)
-            .sum()
-    }
-}
 
 /// One setting's timed renders.
 pub(super) struct TimedRuns {
@@ -214,7 +137,7 @@ pub(super) fn run_result(
         min_ms: totals.iter().copied().fold(f64::INFINITY, f64::min),
         max_ms: totals.iter().copied().fold(0.0, f64::max),
         runs: options.repeat,
-        host: super::shard::host_name(),
+        host: host_name(),
         passes,
         vcoef_all_lights: reference.vcoef_all_lights(&tests, &reference.vcoef),
         vcoef,

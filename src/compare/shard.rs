@@ -23,10 +23,13 @@
 //! references beforehand where a cluster prefers a dependency job.
 
 use super::cache::{hash_scene, StableHasher};
-use super::reference::{NoiseFloor, ReferenceSummary};
-use super::run::{PassMedian, RegionMetrics, RunResult};
+use super::host::host_name;
+use super::model::{
+    NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
+};
+use super::pipeline::{prepare_scene, run_planned, scene_dir, scene_runs, PlannedRun};
 use super::settings::CompareOptions;
-use super::{prepare_scene, run_planned, scene_dir, scene_runs, SceneComparison};
+use super::share::{parse_share, ShareError};
 use crate::error::{Error, Result};
 use crate::output::write_atomically;
 use crate::report::{ErrorMetrics, FlipMetrics, FlipRegions, Progress};
@@ -43,21 +46,6 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 /// format 1 lacks them and is refused, never read with zeros.
 pub const PARTIAL_FORMAT: u32 = 2;
 
-/// This machine's host name (`/proc/sys/kernel/hostname`, else
-/// `$HOSTNAME`, else `unknown`).
-pub fn host_name() -> String {
-    static HOST: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    HOST.get_or_init(|| {
-        std::fs::read_to_string("/proc/sys/kernel/hostname")
-            .ok()
-            .map(|s| s.trim().to_string())
-            .filter(|s| !s.is_empty())
-            .or_else(|| std::env::var("HOSTNAME").ok().filter(|s| !s.is_empty()))
-            .unwrap_or_else(|| "unknown".into())
-    })
-    .clone()
-}
-
 /// `--shard I/N`: shard `index` (1-based) of `count`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ShardSpec {
@@ -70,24 +58,17 @@ pub struct ShardSpec {
 impl ShardSpec {
     /// Parses `I/N` with `1 <= I <= N`; errors name `--shard`.
     pub fn parse(s: &str) -> Result<ShardSpec> {
-        let bad = |why: &str| Error::param("--shard", format!("'{s}' {why}"));
-        let (i, n) = s
-            .split_once('/')
-            .ok_or_else(|| bad("is not I/N (e.g. 2/8)"))?;
-        let num = |t: &str, what: &str| {
-            t.trim()
-                .parse::<u32>()
-                .map_err(|_| bad(&format!("has no whole number for {what}")))
+        let why = |error: ShareError| match error {
+            ShareError::NoSlash => "is not I/N (e.g. 2/8)".to_string(),
+            ShareError::IndexNotNumber => "has no whole number for I".to_string(),
+            ShareError::CountNotNumber => "has no whole number for N".to_string(),
+            ShareError::NoShares => "has N = 0: a sweep needs at least one shard".to_string(),
+            ShareError::IndexOutOfRange { count } => {
+                format!("has I outside 1..={count} (shards are numbered from 1)")
+            }
         };
-        let (index, count) = (num(i, "I")?, num(n, "N")?);
-        if count == 0 {
-            return Err(bad("has N = 0: a sweep needs at least one shard"));
-        }
-        if index == 0 || index > count {
-            return Err(bad(&format!(
-                "has I outside 1..={count} (shards are numbered from 1)"
-            )));
-        }
+        let (index, count) = parse_share(s)
+            .map_err(|error| Error::param("--shard", format!("'{s}' {}", why(error))))?;
         Ok(ShardSpec { index, count })
     }
 
@@ -758,7 +739,7 @@ pub(crate) struct Plan {
     /// Every run with its shard.
     pub entries: Vec<PlanEntry>,
     /// Per scene, its runs ready to run.
-    pub planned: Vec<Vec<super::PlannedRun>>,
+    pub planned: Vec<Vec<PlannedRun>>,
 }
 
 /// The sweep every shard plans: scene identities and every run with its
