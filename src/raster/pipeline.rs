@@ -2,13 +2,12 @@
 
 use super::bin::{tile_pairs, TileBins};
 use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
-use super::counting::{CountingPass, DepthShifts, MAX_DEPTH_SHIFTS};
 use super::fragment::FragmentStage;
 use super::fragment::NoFragmentStage;
 use super::framebuffer::Framebuffer;
 use super::setup::{setup_polygon, setup_quad, QuadExtra, SetupTriangle, Viewport, NO_QUAD};
 use super::state::{CullMode, RasterState};
-use super::tile::{TileJob, TileStats};
+use super::tile::{CountingPass, DepthShifts, TileJob, TileStats, MAX_DEPTH_SHIFTS};
 use super::vertex::ClipVertex;
 use crate::error::{Error, Result};
 use rayon::prelude::*;

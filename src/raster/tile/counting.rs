@@ -4,12 +4,12 @@
 //! quads carry a fourth edge and a second depth plane.
 
 use super::depth_bounds::{DepthBounds, Verdict};
-use super::fragment::FragmentStage;
-use super::framebuffer::{DepthStencilTile, TILE_SIZE};
-use super::setup::{EdgeFunction, Plane};
-use super::simd::{compare_f32_lanes, LANES, LANE_OFFSETS};
-use super::state::{CompareFunc, RasterState, StencilFace, StencilOp};
-use super::tile::{TileJob, TileStats, BLOCK, OFFSETS_I32};
+use super::job::{CountingPass, TileJob, TileStats, BLOCK, MAX_DEPTH_SHIFTS, OFFSETS_I32};
+use crate::raster::fragment::FragmentStage;
+use crate::raster::framebuffer::{DepthStencilTile, TILE_SIZE};
+use crate::raster::setup::{EdgeFunction, Plane};
+use crate::raster::simd::{compare_f32_lanes, LANES, LANE_OFFSETS};
+use crate::raster::state::CompareFunc;
 use crate::simd::{f32x8, f64x4, i32x8};
 
 /// A triangle's edge lines as `x = x0 + slope · y` (pixel units, f64,
@@ -230,92 +230,6 @@ impl SpanWalk {
         let c = r.cmp_ge(self.m);
         self.r = r - (self.m & c);
         self.g = self.g + self.g_step + (self.carry & c);
-    }
-}
-
-/// A stencil pass that only counts: no fragment stage, no depth writes, an
-/// always-passing stencil test, and per facing a single operation that
-/// adds ±1 either where the depth test fails (z-fail) or where it passes
-/// (z-pass). Shadow volumes are exactly this; rows then reduce to one
-/// compare and one masked add.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct CountingPass {
-    /// Added per front-facing fragment.
-    pub(super) front: i32,
-    /// Added per back-facing fragment.
-    pub(super) back: i32,
-    /// Count where the depth test fails (z-fail) rather than passes.
-    pub(super) on_depth_fail: bool,
-    /// Also record, per scale, the change of the count when each stored
-    /// depth is scaled by it ([`super::draw_depth_shift_counts`]), into
-    /// the tiles' [`DepthStencilTile::shifted`] images.
-    pub(super) shifts: DepthShifts,
-}
-
-/// Most depth scales one counting walk records
-/// ([`CountingPass::shifts`]).
-pub(crate) const MAX_DEPTH_SHIFTS: usize = 4;
-
-/// The depth scales of a counting walk (at most [`MAX_DEPTH_SHIFTS`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub(crate) struct DepthShifts {
-    scales: [f32; MAX_DEPTH_SHIFTS],
-    len: usize,
-}
-
-impl DepthShifts {
-    /// The scales `scales`, or `None` when there are too many.
-    pub(crate) fn new(scales: &[f32]) -> Option<DepthShifts> {
-        let mut out = DepthShifts::default();
-        out.scales.get_mut(..scales.len())?.copy_from_slice(scales);
-        out.len = scales.len();
-        Some(out)
-    }
-
-    /// The scales, in order.
-    pub(crate) fn as_slice(&self) -> &[f32] {
-        &self.scales[..self.len]
-    }
-}
-
-impl CountingPass {
-    /// The counting form of `state`, if it has one.
-    pub(crate) fn of<const N: usize, S: FragmentStage<N>>(state: &RasterState) -> Option<Self> {
-        if S::SHADES || S::DISCARDS || state.depth_write {
-            return None;
-        }
-        let st = state.stencil?;
-        let delta = |op: StencilOp| match op {
-            StencilOp::Keep => Some(0),
-            StencilOp::Increment => Some(1),
-            StencilOp::Decrement => Some(-1),
-            _ => None,
-        };
-        let face = |f: StencilFace| -> Option<(i32, i32)> {
-            if f.func != CompareFunc::Always || f.stencil_fail != StencilOp::Keep {
-                return None;
-            }
-            Some((delta(f.depth_fail)?, delta(f.pass)?))
-        };
-        let (front_fail, front_pass) = face(st.front)?;
-        let (back_fail, back_pass) = face(st.back)?;
-        if front_pass == 0 && back_pass == 0 {
-            Some(CountingPass {
-                front: front_fail,
-                back: back_fail,
-                on_depth_fail: true,
-                shifts: DepthShifts::default(),
-            })
-        } else if front_fail == 0 && back_fail == 0 {
-            Some(CountingPass {
-                front: front_pass,
-                back: back_pass,
-                on_depth_fail: false,
-                shifts: DepthShifts::default(),
-            })
-        } else {
-            None
-        }
     }
 }
 
@@ -590,7 +504,7 @@ impl WalkVerdicts {
 mod tests {
     use super::*;
     use crate::raster::setup::{Plane, SetupTriangle};
-    use crate::raster::tile::Lcg;
+    use crate::raster::tile::job::Lcg;
 
     /// Random triangles (snapped vertices anywhere in a 400-pixel square
     /// around the rectangle, many nearly degenerate slivers, many on half
