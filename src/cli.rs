@@ -9,7 +9,7 @@ use crate::compare::{
 use crate::error::{Error, Result};
 use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
 use crate::raster::MAX_SIDE;
-use crate::render::{render, verify_render, with_threads, Aov, RenderOptions};
+use crate::render::{progress_for_render, render, verify_render, with_threads, Aov, RenderOptions};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
@@ -340,7 +340,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             }
             let scene = load_scene(&scene)?;
             warn_unread_options(&options, &scene, &given);
-            let progress = with_threads(threads, || Progress::for_render(&scene, &options))??;
+            let progress = with_threads(threads, || progress_for_render(&scene, &options))??;
             if let Some((i, n)) = tiles {
                 with_threads(threads, || {
                     crate::cluster::tiles::render_part(&scene, &options, i, n, &output, &progress)

@@ -3,8 +3,7 @@
 //! terminal nothing else is drawn. (The bar itself, on a terminal, is
 //! seen with `script -qc "penumbra render ..." /dev/null`.)
 
-use penumbra::render::{RenderOptions, Technique};
-use penumbra::report::estimate_render;
+use penumbra::render::{estimate_render, RenderOptions, Technique};
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Command, Stdio};

@@ -6,8 +6,6 @@
 
 mod bin;
 mod clip;
-mod counting;
-mod depth_bounds;
 mod fragment;
 mod framebuffer;
 mod pipeline;

@@ -2,13 +2,12 @@
 
 use super::bin::{tile_pairs, TileBins};
 use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
-use super::counting::{CountingPass, DepthShifts, MAX_DEPTH_SHIFTS};
 use super::fragment::FragmentStage;
 use super::fragment::NoFragmentStage;
-use super::framebuffer::Framebuffer;
+use super::framebuffer::{Framebuffer, TileGrid};
 use super::setup::{setup_polygon, setup_quad, QuadExtra, SetupTriangle, Viewport, NO_QUAD};
 use super::state::{CullMode, RasterState};
-use super::tile::{TileJob, TileStats};
+use super::tile::{CountingPass, DepthShifts, TileJob, TileStats, MAX_DEPTH_SHIFTS};
 use super::vertex::ClipVertex;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -165,12 +164,93 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
     shifts: DepthShifts,
 ) -> Result<DrawStats> {
     let grid = framebuffer.grid();
-    if targets.len() != grid.tile_count() {
+    check_draw_input(&grid, targets.len(), vertices, triangles)?;
+    if state.stencil.is_some() && framebuffer.tile(0).stencil.is_none() {
+        framebuffer.clear_stencil(0);
+    }
+    let viewport = Viewport {
+        width: grid.width,
+        height: grid.height,
+    };
+    let guard = viewport.guard_ndc();
+    // Outcodes once per vertex, not once per use.
+    let codes: Vec<u16> = vertices
+        .par_iter()
+        .with_min_len(4096)
+        .map(|v| vertex_code(v.position, guard.0, guard.1))
+        .collect();
+
+    // A pass that only counts draws pairs of triangles sharing a diagonal
+    // ([a, b, c], [a, c, d], as shadow-volume sides come) as one quad when
+    // that gives the same coverage and depths (see QuadExtra).
+    let counting = CountingPass::of::<N, S>(state);
+    let setup_stage = SetupStage {
+        vertices,
+        codes: &codes,
+        viewport,
+        guard,
+        cull_front: state.cull == CullMode::Front,
+        cull_back: state.cull == CullMode::Back,
+        merge: counting.is_some(),
+        first_primitive,
+        grid,
+    };
+    // Setup, then the chunk's (tile, triangle) pairs with chunk-local
+    // triangle numbers: binning's edge tests run in parallel too.
+    let chunks: Vec<SetupChunk<N>> = triangles
+        .par_chunks(SETUP_CHUNK)
+        .enumerate()
+        .map(|(chunk, tris)| setup_stage.chunk(chunk, tris))
+        .collect();
+    let (setup, quads, runs) = concatenate_chunks(chunks);
+    let bins = TileBins::from_pairs(&grid, &runs);
+
+    let counting = counting.map(|c| CountingPass { shifts, ..c });
+    let stats = framebuffer
+        .tiles_mut()
+        .par_iter_mut()
+        .zip(targets.par_iter_mut())
+        .enumerate()
+        .map(|(tile, (ds, target))| {
+            let job = TileJob {
+                tile,
+                origin: grid.tile_origin(tile),
+                triangles: &setup,
+                quads: &quads,
+                bin: bins.tile(tile),
+                state,
+                stage,
+                counting,
+            };
+            job.run(ds, target)
+        })
+        .reduce(TileStats::default, |a, b| TileStats {
+            fragments: a.fragments + b.fragments,
+            passed: a.passed + b.passed,
+        });
+
+    Ok(DrawStats {
+        triangles: triangles.len(),
+        setup_triangles: setup.len(),
+        binned: bins.len(),
+        fragments: stats.fragments,
+        passed: stats.passed,
+    })
+}
+
+/// One target per tile, and every vertex index in range.
+fn check_draw_input<const N: usize>(
+    grid: &TileGrid,
+    target_count: usize,
+    vertices: &[ClipVertex<N>],
+    triangles: &[[u32; 3]],
+) -> Result<()> {
+    if target_count != grid.tile_count() {
         return Err(Error::param(
             "targets",
             format!(
                 "{} tile targets for {} tiles",
-                targets.len(),
+                target_count,
                 grid.tile_count()
             ),
         ));
@@ -188,82 +268,84 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
             ),
         ));
     }
-    if state.stencil.is_some() && framebuffer.tile(0).stencil.is_none() {
-        framebuffer.clear_stencil(0);
-    }
-    let viewport = Viewport {
-        width: grid.width,
-        height: grid.height,
-    };
-    let (gx, gy) = viewport.guard_ndc();
-    let cull_front = state.cull == CullMode::Front;
-    let cull_back = state.cull == CullMode::Back;
-    // Outcodes once per vertex, not once per use.
-    let codes: Vec<u16> = vertices
-        .par_iter()
-        .with_min_len(4096)
-        .map(|v| vertex_code(v.position, gx, gy))
-        .collect();
+    Ok(())
+}
 
-    // A pass that only counts draws pairs of triangles sharing a diagonal
-    // ([a, b, c], [a, c, d], as shadow-volume sides come) as one quad when
-    // that gives the same coverage and depths (see QuadExtra).
-    let counting = CountingPass::of::<N, S>(state);
-    let merge = counting.is_some();
+/// What setting up any chunk of one draw's triangles reads.
+struct SetupStage<'a, const N: usize> {
+    vertices: &'a [ClipVertex<N>],
+    /// Outcodes per vertex.
+    codes: &'a [u16],
+    viewport: Viewport,
+    /// Guard band extents in NDC units ([`Viewport::guard_ndc`]).
+    guard: (f32, f32),
+    cull_front: bool,
+    cull_back: bool,
+    /// Merge quads (counting passes).
+    merge: bool,
+    first_primitive: u32,
+    grid: TileGrid,
+}
 
-    // Setup, then the chunk's (tile, triangle) pairs with chunk-local
-    // triangle numbers: binning's edge tests run in parallel too.
-    let chunks: Vec<SetupChunk<N>> = triangles
-        .par_chunks(SETUP_CHUNK)
-        .enumerate()
-        .map(|(chunk, tris)| {
-            let mut out = Vec::with_capacity(tris.len());
-            let mut quads = Vec::new();
-            let mut k = 0;
-            while k < tris.len() {
-                let prim = first_primitive + (chunk * SETUP_CHUNK + k) as u32;
-                let tri = tris[k];
-                let c = tri.map(|i| codes[i as usize]);
-                k += 1;
-                if merge && k < tris.len() {
-                    let next = tris[k];
-                    let d = codes[next[2] as usize];
-                    if next[0] == tri[0]
-                        && next[1] == tri[2]
-                        && (c[0] | c[1] | c[2] | d) & CLIP_PLANES == 0
-                        && c[0] & c[1] & c[2] == 0
-                        && c[0] & c[2] & d == 0
-                    {
-                        let v = [tri[0], tri[1], tri[2], next[2]].map(|i| vertices[i as usize]);
-                        let prims = [prim, prim + 1];
-                        setup_quad(
-                            &v, viewport, cull_front, cull_back, prims, &mut out, &mut quads,
-                        );
-                        k += 1;
-                        continue;
-                    }
-                }
-                if c[0] & c[1] & c[2] != 0 {
-                    continue; // outside one clip plane, or beyond one screen side
-                }
-                let v = tri.map(|i| vertices[i as usize]);
-                if (c[0] | c[1] | c[2]) & CLIP_PLANES == 0 {
-                    setup_polygon(&v, viewport, cull_front, cull_back, prim, &mut out)
-                } else {
-                    let c = clip_triangle(v, gx, gy);
-                    let poly = &c.vertices[..c.len];
-                    setup_polygon(poly, viewport, cull_front, cull_back, prim, &mut out)
+impl<const N: usize> SetupStage<'_, N> {
+    /// Setup of chunk number `chunk` (triangles `tris`), then its
+    /// `(tile, chunk-local triangle)` pairs.
+    fn chunk(&self, chunk: usize, tris: &[[u32; 3]]) -> SetupChunk<N> {
+        let (vertices, codes, viewport) = (self.vertices, self.codes, self.viewport);
+        let (cull_front, cull_back) = (self.cull_front, self.cull_back);
+        let mut out = Vec::with_capacity(tris.len());
+        let mut quads = Vec::new();
+        let mut k = 0;
+        while k < tris.len() {
+            let prim = self.first_primitive + (chunk * SETUP_CHUNK + k) as u32;
+            let tri = tris[k];
+            let c = tri.map(|i| codes[i as usize]);
+            k += 1;
+            if self.merge && k < tris.len() {
+                let next = tris[k];
+                let d = codes[next[2] as usize];
+                if next[0] == tri[0]
+                    && next[1] == tri[2]
+                    && (c[0] | c[1] | c[2] | d) & CLIP_PLANES == 0
+                    && c[0] & c[1] & c[2] == 0
+                    && c[0] & c[2] & d == 0
+                {
+                    let v = [tri[0], tri[1], tri[2], next[2]].map(|i| vertices[i as usize]);
+                    let prims = [prim, prim + 1];
+                    setup_quad(
+                        &v, viewport, cull_front, cull_back, prims, &mut out, &mut quads,
+                    );
+                    k += 1;
+                    continue;
                 }
             }
-            let mut pairs = Vec::with_capacity(out.len() * 2);
-            tile_pairs(&grid, &out, &quads, &mut pairs);
-            (out, quads, pairs)
-        })
-        .collect();
-    // Chunks in order: triangle and quad numbers become global, and each
-    // chunk's setup output is copied into its own part of one list, the
-    // chunks in parallel (one serial copy took ~7 ms of a 1024² shadow
-    // volume's ~55).
+            if c[0] & c[1] & c[2] != 0 {
+                continue; // outside one clip plane, or beyond one screen side
+            }
+            let v = tri.map(|i| vertices[i as usize]);
+            if (c[0] | c[1] | c[2]) & CLIP_PLANES == 0 {
+                setup_polygon(&v, viewport, cull_front, cull_back, prim, &mut out)
+            } else {
+                let c = clip_triangle(v, self.guard.0, self.guard.1);
+                let poly = &c.vertices[..c.len];
+                setup_polygon(poly, viewport, cull_front, cull_back, prim, &mut out)
+            }
+        }
+        let mut pairs = Vec::with_capacity(out.len() * 2);
+        tile_pairs(&self.grid, &out, &quads, &mut pairs);
+        (out, quads, pairs)
+    }
+}
+
+/// The chunks in order: triangle and quad numbers become global, and each
+/// chunk's setup output is copied into its own part of one list, the
+/// chunks in parallel (one serial copy took ~7 ms of a 1024² shadow
+/// volume's ~55). Returns the triangles, the quads' extras and the
+/// chunks' `(tile, triangle)` pairs.
+#[allow(clippy::type_complexity)]
+fn concatenate_chunks<const N: usize>(
+    chunks: Vec<SetupChunk<N>>,
+) -> (Vec<SetupTriangle<N>>, Vec<QuadExtra>, Vec<Vec<(u32, u32)>>) {
     let (mut first, mut first_quad) = (Vec::with_capacity(chunks.len()), Vec::new());
     let (mut total, mut total_quads) = (0usize, 0usize);
     for (tris, chunk_quads, _) in &chunks {
@@ -308,37 +390,5 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
         quads.extend(chunk_quads);
         runs.push(pairs);
     }
-    let bins = TileBins::from_pairs(&grid, &runs);
-
-    let counting = counting.map(|c| CountingPass { shifts, ..c });
-    let stats = framebuffer
-        .tiles_mut()
-        .par_iter_mut()
-        .zip(targets.par_iter_mut())
-        .enumerate()
-        .map(|(tile, (ds, target))| {
-            let job = TileJob {
-                tile,
-                origin: grid.tile_origin(tile),
-                triangles: &setup,
-                quads: &quads,
-                bin: bins.tile(tile),
-                state,
-                stage,
-                counting,
-            };
-            job.run(ds, target)
-        })
-        .reduce(TileStats::default, |a, b| TileStats {
-            fragments: a.fragments + b.fragments,
-            passed: a.passed + b.passed,
-        });
-
-    Ok(DrawStats {
-        triangles: triangles.len(),
-        setup_triangles: setup.len(),
-        binned: bins.len(),
-        fragments: stats.fragments,
-        passed: stats.passed,
-    })
+    (setup, quads, runs)
 }

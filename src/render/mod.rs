@@ -1,7 +1,9 @@
 //! One render from start to end: G-buffer, shadow technique, shading, AOVs.
 
+mod estimate;
 mod shading;
 
+pub use estimate::{estimate_render, progress_for_render};
 pub use shading::shade;
 
 use crate::error::{Error, Result};

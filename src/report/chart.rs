@@ -272,6 +272,115 @@ fn fraction(r: &Range<f64>, v: f64) -> f64 {
     (v.ln() - r.start.ln()) / (r.end.ln() - r.start.ln())
 }
 
+/// Where everything goes: the finite points placed on log axes (zero and
+/// negative values at a floor below the smallest positive one), grouped
+/// into curves, and the axes' ranges.
+struct ChartLayout<'a> {
+    /// Curves in order of first appearance, each sorted by time.
+    curves: Vec<(&'a str, Vec<Placed>)>,
+    /// The reference's noise floor, when finite and positive.
+    floor_line: Option<f64>,
+    x_range: Range<f64>,
+    y_range: Range<f64>,
+    /// Which clamped values the axes show at their floor.
+    note: Option<String>,
+}
+
+impl<'a> ChartLayout<'a> {
+    fn of(points: &'a [ChartPoint], error_floor: Option<f64>) -> Self {
+        let front = pareto_front(points);
+        let shown: Vec<(usize, &ChartPoint)> = points
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.seconds.is_finite() && p.error.is_finite())
+            .collect();
+        let floor_line = error_floor.filter(|f| f.is_finite() && *f > 0.0);
+        let x_floor = log_floor(shown.iter().map(|(_, p)| p.seconds));
+        let y_floor = log_floor(shown.iter().map(|(_, p)| p.error).chain(floor_line));
+        let positive_or = |v: f64, floor: f64| if v > 0.0 { v } else { floor };
+
+        // Curves in order of first appearance, each sorted by time.
+        let mut curves: Vec<(&str, Vec<Placed>)> = Vec::new();
+        for &(i, p) in &shown {
+            let placed = Placed {
+                x: positive_or(p.seconds, x_floor),
+                y: positive_or(p.error, y_floor),
+                label: p.label.clone(),
+                front: front[i],
+            };
+            match curves.iter_mut().find(|(t, _)| *t == p.technique) {
+                Some((_, c)) => match c.iter_mut().find(|q| (q.x, q.y) == (placed.x, placed.y)) {
+                    Some(q) => {
+                        q.label = format!("{}, {}", q.label, placed.label);
+                        q.front |= placed.front;
+                    }
+                    None => c.push(placed),
+                },
+                None => curves.push((p.technique.as_str(), vec![placed])),
+            }
+        }
+        for (_, c) in &mut curves {
+            c.sort_by(|a, b| a.x.total_cmp(&b.x));
+        }
+
+        let placed = curves.iter().flat_map(|(_, c)| c.iter());
+        let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f64::MAX, 0.0f64, f64::MAX, 0.0f64);
+        for p in placed {
+            x_lo = x_lo.min(p.x);
+            x_hi = x_hi.max(p.x);
+            y_lo = y_lo.min(p.y);
+            y_hi = y_hi.max(p.y);
+        }
+        if let Some(f) = floor_line {
+            y_lo = y_lo.min(f);
+            y_hi = y_hi.max(f);
+        }
+        // Nothing to draw on an axis: a neutral range.
+        if x_hi == 0.0 {
+            (x_lo, x_hi) = (1e-2, 1.0);
+        }
+        if y_hi == 0.0 {
+            (y_lo, y_hi) = (1e-3, 1e-1);
+        }
+        let x_range = log_range(x_lo, x_hi);
+        let y_range = log_range(y_lo, y_hi);
+
+        let clamped: Vec<String> = [
+            ("time", x_floor, shown.iter().any(|(_, p)| p.seconds <= 0.0)),
+            ("error", y_floor, shown.iter().any(|(_, p)| p.error <= 0.0)),
+        ]
+        .iter()
+        .filter(|(_, _, any)| *any)
+        .map(|(what, at, _)| format!("{what} ≤ 0 drawn at {}", tick_label(*at)))
+        .collect();
+        let note = (!clamped.is_empty()).then(|| format!("log axes: {}", clamped.join(", ")));
+
+        ChartLayout {
+            curves,
+            floor_line,
+            x_range,
+            y_range,
+            note,
+        }
+    }
+}
+
+/// The Pareto front as a staircase: from each front point, across at its
+/// error to the next one's time, then down; `None` without front points.
+fn front_staircase(placed: &[&Placed]) -> Option<Vec<(f64, f64)>> {
+    let mut steps: Vec<&Placed> = placed.iter().copied().filter(|p| p.front).collect();
+    steps.sort_by(|a, b| a.x.total_cmp(&b.x).then(b.y.total_cmp(&a.y)));
+    if steps.is_empty() {
+        return None;
+    }
+    let mut path = vec![(steps[0].x, steps[0].y)];
+    for w in steps.windows(2) {
+        path.push((w[1].x, w[0].y));
+        path.push((w[1].x, w[1].y));
+    }
+    Some(path)
+}
+
 /// Draws the chart into `rgb` (`size`, 3 bytes per pixel).
 fn draw(
     rgb: &mut [u8],
@@ -282,72 +391,14 @@ fn draw(
     error_floor: Option<f64>,
 ) -> std::result::Result<(), String> {
     let err = |e: &dyn std::fmt::Display| e.to_string();
-    let front = pareto_front(points);
-    let shown: Vec<(usize, &ChartPoint)> = points
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.seconds.is_finite() && p.error.is_finite())
-        .collect();
-    let floor_line = error_floor.filter(|f| f.is_finite() && *f > 0.0);
-    let x_floor = log_floor(shown.iter().map(|(_, p)| p.seconds));
-    let y_floor = log_floor(shown.iter().map(|(_, p)| p.error).chain(floor_line));
-    let positive_or = |v: f64, floor: f64| if v > 0.0 { v } else { floor };
-
-    // Curves in order of first appearance, each sorted by time.
-    let mut curves: Vec<(&str, Vec<Placed>)> = Vec::new();
-    for &(i, p) in &shown {
-        let placed = Placed {
-            x: positive_or(p.seconds, x_floor),
-            y: positive_or(p.error, y_floor),
-            label: p.label.clone(),
-            front: front[i],
-        };
-        match curves.iter_mut().find(|(t, _)| *t == p.technique) {
-            Some((_, c)) => match c.iter_mut().find(|q| (q.x, q.y) == (placed.x, placed.y)) {
-                Some(q) => {
-                    q.label = format!("{}, {}", q.label, placed.label);
-                    q.front |= placed.front;
-                }
-                None => c.push(placed),
-            },
-            None => curves.push((p.technique.as_str(), vec![placed])),
-        }
-    }
-    for (_, c) in &mut curves {
-        c.sort_by(|a, b| a.x.total_cmp(&b.x));
-    }
-
+    let ChartLayout {
+        curves,
+        floor_line,
+        x_range,
+        y_range,
+        note,
+    } = ChartLayout::of(points, error_floor);
     let placed: Vec<&Placed> = curves.iter().flat_map(|(_, c)| c.iter()).collect();
-    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f64::MAX, 0.0f64, f64::MAX, 0.0f64);
-    for p in &placed {
-        x_lo = x_lo.min(p.x);
-        x_hi = x_hi.max(p.x);
-        y_lo = y_lo.min(p.y);
-        y_hi = y_hi.max(p.y);
-    }
-    if let Some(f) = floor_line {
-        y_lo = y_lo.min(f);
-        y_hi = y_hi.max(f);
-    }
-    // Nothing to draw on an axis: a neutral range.
-    if x_hi == 0.0 {
-        (x_lo, x_hi) = (1e-2, 1.0);
-    }
-    if y_hi == 0.0 {
-        (y_lo, y_hi) = (1e-3, 1e-1);
-    }
-    let x_range = log_range(x_lo, x_hi);
-    let y_range = log_range(y_lo, y_hi);
-
-    let clamped: Vec<String> = [
-        ("time", x_floor, shown.iter().any(|(_, p)| p.seconds <= 0.0)),
-        ("error", y_floor, shown.iter().any(|(_, p)| p.error <= 0.0)),
-    ]
-    .iter()
-    .filter(|(_, _, any)| *any)
-    .map(|(what, at, _)| format!("{what} ≤ 0 drawn at {}", tick_label(*at)))
-    .collect();
-    let note = (!clamped.is_empty()).then(|| format!("log axes: {}", clamped.join(", ")));
 
     let root = BitMapBackend::with_buffer(rgb, size).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
@@ -394,14 +445,7 @@ fn draw(
 
     // The Pareto front as a dashed staircase: from each front point, across
     // at its error to the next one's time, then down.
-    let mut steps: Vec<&Placed> = placed.iter().copied().filter(|p| p.front).collect();
-    steps.sort_by(|a, b| a.x.total_cmp(&b.x).then(b.y.total_cmp(&a.y)));
-    if !steps.is_empty() {
-        let mut path = vec![(steps[0].x, steps[0].y)];
-        for w in steps.windows(2) {
-            path.push((w[1].x, w[0].y));
-            path.push((w[1].x, w[1].y));
-        }
+    if let Some(path) = front_staircase(&placed) {
         chart
             .draw_series(DashedLineSeries::new(path, 5, 5, BLACK.stroke_width(1)))
             .map_err(|e| err(&e))?

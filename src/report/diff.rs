@@ -218,6 +218,37 @@ fn short(v: f64) -> String {
 /// that differ, channels an image lacks, a bad tolerance, a mask channel
 /// without a mask.
 pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffReport> {
+    check_options(a, b, options)?;
+    let (image_a, image_b) = read_pair(a, b)?;
+    let pairs = channel_pairs(a, &image_a, b, &image_b, options)?;
+    let mask = match &options.mask {
+        Some(path) => Some(load_mask(path, options.mask_channel.as_deref(), &image_a)?),
+        None => None,
+    };
+    let (channels, overall) = channel_errors(&image_a, &image_b, pairs, mask.as_deref());
+    let flip = match options.wants_flip() {
+        true => Some(flip_diff(
+            (a, &image_a),
+            (b, &image_b),
+            mask.as_deref(),
+            options,
+        )?),
+        false => None,
+    };
+    let failures = failures(options, &channels, &overall, flip.as_ref());
+    Ok(DiffReport {
+        width: image_a.width,
+        height: image_a.height,
+        channels,
+        overall,
+        flip,
+        failures,
+    })
+}
+
+/// The tolerances are numbers, a mask channel has its mask, and the FLIP
+/// map is a PNG that is no input.
+fn check_options(a: &Path, b: &Path, options: &DiffOptions) -> Result<()> {
     for (name, tolerance) in [
         ("--max-abs", options.max_abs),
         ("--rmse", options.rmse),
@@ -253,6 +284,11 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
         inputs.extend(options.mask.clone());
         check_not_input(map, &inputs)?;
     }
+    Ok(())
+}
+
+/// Both images, of one size.
+fn read_pair(a: &Path, b: &Path) -> Result<(LoadedImage, LoadedImage)> {
     let image_a = read_image(a)?;
     let image_b = read_image(b)?;
     if (image_a.width, image_a.height) != (image_b.width, image_b.height) {
@@ -269,12 +305,17 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
             ),
         ));
     }
-    let pairs = channel_pairs(a, &image_a, b, &image_b, options)?;
-    let mask = match &options.mask {
-        Some(path) => Some(load_mask(path, options.mask_channel.as_deref(), &image_a)?),
-        None => None,
-    };
+    Ok((image_a, image_b))
+}
 
+/// Per channel pair, and over all of them, the error metrics of the
+/// pixels under `mask` (all without one).
+fn channel_errors(
+    image_a: &LoadedImage,
+    image_b: &LoadedImage,
+    pairs: Vec<(String, String)>,
+    mask: Option<&[f32]>,
+) -> (Vec<ChannelDiff>, ErrorMetrics) {
     let mut overall = ErrorAccumulator::default();
     let mut channels = Vec::with_capacity(pairs.len());
     for (name_a, name_b) in pairs {
@@ -298,36 +339,50 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
             metrics: acc.finish(),
         });
     }
-    let overall = overall.finish();
+    (channels, overall.finish())
+}
 
-    let flip = if options.wants_flip() {
-        let (test, bad_a) = colours(a, &image_a)?;
-        let (reference, bad_b) = colours(b, &image_b)?;
-        let (w, h) = (image_a.width, image_a.height);
-        let map = flip_radiance(&reference, &test, w, h)
-            .ok_or_else(|| Error::file(a, None, "an empty image has no FLIP"))?;
-        let metrics = match &mask {
-            Some(m) => map.metrics(|i| m.get(i).is_some_and(|v| *v > 0.5)),
-            None => map.metrics_all(),
-        };
-        if let Some(path) = &options.flip_map {
-            map.write_png(path)?;
-        }
-        Some(FlipDiff {
-            metrics,
-            masked: mask.is_some(),
-            pixels_per_degree: FLIP_PPD,
-            non_finite: bad_a + bad_b,
-        })
-    } else {
-        None
+/// FLIP of `a`'s colours (the test image) against `b`'s (the reference),
+/// each a path and its image, over the pixels under `mask`; writes the
+/// map when asked.
+fn flip_diff(
+    (a, image_a): (&Path, &LoadedImage),
+    (b, image_b): (&Path, &LoadedImage),
+    mask: Option<&[f32]>,
+    options: &DiffOptions,
+) -> Result<FlipDiff> {
+    let (test, bad_a) = colours(a, image_a)?;
+    let (reference, bad_b) = colours(b, image_b)?;
+    let (w, h) = (image_a.width, image_a.height);
+    let map = flip_radiance(&reference, &test, w, h)
+        .ok_or_else(|| Error::file(a, None, "an empty image has no FLIP"))?;
+    let metrics = match mask {
+        Some(m) => map.metrics(|i| m.get(i).is_some_and(|v| *v > 0.5)),
+        None => map.metrics_all(),
     };
+    if let Some(path) = &options.flip_map {
+        map.write_png(path)?;
+    }
+    Ok(FlipDiff {
+        metrics,
+        masked: mask.is_some(),
+        pixels_per_degree: FLIP_PPD,
+        non_finite: bad_a + bad_b,
+    })
+}
 
+/// One line per tolerance exceeded.
+fn failures(
+    options: &DiffOptions,
+    channels: &[ChannelDiff],
+    overall: &ErrorMetrics,
+    flip: Option<&FlipDiff>,
+) -> Vec<String> {
     let mut failures = Vec::new();
     if let Some(t) = options.max_abs {
         // The overall maximum is the largest channel maximum, so naming
         // each channel over the limit also covers the overall check.
-        for c in &channels {
+        for c in channels {
             if !(c.metrics.max_abs <= t) {
                 failures.push(format!(
                     "max abs error {} > {} (channel {}{})",
@@ -350,7 +405,7 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
                 "rmse {} > {} ({what}{})",
                 short(overall.rmse),
                 short(t),
-                non_finite_note(&overall)
+                non_finite_note(overall)
             ));
         }
     }
@@ -371,14 +426,7 @@ pub fn diff_images(a: &Path, b: &Path, options: &DiffOptions) -> Result<DiffRepo
             ));
         }
     }
-    Ok(DiffReport {
-        width: image_a.width,
-        height: image_a.height,
-        channels,
-        overall,
-        flip,
-        failures,
-    })
+    failures
 }
 
 /// An image's colours for FLIP: its `R, G, B` channels (linear; a PNG's

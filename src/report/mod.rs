@@ -18,4 +18,4 @@ pub use flip::{flip_radiance, flip_rgb8, FlipMap, FlipMetrics, FlipRegions, FLIP
 pub use heatmap::{heatmap_colour, write_error_heatmap, HEATMAP_BACKGROUND, HEATMAP_NON_FINITE};
 pub use interior::interior_mask;
 pub use metrics::{error_metrics, ErrorAccumulator, ErrorMetrics, VISIBLE_ERROR};
-pub use progress::{estimate_render, format_duration, Progress, RenderCost, MANY_SAMPLES};
+pub use progress::{format_duration, Progress, RenderCost, MANY_SAMPLES};

@@ -4,12 +4,12 @@
 //! quads carry a fourth edge and a second depth plane.
 
 use super::depth_bounds::{DepthBounds, Verdict};
-use super::fragment::FragmentStage;
-use super::framebuffer::{DepthStencilTile, TILE_SIZE};
-use super::setup::{EdgeFunction, Plane};
-use super::simd::{compare_f32_lanes, LANES, LANE_OFFSETS};
-use super::state::{CompareFunc, RasterState, StencilFace, StencilOp};
-use super::tile::{TileJob, TileStats, BLOCK, OFFSETS_I32};
+use super::job::{CountingPass, TileJob, TileStats, BLOCK, MAX_DEPTH_SHIFTS, OFFSETS_I32};
+use crate::raster::fragment::FragmentStage;
+use crate::raster::framebuffer::{DepthStencilTile, TILE_SIZE};
+use crate::raster::setup::{EdgeFunction, Plane, QuadExtra, SetupTriangle};
+use crate::raster::simd::{compare_f32_lanes, LANES, LANE_OFFSETS};
+use crate::raster::state::CompareFunc;
 use crate::simd::{f32x8, f64x4, i32x8};
 
 /// A triangle's edge lines as `x = x0 + slope · y` (pixel units, f64,
@@ -233,92 +233,6 @@ impl SpanWalk {
     }
 }
 
-/// A stencil pass that only counts: no fragment stage, no depth writes, an
-/// always-passing stencil test, and per facing a single operation that
-/// adds ±1 either where the depth test fails (z-fail) or where it passes
-/// (z-pass). Shadow volumes are exactly this; rows then reduce to one
-/// compare and one masked add.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct CountingPass {
-    /// Added per front-facing fragment.
-    pub(super) front: i32,
-    /// Added per back-facing fragment.
-    pub(super) back: i32,
-    /// Count where the depth test fails (z-fail) rather than passes.
-    pub(super) on_depth_fail: bool,
-    /// Also record, per scale, the change of the count when each stored
-    /// depth is scaled by it ([`super::draw_depth_shift_counts`]), into
-    /// the tiles' [`DepthStencilTile::shifted`] images.
-    pub(super) shifts: DepthShifts,
-}
-
-/// Most depth scales one counting walk records
-/// ([`CountingPass::shifts`]).
-pub(crate) const MAX_DEPTH_SHIFTS: usize = 4;
-
-/// The depth scales of a counting walk (at most [`MAX_DEPTH_SHIFTS`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub(crate) struct DepthShifts {
-    scales: [f32; MAX_DEPTH_SHIFTS],
-    len: usize,
-}
-
-impl DepthShifts {
-    /// The scales `scales`, or `None` when there are too many.
-    pub(crate) fn new(scales: &[f32]) -> Option<DepthShifts> {
-        let mut out = DepthShifts::default();
-        out.scales.get_mut(..scales.len())?.copy_from_slice(scales);
-        out.len = scales.len();
-        Some(out)
-    }
-
-    /// The scales, in order.
-    pub(crate) fn as_slice(&self) -> &[f32] {
-        &self.scales[..self.len]
-    }
-}
-
-impl CountingPass {
-    /// The counting form of `state`, if it has one.
-    pub(crate) fn of<const N: usize, S: FragmentStage<N>>(state: &RasterState) -> Option<Self> {
-        if S::SHADES || S::DISCARDS || state.depth_write {
-            return None;
-        }
-        let st = state.stencil?;
-        let delta = |op: StencilOp| match op {
-            StencilOp::Keep => Some(0),
-            StencilOp::Increment => Some(1),
-            StencilOp::Decrement => Some(-1),
-            _ => None,
-        };
-        let face = |f: StencilFace| -> Option<(i32, i32)> {
-            if f.func != CompareFunc::Always || f.stencil_fail != StencilOp::Keep {
-                return None;
-            }
-            Some((delta(f.depth_fail)?, delta(f.pass)?))
-        };
-        let (front_fail, front_pass) = face(st.front)?;
-        let (back_fail, back_pass) = face(st.back)?;
-        if front_pass == 0 && back_pass == 0 {
-            Some(CountingPass {
-                front: front_fail,
-                back: back_fail,
-                on_depth_fail: true,
-                shifts: DepthShifts::default(),
-            })
-        } else if front_fail == 0 && back_fail == 0 {
-            Some(CountingPass {
-                front: front_pass,
-                back: back_pass,
-                on_depth_fail: false,
-                shifts: DepthShifts::default(),
-            })
-        } else {
-            None
-        }
-    }
-}
-
 impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
     /// [`TileJob::run`] for a counting pass: triangles larger than 8×8
     /// pixels are walked row by row as exact spans (see [`SpanWalk`]), so
@@ -337,6 +251,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         }
     }
 
+    /// The span walk over every binned triangle, in bin order.
     #[inline(always)]
     fn count_spans(
         &self,
@@ -348,16 +263,11 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let mut stats = TileStats::default();
         let (tx, ty) = self.origin;
         let last = TILE_SIZE as i32 - 1;
-        // Counted lanes are `pass ^ flip`: the failing ones for z-fail.
-        let flip = i32x8::splat(if c.on_depth_fail { -1 } else { 0 });
-        let scales = c.shifts.scales.map(f32x8::splat);
-        let n_shifts = c.shifts.len;
+        let walk = CountingWalk::new(c, self.state.depth_func, test);
         // Depth bounds of the tile's blocks, made on first use: a pass
         // that counts does not write depth, so they hold for the whole
-        // pass. Only the volumes' test (Greater) uses them.
-        let use_bounds = self.state.depth_func == CompareFunc::Greater;
+        // pass.
         let mut bounds: Option<DepthBounds> = None;
-        let zero = i32x8::splat(0);
         for &ti in self.bin {
             let t = &self.triangles[ti as usize];
             let clip = [
@@ -373,166 +283,282 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 self.small(t, clip, ds, target, &mut stats);
                 continue;
             }
-            // A merged quad has a fourth edge, a second depth plane and a
-            // diagonal that says which plane a pixel takes.
-            let quad = self.quads.get(t.quad as usize);
-            let edges = [
-                t.edges[0],
-                t.edges[1],
-                t.edges[2],
-                quad.map_or(t.edges[2], |q| q.edge),
-            ];
-            let edges = &edges[..3 + usize::from(quad.is_some())];
-            let Some(rows) = SpanWalk::rows(edges, clip) else {
-                continue;
-            };
-            let Some(stencil) = ds.stencil.as_deref_mut() else {
-                continue;
-            };
-            let depth = &ds.depth[..];
-            let shifted = &mut ds.shifted[..];
-            let plane = t.depth;
-            let plane2 = quad.map(|q| q.depth2);
-            let delta = i32x8::splat(if t.front_facing { c.front } else { c.back });
-            let (x0, dx) = (f32x8::splat(plane.x0), f32x8::splat(plane.dx));
-            // The whole rectangle's verdicts first, then band by band.
-            let lines = use_bounds.then(|| EdgeLines::of(edges));
-            let mut pair = WalkVerdicts::all_test(n_shifts);
-            if let Some(lines) = &lines {
-                let (xl, xh) = lines.extent(rows.0, rows.1, clip[0], clip[2]);
+            self.count_triangle(&walk, t, clip, ds, &mut bounds, &mut stats);
+        }
+        stats
+    }
+
+    /// One triangle (or merged quad) larger than 8×8 pixels, clipped to
+    /// `clip` inside the tile: the whole rectangle's verdicts first, then
+    /// band by band, each band's rows as exact spans.
+    #[inline(always)]
+    fn count_triangle<T: Fn(f32x8, f32x8) -> i32x8>(
+        &self,
+        walk: &CountingWalk<T>,
+        t: &SetupTriangle<N>,
+        clip: [i32; 4],
+        ds: &mut DepthStencilTile,
+        bounds: &mut Option<DepthBounds>,
+        stats: &mut TileStats,
+    ) {
+        let (tx, ty) = self.origin;
+        let c = walk.pass;
+        // A merged quad has a fourth edge, a second depth plane and a
+        // diagonal that says which plane a pixel takes.
+        let quad = self.quads.get(t.quad as usize);
+        let edges = [
+            t.edges[0],
+            t.edges[1],
+            t.edges[2],
+            quad.map_or(t.edges[2], |q| q.edge),
+        ];
+        let edges = &edges[..3 + usize::from(quad.is_some())];
+        let Some(rows) = SpanWalk::rows(edges, clip) else {
+            return;
+        };
+        let Some(stencil) = ds.stencil.as_deref_mut() else {
+            return;
+        };
+        let mut images = CountImages {
+            origin: self.origin,
+            depth: &ds.depth[..],
+            stencil,
+            shifted: &mut ds.shifted[..],
+        };
+        let plane = t.depth;
+        let plane2 = quad.map(|q| q.depth2);
+        let triangle = SpanTriangle {
+            walk,
+            plane,
+            plane2,
+            quad,
+            delta: i32x8::splat(if t.front_facing { c.front } else { c.back }),
+            x0: f32x8::splat(plane.x0),
+            dx: f32x8::splat(plane.dx),
+        };
+        // The whole rectangle's verdicts first, then band by band.
+        let lines = walk.use_bounds.then(|| EdgeLines::of(edges));
+        let mut pair = WalkVerdicts::all_test(walk.n_shifts);
+        if let Some(lines) = &lines {
+            let (xl, xh) = lines.extent(rows.0, rows.1, clip[0], clip[2]);
+            if xl > xh {
+                return;
+            }
+            let b = bounds.get_or_insert_with(|| DepthBounds::of(images.depth));
+            let rect = [xl - tx, rows.0 - ty, xh - tx, rows.1 - ty];
+            pair = pair.refine(b, (&plane, plane2.as_ref()), self.origin, rect, c);
+            if pair.skip() {
+                return;
+            }
+        }
+        // The walk, when it stands at row `walk_row`.
+        let mut span_walk: Option<SpanWalk> = None;
+        let mut walk_row = rows.0;
+        let mut seen = false;
+        let mut y = rows.0;
+        // Bands of up to 8 rows inside one row of blocks.
+        while y <= rows.1 {
+            let band = (y, (y | (BLOCK - 1)).min(rows.1));
+            y = band.1 + 1;
+            let mut verdict = pair;
+            let one_band = band.0 == rows.0 && band.1 == rows.1;
+            if let (true, false, Some(lines), Some(b)) = (pair.tests(), one_band, &lines, &*bounds)
+            {
+                let (xl, xh) = lines.extent(band.0, band.1, clip[0], clip[2]);
                 if xl > xh {
                     continue;
                 }
-                let b = bounds.get_or_insert_with(|| DepthBounds::of(depth));
-                let rect = [xl - tx, rows.0 - ty, xh - tx, rows.1 - ty];
-                pair = pair.refine(b, (&plane, plane2.as_ref()), self.origin, rect, c);
-                if pair.skip() {
+                let rect = [xl - tx, band.0 - ty, xh - tx, band.1 - ty];
+                verdict = pair.refine(b, (&plane, plane2.as_ref()), self.origin, rect, c);
+                if verdict.skip() {
                     continue;
                 }
             }
-            // The walk, when it stands at row `walk_row`.
-            let mut walk: Option<SpanWalk> = None;
-            let mut walk_row = rows.0;
-            let mut seen = false;
-            let mut y = rows.0;
-            // Bands of up to 8 rows inside one row of blocks.
-            while y <= rows.1 {
-                let band = (y, (y | (BLOCK - 1)).min(rows.1));
-                y = band.1 + 1;
-                let mut verdict = pair;
-                let one_band = band.0 == rows.0 && band.1 == rows.1;
-                if let (true, false, Some(lines), Some(b)) =
-                    (pair.tests(), one_band, &lines, &bounds)
-                {
-                    let (xl, xh) = lines.extent(band.0, band.1, clip[0], clip[2]);
-                    if xl > xh {
-                        continue;
-                    }
-                    let rect = [xl - tx, band.0 - ty, xh - tx, band.1 - ty];
-                    verdict = pair.refine(b, (&plane, plane2.as_ref()), self.origin, rect, c);
-                    if verdict.skip() {
-                        continue;
-                    }
-                }
-                let tested = verdict.tests();
-                let w = match &mut walk {
-                    Some(w) if walk_row == band.0 => w,
-                    _ => walk.insert(SpanWalk::at(edges, clip, band.0)),
-                };
-                walk_row = band.1 + 1;
-                let mut done = false;
-                for yy in band.0..=band.1 {
-                    let (lo, hi) = w.span();
-                    w.step();
-                    if lo > hi {
-                        // A thin triangle may pass between the pixel
-                        // centres of a row and cover the next; once even
-                        // the real interval is empty, the convex triangle
-                        // has left the rectangle for good.
-                        if seen && lo > hi + 1 {
-                            done = true;
-                            break;
-                        }
-                        continue;
-                    }
-                    seen = true;
-                    stats.fragments += (hi - lo + 1) as u64;
-                    let mut x = clip[0] + lo;
-                    let mut left = hi - lo + 1;
-                    let mut local = ((yy - ty) as usize) * TILE_SIZE + (x - tx) as usize;
-                    let base = f32x8::splat(plane.row_base(yy));
-                    loop {
-                        // Live lanes: the span's pixels from x on. Lanes
-                        // past the tile row (padding or the next row) are
-                        // loaded and stored back unchanged.
-                        let live = i32x8::splat(left).cmp_gt(OFFSETS_I32);
-                        // The fragments' and stored depths, where a test
-                        // needs them.
-                        let depths = tested.then(|| {
-                            // Plane::lanes_on_row with the per-triangle
-                            // splats hoisted: the same operations, the
-                            // same bits.
-                            let cx =
-                                (f32x8::splat(x as f32) + LANE_OFFSETS) + f32x8::splat(0.5) - x0;
-                            let mut frag = base + dx * cx;
-                            if let (Some(q), Some(p2)) = (quad, &plane2) {
-                                // The second triangle's pixels take its
-                                // plane, computed as for it alone.
-                                let second = p2.lanes(x, yy);
-                                let first = edge_lanes(&q.diagonal, x, yy);
-                                frag = first.cast_f32().blend(frag, second);
-                            }
-                            let frag = frag.max(f32x8::splat(0.0)).min(f32x8::splat(1.0));
-                            let stored: &[f32; LANES] =
-                                depth[local..local + LANES].try_into().expect("8 lanes");
-                            (frag, f32x8::new(*stored))
-                        });
-                        // The lanes that count, exactly: a verdict other
-                        // than Test holds for every covered pixel.
-                        let now = match (verdict.plain, depths) {
-                            (Verdict::Skip, _) => zero,
-                            (Verdict::Test, Some((frag, stored))) => {
-                                (test(frag, stored) ^ flip) & live
-                            }
-                            _ => live,
-                        };
-                        if verdict.plain != Verdict::Skip {
-                            let s: &mut [i32; LANES] = (&mut stencil[local..local + LANES])
-                                .try_into()
-                                .expect("8 lanes");
-                            *s = (i32x8::new(*s) + (now & delta)).to_array();
-                        }
-                        if let Some((frag, stored)) = depths {
-                            for ((image, &scale), &on) in
-                                shifted.iter_mut().zip(&scales).zip(&verdict.shifted)
-                            {
-                                if !on {
-                                    continue;
-                                }
-                                // +delta where the scaled depth counts
-                                // and the stored one did not, −delta the
-                                // other way.
-                                let then = (test(frag, stored * scale) ^ flip) & live;
-                                let s: &mut [i32; LANES] = (&mut image[local..local + LANES])
-                                    .try_into()
-                                    .expect("8 lanes");
-                                *s = (i32x8::new(*s) + (then & delta) - (now & delta)).to_array();
-                            }
-                        }
-                        if left <= BLOCK {
-                            break;
-                        }
-                        left -= BLOCK;
-                        x += BLOCK;
-                        local += LANES;
-                    }
-                }
-                if done {
-                    break;
-                }
+            let rows_walk = match &mut span_walk {
+                Some(w) if walk_row == band.0 => w,
+                _ => span_walk.insert(SpanWalk::at(edges, clip, band.0)),
+            };
+            walk_row = band.1 + 1;
+            let band_walk = BandWalk {
+                rows: band,
+                left_column: clip[0],
+                verdict,
+                tested: verdict.tests(),
+            };
+            let done = triangle.count_band(&band_walk, rows_walk, &mut seen, &mut images, stats);
+            if done {
+                break;
             }
         }
-        stats
+    }
+}
+
+/// What a counting walk keeps constant over one tile.
+struct CountingWalk<T> {
+    pass: CountingPass,
+    /// Counted lanes are `pass ^ flip`: the failing ones for z-fail.
+    flip: i32x8,
+    scales: [f32x8; MAX_DEPTH_SHIFTS],
+    n_shifts: usize,
+    /// Only the volumes' test (Greater) uses depth bounds.
+    use_bounds: bool,
+    zero: i32x8,
+    /// The depth test, monomorphised.
+    test: T,
+}
+
+impl<T: Fn(f32x8, f32x8) -> i32x8> CountingWalk<T> {
+    #[inline(always)]
+    fn new(c: CountingPass, depth_func: CompareFunc, test: T) -> Self {
+        CountingWalk {
+            pass: c,
+            flip: i32x8::splat(if c.on_depth_fail { -1 } else { 0 }),
+            scales: c.shifts.scales.map(f32x8::splat),
+            n_shifts: c.shifts.len,
+            use_bounds: depth_func == CompareFunc::Greater,
+            zero: i32x8::splat(0),
+            test,
+        }
+    }
+}
+
+/// The tile's images a counting walk reads (depth) and adds to.
+struct CountImages<'a> {
+    origin: (i32, i32),
+    depth: &'a [f32],
+    stencil: &'a mut [i32],
+    shifted: &'a mut [Box<[i32]>],
+}
+
+/// One triangle's constants in a counting walk.
+struct SpanTriangle<'a, T> {
+    walk: &'a CountingWalk<T>,
+    plane: Plane,
+    plane2: Option<Plane>,
+    quad: Option<&'a QuadExtra>,
+    /// Added per counted fragment.
+    delta: i32x8,
+    x0: f32x8,
+    dx: f32x8,
+}
+
+/// One band of up to 8 rows and its verdicts.
+struct BandWalk {
+    /// First and last row.
+    rows: (i32, i32),
+    /// The clip rectangle's left column, where span offsets start.
+    left_column: i32,
+    verdict: WalkVerdicts,
+    /// Whether any count of the band needs depths ([`WalkVerdicts::tests`]).
+    tested: bool,
+}
+
+impl<T: Fn(f32x8, f32x8) -> i32x8> SpanTriangle<'_, T> {
+    /// The rows of one band, walked by `span_walk`; true once the convex
+    /// triangle has left the clip rectangle for good.
+    #[inline(always)]
+    fn count_band(
+        &self,
+        band: &BandWalk,
+        span_walk: &mut SpanWalk,
+        seen: &mut bool,
+        images: &mut CountImages,
+        stats: &mut TileStats,
+    ) -> bool {
+        for yy in band.rows.0..=band.rows.1 {
+            let (lo, hi) = span_walk.span();
+            span_walk.step();
+            if lo > hi {
+                // A thin triangle may pass between the pixel centres of a
+                // row and cover the next; once even the real interval is
+                // empty, the convex triangle has left the rectangle for
+                // good.
+                if *seen && lo > hi + 1 {
+                    return true;
+                }
+                continue;
+            }
+            *seen = true;
+            stats.fragments += (hi - lo + 1) as u64;
+            self.count_span(band, images, band.left_column + lo, yy, hi - lo + 1);
+        }
+        false
+    }
+
+    /// The `left` pixels of row `y` from column `x`, 8 lanes at a time.
+    #[inline(always)]
+    fn count_span(&self, band: &BandWalk, images: &mut CountImages, x: i32, y: i32, left: i32) {
+        let walk = self.walk;
+        let (tx, ty) = images.origin;
+        let (verdict, tested) = (band.verdict, band.tested);
+        let (mut x, mut left) = (x, left);
+        let mut local = ((y - ty) as usize) * TILE_SIZE + (x - tx) as usize;
+        let base = f32x8::splat(self.plane.row_base(y));
+        loop {
+            // Live lanes: the span's pixels from x on. Lanes past the tile
+            // row (padding or the next row) are loaded and stored back
+            // unchanged.
+            let live = i32x8::splat(left).cmp_gt(OFFSETS_I32);
+            // The fragments' and stored depths, where a test needs them.
+            let depths = tested.then(|| {
+                // Plane::lanes_on_row with the per-triangle splats
+                // hoisted: the same operations, the same bits.
+                let cx = (f32x8::splat(x as f32) + LANE_OFFSETS) + f32x8::splat(0.5) - self.x0;
+                let mut frag = base + self.dx * cx;
+                if let (Some(q), Some(p2)) = (self.quad, &self.plane2) {
+                    // The second triangle's pixels take its plane,
+                    // computed as for it alone.
+                    let second = p2.lanes(x, y);
+                    let first = edge_lanes(&q.diagonal, x, y);
+                    frag = first.cast_f32().blend(frag, second);
+                }
+                let frag = frag.max(f32x8::splat(0.0)).min(f32x8::splat(1.0));
+                let stored: &[f32; LANES] = images.depth[local..local + LANES]
+                    .try_into()
+                    .expect("8 lanes");
+                (frag, f32x8::new(*stored))
+            });
+            // The lanes that count, exactly: a verdict other than Test
+            // holds for every covered pixel.
+            let now = match (verdict.plain, depths) {
+                (Verdict::Skip, _) => walk.zero,
+                (Verdict::Test, Some((frag, stored))) => {
+                    ((walk.test)(frag, stored) ^ walk.flip) & live
+                }
+                _ => live,
+            };
+            if verdict.plain != Verdict::Skip {
+                let s: &mut [i32; LANES] = (&mut images.stencil[local..local + LANES])
+                    .try_into()
+                    .expect("8 lanes");
+                *s = (i32x8::new(*s) + (now & self.delta)).to_array();
+            }
+            if let Some((frag, stored)) = depths {
+                for ((image, &scale), &on) in images
+                    .shifted
+                    .iter_mut()
+                    .zip(&walk.scales)
+                    .zip(&verdict.shifted)
+                {
+                    if !on {
+                        continue;
+                    }
+                    // +delta where the scaled depth counts and the stored
+                    // one did not, −delta the other way.
+                    let then = ((walk.test)(frag, stored * scale) ^ walk.flip) & live;
+                    let s: &mut [i32; LANES] = (&mut image[local..local + LANES])
+                        .try_into()
+                        .expect("8 lanes");
+                    *s = (i32x8::new(*s) + (then & self.delta) - (now & self.delta)).to_array();
+                }
+            }
+            if left <= BLOCK {
+                break;
+            }
+            left -= BLOCK;
+            x += BLOCK;
+            local += LANES;
+        }
     }
 }
 
@@ -590,7 +616,7 @@ impl WalkVerdicts {
 mod tests {
     use super::*;
     use crate::raster::setup::{Plane, SetupTriangle};
-    use crate::raster::tile::Lcg;
+    use crate::raster::tile::job::Lcg;
 
     /// Random triangles (snapped vertices anywhere in a 400-pixel square
     /// around the rectangle, many nearly degenerate slivers, many on half

@@ -1,26 +1,21 @@
-//! Tile traversal. Small triangles (bounding box within 8×8 pixels, most
-//! triangles of a detailed mesh) go straight to 8-lane rows over their box
-//! with `i32` edge values; larger ones descend from the 64×64 tile to 8×8
-//! blocks (trivial accept / reject on exact corner values), then rows with
-//! exact `f64` lanes on the edges that cross the block. Depth, stencil and
-//! fragment batches are 8-lane SIMD either way. Counting passes take the
-//! span walk of [`super::counting`]; passes that read depth without
-//! writing it skip rectangles by [`super::depth_bounds`].
+//! The block descent: small triangles (bounding box within 8×8 pixels)
+//! go straight to 8-lane rows over their box with `i32` edge values;
+//! larger ones descend from the 64×64 tile to 8×8 blocks (trivial accept /
+//! reject on exact corner values), then rows with exact `f64` lanes on the
+//! edges that cross the block. The 8-lane row (depth, stencil, fragment
+//! batch) is shared with the counting walk.
 
-use super::counting::CountingPass;
 use super::depth_bounds::{DepthBounds, Verdict};
-use super::fragment::{FragmentBatch, FragmentStage};
-use super::framebuffer::{DepthStencilTile, TILE_SIZE};
-use super::setup::{QuadExtra, SetupTriangle};
-use super::simd::{compare_f32, compare_i32, select_f32, select_i32, stencil_op, LANES};
-use super::state::{CompareFunc, RasterState, StencilOp};
+use super::job::{TileJob, TileStats, BLOCK, OFFSETS_I32};
+use crate::raster::fragment::{FragmentBatch, FragmentStage};
+use crate::raster::framebuffer::{DepthStencilTile, TILE_SIZE};
+use crate::raster::setup::SetupTriangle;
+use crate::raster::simd::{compare_f32, compare_i32, select_f32, select_i32, stencil_op, LANES};
+use crate::raster::state::{CompareFunc, StencilOp};
 use crate::simd::{f32x8, f64x4, i32x8};
 
-/// Side of a block, and lanes per row of it.
-pub(super) const BLOCK: i32 = 8;
 const OFFSETS_LO: f64x4 = f64x4::new([0.0, 1.0, 2.0, 3.0]);
 const OFFSETS_HI: f64x4 = f64x4::new([4.0, 5.0, 6.0, 7.0]);
-pub(super) const OFFSETS_I32: i32x8 = i32x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
 
 /// Set bits of every byte; `count_ones` is a library loop on baseline
 /// x86-64 (no POPCNT), a table is one load.
@@ -55,15 +50,6 @@ fn classify<const N: usize>(t: &SetupTriangle<N>, x: i32, y: i32, size: i32) -> 
     Some(partial)
 }
 
-/// Per-tile counters.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct TileStats {
-    /// Covered samples that reached the tests.
-    pub fragments: u64,
-    /// Samples that passed stencil and depth tests.
-    pub passed: u64,
-}
-
 /// One partial edge's values along a block row, stepped down the rows.
 #[derive(Clone, Copy, Default)]
 struct EdgeRows {
@@ -73,26 +59,14 @@ struct EdgeRows {
     step_y: f64x4,
 }
 
-/// Everything constant over one tile's work.
-pub(crate) struct TileJob<'a, const N: usize, S: FragmentStage<N>> {
-    pub tile: usize,
-    pub origin: (i32, i32),
-    pub triangles: &'a [SetupTriangle<N>],
-    /// Extras of the merged quads among `triangles` (counting passes).
-    pub quads: &'a [QuadExtra],
-    pub bin: &'a [u32],
-    pub state: &'a RasterState,
-    pub stage: &'a S,
-    /// Set for pure counting passes (see [`CountingPass`]).
-    pub counting: Option<CountingPass>,
-}
-
 impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
-    /// Rasterizes every binned triangle into this tile, in bin order.
-    pub fn run(&self, ds: &mut DepthStencilTile, target: &mut S::Target) -> TileStats {
-        if let Some(c) = self.counting {
-            return self.run_counting(c, ds, target);
-        }
+    /// [`TileJob::run`] for every pass but a counting one: the block
+    /// descent, or straight rows for small triangles.
+    pub(super) fn run_blocks(
+        &self,
+        ds: &mut DepthStencilTile,
+        target: &mut S::Target,
+    ) -> TileStats {
         let mut stats = TileStats::default();
         let (tx, ty) = self.origin;
         let last = TILE_SIZE as i32 - 1;
@@ -440,21 +414,5 @@ fn interpolate<const N: usize>(t: &SetupTriangle<N>, x: i32, y: i32, out: &mut [
     let inv_w = t.inv_w.lanes(x, y);
     for (o, p) in out.iter_mut().zip(t.varyings.iter()) {
         *o = p.lanes(x, y) / inv_w;
-    }
-}
-
-/// A small deterministic generator for the traversal tests.
-#[cfg(test)]
-pub(super) struct Lcg(pub u64);
-
-#[cfg(test)]
-impl Lcg {
-    /// Uniform in `0..n`.
-    pub fn below(&mut self, n: i64) -> i64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 33) as i64).rem_euclid(n)
     }
 }

@@ -4,10 +4,10 @@
 //! writing it (counting passes, wedge passes): every pixel passes, every
 //! pixel fails, or test.
 
-use super::framebuffer::TILE_SIZE;
-use super::setup::Plane;
-use super::simd::LANES;
-use super::tile::BLOCK;
+use super::job::BLOCK;
+use crate::raster::framebuffer::TILE_SIZE;
+use crate::raster::setup::Plane;
+use crate::raster::simd::LANES;
 use crate::simd::f32x8;
 
 /// What depth bounds say about a rectangle of a counting pass.
@@ -222,7 +222,7 @@ fn plane_bound(plane: &Plane, rect: [i32; 4], max: bool) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raster::tile::Lcg;
+    use crate::raster::tile::job::Lcg;
 
     /// The sparse table's bounds over any rectangle of blocks are the
     /// bounds of the pixels in those blocks, and verdicts follow them.

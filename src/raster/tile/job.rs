@@ -1,0 +1,139 @@
+//! What one tile's work shares with every stage of it: the job (triangles,
+//! bin, state, stage), the counting form of a pass, the per-tile counters
+//! and the block size. A leaf: it imports no other file of `tile/`, so
+//! the block descent, the counting walk and the depth bounds can all
+//! import it.
+
+use crate::raster::fragment::FragmentStage;
+use crate::raster::setup::{QuadExtra, SetupTriangle};
+use crate::raster::state::{CompareFunc, RasterState, StencilFace, StencilOp};
+use crate::simd::i32x8;
+
+/// Side of a block, and lanes per row of it.
+pub(crate) const BLOCK: i32 = 8;
+pub(crate) const OFFSETS_I32: i32x8 = i32x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
+
+/// Per-tile counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TileStats {
+    /// Covered samples that reached the tests.
+    pub fragments: u64,
+    /// Samples that passed stencil and depth tests.
+    pub passed: u64,
+}
+
+/// Everything constant over one tile's work.
+pub(crate) struct TileJob<'a, const N: usize, S: FragmentStage<N>> {
+    pub tile: usize,
+    pub origin: (i32, i32),
+    pub triangles: &'a [SetupTriangle<N>],
+    /// Extras of the merged quads among `triangles` (counting passes).
+    pub quads: &'a [QuadExtra],
+    pub bin: &'a [u32],
+    pub state: &'a RasterState,
+    pub stage: &'a S,
+    /// Set for pure counting passes (see [`CountingPass`]).
+    pub counting: Option<CountingPass>,
+}
+
+/// A stencil pass that only counts: no fragment stage, no depth writes, an
+/// always-passing stencil test, and per facing a single operation that
+/// adds ±1 either where the depth test fails (z-fail) or where it passes
+/// (z-pass). Shadow volumes are exactly this; rows then reduce to one
+/// compare and one masked add.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CountingPass {
+    /// Added per front-facing fragment.
+    pub(crate) front: i32,
+    /// Added per back-facing fragment.
+    pub(crate) back: i32,
+    /// Count where the depth test fails (z-fail) rather than passes.
+    pub(crate) on_depth_fail: bool,
+    /// Also record, per scale, the change of the count when each stored
+    /// depth is scaled by it ([`crate::raster::draw_depth_shift_counts`]), into
+    /// the tiles' [`crate::raster::DepthStencilTile::shifted`] images.
+    pub(crate) shifts: DepthShifts,
+}
+
+/// Most depth scales one counting walk records
+/// ([`CountingPass::shifts`]).
+pub(crate) const MAX_DEPTH_SHIFTS: usize = 4;
+
+/// The depth scales of a counting walk (at most [`MAX_DEPTH_SHIFTS`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct DepthShifts {
+    pub(super) scales: [f32; MAX_DEPTH_SHIFTS],
+    pub(super) len: usize,
+}
+
+impl DepthShifts {
+    /// The scales `scales`, or `None` when there are too many.
+    pub(crate) fn new(scales: &[f32]) -> Option<DepthShifts> {
+        let mut out = DepthShifts::default();
+        out.scales.get_mut(..scales.len())?.copy_from_slice(scales);
+        out.len = scales.len();
+        Some(out)
+    }
+
+    /// The scales, in order.
+    pub(crate) fn as_slice(&self) -> &[f32] {
+        &self.scales[..self.len]
+    }
+}
+
+impl CountingPass {
+    /// The counting form of `state`, if it has one.
+    pub(crate) fn of<const N: usize, S: FragmentStage<N>>(state: &RasterState) -> Option<Self> {
+        if S::SHADES || S::DISCARDS || state.depth_write {
+            return None;
+        }
+        let st = state.stencil?;
+        let delta = |op: StencilOp| match op {
+            StencilOp::Keep => Some(0),
+            StencilOp::Increment => Some(1),
+            StencilOp::Decrement => Some(-1),
+            _ => None,
+        };
+        let face = |f: StencilFace| -> Option<(i32, i32)> {
+            if f.func != CompareFunc::Always || f.stencil_fail != StencilOp::Keep {
+                return None;
+            }
+            Some((delta(f.depth_fail)?, delta(f.pass)?))
+        };
+        let (front_fail, front_pass) = face(st.front)?;
+        let (back_fail, back_pass) = face(st.back)?;
+        if front_pass == 0 && back_pass == 0 {
+            Some(CountingPass {
+                front: front_fail,
+                back: back_fail,
+                on_depth_fail: true,
+                shifts: DepthShifts::default(),
+            })
+        } else if front_fail == 0 && back_fail == 0 {
+            Some(CountingPass {
+                front: front_pass,
+                back: back_pass,
+                on_depth_fail: false,
+                shifts: DepthShifts::default(),
+            })
+        } else {
+            None
+        }
+    }
+}
+
+/// A small deterministic generator for the traversal tests.
+#[cfg(test)]
+pub(crate) struct Lcg(pub u64);
+
+#[cfg(test)]
+impl Lcg {
+    /// Uniform in `0..n`.
+    pub fn below(&mut self, n: i64) -> i64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 33) as i64).rem_euclid(n)
+    }
+}
