@@ -4,15 +4,24 @@
 //! 64×64 tiles rasterized in parallel, 8×8 block descent, and 8-lane SIMD
 //! coverage, depth, stencil and fragment batches.
 
+#[forbid(unsafe_code)]
 mod bin;
+#[forbid(unsafe_code)]
 mod clip;
+#[forbid(unsafe_code)]
 mod fragment;
+#[forbid(unsafe_code)]
 mod framebuffer;
 mod pipeline;
+#[forbid(unsafe_code)]
 mod setup;
+#[forbid(unsafe_code)]
 mod simd;
+#[forbid(unsafe_code)]
 mod state;
+#[forbid(unsafe_code)]
 mod tile;
+#[forbid(unsafe_code)]
 mod vertex;
 
 pub use bin::TileBins;

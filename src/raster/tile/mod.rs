@@ -11,9 +11,13 @@
 //! `depth_bounds.rs` ← `blocks.rs`, `counting.rs`; this file only picks
 //! the walk.
 
+#[forbid(unsafe_code)]
 mod blocks;
+#[forbid(unsafe_code)]
 mod counting;
+#[forbid(unsafe_code)]
 mod depth_bounds;
+#[forbid(unsafe_code)]
 mod job;
 
 pub(crate) use job::{CountingPass, DepthShifts, TileJob, TileStats, MAX_DEPTH_SHIFTS};

@@ -17,6 +17,7 @@
 //! `Vcoef = 1 − clamp(V, 0, 1)`.
 
 pub mod blend;
+pub mod light_parts;
 
 use super::kit::light_frame::{region_fraction, region_fraction_sphere};
 use super::kit::membership::{draw_wedges, light_start, HalfSink, LightStart, MembershipTile};
@@ -77,9 +78,9 @@ pub struct WedgeTile {
     vbuffer: Vec<f32>,
     halves_in: Vec<u32>,
     /// Blending only: the current silhouette's per-light-part buffer.
-    parts: Vec<[blend::LightPart; 4]>,
+    parts: Vec<[light_parts::LightPart; 4]>,
     /// Blending only: the final per-light-part buffer.
-    final_parts: Vec<[blend::LightPart; 4]>,
+    final_parts: Vec<[light_parts::LightPart; 4]>,
     /// Blending only: rectangle of `parts` that may be non-empty.
     parts_touched: [usize; 4],
 }
@@ -140,7 +141,13 @@ impl HalfSink for WedgeSink<'_> {
         if self.blend {
             if let LightBound::Rect(frame) = &self.light {
                 let facing = (frame.center - p).dot(frame.normal);
-                blend::accumulate(&mut tile.parts[i], frame, p, &half, sign * facing.signum());
+                light_parts::accumulate(
+                    &mut tile.parts[i],
+                    frame,
+                    p,
+                    &half,
+                    sign * facing.signum(),
+                );
                 let (x, y) = local_xy(i);
                 let t = &mut tile.parts_touched;
                 *t = [t[0].min(x), t[1].min(y), t[2].max(x + 1), t[3].max(y + 1)];
