@@ -403,6 +403,7 @@ impl HitPass<'_> {
     /// Into `hits`, the relations of receiver `p` (inside the triangle's
     /// light penumbra volume) that `triangle` crosses and no opaque
     /// caster blocks.
+    #[inline]
     fn hits_of(&mut self, p: usize, triangle: &TriangleCast) {
         self.chunk.words(p, &mut self.words);
         if let Some(own) = &mut self.own {
@@ -417,6 +418,7 @@ impl HitPass<'_> {
 
     /// Whether group `k`'s volume of `triangle` leaves out the receiver
     /// at `position` (the group is then skipped).
+    #[inline]
     fn outside(triangle: &TriangleCast, k: usize, position: [f64; 3]) -> bool {
         triangle
             .group_volumes
@@ -426,6 +428,7 @@ impl HitPass<'_> {
     /// A semi-opaque layer's crossings: each group's hard volumes of the
     /// triangle (cached per set and group, or built for the receiver's
     /// own samples) against the receiver.
+    #[inline]
     fn layer_hits(&mut self, p: usize, triangle: &TriangleCast) {
         let groups = self.sets.groups;
         let position = self.chunk.pos[p];
@@ -464,6 +467,7 @@ impl HitPass<'_> {
 
     /// S-triangle `matte`'s crossings: its opacity where the projector
     /// finds each unblocked sample's segment through it.
+    #[inline]
     fn matte_hits(&mut self, p: usize, matte: u32, triangle: &TriangleCast) {
         let groups = self.sets.groups;
         let position = self.chunk.pos[p];
