@@ -111,14 +111,6 @@ pub(super) fn group_starts<'a>(
     Ok((groups, framebuffer))
 }
 
-/// Depth ties of the start counts ([`ties`](super::ties)), recounted in
-/// `groups` exactly at the shadow-ray origin by one ray to the centre
-/// `point`; per pixel, its [`Tie`] (after the recount, [`Tie::Tied`]
-/// means recounted), and the exact counter the counter pass uses for
-/// own-face ties at a quad (see `receiver.rs`). Only in the exact mode
-/// (whole-light silhouettes), where per-sample counts are meant to equal
-/// ray casting; the fast centre mode keeps the thesis's approximations
-/// and the stencil's constant.
 /// Side of the square pixel blocks whose own-face receivers share one
 /// test for other caps near their segments (`recount_ties`): one query
 /// per face per block, so larger blocks query a face seen across block
@@ -130,6 +122,14 @@ const CAP_BLOCK: usize = 32;
 /// beyond, each receiver walks the tree.
 const CAP_LIST: usize = 16;
 
+/// Depth ties of the start counts ([`ties`](super::ties)), recounted in
+/// `groups` exactly at the shadow-ray origin by one ray to the centre
+/// `point`; per pixel, its [`Tie`] (after the recount, [`Tie::Tied`]
+/// means recounted), and the exact counter the counter pass uses for
+/// own-face ties at a quad (see `receiver.rs`). Only in the exact mode
+/// (whole-light silhouettes), where per-sample counts are meant to equal
+/// ray casting; the fast centre mode keeps the thesis's approximations
+/// and the stencil's constant.
 pub(super) fn recount_ties<'a>(
     ctx: &ShadowContext<'a>,
     k: usize,
@@ -138,84 +138,107 @@ pub(super) fn recount_ties<'a>(
     mode: SilhouetteMode,
     passes: &mut Vec<PassTiming>,
 ) -> Result<(Vec<Tie>, ExactStart<'a>)> {
-    let t = PassTimer::start(format!("start-count ties light {k}"));
+    let timer = PassTimer::start(format!("start-count ties light {k}"));
     let mut tied = vec![Tie::None; ctx.gbuffer.len()];
     let lits: Vec<Vec<bool>> = groups.iter().map(|g| faces_point(g.adj, point)).collect();
     if mode == SilhouetteMode::WholeLight {
-        // Per scene triangle: the group it is a cap of, and its stencil
-        // weight there (closed casters: light-facing; open: every face).
-        let mut cap = vec![(usize::MAX, 0); ctx.geometry.triangles.len()];
-        for (k, (group, lit)) in groups.iter().zip(&lits).enumerate() {
-            for (slot, &f) in group.adj.faces.iter().enumerate() {
-                let weight = if group.adj.face_closed[slot] {
-                    i32::from(lit[slot])
-                } else {
-                    1
-                };
-                cap[f as usize] = (k, weight);
-            }
-        }
-        for (k, group) in groups.iter().enumerate() {
-            let own_face = |i: usize| {
-                let Some((position, geo_normal, triangle)) = ctx.gbuffer.surface_geometry(i) else {
-                    return Some(0);
-                };
-                match cap.get(triangle as usize) {
-                    Some(&(c, weight)) if c == k => {
-                        own_face_change(weight, geo_normal, position, point)
-                    }
-                    _ => Some(0),
-                }
-            };
-            let group_tied = if group.shift_changes.is_empty() {
-                tied_pixels(ctx.depth, &group.volume, &group.counts, true, own_face)?
-            } else {
-                tied_from_changes(&group.shift_changes, &group.counts, own_face)?
-            };
-            tied.par_iter_mut()
-                .zip(group_tied)
-                .with_min_len(4096)
-                .for_each(|(a, b)| *a = (*a).max(b));
-        }
+        own_face_ties(ctx, point, groups, &lits, &mut tied)?;
     }
     let sets: Vec<(&EdgeAdjacency, &[bool])> = groups
         .iter()
         .zip(&lits)
-        .map(|(g, lit)| (g.adj, lit.as_slice()))
+        .map(|(group, lit)| (group.adj, lit.as_slice()))
         .collect();
     let exact = ExactStart::new(ctx.geometry, &sets);
     let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
-    // An own-face verdict holds only where no other cap face comes
-    // between the stencil's point and `p'` ([`ExactStart::cap_near`]): a
-    // face folded over the receiver's own (bunny.toml at 1024², pixel
-    // (644, 446)) lies across the normal offset but off the view ray,
-    // where the depth-shifted counts cannot see it.
-    let eye = ctx.view.eye.as_vec3();
-    let width = ctx.gbuffer.width as usize;
-    let height = ctx.gbuffer.len() / width.max(1);
-    let blocks_x = width.div_ceil(CAP_BLOCK);
     if tied.par_iter().any(|&t| t == Tie::OwnFace) {
         exact.prepare();
     }
-    let demoted: Vec<usize> = (0..blocks_x * height.div_ceil(CAP_BLOCK))
+    let demoted = near_other_caps(ctx, &tied, &exact, &origin);
+    for &i in &demoted {
+        tied[i] = Tie::Tied;
+    }
+    let recounted = recount_tied(ctx, point, groups, &tied, &exact, &origin);
+    let own = tied.iter().filter(|&&t| t == Tie::OwnFace).count();
+    timer.finish_with(
+        passes,
+        format!(
+            "{} receivers recounted ({} near another cap), {own} on their own face",
+            recounted,
+            demoted.len()
+        ),
+    );
+    Ok((tied, exact))
+}
+
+/// Into `tied`, every group's depth ties of its start counts, with the
+/// own-face verdict where the receiver lies on one of the group's caps
+/// (`lits`: per group, which faces see the centre `point`).
+fn own_face_ties(
+    ctx: &ShadowContext,
+    point: Vec3,
+    groups: &[GroupStart],
+    lits: &[Vec<bool>],
+    tied: &mut [Tie],
+) -> Result<()> {
+    // Per scene triangle: the group it is a cap of, and its stencil
+    // weight there (closed casters: light-facing; open: every face).
+    let mut cap = vec![(usize::MAX, 0); ctx.geometry.triangles.len()];
+    for (k, (group, lit)) in groups.iter().zip(lits).enumerate() {
+        for (slot, &face) in group.adj.faces.iter().enumerate() {
+            let weight = if group.adj.face_closed[slot] {
+                i32::from(lit[slot])
+            } else {
+                1
+            };
+            cap[face as usize] = (k, weight);
+        }
+    }
+    for (k, group) in groups.iter().enumerate() {
+        let own_face = |i: usize| {
+            let Some((position, geo_normal, triangle)) = ctx.gbuffer.surface_geometry(i) else {
+                return Some(0);
+            };
+            match cap.get(triangle as usize) {
+                Some(&(c, weight)) if c == k => {
+                    own_face_change(weight, geo_normal, position, point)
+                }
+                _ => Some(0),
+            }
+        };
+        let group_tied = if group.shift_changes.is_empty() {
+            tied_pixels(ctx.depth, &group.volume, &group.counts, true, own_face)?
+        } else {
+            tied_from_changes(&group.shift_changes, &group.counts, own_face)?
+        };
+        tied.par_iter_mut()
+            .zip(group_tied)
+            .with_min_len(4096)
+            .for_each(|(a, b)| *a = (*a).max(b));
+    }
+    Ok(())
+}
+
+/// The own-face receivers of `tied` whose verdict does not hold: an
+/// own-face verdict holds only where no other cap face comes between the
+/// stencil's point and `p'` ([`ExactStart::cap_near`]): a face folded
+/// over the receiver's own (bunny.toml at 1024², pixel (644, 446)) lies
+/// across the normal offset but off the view ray, where the
+/// depth-shifted counts cannot see it.
+fn near_other_caps(
+    ctx: &ShadowContext,
+    tied: &[Tie],
+    exact: &ExactStart,
+    origin: &ShadowOrigin,
+) -> Vec<usize> {
+    let width = ctx.gbuffer.width as usize;
+    let height = ctx.gbuffer.len() / width.max(1);
+    let blocks_x = width.div_ceil(CAP_BLOCK);
+    (0..blocks_x * height.div_ceil(CAP_BLOCK))
         .into_par_iter()
         .flat_map_iter(|b| {
-            let (bx, by) = (b % blocks_x * CAP_BLOCK, b / blocks_x * CAP_BLOCK);
-            let mut block: Vec<(usize, u32, Vec3, Vec3)> = Vec::new();
-            for y in by..(by + CAP_BLOCK).min(height) {
-                for x in bx..(bx + CAP_BLOCK).min(width) {
-                    let i = y * width + x;
-                    if tied[i] != Tie::OwnFace {
-                        continue;
-                    }
-                    if let Some((position, geo_normal, triangle)) = ctx.gbuffer.surface_geometry(i)
-                    {
-                        let p_ray = origin.of(position, geo_normal);
-                        let (start, dir) = cap_segment(position, p_ray, eye);
-                        block.push((i, triangle, start, dir));
-                    }
-                }
-            }
+            let corner = (b % blocks_x * CAP_BLOCK, b / blocks_x * CAP_BLOCK);
+            let mut block = own_face_segments(ctx, tied, origin, corner, (width, height));
             // One query for the receivers of the block on one face: the
             // cap faces other than their own that come near any of their
             // segments (none on most of a ground, a handful of neighbours
@@ -249,43 +272,74 @@ pub(super) fn recount_ties<'a>(
             }
             near
         })
-        .collect();
-    for &i in &demoted {
-        tied[i] = Tie::Tied;
+        .collect()
+}
+
+/// The own-face receivers of `tied` in the [`CAP_BLOCK`]² block at
+/// `(x, y)` of a `(width, height)` screen, in pixel order: pixel, face,
+/// and the segment from the stencil's point to `p'` ([`cap_segment`]).
+fn own_face_segments(
+    ctx: &ShadowContext,
+    tied: &[Tie],
+    origin: &ShadowOrigin,
+    (block_x, block_y): (usize, usize),
+    (width, height): (usize, usize),
+) -> Vec<(usize, u32, Vec3, Vec3)> {
+    let eye = ctx.view.eye.as_vec3();
+    let mut block = Vec::new();
+    for y in block_y..(block_y + CAP_BLOCK).min(height) {
+        for x in block_x..(block_x + CAP_BLOCK).min(width) {
+            let i = y * width + x;
+            if tied[i] != Tie::OwnFace {
+                continue;
+            }
+            if let Some((position, geo_normal, triangle)) = ctx.gbuffer.surface_geometry(i) {
+                let p_ray = origin.of(position, geo_normal);
+                let (start, dir) = cap_segment(position, p_ray, eye);
+                block.push((i, triangle, start, dir));
+            }
+        }
     }
+    block
+}
+
+/// Every group's start count at the tied surface receivers of `tied`,
+/// by one ray from `p'` to the centre `point`; how many were recounted.
+fn recount_tied(
+    ctx: &ShadowContext,
+    point: Vec3,
+    groups: &mut [GroupStart],
+    tied: &[Tie],
+    exact: &ExactStart,
+    origin: &ShadowOrigin,
+) -> usize {
     let tied_surface: Vec<usize> = (0..tied.len())
         .into_par_iter()
         .with_min_len(4096)
         .filter(|&i| tied[i] == Tie::Tied && ctx.gbuffer.is_surface(i))
         .collect();
     if !tied_surface.is_empty() {
-        let exact = &exact;
         let n_groups = groups.len();
         let fixes: Vec<(usize, Vec<i32>)> = tied_surface
             .par_iter()
             .map(|&i| {
-                let g = ctx.gbuffer.sample(i);
+                let sample = ctx.gbuffer.sample(i);
                 let mut counts = vec![0; n_groups];
-                exact.counts(origin.of(g.position, g.geo_normal), point, &mut counts);
+                exact.counts(
+                    origin.of(sample.position, sample.geo_normal),
+                    point,
+                    &mut counts,
+                );
                 (i, counts)
             })
             .collect();
         for (i, counts) in fixes {
-            for (group, c) in groups.iter_mut().zip(counts) {
-                group.counts[i] = c;
+            for (group, count) in groups.iter_mut().zip(counts) {
+                group.counts[i] = count;
             }
         }
     }
-    let own = tied.iter().filter(|&&t| t == Tie::OwnFace).count();
-    t.finish_with(
-        passes,
-        format!(
-            "{} receivers recounted ({} near another cap), {own} on their own face",
-            tied_surface.len(),
-            demoted.len()
-        ),
-    );
-    Ok((tied, exact))
+    tied_surface.len()
 }
 
 /// Every group's candidate edges from `light` (centre `point`) in

@@ -116,6 +116,61 @@ struct GroupSpan {
     recorded: bool,
 }
 
+/// What one receiver reads per sample ([`LightPass::reads`]).
+#[derive(Debug, Clone, Copy)]
+struct Reads {
+    /// A rect light: the chart is its own coordinates.
+    rect: bool,
+    /// The direct light is estimated (not only the Vcoef).
+    direct: bool,
+    /// The light's radiance is textured.
+    textured: bool,
+    /// A [`CounterInspector`] reads the receiver.
+    inspected: bool,
+    /// Semi-opaque groups or S-triangles: a transmittance per sample.
+    semi_opaque: bool,
+    /// Anything but the opaque counts is read per sample.
+    per_sample: bool,
+    /// A rect light's world samples are read (the direct estimator, the
+    /// texture, an inspector, the S-triangles).
+    rect_samples: bool,
+    /// The direct light of an untextured rect light straight from the
+    /// chart points the counts use: no world points.
+    chart_direct: bool,
+}
+
+/// One receiver as the stages of [`LightPass::pixel`] see it, once it
+/// needs more than its start counts ([`LightPass::locate`]).
+struct Receiver<'r> {
+    /// Global pixel index.
+    index: usize,
+    /// The pixel, `(x, y)`.
+    pixel: (u32, u32),
+    /// The raster's receiver, where the light samples are made from.
+    position: Vec3,
+    /// The same in f64: where the stencil decided `D(O)`.
+    raster: DVec3,
+    /// The shadow-ray origin `p'`.
+    origin: DVec3,
+    chart: ReceiverChart,
+    reads: Reads,
+    inspect: Option<&'r CounterInspector<'r>>,
+    /// The S-triangles whose volume test the receiver passed.
+    s_triangles: &'r [u32],
+}
+
+/// How [`LightPass::count_groups`] moves a receiver's counters
+/// ([`LightPass::counting`]).
+struct Counting<'t> {
+    /// The receiver's samples.
+    count: usize,
+    /// The bit-field table of its interleaved set, when the option is on.
+    table: Option<&'t CoverageTables>,
+    /// Whether its counters follow the sectors' order ([`SectorSamples`])
+    /// rather than the samples'.
+    sorted: bool,
+}
+
 /// One caster group's state for a light: its candidate edges, its
 /// shadow-volume start `D(O)` (or layer count at the centre) per pixel,
 /// and where its edges sit in the light's global edge numbering.
@@ -186,39 +241,40 @@ impl LightPass<'_, '_> {
     /// Transmittance of the semi-opaque groups at pixel `i` when every
     /// sample sees their start counts (no wedge of theirs holds `i`).
     fn constant_transmittance(&self, i: usize) -> f64 {
-        let acc: f64 = self.groups[1..]
+        let accumulated: f64 = self.groups[1..]
             .iter()
-            .map(|g| f64::from(g.start[i].max(0)) * g.per_layer)
+            .map(|group| f64::from(group.start[i].max(0)) * group.per_layer)
             .sum();
-        self.technique.transmittance.transmittance(acc)
+        self.technique.transmittance.transmittance(accumulated)
     }
 
     /// The results of pixel `i` when every sample sees the opaque start
-    /// count `d0` and the semi-opaque groups' start counts (`sp` gives
-    /// its surface point, read only for a radiance).
+    /// count `opaque_start` and the semi-opaque groups' start counts
+    /// (`shading_point` gives its surface point, read only for a
+    /// radiance).
     fn uniform(
         &self,
         i: usize,
-        d0: i32,
-        sp: impl Fn() -> SurfacePoint,
+        opaque_start: i32,
+        shading_point: impl Fn() -> SurfacePoint,
         edges: usize,
         recounted: bool,
     ) -> PixelResult {
-        let t = if d0 <= 0 {
+        let transmittance = if opaque_start <= 0 {
             self.constant_transmittance(i)
         } else {
             0.0
         };
         let needs_radiance = self.technique.mode == DcsMode::Direct || self.prepared.is_textured();
         PixelResult {
-            vcoef: t as f32,
-            radiance: if needs_radiance && t > 0.0 {
-                self.prepared.unshadowed_direct(&sp()) * t as f32
+            vcoef: transmittance as f32,
+            radiance: if needs_radiance && transmittance > 0.0 {
+                self.prepared.unshadowed_direct(&shading_point()) * transmittance as f32
             } else {
                 Vec3::ZERO
             },
-            max_dc: d0.max(0) as f32,
-            mean_dc: d0.max(0) as f32,
+            max_dc: opaque_start.max(0) as f32,
+            mean_dc: opaque_start.max(0) as f32,
             edges: edges as f32,
             recounted,
         }
@@ -227,6 +283,13 @@ impl LightPass<'_, '_> {
     /// The results of global pixel `i` with its recorded `(edge, outer)`
     /// pairs (sorted, no duplicates) and the unbounded edges `extra`
     /// (sorted) that apply to it; edge ids are global over the groups.
+    ///
+    /// In stages: the receivers outside every wedge at once (`uniform`);
+    /// then the chart (`locate`), every group's start count and effective
+    /// edges (`gather_edges`), the paths that need no per-sample counters
+    /// (`without_samples`), the chart points (`fill_chart`), the counters
+    /// (`count_groups`, `add_s_triangles`), the transmittance
+    /// (`transmittance`) and the results (`resolve`).
     #[inline(always)]
     pub(super) fn pixel(
         &self,
@@ -241,67 +304,136 @@ impl LightPass<'_, '_> {
             Extras::Made(made) => (&[], Some(made)),
         };
         let admitted = made.map_or(extra.len(), |m| m.admitted);
-        let gbuffer = self.ctx.gbuffer;
         let inspect = self.inspect.filter(|_| {
             self.inspect_pixels
                 .is_none_or(|p| p.binary_search(&i).is_ok())
         });
-        let d0 = self.groups[0].start[i];
-        // The position and geometric normal are read for every receiver;
-        // the whole shading sample only where a radiance needs it.
-        let (position, geo_normal) = position_normal(gbuffer, i);
-        let eye = self.ctx.view.eye.as_vec3();
-        let direct = self.technique.mode == DcsMode::Direct;
-        let sp = || surface_point(self.ctx.scene, &gbuffer.sample(i), eye);
         if tags.is_empty() && admitted == 0 && s_triangles.is_empty() && inspect.is_none() {
             // Outside every wedge: D = D(O) and the layer counts are the
             // start counts for every sample.
-            return self.uniform(i, d0, sp, 0, false);
+            let opaque_start = self.groups[0].start[i];
+            return self.uniform(i, opaque_start, || self.shading_point(i), 0, false);
         }
+        let Some(receiver) = self.locate(i, inspect, s_triangles, &mut scratch.samples) else {
+            // Inside a sphere light: no defined Vcoef (as the reference).
+            return PixelResult {
+                vcoef: 1.0,
+                edges: tags.len() as f32,
+                ..PixelResult::default()
+            };
+        };
+        let recounted = self.gather_edges(&receiver, (tags, extra, made), scratch);
+        if let Some(result) = self.without_samples(&receiver, recounted, scratch) {
+            return result;
+        }
+        self.fill_chart(&receiver, scratch);
+        // The shading point of the direct light from the chart points,
+        // made once for the sectors' test and the estimate.
+        let shading = receiver.reads.chart_direct.then(|| self.shading_point(i));
+        let counting = self.counting(&receiver, shading.as_ref(), scratch);
+        self.count_groups(&counting, receiver.reads.semi_opaque, scratch);
+        self.add_s_triangles(&receiver, counting.count, scratch);
+        self.transmittance(&receiver, counting.count, scratch);
+        self.resolve(&receiver, &counting, shading, recounted, scratch)
+    }
+
+    /// Pixel `i`'s whole shading sample, read only where a radiance needs
+    /// it.
+    #[inline(always)]
+    fn shading_point(&self, i: usize) -> SurfacePoint {
+        let eye = self.ctx.view.eye.as_vec3();
+        surface_point(self.ctx.scene, &self.ctx.gbuffer.sample(i), eye)
+    }
+
+    /// What a receiver reads per sample, given whether an inspector reads
+    /// it and whether it has S-triangles.
+    #[inline(always)]
+    fn reads(&self, inspected: bool, has_s_triangles: bool) -> Reads {
+        let rect = matches!(self.bound, LightBound::Rect(_));
+        let direct = self.technique.mode == DcsMode::Direct;
+        let textured = self.prepared.is_textured();
+        let semi_opaque = self.groups.len() > 1 || has_s_triangles;
+        Reads {
+            rect,
+            direct,
+            textured,
+            inspected,
+            semi_opaque,
+            per_sample: semi_opaque || direct || textured || inspected,
+            rect_samples: direct || textured || inspected || has_s_triangles,
+            chart_direct: rect && direct && !textured && !inspected && !has_s_triangles,
+        }
+    }
+
+    /// [`LightPass::pixel`]'s first stage: the receiver of pixel `index`,
+    /// its shadow-ray origin and chart, with a sphere light's samples
+    /// made into `samples` (cleared); `None` inside a sphere light.
+    #[inline(always)]
+    fn locate<'r>(
+        &self,
+        index: usize,
+        inspect: Option<&'r CounterInspector<'r>>,
+        s_triangles: &'r [u32],
+        samples: &mut Vec<LightSample>,
+    ) -> Option<Receiver<'r>> {
+        let gbuffer = self.ctx.gbuffer;
+        // The position and geometric normal are read for every receiver;
+        // the whole shading sample only where a radiance needs it.
+        let (position, geo_normal) = position_normal(gbuffer, index);
         let width = gbuffer.width as usize;
-        let pixel = ((i % width) as u32, (i / width) as u32);
+        let pixel = ((index % width) as u32, (index / width) as u32);
+        let reads = self.reads(inspect.is_some(), !s_triangles.is_empty());
         // Rect lights: the chart is the light's own `(2s − 1, 1 − 2t)`,
         // straight from the unit points; the world points are made only
         // when something reads them (the direct estimator, the texture,
         // an inspector), and only once the receiver is known to need
         // per-sample work. Sphere lights chart the world points.
-        let rect = matches!(self.bound, LightBound::Rect(_));
-        scratch.samples.clear();
-        if !rect {
+        samples.clear();
+        if !reads.rect {
             self.sampler
-                .samples_with(&self.pattern, position, pixel, &mut scratch.samples);
+                .samples_with(&self.pattern, position, pixel, samples);
         }
-        let rect_samples =
-            direct || self.prepared.is_textured() || inspect.is_some() || !s_triangles.is_empty();
         // The reference's shadow-ray origin (`p + ε n_g`, in f32 as it
         // rounds it): receivers on an occluder's own surface then see its
         // edges from the same side of its faces as the reference's rays.
-        let p = self.origin.of(position, geo_normal).as_dvec3();
-        let raster = position.as_dvec3();
-        let chart = match ReceiverChart::new(&self.bound, p) {
-            Some(c) if rect || !scratch.samples.is_empty() => c,
-            // Inside a sphere light: no defined Vcoef (as the reference).
-            _ => {
-                return PixelResult {
-                    vcoef: 1.0,
-                    edges: tags.len() as f32,
-                    ..PixelResult::default()
-                }
-            }
-        };
-        // Every group's start count and effective edges first: a receiver
-        // none of whose recorded edges covers part of the light needs no
-        // per-sample work.
-        let (mut ti, mut xi) = (0, 0);
+        let origin = self.origin.of(position, geo_normal).as_dvec3();
+        let chart = ReceiverChart::new(&self.bound, origin)
+            .filter(|_| reads.rect || !samples.is_empty())?;
+        Some(Receiver {
+            index,
+            pixel,
+            position,
+            raster: position.as_dvec3(),
+            origin,
+            chart,
+            reads,
+            inspect,
+            s_triangles,
+        })
+    }
+
+    /// [`LightPass::pixel`]'s second stage: every group's start count at
+    /// the shadow-ray origin and its effective edges, into
+    /// `scratch.spans` and `scratch.effective`; whether a ray recounted a
+    /// start count. Done for every group first: a receiver none of whose
+    /// recorded edges covers part of the light needs no per-sample work.
+    #[inline(always)]
+    fn gather_edges(
+        &self,
+        receiver: &Receiver,
+        (tags, extra, made): (&[u64], &[u32], Option<MadeExtras>),
+        scratch: &mut Scratch,
+    ) -> bool {
+        let (mut tags_at, mut extra_at) = (0, 0);
         let mut recounted = false;
         scratch.effective.clear();
         scratch.spans.clear();
         for (k, group) in self.groups.iter().enumerate() {
             let end = group.end_edge();
-            let t_end = ti + tags[ti..].partition_point(|&t| ((t >> 1) as u32) < end);
-            let x_end = xi + extra[xi..].partition_point(|&e| e < end);
-            let (group_tags, group_extra) = (&tags[ti..t_end], &extra[xi..x_end]);
-            (ti, xi) = (t_end, x_end);
+            let tags_end = tags_at + tags[tags_at..].partition_point(|&t| ((t >> 1) as u32) < end);
+            let extra_end = extra_at + extra[extra_at..].partition_point(|&e| e < end);
+            let (group_tags, group_extra) = (&tags[tags_at..tags_end], &extra[extra_at..extra_end]);
+            (tags_at, extra_at) = (tags_end, extra_end);
             let first = scratch.effective.len();
             let recorded = k == 0 || !group_tags.is_empty() || !group_extra.is_empty();
             let start = if recorded {
@@ -310,16 +442,16 @@ impl LightPass<'_, '_> {
                 let made = made.filter(|_| k == 0);
                 let (start, recount) = self.group_edges(
                     k,
-                    i,
-                    (raster, p),
-                    &chart,
+                    receiver.index,
+                    (receiver.raster, receiver.origin),
+                    &receiver.chart,
                     (group_tags, group_extra, made),
                     &mut scratch.effective,
                 );
                 recounted |= recount;
                 start
             } else {
-                group.start[i]
+                group.start[receiver.index]
             };
             scratch.spans.push(GroupSpan {
                 start,
@@ -339,13 +471,25 @@ impl LightPass<'_, '_> {
         for (k, span) in scratch.spans.iter_mut().enumerate() {
             let edges = &scratch.effective[span.first..span.end];
             if span.recorded && centre_tied(edges) {
-                span.start = self.start_off_centre(k, &chart, p, edges);
+                span.start = self.start_off_centre(k, &receiver.chart, receiver.origin, edges);
                 recounted = true;
             }
         }
-        let semi_opaque = self.groups.len() > 1 || !s_triangles.is_empty();
-        // Whether anything but the opaque counts is read per sample.
-        let per_sample = semi_opaque || direct || self.prepared.is_textured() || inspect.is_some();
+        recounted
+    }
+
+    /// [`LightPass::pixel`]'s third stage: the results of a receiver that
+    /// needs no per-sample counters (every sample keeps its start count,
+    /// or only the opaque counts are read and the sample grid's blocks
+    /// give them); `None` for the others.
+    #[inline(always)]
+    fn without_samples(
+        &self,
+        receiver: &Receiver,
+        recounted: bool,
+        scratch: &mut Scratch,
+    ) -> Option<PixelResult> {
+        let reads = receiver.reads;
         // The edges that change `D` over part of the light: what the
         // receiver's shadow depends on, whatever the culling let through.
         let edge_count = scratch.effective.len() as f32;
@@ -353,73 +497,96 @@ impl LightPass<'_, '_> {
         // keeps the start count: the exact unshadowed integral, as for
         // the receivers outside every wedge.
         let uniform_direct =
-            direct && !semi_opaque && !self.prepared.is_textured() && inspect.is_none();
-        if scratch.effective.is_empty() && (!per_sample || uniform_direct) {
+            reads.direct && !reads.semi_opaque && !reads.textured && !reads.inspected;
+        if scratch.effective.is_empty() && (!reads.per_sample || uniform_direct) {
             // Every sample keeps the (corrected) start count: the
             // per-sample path's results without the samples (with one
             // opaque group and no radiance, its sums of 0 and 1 over the
             // samples are exact, so the same bits).
-            let d = scratch.spans[0].start;
-            return self.uniform(i, d, sp, scratch.effective.len(), recounted);
+            let start = scratch.spans[0].start;
+            let index = receiver.index;
+            let edges = scratch.effective.len();
+            return Some(self.uniform(
+                index,
+                start,
+                || self.shading_point(index),
+                edges,
+                recounted,
+            ));
         }
-        let plain = rect && !per_sample && self.tables.is_empty();
+        let plain = reads.rect && !reads.per_sample && self.tables.is_empty();
         // From SECTOR_MIN edges on, the sectors do better (counter pass
         // at 256 samples on bunny.toml: 653 ms with blocks for all
         // receivers, 623 ms with sectors above).
         if let (true, Some(grid)) = (plain && scratch.effective.len() < SECTOR_MIN, &self.blocks) {
-            if let Some((_, key)) = self.pattern.jittered(pixel) {
+            if let Some((_, key)) = self.pattern.jittered(receiver.pixel) {
                 // Only the opaque counts are read: made and tested only
                 // where an edge may change them.
                 let span = scratch.spans[0];
                 let edges = &scratch.effective[span.first..span.end];
-                let c = scratch.blocks.count(grid, key, span.start, edges);
+                let counts = scratch.blocks.count(grid, key, span.start, edges);
                 let n = self.pattern.len() as usize;
-                return PixelResult::from_counts(c, n, edge_count, recounted);
+                return Some(PixelResult::from_counts(counts, n, edge_count, recounted));
             }
         }
+        None
+    }
+
+    /// [`LightPass::pixel`]'s fourth stage: the chart points of the
+    /// receiver's samples into `scratch.chart`, and a rect light's world
+    /// samples where they are read.
+    #[inline(always)]
+    fn fill_chart(&self, receiver: &Receiver, scratch: &mut Scratch) {
+        let reads = receiver.reads;
         let n = self.pattern.len();
         let rows = self
             .pattern
-            .jittered(pixel)
+            .jittered(receiver.pixel)
             .filter(|(strata, _)| chart_rows_apply(*strata, n));
-        // The direct light of an untextured rect light straight from the
-        // chart points the counts use: no world points.
-        let chart_direct = rect
-            && direct
-            && !self.prepared.is_textured()
-            && inspect.is_none()
-            && s_triangles.is_empty();
-        if let (true, Some((strata, key))) = (rect, rows) {
+        if let (true, Some((strata, key))) = (reads.rect, rows) {
             // The same points, four cells at a time.
-            let a = strata.a;
-            let inv = (1.0 / f64::from(a), 1.0 / f64::from(strata.b));
+            let columns = strata.a;
+            let inv = (1.0 / f64::from(columns), 1.0 / f64::from(strata.b));
             scratch.chart.fill_slices(n as usize, |xs, ys| {
-                chart_rows(key, a, (0, 0, a as usize), inv, xs, ys)
+                chart_rows(key, columns, (0, 0, columns as usize), inv, xs, ys)
             });
-        } else if rect {
-            let points = self.pattern.pixel_points(pixel);
-            scratch.chart.fill(n as usize, |w| {
-                points.for_each(n, |(s, t)| w.push([2.0 * s - 1.0, 1.0 - 2.0 * t]))
+        } else if reads.rect {
+            let points = self.pattern.pixel_points(receiver.pixel);
+            scratch.chart.fill(n as usize, |writer| {
+                points.for_each(n, |(s, t)| writer.push([2.0 * s - 1.0, 1.0 - 2.0 * t]))
             });
         } else {
+            let chart = &receiver.chart;
             scratch
                 .chart
                 .set(scratch.samples.iter().map(|s| chart.point(s.x.as_dvec3())));
         }
-        if rect && rect_samples && !chart_direct {
-            self.sampler
-                .samples_with(&self.pattern, position, pixel, &mut scratch.samples);
+        if reads.rect && reads.rect_samples && !reads.chart_direct {
+            self.sampler.samples_with(
+                &self.pattern,
+                receiver.position,
+                receiver.pixel,
+                &mut scratch.samples,
+            );
         }
-        let count = scratch.chart.len();
-        scratch.attenuation.clear();
-        if semi_opaque {
-            scratch.attenuation.resize(count, 0.0);
-        }
+    }
+
+    /// How [`LightPass::count_groups`] moves the counters of a receiver
+    /// whose chart points are filled (`shading`: the shading point of the
+    /// direct light from the chart points, when that applies).
+    #[inline(always)]
+    fn counting(
+        &self,
+        receiver: &Receiver,
+        shading: Option<&SurfacePoint>,
+        scratch: &mut Scratch,
+    ) -> Counting<'_> {
+        let reads = receiver.reads;
         let table = match self.tables {
             [] => None,
             [one] => Some(one),
             many => {
-                let set = self.pattern.interleaved_set(pixel).unwrap_or(0) as usize;
+                let set = self.pattern.interleaved_set(receiver.pixel).unwrap_or(0) as usize;
                 many.get(set)
             }
         };
@@ -427,212 +594,180 @@ impl LightPass<'_, '_> {
         // the counters may follow the sectors' order there; so may the
         // direct light from the chart points, from the points in that
         // order (one opaque group, no lobe: where it applies).
-        let shading = chart_direct.then(&sp);
-        let sorted_direct = shading
-            .as_ref()
-            .is_some_and(|s| !semi_opaque && s.specular == Vec3::ZERO);
-        let sorted = (!per_sample || sorted_direct)
+        let sorted_direct =
+            shading.is_some_and(|point| !reads.semi_opaque && point.specular == Vec3::ZERO);
+        let sorted = (!reads.per_sample || sorted_direct)
             && table.is_none()
             && scratch.effective.len() >= SECTOR_MIN
             && scratch.sectors.set(&scratch.chart);
-        {
-            let Scratch {
-                chart: samples,
-                sectors,
-                counters,
-                layers,
-                attenuation,
-                effective,
-                spans,
-                ..
-            } = &mut *scratch;
-            for (k, (span, group)) in spans.iter().zip(self.groups).enumerate() {
-                let opaque = k == 0;
-                if !span.recorded {
-                    if span.start > 0 {
-                        let add = f64::from(span.start) * group.per_layer;
-                        attenuation.iter_mut().for_each(|a| *a += add);
-                    }
-                    continue;
+        Counting {
+            count: scratch.chart.len(),
+            table,
+            sorted,
+        }
+    }
+
+    /// [`LightPass::pixel`]'s fifth stage: every recorded group's
+    /// counters from its start count and effective edges, the opaque
+    /// group's into `scratch.counters`, each semi-opaque group's layers
+    /// added to `scratch.attenuation` (sized to the samples where
+    /// `semi_opaque`, else emptied).
+    #[inline(always)]
+    fn count_groups(&self, counting: &Counting, semi_opaque: bool, scratch: &mut Scratch) {
+        let Scratch {
+            chart: samples,
+            sectors,
+            counters,
+            layers,
+            attenuation,
+            effective,
+            spans,
+            ..
+        } = scratch;
+        let count = counting.count;
+        attenuation.clear();
+        if semi_opaque {
+            attenuation.resize(count, 0.0);
+        }
+        for (k, (span, group)) in spans.iter().zip(self.groups).enumerate() {
+            let opaque = k == 0;
+            if !span.recorded {
+                if span.start > 0 {
+                    let add = f64::from(span.start) * group.per_layer;
+                    attenuation.iter_mut().for_each(|a| *a += add);
                 }
-                let counts = if opaque { &mut *counters } else { &mut *layers };
-                counts.clear();
-                counts.resize(samples.padded(), span.start);
-                let edges = &effective[span.first..span.end];
-                if sorted {
-                    sectors.add_covered_all(counts, edges);
-                } else {
-                    for (edge, delta) in edges {
-                        match table {
-                            Some(t) => t.add_covered(counts, edge, *delta),
-                            None => add_covered(counts, samples, edge, *delta),
-                        }
+                continue;
+            }
+            let counts = if opaque { &mut *counters } else { &mut *layers };
+            counts.clear();
+            counts.resize(samples.padded(), span.start);
+            let edges = &effective[span.first..span.end];
+            if counting.sorted {
+                sectors.add_covered_all(counts, edges);
+            } else {
+                for (edge, delta) in edges {
+                    match counting.table {
+                        Some(table) => table.add_covered(counts, edge, *delta),
+                        None => add_covered(counts, samples, edge, *delta),
                     }
                 }
-                if !opaque {
-                    for (a, &n) in attenuation.iter_mut().zip(&layers[..count]) {
-                        // Counts are exact; a negative one is a tie at an
-                        // edge and means no layer.
-                        if n > 0 {
-                            *a += f64::from(n) * group.per_layer;
-                        }
+            }
+            if !opaque {
+                for (accumulated, &layer_count) in attenuation.iter_mut().zip(&layers[..count]) {
+                    // Counts are exact; a negative one is a tie at an
+                    // edge and means no layer.
+                    if layer_count > 0 {
+                        *accumulated += f64::from(layer_count) * group.per_layer;
                     }
                 }
             }
         }
+    }
+
+    /// [`LightPass::pixel`]'s sixth stage, soft textured shadow volumes
+    /// (§5.2): per sample, the opacity of each S-triangle the receiver's
+    /// volume test passed; a fully opaque texel is one more occluder in
+    /// `D`, a partial one a layer of transmittance.
+    #[inline(always)]
+    fn add_s_triangles(&self, receiver: &Receiver, count: usize, scratch: &mut Scratch) {
+        let (Some(stris), false) = (self.s_triangles, receiver.s_triangles.is_empty()) else {
+            return;
+        };
         let mode = self.technique.transmittance;
-        if let (Some(stris), false) = (self.s_triangles, s_triangles.is_empty()) {
-            // Soft textured shadow volumes (§5.2): per sample, the
-            // opacity of each S-triangle the receiver's volume test
-            // passed; a fully opaque texel is one more occluder in `D`, a
-            // partial one a layer of transmittance.
-            let Scratch {
-                samples,
+        let Scratch {
+            samples,
+            positions,
+            opacities,
+            counters,
+            attenuation,
+            ..
+        } = scratch;
+        positions.set(samples);
+        opacities.resize(count, 0.0);
+        let origin = receiver.origin.as_vec3();
+        for &s in receiver.s_triangles {
+            stris.sample_opacities_in(
+                self.ctx.scene,
+                s as usize,
+                origin,
                 positions,
+                self.technique.opacity_filter,
                 opacities,
-                counters,
-                attenuation,
-                ..
-            } = scratch;
-            positions.set(samples);
-            opacities.resize(count, 0.0);
-            let origin = p.as_vec3();
-            for &s in s_triangles {
-                stris.sample_opacities_in(
-                    self.ctx.scene,
-                    s as usize,
-                    origin,
-                    positions,
-                    self.technique.opacity_filter,
-                    opacities,
-                );
-                for (k, &a) in opacities.iter().enumerate() {
-                    if a >= 1.0 {
-                        counters[k] += 1;
-                    } else if a > 0.0 {
-                        attenuation[k] += mode.per_layer(Attenuation::partial(f64::from(a)));
-                    }
+            );
+            for (k, &opacity) in opacities.iter().enumerate() {
+                if opacity >= 1.0 {
+                    counters[k] += 1;
+                } else if opacity > 0.0 {
+                    attenuation[k] += mode.per_layer(Attenuation::partial(f64::from(opacity)));
                 }
             }
         }
+    }
+
+    /// [`LightPass::pixel`]'s seventh stage: the transmittance per sample
+    /// from `scratch.attenuation`, and the inspector's view of the
+    /// receiver.
+    #[inline(always)]
+    fn transmittance(&self, receiver: &Receiver, count: usize, scratch: &mut Scratch) {
+        let mode = self.technique.transmittance;
         scratch.transmittance.clear();
         scratch
             .transmittance
             .extend(scratch.attenuation.iter().map(|&a| mode.transmittance(a)));
-        let counters = &scratch.counters[..count];
-        if let Some(inspect) = inspect {
+        if let Some(inspect) = receiver.inspect {
             inspect(
-                i,
+                receiver.index,
                 &InspectedPixel {
                     samples: &scratch.samples,
-                    counters,
+                    counters: &scratch.counters[..count],
                     transmittance: &scratch.transmittance,
                 },
             );
         }
-        let weighted = semi_opaque || direct || self.prepared.is_textured() || count > 1 << 24;
+    }
+
+    /// [`LightPass::pixel`]'s last stage: the results from the counters
+    /// and transmittance per sample.
+    #[inline(always)]
+    fn resolve(
+        &self,
+        receiver: &Receiver,
+        counting: &Counting,
+        shading: Option<SurfacePoint>,
+        recounted: bool,
+        scratch: &mut Scratch,
+    ) -> PixelResult {
+        let reads = receiver.reads;
+        let count = counting.count;
+        let edge_count = scratch.effective.len() as f32;
+        let counters = &scratch.counters[..count];
+        let weighted = reads.semi_opaque || reads.direct || reads.textured || count > 1 << 24;
         if !weighted && counters.len().is_multiple_of(LANES) {
             // Only the opaque counts, in whole lanes: one pass. (Visible
             // samples, below 2²⁴, are exact in f32, as the count below.)
-            let c = BlockCounts::of(counters);
-            return PixelResult::from_counts(c, count, edge_count, recounted);
+            let counts = BlockCounts::of(counters);
+            return PixelResult::from_counts(counts, count, edge_count, recounted);
         }
-        let visible: f32 = if weighted {
-            scratch.visibility.clear();
-            scratch
-                .visibility
-                .extend(counters.iter().map(|&c| if c <= 0 { 1.0 } else { 0.0 }));
-            if semi_opaque {
-                for (v, &t) in scratch.visibility.iter_mut().zip(&scratch.transmittance) {
-                    *v *= t as f32;
-                }
-            }
-            scratch.visibility.iter().sum()
+        let visible = if weighted {
+            weighted_visibility(
+                counters,
+                reads.semi_opaque.then_some(&scratch.transmittance[..]),
+                &mut scratch.visibility,
+            )
         } else {
             // Visibilities of 0 and 1 sum exactly in f32 (up to 2²⁴
             // samples) in any order: the count gives the same bits
             // without the serial chain of float adds.
             counters.iter().filter(|&&c| c <= 0).count() as f32
         };
-        let radiance = if direct && visible == 0.0 {
-            // Every sample hidden (the visibilities are 0 and 1, or
-            // products in [0, 1], so a zero sum is all zero): what the
-            // per-sample sum gives, without shading the samples.
-            Vec3::ZERO
-        } else if direct && visible == count as f32 && !semi_opaque && !self.prepared.is_textured()
-        {
-            // Every sample seen, at full weight: the exact unshadowed
-            // integral, as where no edge reaches the receiver (the samples'
-            // estimate converges to it; this has no variance). The
-            // shading point made for the chart estimate, if it was.
-            match &shading {
-                Some(point) => self.prepared.unshadowed_direct(point),
-                None => self.prepared.unshadowed_direct(&sp()),
-            }
-        } else if direct {
-            let sp = shading.unwrap_or_else(sp);
-            let points = if sorted {
-                scratch.sectors.points()
-            } else {
-                scratch.chart.padded_points()
-            };
-            let from_chart = chart_direct
-                .then(|| {
-                    self.prepared
-                        .direct_from_rect_chart(&sp, points, &scratch.visibility)
-                })
-                .flatten();
-            match from_chart {
-                Some(radiance) => radiance,
-                None => {
-                    // A specular lobe, or a receiver the chart's units do
-                    // not suit: the samples, with their visibilities in
-                    // the samples' order.
-                    if sorted {
-                        let span = scratch.spans[0];
-                        let counts = &mut scratch.layers;
-                        counts.clear();
-                        counts.resize(scratch.chart.padded(), span.start);
-                        for (edge, delta) in &scratch.effective[span.first..span.end] {
-                            add_covered(counts, &scratch.chart, edge, *delta);
-                        }
-                        scratch.visibility.clear();
-                        scratch.visibility.extend(counts[..count].iter().map(|&c| {
-                            if c <= 0 {
-                                1.0
-                            } else {
-                                0.0
-                            }
-                        }));
-                    }
-                    if scratch.samples.is_empty() {
-                        self.sampler.samples_with(
-                            &self.pattern,
-                            position,
-                            pixel,
-                            &mut scratch.samples,
-                        );
-                    }
-                    self.prepared
-                        .direct_from_samples(&sp, &scratch.samples, &scratch.visibility)
-                }
-            }
-        } else if self.prepared.is_textured() {
-            // Eq. 4.2: each sample's visibility weighted by its emitted
-            // radiance, per channel, normalised so that a fully visible
-            // light gives the unshadowed light exactly.
-            let (mut seen, mut all) = (Vec3::ZERO, Vec3::ZERO);
-            for (s, &v) in scratch.samples.iter().zip(&scratch.visibility) {
-                let le = self.prepared.sample_radiance(s);
-                seen += le * v;
-                all += le;
-            }
-            let plain = visible / count as f32;
-            let weighted = Vec3::select(all.cmpgt(Vec3::ZERO), seen / all, Vec3::splat(plain));
-            self.prepared.unshadowed_direct(&sp()) * weighted
+        let radiance = if reads.direct {
+            self.direct_radiance(receiver, counting, visible, shading, scratch)
+        } else if reads.textured {
+            self.textured_radiance(receiver.index, visible, count, scratch)
         } else {
             Vec3::ZERO
         };
+        let counters = &scratch.counters[..count];
         let max_dc = counters.iter().copied().max().unwrap_or(0).max(0);
         let sum_dc: i64 = counters.iter().map(|&c| i64::from(c.max(0))).sum();
         PixelResult {
@@ -643,6 +778,92 @@ impl LightPass<'_, '_> {
             edges: edge_count,
             recounted,
         }
+    }
+
+    /// The direct light's estimate at a receiver whose visibilities
+    /// (`scratch.visibility`) sum to `visible`.
+    #[inline(always)]
+    fn direct_radiance(
+        &self,
+        receiver: &Receiver,
+        counting: &Counting,
+        visible: f32,
+        shading: Option<SurfacePoint>,
+        scratch: &mut Scratch,
+    ) -> Vec3 {
+        let reads = receiver.reads;
+        if visible == 0.0 {
+            // Every sample hidden (the visibilities are 0 and 1, or
+            // products in [0, 1], so a zero sum is all zero): what the
+            // per-sample sum gives, without shading the samples.
+            return Vec3::ZERO;
+        }
+        if visible == counting.count as f32 && !reads.semi_opaque && !reads.textured {
+            // Every sample seen, at full weight: the exact unshadowed
+            // integral, as where no edge reaches the receiver (the samples'
+            // estimate converges to it; this has no variance). The
+            // shading point made for the chart estimate, if it was.
+            return match &shading {
+                Some(point) => self.prepared.unshadowed_direct(point),
+                None => self
+                    .prepared
+                    .unshadowed_direct(&self.shading_point(receiver.index)),
+            };
+        }
+        let point = shading.unwrap_or_else(|| self.shading_point(receiver.index));
+        let points = if counting.sorted {
+            scratch.sectors.points()
+        } else {
+            scratch.chart.padded_points()
+        };
+        let from_chart = reads
+            .chart_direct
+            .then(|| {
+                self.prepared
+                    .direct_from_rect_chart(&point, points, &scratch.visibility)
+            })
+            .flatten();
+        if let Some(radiance) = from_chart {
+            return radiance;
+        }
+        // A specular lobe, or a receiver the chart's units do not suit:
+        // the samples, with their visibilities in the samples' order.
+        if counting.sorted {
+            visibility_in_sample_order(counting.count, scratch);
+        }
+        if scratch.samples.is_empty() {
+            self.sampler.samples_with(
+                &self.pattern,
+                receiver.position,
+                receiver.pixel,
+                &mut scratch.samples,
+            );
+        }
+        self.prepared
+            .direct_from_samples(&point, &scratch.samples, &scratch.visibility)
+    }
+
+    /// Eq. 4.2 at pixel `index`: each sample's visibility weighted by its
+    /// emitted radiance, per channel, normalised so that a fully visible
+    /// light gives the unshadowed light exactly (`visible`: the
+    /// visibilities' sum over the `count` samples).
+    #[inline(always)]
+    fn textured_radiance(
+        &self,
+        index: usize,
+        visible: f32,
+        count: usize,
+        scratch: &Scratch,
+    ) -> Vec3 {
+        let (mut seen, mut all) = (Vec3::ZERO, Vec3::ZERO);
+        for (sample, &visibility) in scratch.samples.iter().zip(&scratch.visibility) {
+            let emitted = self.prepared.sample_radiance(sample);
+            seen += emitted * visibility;
+            all += emitted;
+        }
+        let plain = visible / count as f32;
+        let weighted = Vec3::select(all.cmpgt(Vec3::ZERO), seen / all, Vec3::splat(plain));
+        self.prepared.unshadowed_direct(&self.shading_point(index)) * weighted
     }
 
     /// Whether [`LightPass::block_extras`] can make the unbounded edges:
@@ -753,7 +974,7 @@ impl LightPass<'_, '_> {
         let group = &self.groups[k];
         let edges = &group.candidates.edges;
         let local = |global: u32| (global - group.first_edge) as usize;
-        let mut push = |e: &CandidateEdge, side: i32| {
+        let mut push = |edge: &CandidateEdge, side: i32| {
             if side == 0 {
                 return;
             }
@@ -763,40 +984,40 @@ impl LightPass<'_, '_> {
             // silhouette from p — the exact rule would drop those edges
             // and miss the ones that are silhouettes from p only, which
             // on tessellated curved occluders leaves almost hard shadows.
-            let mu = match self.technique.silhouettes {
-                SilhouetteMode::WholeLight => group.candidates.multiplicity_from(e, p),
-                SilhouetteMode::Centre if e.quad_sign != 0 => {
-                    e.quad_weight as i32 * i32::from(e.quad_sign)
+            let multiplicity = match self.technique.silhouettes {
+                SilhouetteMode::WholeLight => group.candidates.multiplicity_from(edge, p),
+                SilhouetteMode::Centre if edge.quad_sign != 0 => {
+                    edge.quad_weight as i32 * i32::from(edge.quad_sign)
                 }
-                SilhouetteMode::Centre => group.candidates.multiplicity_from(e, p),
+                SilhouetteMode::Centre => group.candidates.multiplicity_from(edge, p),
             };
-            if mu == 0 {
+            if multiplicity == 0 {
                 return;
             }
             let oriented = chart
-                .edge(e.v0, e.v1)
+                .edge(edge.v0, edge.v1)
                 .and_then(|(a, b)| OrientedEdge::new(a, b));
             if let Some(oriented) = oriented {
-                effective.push((oriented, side * mu));
+                effective.push((oriented, side * multiplicity));
             }
         };
-        let mut d0 = group.start[i];
+        let mut start = group.start[i];
         let tie = self.ties[i];
         let mut crossed = false;
         // Edges drawn as wedges: the raster's half is the side of the
         // quad's plane the stencil saw the receiver on.
-        for &t in tags {
-            let e = &edges[local((t >> 1) as u32)];
-            let geometric = side_of(p, e.v0, e.v1, self.centre);
-            push(e, geometric);
-            if e.quad_sign == 0 || tie == Tie::Tied {
+        for &tag in tags {
+            let edge = &edges[local((tag >> 1) as u32)];
+            let geometric = side_of(p, edge.v0, edge.v1, self.centre);
+            push(edge, geometric);
+            if edge.quad_sign == 0 || tie == Tie::Tied {
                 continue;
             }
-            let outer = t & 1 == 1;
-            let stencil_side = i32::from(e.quad_sign) * if outer { 1 } else { -1 };
+            let outer = tag & 1 == 1;
+            let stencil_side = i32::from(edge.quad_sign) * if outer { 1 } else { -1 };
             if geometric != 0 && geometric != stencil_side {
-                let m = e.quad_weight as i32;
-                d0 += if outer { m } else { -m };
+                let weight = edge.quad_weight as i32;
+                start += if outer { weight } else { -weight };
                 crossed = true;
             }
         }
@@ -809,13 +1030,13 @@ impl LightPass<'_, '_> {
         // (4e-6 of its depth) along its view ray, far above f64's
         // rounding of this sign, so the raster decided the same.
         for &id in extra {
-            let e = &edges[local(id)];
-            let geometric = side_of(p, e.v0, e.v1, self.centre);
-            push(e, geometric);
-            if e.quad_sign != 0
+            let edge = &edges[local(id)];
+            let geometric = side_of(p, edge.v0, edge.v1, self.centre);
+            push(edge, geometric);
+            if edge.quad_sign != 0
                 && tie != Tie::Tied
                 && geometric != 0
-                && side_of(raster, e.v0, e.v1, self.centre) != geometric
+                && side_of(raster, edge.v0, edge.v1, self.centre) != geometric
             {
                 recount = true;
             }
@@ -829,10 +1050,49 @@ impl LightPass<'_, '_> {
             let mut counts = vec![0; self.groups.len()];
             self.exact
                 .counts(p.as_vec3(), self.centre.as_vec3(), &mut counts);
-            d0 = counts[k];
+            start = counts[k];
         }
-        (d0, recount)
+        (start, recount)
     }
+}
+
+/// The visibility of each sample with opaque `counters` (1 where `D ≤ 0`),
+/// times its `transmittance` where the scene has semi-opaque casters,
+/// into `visibility`; their sum.
+#[inline(always)]
+fn weighted_visibility(
+    counters: &[i32],
+    transmittance: Option<&[f64]>,
+    visibility: &mut Vec<f32>,
+) -> f32 {
+    visibility.clear();
+    visibility.extend(counters.iter().map(|&c| if c <= 0 { 1.0 } else { 0.0 }));
+    if let Some(transmittance) = transmittance {
+        for (v, &t) in visibility.iter_mut().zip(transmittance) {
+            *v *= t as f32;
+        }
+    }
+    visibility.iter().sum()
+}
+
+/// The opaque visibilities of the `count` samples in the samples' order
+/// into `scratch.visibility`, where the counters followed the sectors'
+/// order: the opaque group's counts made again in `scratch.layers`.
+#[inline]
+fn visibility_in_sample_order(count: usize, scratch: &mut Scratch) {
+    let span = scratch.spans[0];
+    let counts = &mut scratch.layers;
+    counts.clear();
+    counts.resize(scratch.chart.padded(), span.start);
+    for (edge, delta) in &scratch.effective[span.first..span.end] {
+        add_covered(counts, &scratch.chart, edge, *delta);
+    }
+    scratch.visibility.clear();
+    scratch.visibility.extend(
+        counts[..count]
+            .iter()
+            .map(|&c| if c <= 0 { 1.0 } else { 0.0 }),
+    );
 }
 
 /// How close (in chart units, the light's half-width) to the light's

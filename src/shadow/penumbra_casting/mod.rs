@@ -368,6 +368,11 @@ impl PenumbraCasting {
     /// Casts every opaque caster for light `k`, then the translucent
     /// ones, and calls `finish` with each finished chunk (its pixels,
     /// state and translucent records), chunks of a wave in parallel.
+    ///
+    /// In stages: the light's sample sets (`light_sets`), the blockers
+    /// (`blockers`), the translucent casters, the chunks of receivers
+    /// (`chunk_inputs`, split where heavy), their waves within the mask
+    /// budget (`waves`), and per wave the cast (`LightCast::run_wave`).
     fn run_light<F>(
         &self,
         ctx: &ShadowContext,
@@ -383,149 +388,15 @@ impl PenumbraCasting {
             .lights
             .get(k)
             .ok_or_else(|| Error::param("--technique", format!("no light {k}")))?;
-        let sampler = LightSampler::new(light);
-        let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
-        let (centre, sets) = match light.shape {
-            LightShape::Rect { center, u, v, .. } => {
-                let centre = center.as_dvec3();
-                let e1 = u.as_dvec3().normalize_or_zero();
-                let e3 = u.as_dvec3().cross(v.as_dvec3()).normalize_or_zero();
-                let e2 = e3.cross(e1);
-                let axes = [e1, e2, e3];
-                let sets = SampleSets::new(&sampler, &pattern, self.sample_sets(), centre, axes);
-                (centre, sets)
-            }
-            LightShape::Sphere { center, radius } => {
-                let centre = center.as_dvec3();
-                let sets = SampleSets::sphere(&sampler, &pattern, centre, f64::from(radius));
-                (centre, sets)
-            }
-        };
+        let (centre, sets) = self.light_sets(light, k);
         let mut report = LightReport::default();
 
         // Triangles: opaque casters, non-degenerate, relative to the light.
-        let t0 = std::time::Instant::now();
-        let g = ctx.geometry;
-        let cull = self.options.pc_cull_back_faces;
-        // Back faces may be skipped only for closed casters the light is
-        // outside of (a sample on a caster's surface sees only its exit
-        // crossing): those whose bounding box is disjoint from the light's.
-        let (llo, lhi) = sets
-            .light
-            .corners
-            .iter()
-            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| {
-                (lo.min(*c), hi.max(*c))
-            });
-        let mut object_box = vec![(DVec3::INFINITY, DVec3::NEG_INFINITY); ctx.scene.objects.len()];
-        for (t, tri) in g.triangles.iter().enumerate() {
-            if let Some(b) = object_box.get_mut(g.triangle_object[t] as usize) {
-                for &i in tri {
-                    let p = g.positions[i as usize].as_dvec3() - centre;
-                    *b = (b.0.min(p), b.1.max(p));
-                }
-            }
-        }
-        let light_outside: Vec<bool> = object_box
-            .iter()
-            .map(|&(lo, hi)| {
-                let m = 1e-6 * (hi - lo).max_element().max((lhi - llo).max_element());
-                (lo - DVec3::splat(m)).cmpgt(lhi).any() || (hi + DVec3::splat(m)).cmplt(llo).any()
-            })
-            .collect();
-        // The argument needs every face of the caster to block: one with a
-        // see-through face (a semi-opaque or textured material) is never
-        // culled, as its exit crossing may be that face.
-        let mut all_opaque = vec![true; ctx.scene.objects.len()];
-        for t in 0..g.triangles.len() {
-            let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
-            if !mat.is_some_and(|m| m.is_opaque()) {
-                if let Some(a) = all_opaque.get_mut(g.triangle_object[t] as usize) {
-                    *a = false;
-                }
-            }
-        }
-        let cullable = |o: usize| {
-            cull && light_outside.get(o) == Some(&true) && all_opaque.get(o) == Some(&true)
-        };
-        // Opaque caster triangles with area: object, corners, and whether
-        // the caster may be culled and the light is wholly behind it.
-        let candidates: Vec<(usize, [DVec3; 3], bool)> = (0..g.triangles.len())
-            .filter_map(|t| {
-                let o = g.triangle_object[t] as usize;
-                let casts = ctx.scene.objects.get(o).is_some_and(|o| o.cast_shadows);
-                let mat = ctx.scene.materials.get(g.triangle_material[t] as usize);
-                if !(casts && mat.is_some_and(|m| m.is_opaque())) {
-                    return None;
-                }
-                let tri = g.triangles[t].map(|i| g.positions[i as usize].as_dvec3() - centre);
-                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-                if !(n.length_squared() > 0.0) {
-                    return None;
-                }
-                let back =
-                    cullable(o) && sets.light.corners.iter().all(|c| n.dot(*c - tri[0]) < 0.0);
-                Some((o, tri, back))
-            })
-            .collect();
-        // Open casters: the surfaces closing them (a fan per boundary
-        // loop, in welded positions) and their boxes, widened. Only where
-        // the caps are few against the back faces they let skip (a sheet,
-        // whose cap is itself reversed, seals nothing).
-        let closed = |o: usize| g.object_closed.get(o) == Some(&true);
-        let mut open_backs = vec![0usize; ctx.scene.objects.len()];
-        for &(o, _, back) in &candidates {
-            open_backs[o] += usize::from(back && !closed(o));
-        }
-        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
-        let mut open = vec![false; ctx.scene.objects.len()];
-        let mut cap_tris = Vec::new();
-        let mut open_boxes = Vec::new();
-        for (o, &backs) in open_backs.iter().enumerate().filter(|(_, &b)| b > 0) {
-            let at = |v: u32| g.adjacency.positions[v as usize].as_dvec3() - centre;
-            let mut caps = Vec::new();
-            for l in g.adjacency.boundary_loops(g, o as u32) {
-                for i in 1..l.len().saturating_sub(1) {
-                    let tri = [at(l[0]), at(l[i + 1]), at(l[i])];
-                    // A cap with no area is crossed by no segment.
-                    if (tri[1] - tri[0]).cross(tri[2] - tri[0]).length_squared() > 0.0 {
-                        caps.push(tri);
-                    }
-                }
-            }
-            if caps.len() * OPEN_CAPS_PER_BACK_FACE < backs {
-                open[o] = true;
-                cap_tris.extend(caps);
-                let (lo, hi) = object_box[o];
-                let (lo, hi) = (lo - DVec3::splat(slack), hi + DVec3::splat(slack));
-                open_boxes.push((lo.to_array(), hi.to_array()));
-            }
-        }
-        // Per triangle cast: it and whether it is an open caster's back
-        // face (cast only where receivers are not sealed); closed
-        // casters' back faces are left out.
-        let tris: Vec<([DVec3; 3], bool)> = candidates
-            .into_iter()
-            .filter_map(|(o, tri, back)| {
-                if back && closed(o) {
-                    report.culled += 1;
-                    return None;
-                }
-                let open_back = back && open[o];
-                report.open_back += usize::from(open_back);
-                Some((tri, open_back))
-            })
-            .collect();
-        let tris = if self.options.pc_sort_blockers {
-            sort_by_area(tris)
-        } else {
-            tris
-        };
-        let (tris, open_back): (Vec<[DVec3; 3]>, Vec<bool>) = tris.into_iter().unzip();
-        report.sort_time = t0.elapsed();
-        report.triangles = tris.len();
-        report.caps = cap_tris.len();
-        let any_open_back = report.open_back > 0;
+        let sort_start = std::time::Instant::now();
+        let blockers = self.blockers(ctx, &sets, centre, &mut report);
+        report.sort_time = sort_start.elapsed();
+        report.triangles = blockers.tris.len();
+        report.caps = blockers.cap_tris.len();
 
         // Translucent casters (semi-opaque layers, S-triangles).
         let casters = translucent::Casters::collect(ctx, &sets, centre);
@@ -561,208 +432,212 @@ impl PenumbraCasting {
         // 151 KiB a receiver). A divisor keeps the bands' chunk alignment.
         let side = chunk_side(self.options.pc_chunk, per_receiver, budget);
         report.chunk_side = side;
-        // Receivers, by screen chunk.
-        let origin = ShadowOrigin::new(ctx.scene, ctx.geometry);
-        let gb = ctx.gbuffer;
-        let (w, h) = (gb.width.max(1), gb.height);
-        let (cw, ch) = (w.div_ceil(side), h.div_ceil(side));
-        let mut inputs: Vec<ChunkInput> = (0..cw * ch)
-            .map(|c| ChunkInput {
-                pixels: Vec::new(),
-                x0: c % cw * side,
-                y0: c / cw * side,
-                side,
-            })
-            .collect();
-        for i in 0..gb.len() {
-            let Some(s) = gb.get(i) else { continue };
-            // (A receiver inside a sphere light has no samples: it is
-            // finished with the non-receivers.)
-            if !s.is_surface() || !receives(ctx, s.object) || !sets.has_samples(s.position) {
-                continue;
-            }
-            let (x, y) = (i as u32 % w, i as u32 / w);
-            inputs[((y / side) * cw + x / side) as usize]
-                .pixels
-                .push(i as u32);
-        }
-        inputs.retain(|c| !c.pixels.is_empty());
-        let sw = self.options.switches();
+        let receivers = ReceiverInputs {
+            gbuffer: ctx.gbuffer,
+            origin: ShadowOrigin::new(ctx.scene, ctx.geometry),
+            centre,
+            sets: &sets,
+            width: ctx.gbuffer.width.max(1),
+        };
+        let mut inputs = receivers.chunk_inputs(ctx, side);
         // Every blocker's light penumbra volume, made once (in parallel)
         // and held for all chunks of all waves: each chunk then runs
         // through the whole list on its own. (Batches of volumes with a
         // barrier after each let the chunk under a dense caster hold both
         // workers at every batch: on bunny.toml at 1280×960 one 256²
         // chunk took 10.4 s of the 17.8 s summed over all.)
-        let tv = std::time::Instant::now();
-        let mut vl: Vec<PenumbraVolume> = Vec::new();
-        vl.resize_with(tris.len(), PenumbraVolume::default);
-        tris.par_iter()
-            .zip(vl.par_iter_mut())
-            .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
-        let mut caps: Vec<PenumbraVolume> = Vec::new();
-        caps.resize_with(cap_tris.len(), PenumbraVolume::default);
-        cap_tris
-            .par_iter()
-            .zip(caps.par_iter_mut())
-            .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
-        report.volume_list_bytes = vl.iter().map(PenumbraVolume::bytes).sum();
-        report.cast_time += tv.elapsed();
-        let receiver_pos = |i: u32| {
-            let s = gb.sample(i as usize);
-            let o = origin.of(s.position, s.geo_normal).as_dvec3() - centre;
-            [o.x, o.y, o.z]
-        };
-        let receiver_set = |i: u32| sets.set_of((i % w, i / w)) as u16;
-        // Sample keys only where receivers have samples of their own.
-        let receiver_keys = |pixels: &[u32]| -> Vec<SampleKey> {
-            if !sets.per_receiver() {
-                return Vec::new();
-            }
-            pixels
-                .iter()
-                .map(|&i| SampleKey {
-                    position: gb.sample(i as usize).position,
-                    pixel: (i % w, i / w),
-                })
-                .collect()
+        let volume_start = std::time::Instant::now();
+        let volumes = penumbra_volumes(&sets, &blockers.tris);
+        let caps = penumbra_volumes(&sets, &blockers.cap_tris);
+        report.volume_list_bytes = volumes.iter().map(PenumbraVolume::bytes).sum();
+        report.cast_time += volume_start.elapsed();
+        let cast = LightCast {
+            sets: &sets,
+            switches: self.options.switches(),
+            blockers: &blockers,
+            volumes: &volumes,
+            caps: &caps,
+            casters: &casters,
+            receivers: &receivers,
+            projector,
+            any_open_back: report.open_back > 0,
+            opacity_filter: self.options.opacity_filter,
+            scene: ctx.scene,
         };
         report.chunks_unsplit = inputs.len();
         if self.options.pc_split_work > 0 {
-            let tp = std::time::Instant::now();
-            inputs = split_heavy_chunks(inputs, w, self.options.pc_split_work, |pixels| {
-                // The probe: every PROBE_STEP-th pixel's receiver in x and
-                // y, the first triangles in cast order; its work, the
-                // triangles that reached each receiver's leaf.
-                let probe: Vec<u32> = pixels
-                    .iter()
-                    .copied()
-                    .filter(|&i| (i % w) % PROBE_STEP == 0 && (i / w) % PROBE_STEP == 0)
-                    .collect();
-                let pos = probe.iter().map(|&i| receiver_pos(i)).collect();
-                let set = probe.iter().map(|&i| receiver_set(i)).collect();
-                let keys = receiver_keys(&probe);
-                let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys, false);
-                let first = tris.len().div_ceil(PROBE_SHARE);
-                for ((t, v), &b) in tris[..first].iter().zip(&vl[..first]).zip(&open_back) {
-                    chunk.process(t, v, b);
-                }
-                // (The chunk keeps its receivers in leaf order: receiver
-                // `r` is probe receiver `order[r]`.)
-                chunk
-                    .order
-                    .iter()
-                    .zip(&chunk.leaf_triangles)
-                    .map(|(&o, &n)| (probe[o as usize], u64::from(n)))
-                    .collect()
-            });
-            report.probe_time = tp.elapsed();
+            let probe_start = std::time::Instant::now();
+            inputs = split_heavy_chunks(
+                inputs,
+                receivers.width,
+                self.options.pc_split_work,
+                |pixels| cast.probe(pixels),
+            );
+            report.probe_time = probe_start.elapsed();
         }
         report.chunks = inputs.len();
         report.receivers = inputs.iter().map(|c| c.pixels.len()).sum();
 
-        let mut waves: Vec<Vec<ChunkInput>> = Vec::new();
-        let mut bytes = 0u64;
-        for c in inputs {
-            let b = c.pixels.len() as u64 * per_receiver;
-            if waves.is_empty() || bytes + b > budget {
-                waves.push(Vec::new());
-                bytes = 0;
-            }
-            bytes += b;
-            waves.last_mut().expect("a wave").push(c);
-        }
+        let waves = waves(inputs, per_receiver, budget);
         report.waves = waves.len();
-
         for wave in waves {
-            let tb = std::time::Instant::now();
-            let mut chunks: Vec<(Vec<u32>, Chunk)> = wave
-                .into_par_iter()
-                .map(|c| {
-                    let pos = c.pixels.iter().map(|&i| receiver_pos(i)).collect();
-                    let set = c.pixels.iter().map(|&i| receiver_set(i)).collect();
-                    let keys = receiver_keys(&c.pixels);
-                    let mut chunk = Chunk::new(&sets, sw, slack, pos, set, keys, projector);
-                    if any_open_back {
-                        chunk.seal(&caps, &open_boxes);
-                    }
-                    let pixels = chunk.order.iter().map(|&o| c.pixels[o as usize]).collect();
-                    (pixels, chunk)
-                })
-                .collect();
-            report.build_time += tb.elapsed();
-            let tc = std::time::Instant::now();
-            chunks.par_iter_mut().for_each(|(_, c)| {
-                for ((t, v), &b) in tris.iter().zip(&vl).zip(&open_back) {
-                    c.process(t, v, b);
-                }
-            });
-            report.cast_time += tc.elapsed();
-            let mut wave_masks = 0u64;
-            for (_, c) in &chunks {
-                let s = &c.stats;
-                report.stats.rebuilds += s.rebuilds;
-                report.stats.peak_nodes += s.peak_nodes;
-                report.stats.peak_hierarchy_bytes += s.peak_hierarchy_bytes;
-                report.stats.peak_masks += s.peak_masks;
-                report.stats.masked += s.masked;
-                report.stats.build_time += s.build_time;
-                report.stats.volumes_built += s.volumes_built;
-                report.stats.peak_sample_receivers += c.peak_sample_receivers();
-                report.sealed += c.sealed_count();
-                report.volume_bytes += c.volume_bytes();
-                wave_masks += s.peak_masks as u64 * c.mask_bytes();
-            }
-            report.peak_mask_bytes = report.peak_mask_bytes.max(wave_masks);
-            let tt = std::time::Instant::now();
-            let records: Vec<Option<translucent::Records>> = chunks
-                .par_iter_mut()
-                .map(|(px, c)| {
-                    let own = c.take_samples();
-                    (!casters.is_empty()).then(|| {
-                        let origins: Vec<Vec3> = px
-                            .iter()
-                            .map(|&i| {
-                                let s = gb.sample(i as usize);
-                                origin.of(s.position, s.geo_normal)
-                            })
-                            .collect();
-                        translucent::cast(
-                            c,
-                            own,
-                            &sets,
-                            &casters,
-                            ctx.scene,
-                            self.options.opacity_filter,
-                            &origins,
-                            slack,
-                            sw.simd,
-                        )
-                    })
-                })
-                .collect();
-            report.translucent_time += tt.elapsed();
-            let (mut rb, mut hb) = (0u64, 0u64);
-            for r in records.iter().flatten() {
-                report.translucent.recorded += r.recorded;
-                report.translucent.time += r.time;
-                rb += r.bytes();
-                hb += r.hierarchy_bytes;
-            }
-            report.translucent.record_bytes = report.translucent.record_bytes.max(rb);
-            report.translucent.hierarchy_bytes = report.translucent.hierarchy_bytes.max(hb);
-            chunks
-                .par_iter()
-                .zip(records.par_iter())
-                .for_each(|((px, c), r)| {
-                    let tr = Tr {
-                        casters: &casters,
-                        records: r.as_ref(),
-                    };
-                    finish(&sets, px, c, &tr)
-                });
+            cast.run_wave(wave, &mut report, &finish);
         }
         Ok((sets, report))
+    }
+
+    /// Light `light`'s (number `k`) centre and sample sets.
+    fn light_sets(&self, light: &crate::scene::Light, k: usize) -> (DVec3, SampleSets) {
+        let sampler = LightSampler::new(light);
+        let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
+        match light.shape {
+            LightShape::Rect { center, u, v, .. } => {
+                let centre = center.as_dvec3();
+                let e1 = u.as_dvec3().normalize_or_zero();
+                let e3 = u.as_dvec3().cross(v.as_dvec3()).normalize_or_zero();
+                let e2 = e3.cross(e1);
+                let axes = [e1, e2, e3];
+                let sets = SampleSets::new(&sampler, &pattern, self.sample_sets(), centre, axes);
+                (centre, sets)
+            }
+            LightShape::Sphere { center, radius } => {
+                let centre = center.as_dvec3();
+                let sets = SampleSets::sphere(&sampler, &pattern, centre, f64::from(radius));
+                (centre, sets)
+            }
+        }
+    }
+
+    /// The opaque blocker triangles of the light of `sets` (relative to
+    /// its `centre`), in cast order, with the surfaces closing the open
+    /// casters whose back faces are cast only into sealed receivers; the
+    /// culled, open-back and cap counts go to `report`.
+    fn blockers(
+        &self,
+        ctx: &ShadowContext,
+        sets: &SampleSets,
+        centre: DVec3,
+        report: &mut LightReport,
+    ) -> Blockers {
+        let geometry = ctx.geometry;
+        let object_box = object_boxes(ctx, centre);
+        let cullable = self.cullable_objects(ctx, sets, &object_box);
+        // Opaque caster triangles with area: object, corners, and whether
+        // the caster may be culled and the light is wholly behind it.
+        let candidates: Vec<(usize, [DVec3; 3], bool)> = (0..geometry.triangles.len())
+            .filter_map(|t| {
+                let object = geometry.triangle_object[t] as usize;
+                let casts = ctx
+                    .scene
+                    .objects
+                    .get(object)
+                    .is_some_and(|o| o.cast_shadows);
+                let material = ctx
+                    .scene
+                    .materials
+                    .get(geometry.triangle_material[t] as usize);
+                if !(casts && material.is_some_and(|m| m.is_opaque())) {
+                    return None;
+                }
+                let tri = geometry.triangles[t]
+                    .map(|i| geometry.positions[i as usize].as_dvec3() - centre);
+                let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                if !(normal.length_squared() > 0.0) {
+                    return None;
+                }
+                let back = cullable[object]
+                    && sets
+                        .light
+                        .corners
+                        .iter()
+                        .all(|c| normal.dot(*c - tri[0]) < 0.0);
+                Some((object, tri, back))
+            })
+            .collect();
+        let slack = 1e-10 * scene_diagonal(ctx.scene, ctx.geometry);
+        let closed = |o: usize| geometry.object_closed.get(o) == Some(&true);
+        let open = open_casters(ctx, centre, &candidates, &object_box, slack);
+        // Per triangle cast: it and whether it is an open caster's back
+        // face (cast only where receivers are not sealed); closed
+        // casters' back faces are left out.
+        let tris: Vec<([DVec3; 3], bool)> = candidates
+            .into_iter()
+            .filter_map(|(object, tri, back)| {
+                if back && closed(object) {
+                    report.culled += 1;
+                    return None;
+                }
+                let open_back = back && open.open[object];
+                report.open_back += usize::from(open_back);
+                Some((tri, open_back))
+            })
+            .collect();
+        let tris = if self.options.pc_sort_blockers {
+            sort_by_area(tris)
+        } else {
+            tris
+        };
+        let (tris, open_back): (Vec<[DVec3; 3]>, Vec<bool>) = tris.into_iter().unzip();
+        Blockers {
+            tris,
+            open_back,
+            cap_tris: open.cap_tris,
+            open_boxes: open.boxes,
+            slack,
+        }
+    }
+
+    /// Per object (boxes `object_box`, relative to the light's centre):
+    /// whether its back faces may be culled. Back faces may be skipped
+    /// only for closed casters the light is outside of (a sample on a
+    /// caster's surface sees only its exit crossing): those whose
+    /// bounding box is disjoint from the light's.
+    fn cullable_objects(
+        &self,
+        ctx: &ShadowContext,
+        sets: &SampleSets,
+        object_box: &[(DVec3, DVec3)],
+    ) -> Vec<bool> {
+        let geometry = ctx.geometry;
+        let cull = self.options.pc_cull_back_faces;
+        let (light_lo, light_hi) = sets
+            .light
+            .corners
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(*c), hi.max(*c))
+            });
+        let light_outside: Vec<bool> = object_box
+            .iter()
+            .map(|&(lo, hi)| {
+                let margin = 1e-6
+                    * (hi - lo)
+                        .max_element()
+                        .max((light_hi - light_lo).max_element());
+                (lo - DVec3::splat(margin)).cmpgt(light_hi).any()
+                    || (hi + DVec3::splat(margin)).cmplt(light_lo).any()
+            })
+            .collect();
+        // The argument needs every face of the caster to block: one with a
+        // see-through face (a semi-opaque or textured material) is never
+        // culled, as its exit crossing may be that face.
+        let mut all_opaque = vec![true; ctx.scene.objects.len()];
+        for t in 0..geometry.triangles.len() {
+            let material = ctx
+                .scene
+                .materials
+                .get(geometry.triangle_material[t] as usize);
+            if !material.is_some_and(|m| m.is_opaque()) {
+                if let Some(a) = all_opaque.get_mut(geometry.triangle_object[t] as usize) {
+                    *a = false;
+                }
+            }
+        }
+        (0..ctx.scene.objects.len())
+            .map(|o| {
+                cull && light_outside.get(o) == Some(&true) && all_opaque.get(o) == Some(&true)
+            })
+            .collect()
     }
 
     /// Every receiver's blocked relations for light `k` (checks and
@@ -1054,6 +929,397 @@ impl PenumbraCasting {
                 bytes: t.record_bytes + t.hierarchy_bytes,
             });
         }
+    }
+}
+
+/// The blocker triangles of one light's pass ([`PenumbraCasting::blockers`]),
+/// relative to the light's centre.
+struct Blockers {
+    /// The opaque caster triangles cast, in cast order.
+    tris: Vec<[DVec3; 3]>,
+    /// Per triangle: whether it is an open caster's back face (cast only
+    /// into receivers that are not sealed).
+    open_back: Vec<bool>,
+    /// The surfaces closing the open casters.
+    cap_tris: Vec<[DVec3; 3]>,
+    /// The open casters' boxes, widened by `slack`.
+    open_boxes: Vec<([f64; 3], [f64; 3])>,
+    /// The penumbra volumes' margin (relative to the scene's diagonal).
+    slack: f64,
+}
+
+/// Per object, its geometry's bounding box relative to the light's
+/// `centre` (empty where it has no triangle).
+fn object_boxes(ctx: &ShadowContext, centre: DVec3) -> Vec<(DVec3, DVec3)> {
+    let geometry = ctx.geometry;
+    let mut object_box = vec![(DVec3::INFINITY, DVec3::NEG_INFINITY); ctx.scene.objects.len()];
+    for (t, tri) in geometry.triangles.iter().enumerate() {
+        if let Some(b) = object_box.get_mut(geometry.triangle_object[t] as usize) {
+            for &i in tri {
+                let p = geometry.positions[i as usize].as_dvec3() - centre;
+                *b = (b.0.min(p), b.1.max(p));
+            }
+        }
+    }
+    object_box
+}
+
+/// The open casters whose back faces are cast only into sealed
+/// receivers ([`open_casters`]).
+struct OpenCasters {
+    /// Per object: whether it is one.
+    open: Vec<bool>,
+    /// The surfaces closing them.
+    cap_tris: Vec<[DVec3; 3]>,
+    /// Their boxes, widened.
+    boxes: Vec<([f64; 3], [f64; 3])>,
+}
+
+/// Open casters: the surfaces closing them (a fan per boundary loop, in
+/// welded positions) and their boxes (`object_box`, widened by `slack`).
+/// Only where the caps are few against the back faces of `candidates`
+/// they let skip (a sheet, whose cap is itself reversed, seals nothing).
+fn open_casters(
+    ctx: &ShadowContext,
+    centre: DVec3,
+    candidates: &[(usize, [DVec3; 3], bool)],
+    object_box: &[(DVec3, DVec3)],
+    slack: f64,
+) -> OpenCasters {
+    let geometry = ctx.geometry;
+    let closed = |o: usize| geometry.object_closed.get(o) == Some(&true);
+    let mut open_backs = vec![0usize; ctx.scene.objects.len()];
+    for &(object, _, back) in candidates {
+        open_backs[object] += usize::from(back && !closed(object));
+    }
+    let mut open = vec![false; ctx.scene.objects.len()];
+    let mut cap_tris = Vec::new();
+    let mut boxes = Vec::new();
+    for (object, &backs) in open_backs.iter().enumerate().filter(|(_, &b)| b > 0) {
+        let at = |v: u32| geometry.adjacency.positions[v as usize].as_dvec3() - centre;
+        let mut caps = Vec::new();
+        for boundary in geometry.adjacency.boundary_loops(geometry, object as u32) {
+            for i in 1..boundary.len().saturating_sub(1) {
+                let tri = [at(boundary[0]), at(boundary[i + 1]), at(boundary[i])];
+                // A cap with no area is crossed by no segment.
+                if (tri[1] - tri[0]).cross(tri[2] - tri[0]).length_squared() > 0.0 {
+                    caps.push(tri);
+                }
+            }
+        }
+        if caps.len() * OPEN_CAPS_PER_BACK_FACE < backs {
+            open[object] = true;
+            cap_tris.extend(caps);
+            let (lo, hi) = object_box[object];
+            let (lo, hi) = (lo - DVec3::splat(slack), hi + DVec3::splat(slack));
+            boxes.push((lo.to_array(), hi.to_array()));
+        }
+    }
+    OpenCasters {
+        open,
+        cap_tris,
+        boxes,
+    }
+}
+
+/// The light penumbra volume of each of `tris` with the light of `sets`,
+/// made in parallel.
+fn penumbra_volumes(sets: &SampleSets, tris: &[[DVec3; 3]]) -> Vec<PenumbraVolume> {
+    let mut volumes: Vec<PenumbraVolume> = Vec::new();
+    volumes.resize_with(tris.len(), PenumbraVolume::default);
+    tris.par_iter()
+        .zip(volumes.par_iter_mut())
+        .for_each(|(t, v)| penumbra_volume(&sets.light, t, v));
+    volumes
+}
+
+/// `inputs` in waves, in order, each within `budget` bytes at
+/// `per_receiver` bytes a receiver (a chunk alone above it is a wave).
+fn waves(inputs: Vec<ChunkInput>, per_receiver: u64, budget: u64) -> Vec<Vec<ChunkInput>> {
+    let mut waves: Vec<Vec<ChunkInput>> = Vec::new();
+    let mut bytes = 0u64;
+    for chunk in inputs {
+        let chunk_bytes = chunk.pixels.len() as u64 * per_receiver;
+        if waves.is_empty() || bytes + chunk_bytes > budget {
+            waves.push(Vec::new());
+            bytes = 0;
+        }
+        bytes += chunk_bytes;
+        waves.last_mut().expect("a wave").push(chunk);
+    }
+    waves
+}
+
+/// Where one light's receivers are: the chunks' inputs.
+struct ReceiverInputs<'s> {
+    gbuffer: &'s crate::gbuffer::GBuffer,
+    /// The shadow-ray origin rule (the reference's).
+    origin: ShadowOrigin,
+    /// The light's centre, the receivers' origin.
+    centre: DVec3,
+    sets: &'s SampleSets,
+    /// The screen's width (at least 1).
+    width: u32,
+}
+
+impl ReceiverInputs<'_> {
+    /// Every receiver, by square screen chunk of `side` pixels (those
+    /// without a receiver left out).
+    fn chunk_inputs(&self, ctx: &ShadowContext, side: u32) -> Vec<ChunkInput> {
+        let gbuffer = self.gbuffer;
+        let (width, height) = (self.width, gbuffer.height);
+        let (chunks_x, chunks_y) = (width.div_ceil(side), height.div_ceil(side));
+        let mut inputs: Vec<ChunkInput> = (0..chunks_x * chunks_y)
+            .map(|c| ChunkInput {
+                pixels: Vec::new(),
+                x0: c % chunks_x * side,
+                y0: c / chunks_x * side,
+                side,
+            })
+            .collect();
+        for i in 0..gbuffer.len() {
+            let Some(s) = gbuffer.get(i) else { continue };
+            // (A receiver inside a sphere light has no samples: it is
+            // finished with the non-receivers.)
+            if !s.is_surface() || !receives(ctx, s.object) || !self.sets.has_samples(s.position) {
+                continue;
+            }
+            let (x, y) = (i as u32 % width, i as u32 / width);
+            inputs[((y / side) * chunks_x + x / side) as usize]
+                .pixels
+                .push(i as u32);
+        }
+        inputs.retain(|c| !c.pixels.is_empty());
+        inputs
+    }
+
+    /// Pixel `i`'s shadow-ray origin, relative to the light's centre.
+    fn position(&self, i: u32) -> [f64; 3] {
+        let s = self.gbuffer.sample(i as usize);
+        let o = self.origin.of(s.position, s.geo_normal).as_dvec3() - self.centre;
+        [o.x, o.y, o.z]
+    }
+
+    /// Pixel `i`'s sample set.
+    fn set(&self, i: u32) -> u16 {
+        self.sets.set_of((i % self.width, i / self.width)) as u16
+    }
+
+    /// The sample keys of `pixels`, only where receivers have samples of
+    /// their own.
+    fn keys(&self, pixels: &[u32]) -> Vec<SampleKey> {
+        if !self.sets.per_receiver() {
+            return Vec::new();
+        }
+        pixels
+            .iter()
+            .map(|&i| SampleKey {
+                position: self.gbuffer.sample(i as usize).position,
+                pixel: (i % self.width, i / self.width),
+            })
+            .collect()
+    }
+
+    /// The `f32` shadow-ray origins of `pixels` (the translucent pass's
+    /// projector reads them).
+    fn origins(&self, pixels: &[u32]) -> Vec<Vec3> {
+        pixels
+            .iter()
+            .map(|&i| {
+                let s = self.gbuffer.sample(i as usize);
+                self.origin.of(s.position, s.geo_normal)
+            })
+            .collect()
+    }
+}
+
+/// What every chunk of one light's pass reads.
+struct LightCast<'l> {
+    sets: &'l SampleSets,
+    switches: Switches,
+    blockers: &'l Blockers,
+    /// The blockers' light penumbra volumes.
+    volumes: &'l [PenumbraVolume],
+    /// The caps' light penumbra volumes.
+    caps: &'l [PenumbraVolume],
+    casters: &'l translucent::Casters,
+    receivers: &'l ReceiverInputs<'l>,
+    /// Whether the S-triangles' projector reads the samples' positions.
+    projector: bool,
+    /// Whether some open caster's back faces are cast.
+    any_open_back: bool,
+    opacity_filter: Filter,
+    scene: &'l crate::scene::Scene,
+}
+
+impl LightCast<'_> {
+    /// The probe of a chunk of `pixels`: every PROBE_STEP-th pixel's
+    /// receiver in x and y, the first triangles in cast order; its work,
+    /// the triangles that reached each receiver's leaf.
+    fn probe(&self, pixels: &[u32]) -> Vec<(u32, u64)> {
+        let (receivers, blockers) = (self.receivers, self.blockers);
+        let width = receivers.width;
+        let probe: Vec<u32> = pixels
+            .iter()
+            .copied()
+            .filter(|&i| (i % width) % PROBE_STEP == 0 && (i / width) % PROBE_STEP == 0)
+            .collect();
+        let pos = probe.iter().map(|&i| receivers.position(i)).collect();
+        let set = probe.iter().map(|&i| receivers.set(i)).collect();
+        let keys = receivers.keys(&probe);
+        let mut chunk = Chunk::new(
+            self.sets,
+            self.switches,
+            blockers.slack,
+            pos,
+            set,
+            keys,
+            false,
+        );
+        let first = blockers.tris.len().div_ceil(PROBE_SHARE);
+        for ((tri, volume), &open_back) in blockers.tris[..first]
+            .iter()
+            .zip(&self.volumes[..first])
+            .zip(&blockers.open_back)
+        {
+            chunk.process(tri, volume, open_back);
+        }
+        // (The chunk keeps its receivers in leaf order: receiver `r` is
+        // probe receiver `order[r]`.)
+        chunk
+            .order
+            .iter()
+            .zip(&chunk.leaf_triangles)
+            .map(|(&o, &n)| (probe[o as usize], u64::from(n)))
+            .collect()
+    }
+
+    /// One wave's chunks: built, cast into by every blocker, their
+    /// translucent records made, then each handed to `finish`; measures
+    /// into `report`.
+    fn run_wave<F>(&self, wave: Vec<ChunkInput>, report: &mut LightReport, finish: &F)
+    where
+        F: Fn(&SampleSets, &[u32], &Chunk, &Tr) + Sync,
+    {
+        let build_start = std::time::Instant::now();
+        let mut chunks = self.build_chunks(wave);
+        report.build_time += build_start.elapsed();
+        let cast_start = std::time::Instant::now();
+        let blockers = self.blockers;
+        chunks.par_iter_mut().for_each(|(_, chunk)| {
+            for ((tri, volume), &open_back) in blockers
+                .tris
+                .iter()
+                .zip(self.volumes)
+                .zip(&blockers.open_back)
+            {
+                chunk.process(tri, volume, open_back);
+            }
+        });
+        report.cast_time += cast_start.elapsed();
+        let mut wave_masks = 0u64;
+        for (_, chunk) in &chunks {
+            let stats = &chunk.stats;
+            report.stats.rebuilds += stats.rebuilds;
+            report.stats.peak_nodes += stats.peak_nodes;
+            report.stats.peak_hierarchy_bytes += stats.peak_hierarchy_bytes;
+            report.stats.peak_masks += stats.peak_masks;
+            report.stats.masked += stats.masked;
+            report.stats.build_time += stats.build_time;
+            report.stats.volumes_built += stats.volumes_built;
+            report.stats.peak_sample_receivers += chunk.peak_sample_receivers();
+            report.sealed += chunk.sealed_count();
+            report.volume_bytes += chunk.volume_bytes();
+            wave_masks += stats.peak_masks as u64 * chunk.mask_bytes();
+        }
+        report.peak_mask_bytes = report.peak_mask_bytes.max(wave_masks);
+        let translucent_start = std::time::Instant::now();
+        let records = self.translucent_records(&mut chunks);
+        report.translucent_time += translucent_start.elapsed();
+        let (mut record_bytes, mut hierarchy_bytes) = (0u64, 0u64);
+        for records in records.iter().flatten() {
+            report.translucent.recorded += records.recorded;
+            report.translucent.time += records.time;
+            record_bytes += records.bytes();
+            hierarchy_bytes += records.hierarchy_bytes;
+        }
+        report.translucent.record_bytes = report.translucent.record_bytes.max(record_bytes);
+        report.translucent.hierarchy_bytes =
+            report.translucent.hierarchy_bytes.max(hierarchy_bytes);
+        chunks
+            .par_iter()
+            .zip(records.par_iter())
+            .for_each(|((pixels, chunk), records)| {
+                let tr = Tr {
+                    casters: self.casters,
+                    records: records.as_ref(),
+                };
+                finish(self.sets, pixels, chunk, &tr)
+            });
+    }
+
+    /// The wave's chunks (in parallel), each with its pixels in the
+    /// chunk's receiver order, sealed where open casters' back faces are
+    /// cast.
+    fn build_chunks(&self, wave: Vec<ChunkInput>) -> Vec<(Vec<u32>, Chunk<'_>)> {
+        let receivers = self.receivers;
+        wave.into_par_iter()
+            .map(|input| {
+                let pos = input
+                    .pixels
+                    .iter()
+                    .map(|&i| receivers.position(i))
+                    .collect();
+                let set = input.pixels.iter().map(|&i| receivers.set(i)).collect();
+                let keys = receivers.keys(&input.pixels);
+                let mut chunk = Chunk::new(
+                    self.sets,
+                    self.switches,
+                    self.blockers.slack,
+                    pos,
+                    set,
+                    keys,
+                    self.projector,
+                );
+                if self.any_open_back {
+                    chunk.seal(self.caps, &self.blockers.open_boxes);
+                }
+                let pixels = chunk
+                    .order
+                    .iter()
+                    .map(|&o| input.pixels[o as usize])
+                    .collect();
+                (pixels, chunk)
+            })
+            .collect()
+    }
+
+    /// Every chunk's translucent records (in parallel; `None` where the
+    /// scene has no translucent caster), taking the chunks' own samples.
+    fn translucent_records(
+        &self,
+        chunks: &mut [(Vec<u32>, Chunk<'_>)],
+    ) -> Vec<Option<translucent::Records>> {
+        chunks
+            .par_iter_mut()
+            .map(|(pixels, chunk)| {
+                let own = chunk.take_samples();
+                (!self.casters.is_empty()).then(|| {
+                    let origins = self.receivers.origins(pixels);
+                    translucent::cast(
+                        chunk,
+                        own,
+                        self.sets,
+                        self.casters,
+                        self.scene,
+                        self.opacity_filter,
+                        &origins,
+                        self.blockers.slack,
+                        self.switches.simd,
+                    )
+                })
+            })
+            .collect()
     }
 }
 

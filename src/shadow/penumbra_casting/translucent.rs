@@ -220,6 +220,26 @@ impl Records {
         }
         self.slot[r] as usize
     }
+
+    /// Receiver `r`'s `hits` by a triangle of `kind` (slots, and optical
+    /// depths for S-triangles) added to its record, made on first need.
+    fn add_hits(&mut self, r: usize, kind: Kind, hits: &[(usize, f64)]) {
+        let base = self.record(r);
+        match kind {
+            Kind::Layer(group) => {
+                let groups = self.groups;
+                for &(slot, _) in hits {
+                    let count = &mut self.counts[(base * self.n + slot) * groups + group as usize];
+                    *count = count.saturating_add(1);
+                }
+            }
+            Kind::Matte(_) => {
+                for &(slot, tau) in hits {
+                    self.depth[base * self.n + slot] += tau;
+                }
+            }
+        }
+    }
 }
 
 /// Casts every translucent triangle of `casters` into chunk `c` (after
@@ -230,7 +250,7 @@ impl Records {
 #[allow(clippy::too_many_arguments)]
 pub fn cast(
     c: &Chunk,
-    mut own: Option<ReceiverSamples>,
+    own: Option<ReceiverSamples>,
     sets: &SampleSets,
     casters: &Casters,
     scene: &Scene,
@@ -239,20 +259,22 @@ pub fn cast(
     slack: f64,
     simd: bool,
 ) -> Records {
-    let t0 = std::time::Instant::now();
-    let r = c.pos.len();
+    let start = std::time::Instant::now();
+    let receivers = c.pos.len();
     let mut rec = Records {
         n: sets.n,
         groups: casters.groups(),
         mattes: !casters.mattes.is_empty(),
-        slot: vec![NONE; r],
+        slot: vec![NONE; receivers],
         counts: Vec::new(),
         depth: Vec::new(),
         recorded: 0,
         hierarchy_bytes: 0,
         time: Duration::ZERO,
     };
-    let ids: Vec<u32> = (0..r as u32).filter(|&i| !c.full[i as usize]).collect();
+    let ids: Vec<u32> = (0..receivers as u32)
+        .filter(|&i| !c.full[i as usize])
+        .collect();
     if casters.is_empty() || ids.is_empty() {
         return rec;
     }
@@ -261,9 +283,9 @@ pub fn cast(
     // The projector decides the S-triangles' crossings in f32: its culling
     // gets a wider margin (culling only ever keeps more).
     let matte_slack = slack * 1e4;
-    let g = sets.groups;
-    let mut vl = PenumbraVolume::default();
-    let mut gv = vec![PenumbraVolume::default(); g];
+    let groups = sets.groups;
+    let mut light_volume = PenumbraVolume::default();
+    let mut group_volumes = vec![PenumbraVolume::default(); groups];
     // The hard-volume cache (`sets × groups × 4 KiB`) only for layers.
     let layers = casters.tris.iter().any(|t| matches!(t.1, Kind::Layer(_)));
     // Sphere lights: each receiver's own samples (`own`, the opaque
@@ -274,133 +296,204 @@ pub fn cast(
     let cache = match (&own, layers) {
         (_, false) => 0,
         (Some(_), true) => 1,
-        (None, true) => sets.sets * g,
+        (None, true) => sets.sets * groups,
     };
-    let mut hard = vec![HardVolumes::default(); cache];
-    let mut stamp = vec![0u32; cache];
-    let mut words = Vec::new();
+    let mut pass = HitPass {
+        chunk: c,
+        sets,
+        casters,
+        scene,
+        filter,
+        origin,
+        simd,
+        own,
+        hard: vec![HardVolumes::default(); cache],
+        stamp: vec![0u32; cache],
+        words: Vec::new(),
+        hits: Vec::new(),
+    };
     let mut stack: Vec<(u32, u32)> = Vec::new();
-    let mut hits: Vec<(usize, f64)> = Vec::new();
-    for (ti, (tri, kind)) in casters.tris.iter().enumerate() {
-        let now = ti as u32 + 1;
-        let s = match kind {
+    for (index, (tri, kind)) in casters.tris.iter().enumerate() {
+        let triangle_slack = match kind {
             Kind::Matte(_) => matte_slack,
             Kind::Layer(_) => slack,
         };
-        penumbra_volume(&sets.light, tri, &mut vl);
-        if own.is_none() {
-            for (k, v) in gv.iter_mut().enumerate() {
-                penumbra_volume(&sets.group_bounds[k], tri, v);
+        penumbra_volume(&sets.light, tri, &mut light_volume);
+        if pass.own.is_none() {
+            for (k, volume) in group_volumes.iter_mut().enumerate() {
+                penumbra_volume(&sets.group_bounds[k], tri, volume);
             }
         }
-        let per_receiver = own.is_some();
+        let triangle = TriangleCast {
+            tri,
+            kind: *kind,
+            stamp: index as u32 + 1,
+            slack: triangle_slack,
+            group_volumes: pass.own.is_none().then_some(&group_volumes[..]),
+        };
         stack.clear();
-        stack.push((0, vl.all()));
-        while let Some((node, pl)) = stack.pop() {
-            let n = &hier.nodes[node as usize];
-            let pl = match vl.test_box(&n.lo, &n.hi, pl, s, true) {
-                BoxTest::Outside => continue,
-                BoxTest::Active(p) => p,
-            };
-            if n.count == 0 {
-                stack.push((n.first, pl));
-                stack.push((n.first + 1, pl));
+        stack.push((0, light_volume.all()));
+        while let Some((node, planes)) = stack.pop() {
+            let node = &hier.nodes[node as usize];
+            let planes =
+                match light_volume.test_box(&node.lo, &node.hi, planes, triangle_slack, true) {
+                    BoxTest::Outside => continue,
+                    BoxTest::Active(planes) => planes,
+                };
+            if node.count == 0 {
+                stack.push((node.first, planes));
+                stack.push((node.first + 1, planes));
                 continue;
             }
-            for &p in &hier.points[n.first as usize..(n.first + n.count) as usize] {
+            for &p in &hier.points[node.first as usize..(node.first + node.count) as usize] {
                 let p = p as usize;
-                let o = c.pos[p];
-                if !vl.contains(o, pl, s) {
+                if !light_volume.contains(c.pos[p], planes, triangle_slack) {
                     continue;
                 }
-                c.words(p, &mut words);
-                let set = c.set[p] as usize;
-                if let Some(own) = &mut own {
-                    own.ensure(sets, p);
-                }
-                // A group whose volume leaves the receiver out is skipped
-                // (no volumes where the groups' bounds are the light's).
-                let outside = |k: usize| !per_receiver && !gv[k].contains(o, gv[k].all(), s);
-                hits.clear();
-                match *kind {
-                    Kind::Layer(_) => {
-                        for (k, (&word, &valid)) in words.iter().zip(&sets.valid).enumerate() {
-                            if word == valid || outside(k) {
-                                continue;
-                            }
-                            let i = match &own {
-                                Some(own) => {
-                                    hard[0].build(own.group(p, k, g).0, tri);
-                                    0
-                                }
-                                None => {
-                                    let i = set * g + k;
-                                    if stamp[i] != now {
-                                        stamp[i] = now;
-                                        hard[i].build(&sets.soa[set][k], tri);
-                                    }
-                                    i
-                                }
-                            };
-                            let skip = word | !valid;
-                            let mut bits = if simd {
-                                hard_bits_simd(&hard[i], o, skip)
-                            } else {
-                                hard_bits_scalar(&hard[i], o, skip)
-                            };
-                            while bits != 0 {
-                                let j = bits.trailing_zeros() as usize;
-                                bits &= bits - 1;
-                                hits.push((GROUP * k + j, 0.0));
-                            }
-                        }
-                    }
-                    Kind::Matte(m) => {
-                        let stri = &casters.mattes[m as usize];
-                        let Some(proj) = SampleProjector::new(stri, origin[p]) else {
-                            continue;
-                        };
-                        for (k, (&w, &valid)) in words.iter().zip(&sets.valid).enumerate() {
-                            if w == valid || outside(k) {
-                                continue;
-                            }
-                            let positions = match &own {
-                                Some(own) => own.projector(p, k, g),
-                                None => &casters.positions[set][k],
-                            };
-                            proj.for_each_hit_in(positions, |j, b1, b2| {
-                                if (w >> j) & 1 == 1 {
-                                    return;
-                                }
-                                let a = stri.opacity_at(scene, b1, b2, filter);
-                                if a > 0.0 {
-                                    hits.push((GROUP * k + j, -(-f64::from(a)).ln_1p()));
-                                }
-                            });
-                        }
-                    }
-                }
-                if hits.is_empty() {
-                    continue;
-                }
-                let base = rec.record(p);
-                match *kind {
-                    Kind::Layer(gi) => {
-                        let gs = rec.groups;
-                        for &(slot, _) in &hits {
-                            let c = &mut rec.counts[(base * rec.n + slot) * gs + gi as usize];
-                            *c = c.saturating_add(1);
-                        }
-                    }
-                    Kind::Matte(_) => {
-                        for &(slot, tau) in &hits {
-                            rec.depth[base * rec.n + slot] += tau;
-                        }
-                    }
+                pass.hits_of(p, &triangle);
+                if !pass.hits.is_empty() {
+                    rec.add_hits(p, triangle.kind, &pass.hits);
                 }
             }
         }
     }
-    rec.time = t0.elapsed();
+    rec.time = start.elapsed();
     rec
+}
+
+/// One translucent triangle as [`HitPass::hits_of`] tests it.
+struct TriangleCast<'t> {
+    tri: &'t [DVec3; 3],
+    kind: Kind,
+    /// Its number in [`Casters::tris`] plus one: the hard-volume cache's
+    /// stamp.
+    stamp: u32,
+    /// The penumbra volumes' margin for its kind.
+    slack: f64,
+    /// Its group volumes; `None` where receivers have their own samples
+    /// (every group's bound is the light's).
+    group_volumes: Option<&'t [PenumbraVolume]>,
+}
+
+/// One chunk's translucent pass: what it reads and its scratch, reused
+/// over the triangles and receivers.
+struct HitPass<'c> {
+    chunk: &'c Chunk<'c>,
+    sets: &'c SampleSets,
+    casters: &'c Casters,
+    scene: &'c Scene,
+    filter: Filter,
+    /// The receivers' `f32` shadow-ray origins.
+    origin: &'c [Vec3],
+    simd: bool,
+    /// The receivers' own samples, where they have some.
+    own: Option<ReceiverSamples>,
+    /// The hard-volume cache (one scratch set for own samples) and the
+    /// triangle each entry was built for.
+    hard: Vec<HardVolumes>,
+    stamp: Vec<u32>,
+    /// The receiver's opaque blocked bits.
+    words: Vec<u32>,
+    /// The receiver's relations the triangle crosses: slot and optical
+    /// depth (layers: unused).
+    hits: Vec<(usize, f64)>,
+}
+
+impl HitPass<'_> {
+    /// Into `hits`, the relations of receiver `p` (inside the triangle's
+    /// light penumbra volume) that `triangle` crosses and no opaque
+    /// caster blocks.
+    #[inline]
+    fn hits_of(&mut self, p: usize, triangle: &TriangleCast) {
+        self.chunk.words(p, &mut self.words);
+        if let Some(own) = &mut self.own {
+            own.ensure(self.sets, p);
+        }
+        self.hits.clear();
+        match triangle.kind {
+            Kind::Layer(_) => self.layer_hits(p, triangle),
+            Kind::Matte(m) => self.matte_hits(p, m, triangle),
+        }
+    }
+
+    /// Whether group `k`'s volume of `triangle` leaves out the receiver
+    /// at `position` (the group is then skipped).
+    #[inline]
+    fn outside(triangle: &TriangleCast, k: usize, position: [f64; 3]) -> bool {
+        triangle
+            .group_volumes
+            .is_some_and(|volumes| !volumes[k].contains(position, volumes[k].all(), triangle.slack))
+    }
+
+    /// A semi-opaque layer's crossings: each group's hard volumes of the
+    /// triangle (cached per set and group, or built for the receiver's
+    /// own samples) against the receiver.
+    #[inline]
+    fn layer_hits(&mut self, p: usize, triangle: &TriangleCast) {
+        let groups = self.sets.groups;
+        let position = self.chunk.pos[p];
+        let set = self.chunk.set[p] as usize;
+        for (k, (&word, &valid)) in self.words.iter().zip(&self.sets.valid).enumerate() {
+            if word == valid || Self::outside(triangle, k, position) {
+                continue;
+            }
+            let i = match &self.own {
+                Some(own) => {
+                    self.hard[0].build(own.group(p, k, groups).0, triangle.tri);
+                    0
+                }
+                None => {
+                    let i = set * groups + k;
+                    if self.stamp[i] != triangle.stamp {
+                        self.stamp[i] = triangle.stamp;
+                        self.hard[i].build(&self.sets.soa[set][k], triangle.tri);
+                    }
+                    i
+                }
+            };
+            let skip = word | !valid;
+            let mut bits = if self.simd {
+                hard_bits_simd(&self.hard[i], position, skip)
+            } else {
+                hard_bits_scalar(&self.hard[i], position, skip)
+            };
+            while bits != 0 {
+                let j = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                self.hits.push((GROUP * k + j, 0.0));
+            }
+        }
+    }
+
+    /// S-triangle `matte`'s crossings: its opacity where the projector
+    /// finds each unblocked sample's segment through it.
+    #[inline]
+    fn matte_hits(&mut self, p: usize, matte: u32, triangle: &TriangleCast) {
+        let groups = self.sets.groups;
+        let position = self.chunk.pos[p];
+        let set = self.chunk.set[p] as usize;
+        let stri = &self.casters.mattes[matte as usize];
+        let Some(projector) = SampleProjector::new(stri, self.origin[p]) else {
+            return;
+        };
+        for (k, (&word, &valid)) in self.words.iter().zip(&self.sets.valid).enumerate() {
+            if word == valid || Self::outside(triangle, k, position) {
+                continue;
+            }
+            let positions = match &self.own {
+                Some(own) => own.projector(p, k, groups),
+                None => &self.casters.positions[set][k],
+            };
+            let hits = &mut self.hits;
+            projector.for_each_hit_in(positions, |j, b1, b2| {
+                if (word >> j) & 1 == 1 {
+                    return;
+                }
+                let opacity = stri.opacity_at(self.scene, b1, b2, self.filter);
+                if opacity > 0.0 {
+                    hits.push((GROUP * k + j, -(-f64::from(opacity)).ln_1p()));
+                }
+            });
+        }
+    }
 }
