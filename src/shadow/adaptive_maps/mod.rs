@@ -313,49 +313,8 @@ impl AdaptiveMaps {
             } = self.light(&setup)?;
             cache_bytes = cache_bytes.max(decision_bytes);
             timer.finish_with(&mut out.passes, format!("{} maps", report.rendered));
-            let per_depth: Vec<String> = report
-                .points_per_depth
-                .iter()
-                .enumerate()
-                .filter(|(_, &count)| count > 0)
-                .map(|(depth, count)| format!("{count} at depth {depth}"))
-                .collect();
-            let levels: Vec<String> = report
-                .per_depth
-                .iter()
-                .enumerate()
-                .filter(|(_, stats)| stats.tested > 0)
-                .map(|(depth, stats)| {
-                    format!(
-                        "depth {depth}: {} of {} split, {} failing receivers",
-                        stats.split, stats.tested, stats.fails
-                    )
-                })
-                .collect();
-            out.buffers.push(BufferNote {
-                name: "shadow maps".into(),
-                detail: format!(
-                    "{} rendered for light {light}: {} sample points in the estimate ({}); {} for \
-                     the tests, {} centre probes, {} rendered again for the estimate; {} quads \
-                     split ({} on the centre probe alone; {}); one map resident at a time ({}² \
-                     f32 linear depth)",
-                    report.rendered,
-                    report.points,
-                    per_depth.join(", "),
-                    report.test_maps,
-                    report.probe_maps,
-                    report.rerendered,
-                    report.splits,
-                    report.probe_splits,
-                    if levels.is_empty() {
-                        "no test".to_string()
-                    } else {
-                        levels.join("; ")
-                    },
-                    self.maps.map_size
-                ),
-                bytes: peak_map_bytes,
-            });
+            out.buffers
+                .push(self.light_note(light, &report, peak_map_bytes));
             reports.push(report);
             out.lights.push(LightTerm::Vcoef(vcoef));
         }
@@ -396,6 +355,53 @@ impl AdaptiveMaps {
             bytes: pixels as u64 * 3,
         });
         Ok((out, reports))
+    }
+
+    /// The `--explain` note of one light's maps.
+    fn light_note(&self, light: usize, report: &AdaptiveReport, peak_map_bytes: u64) -> BufferNote {
+        let per_depth: Vec<String> = report
+            .points_per_depth
+            .iter()
+            .enumerate()
+            .filter(|(_, &count)| count > 0)
+            .map(|(depth, count)| format!("{count} at depth {depth}"))
+            .collect();
+        let levels: Vec<String> = report
+            .per_depth
+            .iter()
+            .enumerate()
+            .filter(|(_, stats)| stats.tested > 0)
+            .map(|(depth, stats)| {
+                format!(
+                    "depth {depth}: {} of {} split, {} failing receivers",
+                    stats.split, stats.tested, stats.fails
+                )
+            })
+            .collect();
+        BufferNote {
+            name: "shadow maps".into(),
+            detail: format!(
+                "{} rendered for light {light}: {} sample points in the estimate ({}); {} for \
+                 the tests, {} centre probes, {} rendered again for the estimate; {} quads \
+                 split ({} on the centre probe alone; {}); one map resident at a time ({}² \
+                 f32 linear depth)",
+                report.rendered,
+                report.points,
+                per_depth.join(", "),
+                report.test_maps,
+                report.probe_maps,
+                report.rerendered,
+                report.splits,
+                report.probe_splits,
+                if levels.is_empty() {
+                    "no test".to_string()
+                } else {
+                    levels.join("; ")
+                },
+                self.maps.map_size
+            ),
+            bytes: peak_map_bytes,
+        }
     }
 
     /// One light: its Vcoef, report, peak map bytes and decision-cache
