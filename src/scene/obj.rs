@@ -611,6 +611,52 @@ pub(super) fn load_obj(
     material_override: Option<u32>,
     assets: &mut Assets,
 ) -> Result<Mesh> {
+    let text = read_obj_text(path, from, line)?;
+    let scan = scan_obj(path, &text)?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+
+    let mtl_loader = MtlLoader {
+        dir,
+        obj: path,
+        mtllibs: &scan.mtllibs,
+        material_override,
+        next_mtllib: Cell::new(0),
+        error: RefCell::new(None),
+        loaded: RefCell::new(Vec::new()),
+    };
+    // Other fields exist with tobj's optional features (merging, reordering).
+    #[allow(clippy::needless_update)]
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let parsed = tobj::load_obj_buf(&mut scan.text.as_bytes(), &options, |_| {
+        mtl_loader.load_next()
+    });
+    if let Some(e) = mtl_loader.error.take() {
+        return Err(e);
+    }
+    let (models, materials) =
+        parsed.map_err(|e| Error::file(path, None, format!("OBJ parse error: {e}")))?;
+    let materials = materials.unwrap_or_default();
+    let loaded = mtl_loader.loaded.into_inner();
+
+    let mut material_ids = MaterialIds {
+        material_override,
+        materials: &materials,
+        loaded: &loaded,
+        ids: HashMap::new(),
+    };
+    let merged = merge_models(path, &models, &mut material_ids, assets)?;
+    finish_mesh(path, from, line, merged, assets, scan.bad_normals)
+}
+
+/// Reads an OBJ file referenced from `from:line` as text; another mesh
+/// format is an error at the reference.
+fn read_obj_text(path: &Path, from: &Path, line: usize) -> Result<String> {
     let bytes = read_bytes(path, "OBJ", from, line)?;
     if let Some(format) = other_mesh_format(path, &bytes) {
         return Err(Error::file(
@@ -623,21 +669,39 @@ pub(super) fn load_obj(
             ),
         ));
     }
-    let text = decode_text(path, bytes)?;
-    let scan = scan_obj(path, &text)?;
-    let dir = path.parent().unwrap_or(Path::new(""));
+    decode_text(path, bytes)
+}
 
-    let next_mtllib = Cell::new(0);
-    let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
-    let loaded: RefCell<Vec<LoadedMtl>> = RefCell::new(Vec::new());
-    let load_mtl = |_: &Path| -> tobj::MTLLoadResult {
-        let index = next_mtllib.replace(next_mtllib.get() + 1);
-        let (Some((name, ln)), None) = (scan.mtllibs.get(index), material_override) else {
+/// tobj's material loader for one OBJ file: tobj asks once per `mtllib`
+/// line, in file order, so the n-th call reads the n-th scanned `mtllib`.
+/// tobj's loader is `Fn`, hence the cells.
+struct MtlLoader<'a> {
+    /// The OBJ file's directory.
+    dir: &'a Path,
+    /// The OBJ file.
+    obj: &'a Path,
+    /// The scan's `mtllib` names and lines.
+    mtllibs: &'a [(String, usize)],
+    /// An inline material: no MTL file is read.
+    material_override: Option<u32>,
+    /// The next call's `mtllib` index.
+    next_mtllib: Cell<usize>,
+    /// The first error (tobj's own would name no file or line).
+    error: RefCell<Option<Error>>,
+    /// The MTL files loaded, in tobj's order.
+    loaded: RefCell<Vec<LoadedMtl>>,
+}
+
+impl MtlLoader<'_> {
+    /// Loads the next `mtllib` statement's files as one material list.
+    fn load_next(&self) -> tobj::MTLLoadResult {
+        let index = self.next_mtllib.replace(self.next_mtllib.get() + 1);
+        let (Some((name, ln)), None) = (self.mtllibs.get(index), self.material_override) else {
             return Ok(Default::default());
         };
         let mut merged: Option<(Vec<tobj::Material>, _)> = None;
-        for mtl_path in mtllib_files(dir, name, path, *ln) {
-            let result = read_text(&mtl_path, "MTL", path, *ln).and_then(|t| {
+        for mtl_path in mtllib_files(self.dir, name, self.obj, *ln) {
+            let result = read_text(&mtl_path, "MTL", self.obj, *ln).and_then(|t| {
                 let (text, lines) = scan_mtl(&mtl_path, &t)?;
                 let parsed = tobj::load_mtl_buf(&mut text.as_bytes())
                     .map_err(|e| Error::file(&mtl_path, None, format!("MTL parse error: {e}")))?;
@@ -645,7 +709,7 @@ pub(super) fn load_obj(
             });
             match result {
                 Ok(((mats, map), materials)) => {
-                    loaded.borrow_mut().push(LoadedMtl {
+                    self.loaded.borrow_mut().push(LoadedMtl {
                         path: mtl_path,
                         materials,
                     });
@@ -661,47 +725,44 @@ pub(super) fn load_obj(
                     }
                 }
                 Err(e) => {
-                    mtl_error.borrow_mut().get_or_insert(e);
+                    self.error.borrow_mut().get_or_insert(e);
                     return Err(tobj::LoadError::OpenFileFailed);
                 }
             }
         }
         Ok(merged.unwrap_or_default())
-    };
-    // Other fields exist with tobj's optional features (merging, reordering).
-    #[allow(clippy::needless_update)]
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
-    let parsed = tobj::load_obj_buf(&mut scan.text.as_bytes(), &options, load_mtl);
-    if let Some(e) = mtl_error.take() {
-        return Err(e);
     }
-    let (models, materials) =
-        parsed.map_err(|e| Error::file(path, None, format!("OBJ parse error: {e}")))?;
-    let materials = materials.unwrap_or_default();
-    let loaded = loaded.into_inner();
+}
 
-    // tobj material index → scene material index, converted on first use so
-    // that unused materials cannot fail on their textures.
-    let mut ids: HashMap<usize, u32> = HashMap::new();
-    let mut material_id = |tobj_id: Option<usize>, assets: &mut Assets| -> Result<u32> {
-        if let Some(id) = material_override {
+/// tobj material index → scene material index, converted on first use so
+/// that unused materials cannot fail on their textures.
+struct MaterialIds<'a> {
+    /// An inline material every triangle gets.
+    material_override: Option<u32>,
+    /// tobj's materials.
+    materials: &'a [tobj::Material],
+    /// The MTL files they came from, in tobj's order.
+    loaded: &'a [LoadedMtl],
+    /// Materials converted so far.
+    ids: HashMap<usize, u32>,
+}
+
+impl MaterialIds<'_> {
+    /// The scene material of tobj material `tobj_id`.
+    fn get(&mut self, tobj_id: Option<usize>, assets: &mut Assets) -> Result<u32> {
+        if let Some(id) = self.material_override {
             return Ok(id);
         }
-        let Some(m) = tobj_id.and_then(|i| materials.get(i).map(|m| (i, m))) else {
+        let Some((index, material)) = tobj_id.and_then(|i| self.materials.get(i).map(|m| (i, m)))
+        else {
             return Ok(DEFAULT_MATERIAL);
         };
-        if let Some(&id) = ids.get(&m.0) {
+        if let Some(&id) = self.ids.get(&index) {
             return Ok(id);
         }
         // tobj appends each MTL file's materials in load order.
-        let mut i = m.0;
-        let source = loaded.iter().find_map(|l| match l.materials.get(i) {
+        let mut i = index;
+        let source = self.loaded.iter().find_map(|l| match l.materials.get(i) {
             Some(lines) => Some((l.path.as_path(), lines)),
             None => {
                 i -= l.materials.len();
@@ -710,44 +771,97 @@ pub(super) fn load_obj(
         });
         let fallback = MtlLines::default();
         let (mtl_path, lines) = source.unwrap_or((Path::new(""), &fallback));
-        let material = convert_material(m.1, mtl_path, lines, assets)?;
-        let id = assets.material(material)?;
-        ids.insert(m.0, id);
+        let converted = convert_material(material, mtl_path, lines, assets)?;
+        let id = assets.material(converted)?;
+        self.ids.insert(index, id);
         Ok(id)
-    };
+    }
+}
 
+/// tobj's models merged into one mesh, before the per-vertex arrays are
+/// kept or dropped.
+struct MergedModels {
+    /// Positions, triangles and material ids.
+    mesh: Mesh,
+    /// Vertex normals, complete only when `all_normals`.
+    normals: Vec<Vec3>,
+    /// Uvs, zero where a model lacks them.
+    uvs: Vec<Vec2>,
+    /// Every model has a normal per vertex.
+    all_normals: bool,
+    /// Some model with vertices has uvs.
+    any_uvs: bool,
+}
+
+/// Merges tobj's models (of the OBJ at `path`) into one mesh.
+fn merge_models(
+    path: &Path,
+    models: &[tobj::Model],
+    material_ids: &mut MaterialIds,
+    assets: &mut Assets,
+) -> Result<MergedModels> {
     let mut mesh = Mesh::default();
     let mut normals = Vec::new();
     let mut uvs = Vec::new();
     let (mut all_normals, mut any_uvs) = (true, false);
     let too_big = || Error::file(path, None, "more than 2^32 vertices");
-    for model in &models {
-        let m = &model.mesh;
-        let n = m.positions.len() / 3;
+    for model in models {
+        let model_mesh = &model.mesh;
+        let vertices = model_mesh.positions.len() / 3;
         let base = u32::try_from(mesh.positions.len()).map_err(|_| too_big())?;
         mesh.positions
-            .extend(m.positions.chunks_exact(3).map(Vec3::from_slice));
+            .extend(model_mesh.positions.chunks_exact(3).map(Vec3::from_slice));
         // tobj leaves out the normal (uv) of a corner that has none, so the
         // arrays only line up when every vertex has one.
-        if m.normals.len() == 3 * n {
-            normals.extend(m.normals.chunks_exact(3).map(Vec3::from_slice));
+        if model_mesh.normals.len() == 3 * vertices {
+            normals.extend(model_mesh.normals.chunks_exact(3).map(Vec3::from_slice));
         } else {
             all_normals = false;
         }
-        if m.texcoords.len() == 2 * n {
-            any_uvs |= n > 0;
-            uvs.extend(m.texcoords.chunks_exact(2).map(Vec2::from_slice));
+        if model_mesh.texcoords.len() == 2 * vertices {
+            any_uvs |= vertices > 0;
+            uvs.extend(model_mesh.texcoords.chunks_exact(2).map(Vec2::from_slice));
         } else {
             uvs.resize(mesh.positions.len(), Vec2::ZERO);
         }
-        let material = material_id(m.material_id, assets)?;
-        for t in m.indices.chunks_exact(3) {
+        let material = material_ids.get(model_mesh.material_id, assets)?;
+        for triangle in model_mesh.indices.chunks_exact(3) {
             let corner = |i: u32| base.checked_add(i).ok_or_else(too_big);
-            mesh.triangles
-                .push([corner(t[0])?, corner(t[1])?, corner(t[2])?]);
+            mesh.triangles.push([
+                corner(triangle[0])?,
+                corner(triangle[1])?,
+                corner(triangle[2])?,
+            ]);
             mesh.material_ids.push(material);
         }
     }
+    Ok(MergedModels {
+        mesh,
+        normals,
+        uvs,
+        all_normals,
+        any_uvs,
+    })
+}
+
+/// The merged mesh as loaded: refused without faces; normals kept only if
+/// every vertex has one, uvs if any model has them or a material is
+/// textured; unusable normals (`bad_normals`, from the scan) replaced.
+fn finish_mesh(
+    path: &Path,
+    from: &Path,
+    line: usize,
+    merged: MergedModels,
+    assets: &Assets,
+    bad_normals: Option<(usize, usize)>,
+) -> Result<Mesh> {
+    let MergedModels {
+        mut mesh,
+        normals,
+        uvs,
+        all_normals,
+        any_uvs,
+    } = merged;
     if mesh.triangles.is_empty() {
         // Vertices alone (a point cloud, or faces lost in export) render as
         // nothing: refused rather than an invisible object.
@@ -781,7 +895,7 @@ pub(super) fn load_obj(
     if any_uvs || textured {
         mesh.uvs = Some(uvs);
     }
-    if let Some((count, line)) = scan.bad_normals {
+    if let Some((count, line)) = bad_normals {
         let corners = replace_unusable_normals(&mut mesh);
         if corners > 0 {
             eprintln!(

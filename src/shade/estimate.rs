@@ -658,18 +658,57 @@ mod tests {
             .collect();
         let (mut lit, mut worst) = (0, 0.0f64);
         for case in 0..3000 {
+            let chart = ChartCase::random(case, &mut rng);
+            let frame = SamplerFrame::of(&chart.light);
+            let samples = frame.samples(&chart);
+            let sampled = mean_scalar(&chart.light, None, &chart.sp, &samples, &chart.vis);
+            let want = frame.f64_estimate(&chart);
+            let facing = frame.facing_scale(&chart, &samples);
+            if want != DVec3::ZERO {
+                lit += 1;
+            }
+            let err = assert_levels_match(case, &levels, &chart, (want, facing, sampled));
+            worst = worst.max(err);
+        }
+        assert!(lit > 1000, "{lit}");
+        eprintln!("worst relative difference {worst:e}");
+        assert_chart_declines_sphere_and_light_centre();
+    }
+
+    /// One case of [`chart_estimate_is_the_sample_estimate`]: a random
+    /// rect light, a receiver and its chart points.
+    struct ChartCase {
+        light: Light,
+        sp: SurfacePoint,
+        /// The receiver has a specular lobe (the chart must decline).
+        spec: bool,
+        /// The light is two-sided.
+        two_sided: bool,
+        /// Chart points in use; the lanes past them are padding.
+        n: usize,
+        /// Chart coordinates along `u`, padded to whole lanes.
+        xs: Vec<f32>,
+        /// Along `v`.
+        ys: Vec<f32>,
+        /// Visibility per chart point.
+        vis: Vec<f32>,
+    }
+
+    impl ChartCase {
+        fn random(case: usize, rng: &mut Lcg) -> ChartCase {
             let center = rng.vec(3.0) + Vec3::Y * 4.0;
+            let two_sided = case % 2 == 1;
             let light = Light {
                 shape: LightShape::Rect {
                     center,
                     u: rng.vec(1.0),
                     v: rng.vec(1.0),
-                    two_sided: case % 2 == 1,
+                    two_sided,
                 },
                 radiance: rng.vec(5.0).abs(),
                 texture: None,
             };
-            let spec = case % 7 == 0;
+            let spec = case.is_multiple_of(7);
             let p = match case % 13 {
                 // Close to the light (and to some of its samples).
                 0 => center + rng.vec(0.05),
@@ -695,101 +734,167 @@ mod tests {
                 }
             };
             // Padding lanes hold garbage, as a reused buffer may.
-            let xs: Vec<f32> = (0..padded).map(|_| point(&mut rng) * 1e3).collect();
-            let mut xs = xs;
+            let mut xs: Vec<f32> = (0..padded).map(|_| point(rng) * 1e3).collect();
             let mut ys: Vec<f32> = (0..padded).map(|_| f32::NAN).collect();
             for k in 0..n {
-                xs[k] = point(&mut rng);
-                ys[k] = point(&mut rng);
+                xs[k] = point(rng);
+                ys[k] = point(rng);
             }
-            let vis: Vec<f32> = (0..n).map(|_| visibility(&mut rng)).collect();
+            let vis: Vec<f32> = (0..n).map(|_| visibility(rng)).collect();
+            ChartCase {
+                light,
+                sp,
+                spec,
+                two_sided,
+                n,
+                xs,
+                ys,
+                vis,
+            }
+        }
+    }
+
+    /// A rect light as the sampler holds it, in f64.
+    struct SamplerFrame {
+        center: DVec3,
+        u: DVec3,
+        v: DVec3,
+        area: f32,
+    }
+
+    impl SamplerFrame {
+        fn of(light: &Light) -> SamplerFrame {
             let crate::sampling::LightSampler::Rect { center, u, v, area } =
-                crate::sampling::LightSampler::new(&light)
+                crate::sampling::LightSampler::new(light)
             else {
                 unreachable!()
             };
-            let samples: Vec<LightSample> = (0..n)
+            SamplerFrame { center, u, v, area }
+        }
+
+        /// Chart point `k` on the light, in f64.
+        fn point(&self, chart: &ChartCase, k: usize) -> DVec3 {
+            self.center + self.u * f64::from(chart.xs[k]) + self.v * f64::from(chart.ys[k])
+        }
+
+        /// The chart points as the samples' path takes them (rounded to f32
+        /// world coordinates).
+        fn samples(&self, chart: &ChartCase) -> Vec<LightSample> {
+            (0..chart.n)
                 .map(|k| LightSample {
-                    x: (center + u * f64::from(xs[k]) + v * f64::from(ys[k])).as_vec3(),
+                    x: self.point(chart, k).as_vec3(),
                     st: Vec2::ZERO,
-                    inv_pdf_area: area,
+                    inv_pdf_area: self.area,
                 })
-                .collect();
-            let sampled = mean_scalar(&light, None, &sp, &samples, &vis);
-            // The estimate in f64 throughout, at the chart points exactly
-            // (the sampler's points are rounded to f32 world coordinates).
-            let want = {
-                let p = sp.p.as_dvec3();
-                let m = u.cross(v).normalize();
-                let lobe = Lobe::new(&sp);
-                let k = light.radiance.as_dvec3() * lobe.eval(DVec3::ZERO);
-                let mut sum = DVec3::ZERO;
-                for k2 in 0..n {
-                    let d = center + u * f64::from(xs[k2]) + v * f64::from(ys[k2]) - p;
-                    let r2 = d.length_squared();
-                    let md = m.dot(d);
-                    let c = if case % 2 == 1 { md.abs() } else { -md };
-                    let nd = lobe.n.dot(d);
-                    if vis[k2] > 0.0 && nd > 0.0 && c > 0.0 && r2 > 0.0 {
-                        sum += k * (nd * c / (r2 * r2) * f64::from(area) * f64::from(vis[k2]));
-                    }
-                }
-                if n == 0 {
-                    sum
+                .collect()
+        }
+
+        /// The estimate in f64 throughout, at the chart points exactly
+        /// (the sampler's points are rounded to f32 world coordinates).
+        fn f64_estimate(&self, chart: &ChartCase) -> DVec3 {
+            let (u, v, area, n) = (self.u, self.v, self.area, chart.n);
+            let p = chart.sp.p.as_dvec3();
+            let light_normal = u.cross(v).normalize();
+            let lobe = Lobe::new(&chart.sp);
+            let radiance_brdf = chart.light.radiance.as_dvec3() * lobe.eval(DVec3::ZERO);
+            let mut sum = DVec3::ZERO;
+            for k in 0..n {
+                let to_point = self.point(chart, k) - p;
+                let r2 = to_point.length_squared();
+                let light_side = light_normal.dot(to_point);
+                let cos_light = if chart.two_sided {
+                    light_side.abs()
                 } else {
-                    sum / n as f64
+                    -light_side
+                };
+                let cos_receiver = lobe.n.dot(to_point);
+                if chart.vis[k] > 0.0 && cos_receiver > 0.0 && cos_light > 0.0 && r2 > 0.0 {
+                    sum += radiance_brdf
+                        * (cos_receiver * cos_light / (r2 * r2)
+                            * f64::from(area)
+                            * f64::from(chart.vis[k]));
                 }
-            };
-            // The scale of f32's rounding: the estimate if every sample
-            // faced the receiver (`cos_p = 1`), unshadowed. Near the
-            // receiver's horizon `cos_p` is a difference of terms of this
-            // size in both estimates (the f64 one's points are f32 too).
-            let facing = {
-                let (p, m) = (sp.p.as_dvec3(), u.cross(v).normalize());
-                let k =
-                    (light.radiance * sp.albedo).as_dvec3().max_element() / std::f64::consts::PI;
-                let sum: f64 = samples
-                    .iter()
-                    .map(|s| {
-                        let d = s.x.as_dvec3() - p;
-                        let r2 = d.length_squared();
-                        r2.sqrt() * m.dot(d).abs() / (r2 * r2)
-                    })
-                    .sum();
-                k * sum * f64::from(area) / n.max(1) as f64
-            };
-            if want != DVec3::ZERO {
-                lit += 1;
             }
-            let mut first: Option<Option<Vec3>> = None;
-            for &level in &levels {
-                let got = rect_chart_at(level, &light, &sp, (&xs, &ys), &vis);
-                match first {
-                    None => first = Some(got),
-                    Some(f) => assert_eq!(
-                        f.map(|v| v.to_array().map(f32::to_bits)),
-                        got.map(|v| v.to_array().map(f32::to_bits)),
-                        "case {case}: levels differ"
-                    ),
-                }
-                if spec && n > 0 {
-                    assert!(got.is_none(), "case {case}: a lobe must decline");
-                    continue;
-                }
-                let got = got
-                    .unwrap_or_else(|| panic!("case {case}: declined; n {n} p {p} want {want}"))
-                    .as_dvec3();
-                let err = (got - want).abs().max_element() / facing.max(f64::MIN_POSITIVE);
-                worst = worst.max(err);
-                assert!(
-                    err <= 1e-6,
-                    "case {case}, {level:?}: {got} against {want} (facing {facing}, the \\
-                     samples' path {sampled})"
-                );
+            if n == 0 {
+                sum
+            } else {
+                sum / n as f64
             }
         }
-        assert!(lit > 1000, "{lit}");
-        eprintln!("worst relative difference {worst:e}");
+
+        /// The scale of f32's rounding: the estimate if every sample
+        /// faced the receiver (`cos_p = 1`), unshadowed. Near the
+        /// receiver's horizon `cos_p` is a difference of terms of this
+        /// size in both estimates (the f64 one's points are f32 too).
+        fn facing_scale(&self, chart: &ChartCase, samples: &[LightSample]) -> f64 {
+            let p = chart.sp.p.as_dvec3();
+            let light_normal = self.u.cross(self.v).normalize();
+            let radiance_albedo = (chart.light.radiance * chart.sp.albedo)
+                .as_dvec3()
+                .max_element()
+                / std::f64::consts::PI;
+            let sum: f64 = samples
+                .iter()
+                .map(|sample| {
+                    let to_sample = sample.x.as_dvec3() - p;
+                    let r2 = to_sample.length_squared();
+                    r2.sqrt() * light_normal.dot(to_sample).abs() / (r2 * r2)
+                })
+                .sum();
+            radiance_albedo * sum * f64::from(self.area) / chart.n.max(1) as f64
+        }
+    }
+
+    /// Every level gives the same bits; each declines a specular lobe and
+    /// otherwise is within 1e-6 of `want` relative to `facing` (`sampled`:
+    /// the samples' path, for the message). Returns the worst relative
+    /// difference.
+    fn assert_levels_match(
+        case: usize,
+        levels: &[Level],
+        chart: &ChartCase,
+        (want, facing, sampled): (DVec3, f64, DVec3),
+    ) -> f64 {
+        let (n, p) = (chart.n, chart.sp.p);
+        let mut worst = 0.0f64;
+        let mut first: Option<Option<Vec3>> = None;
+        for &level in levels {
+            let got = rect_chart_at(
+                level,
+                &chart.light,
+                &chart.sp,
+                (&chart.xs, &chart.ys),
+                &chart.vis,
+            );
+            match first {
+                None => first = Some(got),
+                Some(f) => assert_eq!(
+                    f.map(|v| v.to_array().map(f32::to_bits)),
+                    got.map(|v| v.to_array().map(f32::to_bits)),
+                    "case {case}: levels differ"
+                ),
+            }
+            if chart.spec && n > 0 {
+                assert!(got.is_none(), "case {case}: a lobe must decline");
+                continue;
+            }
+            let got = got
+                .unwrap_or_else(|| panic!("case {case}: declined; n {n} p {p} want {want}"))
+                .as_dvec3();
+            let err = (got - want).abs().max_element() / facing.max(f64::MIN_POSITIVE);
+            worst = worst.max(err);
+            assert!(
+                err <= 1e-6,
+                "case {case}, {level:?}: {got} against {want} (facing {facing}, the \\
+                 samples' path {sampled})"
+            );
+        }
+        worst
+    }
+
+    /// The chart declines a sphere light and a receiver at the light's
+    /// centre.
+    fn assert_chart_declines_sphere_and_light_centre() {
         let sphere = Light {
             shape: LightShape::Sphere {
                 center: Vec3::Y * 4.0,

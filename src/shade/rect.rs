@@ -155,59 +155,23 @@ pub(crate) fn integrate(
 
     if nx <= 1 && ny <= 1 && !with_spec {
         // The common case (untextured, Lambertian): one polygon, no
-        // grid arrays to fill. Same vertex order as a grid cell.
-        let (u, v) = (geom.u, geom.v);
-        let quad = [base - u + v, base + u + v, base + u - v, base - u - v];
-        let hs = quad.map(|r| n.dot(r));
-        let sum = if hs.iter().all(|&h| h >= 0.0) {
-            (0..4)
-                .map(|k| edge_term(quad[k], quad[(k + 1) % 4], n))
-                .sum()
-        } else if hs.iter().all(|&h| h <= 0.0) {
-            0.0
-        } else {
-            clipped_sum(quad, hs, n).0
-        };
+        // grid arrays to fill.
+        let sum = whole_light_sum(geom, base, n);
         return le(0) * (0.5 * (sigma * sum).max(0.0)) * lobe.diffuse;
     }
 
     let (nx, ny) = (nx.clamp(1, MAX_GRID), ny.clamp(1, MAX_GRID));
-    let stride = nx + 1;
-
-    // Grid vertices relative to p, and their heights above the horizon.
-    let mut rel = [DVec3::ZERO; MAX_VERTS];
-    let mut hgt = [0.0f64; MAX_VERTS];
-    for j in 0..=ny {
-        let tv = 1.0 - 2.0 * j as f64 / ny as f64;
-        for i in 0..=nx {
-            let su = 2.0 * i as f64 / nx as f64 - 1.0;
-            let r = base + geom.u * su + geom.v * tv;
-            rel[j * stride + i] = r;
-            hgt[j * stride + i] = n.dot(r);
-        }
-    }
-
-    // Edge terms shared by neighbouring cells, only where both ends are
-    // above the horizon (the only place the cell loop reads them).
-    // horiz[j * nx + i]: (i, j) → (i+1, j); vert[j * stride + i]: (i, j) → (i, j+1).
-    let mut horiz = [0.0f64; MAX_EDGES];
-    let mut vert = [0.0f64; MAX_EDGES];
-    for j in 0..=ny {
-        for i in 0..nx {
-            let (a, b) = (j * stride + i, j * stride + i + 1);
-            if hgt[a] >= 0.0 && hgt[b] >= 0.0 {
-                horiz[j * nx + i] = edge_term(rel[a], rel[b], n);
-            }
-        }
-    }
-    for j in 0..ny {
-        for i in 0..=nx {
-            let (a, b) = (j * stride + i, (j + 1) * stride + i);
-            if hgt[a] >= 0.0 && hgt[b] >= 0.0 {
-                vert[j * stride + i] = edge_term(rel[a], rel[b], n);
-            }
-        }
-    }
+    let mut grid = GridView {
+        nx,
+        ny,
+        stride: nx + 1,
+        rel: [DVec3::ZERO; MAX_VERTS],
+        height: [0.0f64; MAX_VERTS],
+        horiz: [0.0f64; MAX_EDGES],
+        vert: [0.0f64; MAX_EDGES],
+    };
+    grid.place_vertices(geom, base, n);
+    grid.shared_edge_terms(n);
 
     // At every grid vertex: the lobe's shape, and the density of the
     // projected solid angle per unit light area, cos_p cos_x / r², for the
@@ -215,8 +179,8 @@ pub(crate) fn integrate(
     let mut lobe_at = [0.0f64; MAX_VERTS];
     let mut dens_at = [0.0f64; MAX_VERTS];
     if with_spec {
-        for k in 0..(ny + 1) * stride {
-            let (lobe_k, dens_k) = lobe_and_density(rel[k], lobe, geom.normal);
+        for k in 0..(ny + 1) * grid.stride {
+            let (lobe_k, dens_k) = lobe_and_density(grid.rel[k], lobe, geom.normal);
             lobe_at[k] = lobe_k;
             dens_at[k] = dens_k;
         }
@@ -226,67 +190,192 @@ pub(crate) fn integrate(
     let mut specular_rgb = DVec3::ZERO;
     for j in 0..ny {
         for i in 0..nx {
-            let idx = [
-                j * stride + i,
-                j * stride + i + 1,
-                (j + 1) * stride + i + 1,
-                (j + 1) * stride + i,
-            ];
-            let hs = idx.map(|k| hgt[k]);
-            let (sum, centre, clipped) = if hs.iter().all(|&h| h >= 0.0) {
-                let s = horiz[j * nx + i] + vert[j * stride + i + 1]
-                    - horiz[(j + 1) * nx + i]
-                    - vert[j * stride + i];
-                (s, idx.iter().map(|&k| rel[k]).sum::<DVec3>(), false)
-            } else if hs.iter().all(|&h| h <= 0.0) {
+            let Some(cell) = grid.cell(i, j, n) else {
                 continue;
-            } else {
-                let (s, c) = clipped_sum(idx.map(|k| rel[k]), hs, n);
-                (s, c, true)
             };
             // Lambert: projected solid angle = ½ |Σ β_i n·γ̂_i|. The sign is
             // known (sigma); a tiny negative is rounding, not light.
-            let phi = 0.5 * (sigma * sum).max(0.0);
+            let phi = 0.5 * (sigma * cell.sum).max(0.0);
             if phi == 0.0 {
                 continue;
             }
-            let le = le(j * nx + i) * phi;
-            diffuse += le;
+            let cell_light = le(j * nx + i) * phi;
+            diffuse += cell_light;
             if with_spec {
-                let shape = if clipped {
-                    // Corners below the horizon are not part of the cell:
-                    // the lobe at the cell's cos_p-weighted centroid.
-                    let len = centre.length();
-                    if len > 0.0 {
-                        lobe.spec_shape(centre / len)
-                    } else {
-                        0.0
-                    }
+                let shape = if cell.clipped {
+                    clipped_cell_shape(cell.centre, lobe)
                 } else {
-                    // The lobe's mean over the cell under its own measure:
-                    // nodes at the centre (weight 2/3) and the corners
-                    // (1/12 each), each weighted by the density there.
-                    // With a uniform density this is (2 · midpoint +
-                    // corner mean) / 3, which cancels the h² error terms
-                    // the two rules have with opposite signs.
-                    let (lobe_m, dens_m) = lobe_and_density(centre * 0.25, lobe, geom.normal);
-                    let mut num = 8.0 * lobe_m * dens_m;
-                    let mut den = 8.0 * dens_m;
-                    for &k in &idx {
-                        num += lobe_at[k] * dens_at[k];
-                        den += dens_at[k];
-                    }
-                    if den > 0.0 && den.is_finite() {
-                        num / den
-                    } else {
-                        lobe_m
-                    }
+                    whole_cell_shape(&cell, lobe, geom.normal, (&lobe_at, &dens_at))
                 };
-                specular_rgb += le * shape;
+                specular_rgb += cell_light * shape;
             }
         }
     }
     diffuse * lobe.diffuse + lobe.specular_scale() * specular_rgb
+}
+
+/// Lambert's sum over the whole light as one polygon (`base`: the light's
+/// centre relative to the receiver), in a grid cell's vertex order.
+#[inline]
+fn whole_light_sum(geom: &RectGeom, base: DVec3, n: DVec3) -> f64 {
+    let (u, v) = (geom.u, geom.v);
+    let quad = [base - u + v, base + u + v, base + u - v, base - u - v];
+    let heights = quad.map(|r| n.dot(r));
+    if heights.iter().all(|&h| h >= 0.0) {
+        (0..4)
+            .map(|k| edge_term(quad[k], quad[(k + 1) % 4], n))
+            .sum()
+    } else if heights.iter().all(|&h| h <= 0.0) {
+        0.0
+    } else {
+        clipped_sum(quad, heights, n).0
+    }
+}
+
+/// The light's `nx × ny` grid seen from the receiver: its vertices and
+/// the edge terms neighbouring cells share. Stack arrays sized for
+/// [`MAX_GRID`].
+struct GridView {
+    nx: usize,
+    ny: usize,
+    /// Vertices per row (`nx + 1`).
+    stride: usize,
+    /// Vertex `j * stride + i` relative to the receiver.
+    rel: [DVec3; MAX_VERTS],
+    /// Its height above the receiver's horizon.
+    height: [f64; MAX_VERTS],
+    /// `horiz[j * nx + i]`: the edge term of (i, j) → (i+1, j).
+    horiz: [f64; MAX_EDGES],
+    /// `vert[j * stride + i]`: the edge term of (i, j) → (i, j+1).
+    vert: [f64; MAX_EDGES],
+}
+
+/// One grid cell's part of Lambert's sum, clipped to the horizon.
+struct CellSum {
+    /// Lambert's sum over the (clipped) cell.
+    sum: f64,
+    /// Whole cell: the sum of its four corners (four times their mean);
+    /// clipped: the clipped polygon's height-weighted centroid.
+    centre: DVec3,
+    /// Whether the horizon cuts the cell.
+    clipped: bool,
+    /// The corners' vertex indices, in Lambert's order.
+    corners: [usize; 4],
+}
+
+impl GridView {
+    /// Grid vertices relative to the receiver, and their heights above
+    /// the horizon.
+    #[inline]
+    fn place_vertices(&mut self, geom: &RectGeom, base: DVec3, n: DVec3) {
+        let (nx, ny, stride) = (self.nx, self.ny, self.stride);
+        for j in 0..=ny {
+            let tv = 1.0 - 2.0 * j as f64 / ny as f64;
+            for i in 0..=nx {
+                let su = 2.0 * i as f64 / nx as f64 - 1.0;
+                let r = base + geom.u * su + geom.v * tv;
+                self.rel[j * stride + i] = r;
+                self.height[j * stride + i] = n.dot(r);
+            }
+        }
+    }
+
+    /// Edge terms shared by neighbouring cells, only where both ends are
+    /// above the horizon (the only place [`GridView::cell`] reads them).
+    #[inline]
+    fn shared_edge_terms(&mut self, n: DVec3) {
+        let (nx, ny, stride) = (self.nx, self.ny, self.stride);
+        for j in 0..=ny {
+            for i in 0..nx {
+                let (a, b) = (j * stride + i, j * stride + i + 1);
+                if self.height[a] >= 0.0 && self.height[b] >= 0.0 {
+                    self.horiz[j * nx + i] = edge_term(self.rel[a], self.rel[b], n);
+                }
+            }
+        }
+        for j in 0..ny {
+            for i in 0..=nx {
+                let (a, b) = (j * stride + i, (j + 1) * stride + i);
+                if self.height[a] >= 0.0 && self.height[b] >= 0.0 {
+                    self.vert[j * stride + i] = edge_term(self.rel[a], self.rel[b], n);
+                }
+            }
+        }
+    }
+
+    /// Cell `(i, j)`'s sum, `None` when it is wholly below the horizon.
+    #[inline]
+    fn cell(&self, i: usize, j: usize, n: DVec3) -> Option<CellSum> {
+        let (nx, stride) = (self.nx, self.stride);
+        let corners = [
+            j * stride + i,
+            j * stride + i + 1,
+            (j + 1) * stride + i + 1,
+            (j + 1) * stride + i,
+        ];
+        let heights = corners.map(|k| self.height[k]);
+        let (sum, centre, clipped) = if heights.iter().all(|&h| h >= 0.0) {
+            let sum = self.horiz[j * nx + i] + self.vert[j * stride + i + 1]
+                - self.horiz[(j + 1) * nx + i]
+                - self.vert[j * stride + i];
+            (
+                sum,
+                corners.iter().map(|&k| self.rel[k]).sum::<DVec3>(),
+                false,
+            )
+        } else if heights.iter().all(|&h| h <= 0.0) {
+            return None;
+        } else {
+            let (sum, centroid) = clipped_sum(corners.map(|k| self.rel[k]), heights, n);
+            (sum, centroid, true)
+        };
+        Some(CellSum {
+            sum,
+            centre,
+            clipped,
+            corners,
+        })
+    }
+}
+
+/// The lobe's shape for a cell the horizon cuts: corners below the horizon
+/// are not part of the cell, so the lobe at the cell's cos_p-weighted
+/// centroid.
+#[inline]
+fn clipped_cell_shape(centroid: DVec3, lobe: &Lobe) -> f64 {
+    let len = centroid.length();
+    if len > 0.0 {
+        lobe.spec_shape(centroid / len)
+    } else {
+        0.0
+    }
+}
+
+/// The lobe's mean over a whole cell under its own measure: nodes at the
+/// centre (weight 2/3) and the corners (1/12 each), each weighted by the
+/// density there. With a uniform density this is (2 · midpoint + corner
+/// mean) / 3, which cancels the h² error terms the two rules have with
+/// opposite signs. `(lobe_at, dens_at)`: lobe shape and density per grid
+/// vertex.
+#[inline]
+fn whole_cell_shape(
+    cell: &CellSum,
+    lobe: &Lobe,
+    light_normal: DVec3,
+    (lobe_at, dens_at): (&[f64; MAX_VERTS], &[f64; MAX_VERTS]),
+) -> f64 {
+    let (lobe_m, dens_m) = lobe_and_density(cell.centre * 0.25, lobe, light_normal);
+    let mut num = 8.0 * lobe_m * dens_m;
+    let mut den = 8.0 * dens_m;
+    for &k in &cell.corners {
+        num += lobe_at[k] * dens_at[k];
+        den += dens_at[k];
+    }
+    if den > 0.0 && den.is_finite() {
+        num / den
+    } else {
+        lobe_m
+    }
 }
 
 /// The lobe's shape toward `r` (a vector from the receiver to a point on

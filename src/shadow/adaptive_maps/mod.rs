@@ -214,43 +214,43 @@ impl AdaptiveMaps {
         &self,
         ctx: &ShadowContext,
     ) -> Result<(ShadowOutput, Vec<AdaptiveReport>)> {
-        let o = self.options;
-        if o.max_depth > MAX_DEPTH {
+        let options = self.options;
+        if options.max_depth > MAX_DEPTH {
             return Err(Error::param(
                 "--max-depth",
-                format!("{} is outside 0..={MAX_DEPTH}", o.max_depth),
+                format!("{} is outside 0..={MAX_DEPTH}", options.max_depth),
             ));
         }
-        if !(o.comparison_scale > 0.0 && o.comparison_scale <= 1.0) {
+        if !(options.comparison_scale > 0.0 && options.comparison_scale <= 1.0) {
             return Err(Error::param(
                 "--comparison-scale",
-                format!("{} is outside (0, 1]", o.comparison_scale),
+                format!("{} is outside (0, 1]", options.comparison_scale),
             ));
         }
         let bias = self.maps.bias();
         bias.validate()?;
-        for (name, v) in [
-            ("--adaptive-band-low", o.adaptive_band_low),
-            ("--adaptive-band-high", o.adaptive_band_high),
+        for (name, value) in [
+            ("--adaptive-band-low", options.adaptive_band_low),
+            ("--adaptive-band-high", options.adaptive_band_high),
         ] {
-            if !(0.0..=1e3).contains(&v) {
-                return Err(Error::param(name, format!("{v} is outside 0..=1000")));
+            if !(0.0..=1e3).contains(&value) {
+                return Err(Error::param(name, format!("{value} is outside 0..=1000")));
             }
         }
         let mut out = ShadowOutput::default();
         let mut reports = Vec::new();
-        let n = ctx.gbuffer.len();
+        let pixels = ctx.gbuffer.len();
         // Nothing casts or nothing receives: every light fully visible.
         let Some((casters, receivers)) = map_bounds(ctx.scene) else {
             return Ok((fully_lit(ctx), reports));
         };
         let mut cache_bytes = 0u64;
         let points = receiver_points(ctx.gbuffer);
-        for (k, _) in ctx.scene.lights.iter().enumerate() {
-            let t = PassTimer::start(format!("adaptive maps light {k}"));
+        for (light, _) in ctx.scene.lights.iter().enumerate() {
+            let timer = PassTimer::start(format!("adaptive maps light {light}"));
             let setup = MapSetup {
                 ctx,
-                light: k,
+                light,
                 casters,
                 receivers,
                 size: self.maps.map_size,
@@ -262,63 +262,31 @@ impl AdaptiveMaps {
                 },
                 points: &points,
             };
-            let (vcoef, report, peak, cache) = self.light(&setup)?;
-            cache_bytes = cache_bytes.max(cache);
-            t.finish_with(&mut out.passes, format!("{} maps", report.rendered));
-            let per_depth: Vec<String> = report
-                .points_per_depth
-                .iter()
-                .enumerate()
-                .filter(|(_, &c)| c > 0)
-                .map(|(d, c)| format!("{c} at depth {d}"))
-                .collect();
-            let levels: Vec<String> = report
-                .per_depth
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| s.tested > 0)
-                .map(|(d, s)| {
-                    format!(
-                        "depth {d}: {} of {} split, {} failing receivers",
-                        s.split, s.tested, s.fails
-                    )
-                })
-                .collect();
-            out.buffers.push(BufferNote {
-                name: "shadow maps".into(),
-                detail: format!(
-                    "{} rendered for light {k}: {} sample points in the estimate ({}); {} for \
-                     the tests, {} centre probes, {} rendered again for the estimate; {} quads \
-                     split ({} on the centre probe alone; {}); one map resident at a time ({}² \
-                     f32 linear depth)",
-                    report.rendered,
-                    report.points,
-                    per_depth.join(", "),
-                    report.test_maps,
-                    report.probe_maps,
-                    report.rerendered,
-                    report.splits,
-                    report.probe_splits,
-                    if levels.is_empty() {
-                        "no test".to_string()
-                    } else {
-                        levels.join("; ")
-                    },
-                    self.maps.map_size
-                ),
-                bytes: peak,
-            });
+            let LightResult {
+                vcoef,
+                report,
+                peak_map_bytes,
+                decision_bytes,
+            } = self.light(&setup)?;
+            cache_bytes = cache_bytes.max(decision_bytes);
+            timer.finish_with(&mut out.passes, format!("{} maps", report.rendered));
+            out.buffers
+                .push(self.light_note(light, &report, peak_map_bytes));
             reports.push(report);
             out.lights.push(LightTerm::Vcoef(vcoef));
         }
-        let d = self.options.max_depth;
-        let g = if d >= 1 { (1u64 << (d - 1)) + 1 } else { 0 };
+        let max_depth = options.max_depth;
+        let grid_side = if max_depth >= 1 {
+            (1u64 << (max_depth - 1)) + 1
+        } else {
+            0
+        };
         out.buffers.push(BufferNote {
             name: "decision bits".into(),
             detail: format!(
-                "hard test bits of the {g}×{g} decision grid per receiver ({} u64 words), the \
+                "hard test bits of the {grid_side}×{grid_side} decision grid per receiver ({} u64 words), the \
                  per-quad 0–4 counts are their sums; one light at a time",
-                (g * g).div_ceil(64)
+                (grid_side * grid_side).div_ceil(64)
             ),
             bytes: cache_bytes,
         });
@@ -327,7 +295,7 @@ impl AdaptiveMaps {
             detail: "f32 position and geometric normal per pixel, expanded from the G-buffer \
                      once for every map's look-up"
                 .into(),
-            bytes: n as u64 * 24,
+            bytes: pixels as u64 * 24,
         });
         out.buffers.push(BufferNote {
             name: "map accumulators".into(),
@@ -335,93 +303,240 @@ impl AdaptiveMaps {
                 "u64 per receiver: Σ ω · round(visibility · {QSCALE}) with integer weights \
                  (exact, order-free); one light at a time"
             ),
-            bytes: n as u64 * 8,
+            bytes: pixels as u64 * 8,
         });
         out.buffers.push(BufferNote {
             name: "receiver masks".into(),
             detail: "facing the light, comparison texel, probe failure: one byte per pixel each"
                 .into(),
-            bytes: n as u64 * 3,
+            bytes: pixels as u64 * 3,
         });
         Ok((out, reports))
     }
 
+    /// The `--explain` note of one light's maps.
+    fn light_note(&self, light: usize, report: &AdaptiveReport, peak_map_bytes: u64) -> BufferNote {
+        let per_depth: Vec<String> = report
+            .points_per_depth
+            .iter()
+            .enumerate()
+            .filter(|(_, &count)| count > 0)
+            .map(|(depth, count)| format!("{count} at depth {depth}"))
+            .collect();
+        let levels: Vec<String> = report
+            .per_depth
+            .iter()
+            .enumerate()
+            .filter(|(_, stats)| stats.tested > 0)
+            .map(|(depth, stats)| {
+                format!(
+                    "depth {depth}: {} of {} split, {} failing receivers",
+                    stats.split, stats.tested, stats.fails
+                )
+            })
+            .collect();
+        BufferNote {
+            name: "shadow maps".into(),
+            detail: format!(
+                "{} rendered for light {light}: {} sample points in the estimate ({}); {} for \
+                 the tests, {} centre probes, {} rendered again for the estimate; {} quads \
+                 split ({} on the centre probe alone; {}); one map resident at a time ({}² \
+                 f32 linear depth)",
+                report.rendered,
+                report.points,
+                per_depth.join(", "),
+                report.test_maps,
+                report.probe_maps,
+                report.rerendered,
+                report.splits,
+                report.probe_splits,
+                if levels.is_empty() {
+                    "no test".to_string()
+                } else {
+                    levels.join("; ")
+                },
+                self.maps.map_size
+            ),
+            bytes: peak_map_bytes,
+        }
+    }
+
     /// One light: its Vcoef, report, peak map bytes and decision-cache
     /// bytes.
-    fn light(&self, setup: &MapSetup) -> Result<(Vec<f32>, AdaptiveReport, u64, u64)> {
-        let o = self.options;
+    fn light(&self, setup: &MapSetup) -> Result<LightResult> {
+        let options = self.options;
         let ctx = setup.ctx;
         let light = &ctx.scene.lights[setup.light];
         let n = ctx.gbuffer.len();
-        let (width, height) = (ctx.gbuffer.width as usize, ctx.gbuffer.height as usize);
-        let dmax = o.max_depth;
-        let side = 1u32 << dmax;
-        let g = side + 1;
-        let unit = |i: u32, j: u32| (grid_coordinate(i, g), grid_coordinate(j, g));
-        let point = |i: u32, j: u32| point_on_light(light, unit(i, j), setup.casters);
-        let mut report = AdaptiveReport {
-            points_per_depth: vec![0; dmax as usize + 1],
-            per_depth: vec![DepthStats::default(); dmax as usize],
+        let max_depth = options.max_depth;
+        let report = AdaptiveReport {
+            points_per_depth: vec![0; max_depth as usize + 1],
+            per_depth: vec![DepthStats::default(); max_depth as usize],
             ..AdaptiveReport::default()
         };
         let active = active_receivers(ctx.gbuffer, light);
         if !active.iter().any(|&a| a) {
             // No receiver faces the light: no map work, nothing lit.
-            return Ok((vec![0.0; n], report, 0, 0));
+            return Ok(LightResult {
+                vcoef: vec![0.0; n],
+                report,
+                peak_map_bytes: 0,
+                decision_bytes: 0,
+            });
         }
-        let mut peak = 0u64;
-        let mut track = |m: &Option<RenderedMap>| {
-            if let Some(m) = m {
-                peak = peak.max(m.map.memory_bytes());
-            }
+        let target = ComparisonTarget::new(ctx, options.comparison_scale);
+        let compared = target.compared(&active);
+        let mut pass = LightPass {
+            options,
+            setup,
+            side: 1u32 << max_depth,
+            target,
+            compared,
+            decisions: Decisions::new(setup, &active, options),
+            report,
+            peak_map_bytes: 0,
+            probed: vec![false; (((1u32 << max_depth) + 1).pow(2)) as usize],
+            probe_lit: Vec::new(),
         };
 
-        // The comparison target: texel (ci, cj) reads the nearest pixel.
-        let cw = ((width as f64 * o.comparison_scale).round() as usize).clamp(1, width.max(1));
-        let ch = ((height as f64 * o.comparison_scale).round() as usize).clamp(1, height.max(1));
-        let mut compared = vec![false; n];
-        {
-            let grid = Comparison {
-                words: 0,
-                ambiguous: &[],
-                corners: &[],
-                compared: &[],
-                cw,
-                ch,
-                width,
-                height,
-            };
-            for cj in 0..ch {
-                for ci in 0..cw {
-                    let i = grid.pixel(ci, cj);
-                    compared[i] = active[i];
-                }
+        let dump_dir = dump::dir();
+        let (leaves, quad_log) = pass.subdivide(dump_dir.is_some())?;
+        if let (true, Some(dir)) = (pass.decisions.testing, dump_dir) {
+            pass.write_dump(&dir, &quad_log)?;
+        }
+        let depth = pass.point_depths(&leaves);
+        let vcoef = pass.estimate(&depth, self.maps.pcf)?;
+        Ok(LightResult {
+            vcoef,
+            decision_bytes: (pass.decisions.bits.len() * 8) as u64,
+            report: pass.report,
+            peak_map_bytes: pass.peak_map_bytes,
+        })
+    }
+}
+
+/// One light's result of [`AdaptiveMaps::light`].
+struct LightResult {
+    /// The light's visibility coefficient per pixel.
+    vcoef: Vec<f32>,
+    /// What the subdivision did.
+    report: AdaptiveReport,
+    /// Bytes of the largest map rendered (one is resident at a time).
+    peak_map_bytes: u64,
+    /// Bytes of the decision bits.
+    decision_bytes: u64,
+}
+
+/// The comparison target: texel `(ci, cj)` reads the nearest pixel.
+#[derive(Debug, Clone, Copy)]
+struct ComparisonTarget {
+    /// Texels per row.
+    cw: usize,
+    /// Texel rows.
+    ch: usize,
+    /// The image's width in pixels.
+    width: usize,
+    /// Its height.
+    height: usize,
+}
+
+impl ComparisonTarget {
+    /// The target of an image scaled by `scale`.
+    fn new(ctx: &ShadowContext, scale: f64) -> ComparisonTarget {
+        let (width, height) = (ctx.gbuffer.width as usize, ctx.gbuffer.height as usize);
+        let cw = ((width as f64 * scale).round() as usize).clamp(1, width.max(1));
+        let ch = ((height as f64 * scale).round() as usize).clamp(1, height.max(1));
+        ComparisonTarget {
+            cw,
+            ch,
+            width,
+            height,
+        }
+    }
+
+    /// One quad's view of the target.
+    fn view<'a>(
+        &self,
+        words: usize,
+        ambiguous: &'a [u64],
+        corners: &'a [usize],
+        compared: &'a [bool],
+    ) -> Comparison<'a> {
+        Comparison {
+            words,
+            ambiguous,
+            corners,
+            compared,
+            cw: self.cw,
+            ch: self.ch,
+            width: self.width,
+            height: self.height,
+        }
+    }
+
+    /// Per pixel, whether a texel reads it and it is `active`.
+    fn compared(&self, active: &[bool]) -> Vec<bool> {
+        let mut compared = vec![false; active.len()];
+        let grid = self.view(0, &[], &[], &[]);
+        for cj in 0..self.ch {
+            for ci in 0..self.cw {
+                let i = grid.pixel(ci, cj);
+                compared[i] = active[i];
             }
         }
+        compared
+    }
+}
 
-        // Decision grid: every other finest point (level D − 1).
-        let testing = dmax >= 1 && !o.adaptive_split_all;
-        let gd = if testing { side / 2 + 1 } else { 0 };
-        let words = ((gd * gd) as usize).div_ceil(64);
-        let dec = |i: u32, j: u32| -> Option<usize> {
-            (testing && i.is_multiple_of(2) && j.is_multiple_of(2))
-                .then(|| (i / 2 + (j / 2) * gd) as usize)
-        };
-        let mut bits = vec![0u64; if testing { n * words } else { 0 }];
+/// The decision grid (every other finest point, level D − 1): per point
+/// and receiver the hard test bit, and with the bias band whether that
+/// test is bias-ambiguous.
+struct Decisions<'s, 'a, 'b> {
+    setup: &'s MapSetup<'a, 'b>,
+    active: &'s [bool],
+    /// Whether the subdivision tests quads at all (depth ≥ 1, not
+    /// `--adaptive-split-all`).
+    testing: bool,
+    /// Points per side (0 when not testing).
+    side: u32,
+    /// u64 words per receiver.
+    words: usize,
+    /// Hard-test bits, `words` per receiver.
+    bits: Vec<u64>,
+    /// Bias-ambiguity bits, same layout (empty: no band).
+    ambiguous: Vec<u64>,
+    /// Setups at the band's low and high bias.
+    band_setups: Option<(MapSetup<'a, 'b>, MapSetup<'a, 'b>)>,
+    /// Scratch per receiver for the band's low-bias test.
+    lit_low: Vec<u8>,
+    /// And for its high-bias test.
+    lit_high: Vec<u8>,
+    /// Per point, whether its bits are set.
+    cached: Vec<bool>,
+}
+
+impl<'s, 'a, 'b> Decisions<'s, 'a, 'b> {
+    fn new(setup: &'s MapSetup<'a, 'b>, active: &'s [bool], options: AdaptiveMapsOptions) -> Self {
+        let n = active.len();
+        let side = 1u32 << options.max_depth;
+        let testing = options.max_depth >= 1 && !options.adaptive_split_all;
+        let grid_side = if testing { side / 2 + 1 } else { 0 };
+        let words = ((grid_side * grid_side) as usize).div_ceil(64);
+        let bits = vec![0u64; if testing { n * words } else { 0 }];
         // The bias band: per decision point and receiver, whether its hard
         // test differs between the band's ends (bias-ambiguous).
-        let band = testing && o.adaptive_band_high > 0.0;
-        let mut ambiguous = vec![0u64; if band { n * words } else { 0 }];
-        let b = setup.bias;
+        let band = testing && options.adaptive_band_high > 0.0;
+        let ambiguous = vec![0u64; if band { n * words } else { 0 }];
+        let bias = setup.bias;
         let low = DepthBias {
-            constant: b.constant,
+            constant: bias.constant,
             slope: 0.0,
-            normal_offset: b.normal_offset.min(o.adaptive_band_low),
+            normal_offset: bias.normal_offset.min(options.adaptive_band_low),
         };
         let high = DepthBias {
-            constant: b.constant,
-            slope: b.slope.max(o.adaptive_band_high),
-            normal_offset: b.normal_offset.max(o.adaptive_band_high),
+            constant: bias.constant,
+            slope: bias.slope.max(options.adaptive_band_high),
+            normal_offset: bias.normal_offset.max(options.adaptive_band_high),
         };
         let band_setups = band.then(|| {
             let with = |bias: DepthBias| MapSetup {
@@ -437,259 +552,373 @@ impl AdaptiveMaps {
             };
             (with(low), with(high))
         });
-        let mut lit_low = vec![0u8; if band { n } else { 0 }];
-        let mut lit_high = vec![0u8; if band { n } else { 0 }];
-        // Hard-test bits of a decision point, and its ambiguity bits.
-        let mut decide =
-            |map: Option<&RenderedMap>, bits: &mut [u64], ambiguous: &mut [u64], di: usize| {
-                set_bits(setup, map, &active, bits, words, di);
-                if let Some((lo, hi)) = &band_setups {
-                    set_ambiguous(
-                        (lo, hi),
-                        map,
-                        &active,
-                        (&mut lit_low, &mut lit_high),
-                        ambiguous,
-                        words,
-                        di,
-                    );
-                }
-            };
-        let mut cached = vec![false; (gd * gd) as usize];
+        Decisions {
+            setup,
+            active,
+            testing,
+            side: grid_side,
+            words,
+            bits,
+            ambiguous,
+            band_setups,
+            lit_low: vec![0u8; if band { n } else { 0 }],
+            lit_high: vec![0u8; if band { n } else { 0 }],
+            cached: vec![false; (grid_side * grid_side) as usize],
+        }
+    }
 
+    /// The decision point of finest point `(i, j)`, if it is one.
+    #[inline]
+    fn index(&self, i: u32, j: u32) -> Option<usize> {
+        (self.testing && i.is_multiple_of(2) && j.is_multiple_of(2))
+            .then(|| (i / 2 + (j / 2) * self.side) as usize)
+    }
+
+    /// Sets decision point `di`'s hard-test bits from `map`, and its
+    /// ambiguity bits.
+    fn decide(&mut self, map: Option<&RenderedMap>, di: usize) {
+        set_bits(self.setup, map, self.active, &mut self.bits, self.words, di);
+        if let Some((low, high)) = &self.band_setups {
+            set_ambiguous(
+                (low, high),
+                map,
+                self.active,
+                (&mut self.lit_low, &mut self.lit_high),
+                &mut self.ambiguous,
+                self.words,
+                di,
+            );
+        }
+    }
+}
+
+/// One light's subdivision and estimate in progress.
+struct LightPass<'s, 'a, 'b> {
+    options: AdaptiveMapsOptions,
+    setup: &'s MapSetup<'a, 'b>,
+    /// Finest cells per side (`2^D`).
+    side: u32,
+    target: ComparisonTarget,
+    /// Receivers the comparison target reads.
+    compared: Vec<bool>,
+    decisions: Decisions<'s, 'a, 'b>,
+    report: AdaptiveReport,
+    /// Bytes of the largest map rendered so far.
+    peak_map_bytes: u64,
+    /// Finest-grid points whose centre-probe map was rendered but not
+    /// kept (last tested level: they are depth-D points).
+    probed: Vec<bool>,
+    /// Scratch per receiver: the last-level centre probe's hard test.
+    probe_lit: Vec<u8>,
+}
+
+impl LightPass<'_, '_, '_> {
+    /// Finest points per side (`2^D + 1`).
+    #[inline]
+    fn points_per_side(&self) -> u32 {
+        self.side + 1
+    }
+
+    /// Finest point `(i, j)` on the light.
+    fn point(&self, i: u32, j: u32) -> Vec3 {
+        let per_side = self.points_per_side();
+        let light = &self.setup.ctx.scene.lights[self.setup.light];
+        let unit = (grid_coordinate(i, per_side), grid_coordinate(j, per_side));
+        point_on_light(light, unit, self.setup.casters)
+    }
+
+    /// Renders the map at finest point `(i, j)`, tracking the peak bytes.
+    fn render(&mut self, i: u32, j: u32) -> Result<Option<RenderedMap>> {
+        let map = self.setup.render(self.point(i, j))?;
+        if let Some(map) = &map {
+            self.peak_map_bytes = self.peak_map_bytes.max(map.map.memory_bytes());
+        }
+        Ok(map)
+    }
+
+    /// The subdivision (§3.3), level by level from the whole light: the
+    /// leaves, and with `dumping` each tested quad's line of the dump.
+    fn subdivide(&mut self, dumping: bool) -> Result<(Vec<Quad>, Vec<String>)> {
         let mut leaves: Vec<Quad> = Vec::new();
-        let dump_dir = dump::dir();
-        let dumping = dump_dir.is_some();
         let mut quad_log: Vec<String> = Vec::new();
-        // Finest-grid points whose centre-probe map was rendered but not
-        // kept (last tested level: they are depth-D points).
-        let mut probed = vec![false; (g * g) as usize];
-        if testing {
-            let mut level = vec![Quad {
-                depth: 0,
-                i: 0,
-                j: 0,
-            }];
-            let mut probe_lit = vec![0u8; n];
-            for d in 0..dmax {
-                if level.is_empty() {
-                    break;
-                }
-                let s = side >> d;
-                // Corner maps not rendered yet, in a fixed order.
-                let mut need = BTreeSet::new();
-                for q in &level {
-                    for (i, j) in corners(q, s) {
-                        let di = dec(i, j).expect("corners above depth D are on the grid");
-                        if !cached[di] {
-                            need.insert((j, i));
-                        }
-                    }
-                }
-                for &(j, i) in &need {
-                    let di = dec(i, j).expect("on the grid");
-                    let map = setup.render(point(i, j))?;
-                    track(&map);
-                    report.test_maps += 1;
-                    decide(map.as_ref(), &mut bits, &mut ambiguous, di);
-                    cached[di] = true;
-                }
-                let mut next = Vec::new();
-                for q in &level {
-                    let c: Vec<usize> = corners(q, s)
-                        .iter()
-                        .map(|&(i, j)| dec(i, j).expect("on the grid"))
-                        .collect();
-                    let grid = Comparison {
-                        words,
-                        ambiguous: &ambiguous,
-                        corners: &c,
-                        compared: &compared,
-                        cw,
-                        ch,
-                        width,
-                        height,
-                    };
-                    let penumbra_fails = grid.penumbra_fails(&bits);
-                    let mut split = penumbra_fails > o.adaptive_threshold;
-                    let stats = &mut report.per_depth[d as usize];
-                    let fails_before = stats.fails;
-                    stats.tested += 1;
-                    stats.fails += penumbra_fails;
-                    // The centre probe, only where the corners alone keep
-                    // the quad whole: on the decision grid it is kept (a
-                    // corner of the children), on the last tested level it
-                    // is a depth-D point read once.
-                    if !split && d < o.adaptive_centre_depth {
-                        let (i, j) = (q.i + s / 2, q.j + s / 2);
-                        let probe_fails = match dec(i, j) {
-                            Some(di) => {
-                                if !cached[di] {
-                                    let map = setup.render(point(i, j))?;
-                                    track(&map);
-                                    report.probe_maps += 1;
-                                    decide(map.as_ref(), &mut bits, &mut ambiguous, di);
-                                    cached[di] = true;
-                                }
-                                let grid = Comparison {
-                                    ambiguous: &ambiguous,
-                                    corners: &c,
-                                    compared: &compared,
-                                    words,
-                                    cw,
-                                    ch,
-                                    width,
-                                    height,
-                                };
-                                grid.probe_fails(&bits, |p| grid.bit(&bits, p, di) == 1)
-                            }
-                            None => {
-                                let map = setup.render(point(i, j))?;
-                                track(&map);
-                                report.probe_maps += 1;
-                                probed[(i + j * g) as usize] = true;
-                                probe_lit.fill(0);
-                                setup.consume(
-                                    map.as_ref(),
-                                    Pcf::Nearest,
-                                    &compared,
-                                    &mut probe_lit,
-                                    1,
-                                    |v, slot| slot[0] = u8::from(v >= 0.5),
-                                );
-                                grid.probe_fails(&bits, |p| probe_lit[p] == 1)
-                            }
-                        };
-                        report.per_depth[d as usize].fails += probe_fails;
-                        if penumbra_fails + probe_fails > o.adaptive_threshold {
-                            split = true;
-                            report.probe_splits += 1;
-                        }
-                    }
-                    if dumping {
-                        quad_log.push(format!(
-                            "[{d},{},{},{penumbra_fails},{},{}]",
-                            q.i / s,
-                            q.j / s,
-                            report.per_depth[d as usize].fails - fails_before - penumbra_fails,
-                            u8::from(split)
-                        ));
-                    }
-                    if split {
-                        report.splits += 1;
-                        report.per_depth[d as usize].split += 1;
-                        let h = s / 2;
-                        for (di, dj) in [(0, 0), (h, 0), (0, h), (h, h)] {
-                            next.push(Quad {
-                                depth: d + 1,
-                                i: q.i + di,
-                                j: q.j + dj,
-                            });
-                        }
-                    } else {
-                        leaves.push(*q);
-                    }
-                }
-                level = next;
-            }
-            leaves.extend(level);
+        if !self.decisions.testing {
+            return Ok((leaves, quad_log));
         }
-        if let (true, Some(dir)) = (testing, dump_dir) {
-            // Every decision point's bits, also those the subdivision did
-            // not need (not marked cached: the estimate is unchanged).
-            let mut all = vec![Vec3::ZERO; (gd * gd) as usize];
-            for j in (0..g).step_by(2) {
-                for i in (0..g).step_by(2) {
-                    let di = dec(i, j).expect("on the grid");
-                    all[di] = point(i, j);
-                    if !cached[di] {
-                        let map = setup.render(point(i, j))?;
-                        decide(map.as_ref(), &mut bits, &mut ambiguous, di);
+        let mut level = vec![Quad {
+            depth: 0,
+            i: 0,
+            j: 0,
+        }];
+        self.probe_lit = vec![0u8; self.compared.len()];
+        for depth in 0..self.options.max_depth {
+            if level.is_empty() {
+                break;
+            }
+            let quad_side = self.side >> depth;
+            self.render_new_corners(&level, quad_side)?;
+            let mut next = Vec::new();
+            for quad in &level {
+                let split = self.test_quad(quad, quad_side, dumping.then_some(&mut quad_log))?;
+                if split {
+                    self.report.splits += 1;
+                    self.report.per_depth[depth as usize].split += 1;
+                    let half = quad_side / 2;
+                    for (di, dj) in [(0, 0), (half, 0), (0, half), (half, half)] {
+                        next.push(Quad {
+                            depth: depth + 1,
+                            i: quad.i + di,
+                            j: quad.j + dj,
+                        });
                     }
+                } else {
+                    leaves.push(*quad);
                 }
             }
-            dump::write_light(
-                &dir,
-                &dump::LightDump {
-                    light: setup.light,
-                    gbuffer: ctx.gbuffer,
-                    active: &active,
-                    compared: &compared,
-                    target: (cw, ch),
-                    bits: &bits,
-                    ambiguous: &ambiguous,
-                    words,
-                    grid: gd,
-                    points: all,
-                    note: format!(
-                        "{{\"max_depth\":{dmax},\"threshold\":{},\"centre_depth\":{},\"quads\":[{}]}}",
-                        o.adaptive_threshold,
-                        o.adaptive_centre_depth,
-                        quad_log.join(",")
-                    ),
-                },
-            )?;
+            level = next;
         }
+        leaves.extend(level);
+        Ok((leaves, quad_log))
+    }
 
-        // Each point's depth: the deepest leaf it is a corner of.
-        let mut depth = vec![-1i32; (g * g) as usize];
-        if leaves.is_empty() {
-            depth.fill(dmax as i32);
-        }
-        for q in &leaves {
-            for (i, j) in corners(q, side >> q.depth) {
-                let e = &mut depth[(i + j * g) as usize];
-                *e = (*e).max(q.depth as i32);
+    /// Renders the corner maps of `level`'s quads not rendered yet, in a
+    /// fixed order, and sets their decision bits.
+    fn render_new_corners(&mut self, level: &[Quad], quad_side: u32) -> Result<()> {
+        let mut need = BTreeSet::new();
+        for quad in level {
+            for (i, j) in corners(quad, quad_side) {
+                let di =
+                    (self.decisions.index(i, j)).expect("corners above depth D are on the grid");
+                if !self.decisions.cached[di] {
+                    need.insert((j, i));
+                }
             }
         }
-        let weights = integer_weights(dmax);
-        let pcf = self.maps.pcf;
-        let mut acc = vec![0u64; n];
+        for &(j, i) in &need {
+            let di = self.decisions.index(i, j).expect("on the grid");
+            let map = self.render(i, j)?;
+            self.report.test_maps += 1;
+            self.decisions.decide(map.as_ref(), di);
+            self.decisions.cached[di] = true;
+        }
+        Ok(())
+    }
+
+    /// Tests one quad (its corners' maps rendered): whether it splits.
+    /// Counts it in the report and logs it in `quad_log` when dumping.
+    fn test_quad(
+        &mut self,
+        quad: &Quad,
+        quad_side: u32,
+        quad_log: Option<&mut Vec<String>>,
+    ) -> Result<bool> {
+        let depth = quad.depth as usize;
+        let corner_points: Vec<usize> = corners(quad, quad_side)
+            .iter()
+            .map(|&(i, j)| self.decisions.index(i, j).expect("on the grid"))
+            .collect();
+        let grid = self.target.view(
+            self.decisions.words,
+            &self.decisions.ambiguous,
+            &corner_points,
+            &self.compared,
+        );
+        let penumbra_fails = grid.penumbra_fails(&self.decisions.bits);
+        let mut split = penumbra_fails > self.options.adaptive_threshold;
+        let stats = &mut self.report.per_depth[depth];
+        let fails_before = stats.fails;
+        stats.tested += 1;
+        stats.fails += penumbra_fails;
+        // The centre probe, only where the corners alone keep the quad
+        // whole.
+        if !split && quad.depth < self.options.adaptive_centre_depth {
+            let probe_fails = self.centre_probe_fails(quad, quad_side, &corner_points)?;
+            self.report.per_depth[depth].fails += probe_fails;
+            if penumbra_fails + probe_fails > self.options.adaptive_threshold {
+                split = true;
+                self.report.probe_splits += 1;
+            }
+        }
+        if let Some(quad_log) = quad_log {
+            quad_log.push(format!(
+                "[{},{},{},{penumbra_fails},{},{}]",
+                quad.depth,
+                quad.i / quad_side,
+                quad.j / quad_side,
+                self.report.per_depth[depth].fails - fails_before - penumbra_fails,
+                u8::from(split)
+            ));
+        }
+        Ok(split)
+    }
+
+    /// Renders the centre probe of `quad` (corners `corner_points`) and
+    /// counts its failures: on the decision grid the map is kept (a corner
+    /// of the children), on the last tested level it is a depth-D point
+    /// read once.
+    fn centre_probe_fails(
+        &mut self,
+        quad: &Quad,
+        quad_side: u32,
+        corner_points: &[usize],
+    ) -> Result<u64> {
+        let (i, j) = (quad.i + quad_side / 2, quad.j + quad_side / 2);
+        let words = self.decisions.words;
+        Ok(match self.decisions.index(i, j) {
+            Some(di) => {
+                if !self.decisions.cached[di] {
+                    let map = self.render(i, j)?;
+                    self.report.probe_maps += 1;
+                    self.decisions.decide(map.as_ref(), di);
+                    self.decisions.cached[di] = true;
+                }
+                let bits = &self.decisions.bits;
+                let grid = self.target.view(
+                    words,
+                    &self.decisions.ambiguous,
+                    corner_points,
+                    &self.compared,
+                );
+                grid.probe_fails(bits, |p| grid.bit(bits, p, di) == 1)
+            }
+            None => {
+                let map = self.render(i, j)?;
+                self.report.probe_maps += 1;
+                let per_side = self.points_per_side();
+                self.probed[(i + j * per_side) as usize] = true;
+                self.probe_lit.fill(0);
+                self.setup.consume(
+                    map.as_ref(),
+                    Pcf::Nearest,
+                    &self.compared,
+                    &mut self.probe_lit,
+                    1,
+                    |v, slot| slot[0] = u8::from(v >= 0.5),
+                );
+                let grid = self.target.view(
+                    words,
+                    &self.decisions.ambiguous,
+                    corner_points,
+                    &self.compared,
+                );
+                let probe_lit = &self.probe_lit;
+                grid.probe_fails(&self.decisions.bits, |p| probe_lit[p] == 1)
+            }
+        })
+    }
+
+    /// Writes the `PENUMBRA_ADAPTIVE_DUMP` files: every decision point's
+    /// bits, also those the subdivision did not need (not marked cached:
+    /// the estimate is unchanged).
+    fn write_dump(&mut self, dir: &std::path::Path, quad_log: &[String]) -> Result<()> {
+        let per_side = self.points_per_side();
+        let grid_side = self.decisions.side;
+        let mut all = vec![Vec3::ZERO; (grid_side * grid_side) as usize];
+        for j in (0..per_side).step_by(2) {
+            for i in (0..per_side).step_by(2) {
+                let di = self.decisions.index(i, j).expect("on the grid");
+                all[di] = self.point(i, j);
+                if !self.decisions.cached[di] {
+                    // Not counted in the peak map bytes.
+                    let map = self.setup.render(self.point(i, j))?;
+                    self.decisions.decide(map.as_ref(), di);
+                }
+            }
+        }
+        let options = self.options;
+        dump::write_light(
+            dir,
+            &dump::LightDump {
+                light: self.setup.light,
+                gbuffer: self.setup.ctx.gbuffer,
+                active: self.decisions.active,
+                compared: &self.compared,
+                target: (self.target.cw, self.target.ch),
+                bits: &self.decisions.bits,
+                ambiguous: &self.decisions.ambiguous,
+                words: self.decisions.words,
+                grid: grid_side,
+                points: all,
+                note: format!(
+                    "{{\"max_depth\":{},\"threshold\":{},\"centre_depth\":{},\"quads\":[{}]}}",
+                    options.max_depth,
+                    options.adaptive_threshold,
+                    options.adaptive_centre_depth,
+                    quad_log.join(",")
+                ),
+            },
+        )
+    }
+
+    /// Each finest point's depth: the deepest leaf it is a corner of (−1:
+    /// not a sample point).
+    fn point_depths(&self, leaves: &[Quad]) -> Vec<i32> {
+        let per_side = self.points_per_side();
+        let mut depth = vec![-1i32; (per_side * per_side) as usize];
+        if leaves.is_empty() {
+            depth.fill(self.options.max_depth as i32);
+        }
+        for quad in leaves {
+            for (i, j) in corners(quad, self.side >> quad.depth) {
+                let point_depth = &mut depth[(i + j * per_side) as usize];
+                *point_depth = (*point_depth).max(quad.depth as i32);
+            }
+        }
+        depth
+    }
+
+    /// The estimate (§3.4.1) over the sample points (`depth` ≥ 0), with
+    /// filter `pcf`: the Vcoef per pixel.
+    fn estimate(&mut self, depth: &[i32], pcf: Pcf) -> Result<Vec<f32>> {
+        let per_side = self.points_per_side();
+        let weights = integer_weights(self.options.max_depth);
+        let active = self.decisions.active;
+        let mut acc = vec![0u64; active.len()];
         let mut total = 0u64;
         // Points whose hard bits are cached (no PCF: the estimate's test is
         // the decision's).
         let mut from_bits: Vec<(usize, u64)> = Vec::new();
-        for j in 0..g {
-            for i in 0..g {
-                let dp = depth[(i + j * g) as usize];
-                if dp < 0 {
+        for j in 0..per_side {
+            for i in 0..per_side {
+                let point_depth = depth[(i + j * per_side) as usize];
+                if point_depth < 0 {
                     continue;
                 }
-                let w = weights[dp as usize];
-                total += w;
-                report.points += 1;
-                report.points_per_depth[dp as usize] += 1;
-                let cached_bits = dec(i, j).filter(|&di| cached[di]);
+                let weight = weights[point_depth as usize];
+                total += weight;
+                self.report.points += 1;
+                self.report.points_per_depth[point_depth as usize] += 1;
+                let cached_bits =
+                    (self.decisions.index(i, j)).filter(|&di| self.decisions.cached[di]);
                 match cached_bits {
-                    Some(di) if pcf == Pcf::Nearest => from_bits.push((di, w)),
+                    Some(di) if pcf == Pcf::Nearest => from_bits.push((di, weight)),
                     _ => {
-                        let map = setup.render(point(i, j))?;
-                        track(&map);
-                        setup.consume(map.as_ref(), pcf, &active, &mut acc, 1, |v, a| {
-                            a[0] += w * quantize(v);
-                        });
-                        report.rendered += 1;
+                        let map = self.render(i, j)?;
+                        self.setup
+                            .consume(map.as_ref(), pcf, active, &mut acc, 1, |v, a| {
+                                a[0] += weight * quantize(v);
+                            });
+                        self.report.rendered += 1;
                         // A tested map (PCF), or a last-level centre probe
                         // that became a corner: rendered before.
-                        if cached_bits.is_some() || probed[(i + j * g) as usize] {
-                            report.rerendered += 1;
+                        if cached_bits.is_some() || self.probed[(i + j * per_side) as usize] {
+                            self.report.rerendered += 1;
                         }
                     }
                 }
             }
         }
         if !from_bits.is_empty() {
+            let (bits, words) = (&self.decisions.bits, self.decisions.words);
             acc.par_iter_mut().enumerate().for_each(|(p, a)| {
                 if active[p] {
-                    for &(di, w) in &from_bits {
-                        *a += w * QSCALE * ((bits[p * words + di / 64] >> (di % 64)) & 1);
+                    for &(di, weight) in &from_bits {
+                        *a += weight * QSCALE * ((bits[p * words + di / 64] >> (di % 64)) & 1);
                     }
                 }
             });
         }
-        report.rendered += report.test_maps + report.probe_maps;
-        let vcoef = acc.iter().map(|&a| resolve(a, total)).collect();
-        Ok((vcoef, report, peak, (bits.len() * 8) as u64))
+        self.report.rendered += self.report.test_maps + self.report.probe_maps;
+        Ok(acc.iter().map(|&a| resolve(a, total)).collect())
     }
 }
 

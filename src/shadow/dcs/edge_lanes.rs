@@ -303,7 +303,7 @@ mod tests {
         );
         assert!(candidates.edges.len() > 100);
         let mut state = 7u64;
-        let mut r = || {
+        let mut random = || {
             state = state
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
@@ -322,112 +322,23 @@ mod tests {
                 centre: frame.center,
                 silhouettes,
             };
-            // Sixteen receivers: near the bunny, some on the plane of the
-            // first edge and the centre (raster point across it), one in
-            // the light's plane (no projection).
             let first = &candidates.edges[(round * 37) % candidates.edges.len()];
-            let receivers: [(DVec3, DVec3); BLOCK] = std::array::from_fn(|k| {
-                if k % 5 == 1 {
-                    let on = first.v0 + (first.v1 - first.v0) * r();
-                    let p = on + (on - frame.center) * r();
-                    let off = DVec3::new(r(), r(), r()) * 1e-9;
-                    (p + off, p - off)
-                } else if k == 6 && round % 3 == 0 {
-                    let p = frame.center + frame.u * (2.0 * r());
-                    (p, p)
-                } else {
-                    let p = DVec3::new(r() - 0.5, 0.6 * r(), r() - 0.5);
-                    (p, p + DVec3::new(0.0, 1e-7, 0.0))
-                }
-            });
-            let projections = receivers.map(|(p, _)| RectProjection::new(&frame, p));
-            let tied: [bool; BLOCK] = std::array::from_fn(|k| (k + round) % 7 == 0);
-            let mut groups = [GroupInputs::default(); GROUPS];
-            for (g, inputs) in groups.iter_mut().enumerate() {
-                let row = &projections[4 * g..4 * g + 4];
-                let any = row.iter().flatten().next().copied();
-                for (l, projection) in row.iter().enumerate() {
-                    let k = 4 * g + l;
-                    for a in 0..3 {
-                        inputs.p[a][l] = receivers[k].0[a];
-                        inputs.raster[a][l] = receivers[k].1[a];
-                    }
-                    inputs.tied |= u32::from(tied[k]) << l;
-                    inputs.projected |= u32::from(projection.is_some()) << l;
-                    if let Some(pr) = projection.or(any) {
-                        let (_, n, u, v, s_p, t_p) = pr.parts();
-                        for a in 0..3 {
-                            (inputs.n[a][l], inputs.u_dual[a][l], inputs.v_dual[a][l]) =
-                                (n[a], u[a], v[a]);
-                        }
-                        (inputs.s_p[l], inputs.t_p[l]) = (s_p, t_p);
-                    }
-                }
-            }
+            let block = ReceiverBlock::random(round, first, &frame, &mut random);
+            let groups = block.group_inputs();
             let edges: Vec<(u32, u16)> = (0..candidates.edges.len())
                 .step_by(1 + round % 5)
-                .map(|e| (100 + e as u32, (r() * 65536.0) as u16 | 0x0202))
+                .map(|e| (100 + e as u32, (random() * 65536.0) as u16 | 0x0202))
                 .collect();
             let mut lanes = BlockExtras::default();
             run_lanes(&groups, edges.iter().copied(), &source, &mut lanes);
-            // The scalar steps, receiver by receiver.
-            let mut want = BlockExtras::default();
-            for &(id, mask) in &edges {
-                let e = &candidates.edges[id as usize - 100];
-                for (k, &(p, raster)) in receivers.iter().enumerate() {
-                    if mask >> k & 1 == 0 {
-                        continue;
-                    }
-                    want.admitted[k] += 1;
-                    let side = side_of(p, e.v0, e.v1, frame.center);
-                    if e.quad_sign != 0
-                        && !tied[k]
-                        && side != 0
-                        && side_of(raster, e.v0, e.v1, frame.center) != side
-                    {
-                        want.recount[k] = true;
-                    }
-                    let mu = match silhouettes {
-                        SilhouetteMode::Centre if e.quad_sign != 0 => {
-                            e.quad_weight as i32 * i32::from(e.quad_sign)
-                        }
-                        _ => candidates.multiplicity_from(e, p),
-                    };
-                    if side == 0 || mu == 0 {
-                        continue;
-                    }
-                    let made = projections[k]
-                        .and_then(|pr| pr.edge(e.v0, e.v1))
-                        .and_then(|(a, b)| OrientedEdge::new(a, b));
-                    if let Some(o) = made {
-                        want.effective[k].push((o, side * mu));
-                    }
-                }
-            }
-            let bits = |x: &BlockExtras| -> Vec<Vec<([u32; 4], i32)>> {
-                x.effective
-                    .iter()
-                    .map(|list| {
-                        list.iter()
-                            .map(|(o, d)| {
-                                let (lo, hi) = (o.lo(), o.hi());
-                                ([lo[0], lo[1], hi[0], hi[1]].map(f32::to_bits), *d)
-                            })
-                            .collect()
-                    })
-                    .collect()
-            };
-            assert_eq!(bits(&lanes), bits(&want), "round {round}");
-            assert_eq!(lanes.recount, want.recount, "round {round}");
-            assert_eq!(lanes.admitted, want.admitted, "round {round}");
+            let want = block.scalar_steps(&edges, &source);
+            assert_same_extras(&lanes, &want, &format!("round {round}"));
             #[cfg(target_arch = "x86_64")]
             if crate::simd::avx::available() {
                 let mut wide = BlockExtras::default();
                 // SAFETY: the CPU has AVX (checked).
                 unsafe { run_avx(&groups, edges.iter().copied(), &source, &mut wide) };
-                assert_eq!(bits(&wide), bits(&want), "round {round} (AVX)");
-                assert_eq!(wide.recount, want.recount, "round {round} (AVX)");
-                assert_eq!(wide.admitted, want.admitted, "round {round} (AVX)");
+                assert_same_extras(&wide, &want, &format!("round {round} (AVX)"));
             }
             pushed += want.effective.iter().map(Vec::len).sum::<usize>();
             recounts += want.recount.iter().filter(|&&b| b).count();
@@ -436,5 +347,145 @@ mod tests {
             pushed > 10_000 && recounts > 10,
             "{pushed} edges, {recounts} recounts"
         );
+    }
+
+    /// One block of receivers of [`kernels_match_the_scalar_steps`].
+    struct ReceiverBlock {
+        /// Per receiver `(p', raster point)`.
+        receivers: [(DVec3, DVec3); BLOCK],
+        /// Their rect-light projections.
+        projections: [Option<RectProjection>; BLOCK],
+        /// Receivers whose raster point is tied.
+        tied: [bool; BLOCK],
+    }
+
+    impl ReceiverBlock {
+        /// Sixteen receivers: near the bunny, some on the plane of the
+        /// `first` edge and the centre (raster point across it), one in
+        /// the light's plane (no projection).
+        fn random(
+            round: usize,
+            first: &CandidateEdge,
+            frame: &RectFrame,
+            random: &mut impl FnMut() -> f64,
+        ) -> ReceiverBlock {
+            let receivers: [(DVec3, DVec3); BLOCK] = std::array::from_fn(|k| {
+                if k % 5 == 1 {
+                    let on = first.v0 + (first.v1 - first.v0) * random();
+                    let p = on + (on - frame.center) * random();
+                    let off = DVec3::new(random(), random(), random()) * 1e-9;
+                    (p + off, p - off)
+                } else if k == 6 && round.is_multiple_of(3) {
+                    let p = frame.center + frame.u * (2.0 * random());
+                    (p, p)
+                } else {
+                    let p = DVec3::new(random() - 0.5, 0.6 * random(), random() - 0.5);
+                    (p, p + DVec3::new(0.0, 1e-7, 0.0))
+                }
+            });
+            ReceiverBlock {
+                receivers,
+                projections: receivers.map(|(p, _)| RectProjection::new(frame, p)),
+                tied: std::array::from_fn(|k| (k + round).is_multiple_of(7)),
+            }
+        }
+
+        /// The kernels' inputs: four receivers per group, a lane without a
+        /// projection given its group's first one.
+        fn group_inputs(&self) -> [GroupInputs; GROUPS] {
+            let mut groups = [GroupInputs::default(); GROUPS];
+            for (group, inputs) in groups.iter_mut().enumerate() {
+                let row = &self.projections[4 * group..4 * group + 4];
+                let any = row.iter().flatten().next().copied();
+                for (lane, projection) in row.iter().enumerate() {
+                    let k = 4 * group + lane;
+                    for axis in 0..3 {
+                        inputs.p[axis][lane] = self.receivers[k].0[axis];
+                        inputs.raster[axis][lane] = self.receivers[k].1[axis];
+                    }
+                    inputs.tied |= u32::from(self.tied[k]) << lane;
+                    inputs.projected |= u32::from(projection.is_some()) << lane;
+                    if let Some(pr) = projection.or(any) {
+                        let (_, n, u, v, s_p, t_p) = pr.parts();
+                        for axis in 0..3 {
+                            (
+                                inputs.n[axis][lane],
+                                inputs.u_dual[axis][lane],
+                                inputs.v_dual[axis][lane],
+                            ) = (n[axis], u[axis], v[axis]);
+                        }
+                        (inputs.s_p[lane], inputs.t_p[lane]) = (s_p, t_p);
+                    }
+                }
+            }
+            groups
+        }
+
+        /// The scalar steps, receiver by receiver, for `edges` (id and
+        /// receiver mask).
+        fn scalar_steps(&self, edges: &[(u32, u16)], source: &EdgeSource) -> BlockExtras {
+            let (candidates, centre) = (source.candidates, source.centre);
+            let mut want = BlockExtras::default();
+            for &(id, mask) in edges {
+                let e = &candidates.edges[id as usize - 100];
+                for (k, &(p, raster)) in self.receivers.iter().enumerate() {
+                    if mask >> k & 1 == 0 {
+                        continue;
+                    }
+                    want.admitted[k] += 1;
+                    let side = side_of(p, e.v0, e.v1, centre);
+                    if e.quad_sign != 0
+                        && !self.tied[k]
+                        && side != 0
+                        && side_of(raster, e.v0, e.v1, centre) != side
+                    {
+                        want.recount[k] = true;
+                    }
+                    let mu = match source.silhouettes {
+                        SilhouetteMode::Centre if e.quad_sign != 0 => {
+                            e.quad_weight as i32 * i32::from(e.quad_sign)
+                        }
+                        _ => candidates.multiplicity_from(e, p),
+                    };
+                    if side == 0 || mu == 0 {
+                        continue;
+                    }
+                    let made = self.projections[k]
+                        .and_then(|pr| pr.edge(e.v0, e.v1))
+                        .and_then(|(a, b)| OrientedEdge::new(a, b));
+                    if let Some(oriented) = made {
+                        want.effective[k].push((oriented, side * mu));
+                    }
+                }
+            }
+            want
+        }
+    }
+
+    /// Per receiver its effective edges as bits (end points) and
+    /// multiplicities, in order.
+    fn effective_bits(extras: &BlockExtras) -> Vec<Vec<([u32; 4], i32)>> {
+        extras
+            .effective
+            .iter()
+            .map(|list| {
+                list.iter()
+                    .map(|(oriented, multiplicity)| {
+                        let (lo, hi) = (oriented.lo(), oriented.hi());
+                        (
+                            [lo[0], lo[1], hi[0], hi[1]].map(f32::to_bits),
+                            *multiplicity,
+                        )
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// A kernel's extras are the scalar steps' bit for bit.
+    fn assert_same_extras(got: &BlockExtras, want: &BlockExtras, label: &str) {
+        assert_eq!(effective_bits(got), effective_bits(want), "{label}");
+        assert_eq!(got.recount, want.recount, "{label}");
+        assert_eq!(got.admitted, want.admitted, "{label}");
     }
 }

@@ -247,194 +247,306 @@ impl Wedges {
         quad: SilhouetteQuad,
         only: Option<bool>,
     ) -> bool {
-        let (q0, q1) = (quad.q0.as_dvec3(), quad.q1.as_dvec3());
-        // A ball around the eye holding the near rectangle, with slack.
-        let aspect = view.width as f64 / view.height as f64;
-        let t = view.tan_half_fov;
-        let near_margin = 2.0 * view.near * (1.0 + t * t * (1.0 + aspect * aspect)).sqrt();
-        let l = light.center();
-        let along = q1 - q0;
-        if along.length_squared() == 0.0 || quad.weight == 0 {
-            return false;
-        }
-        let ex = along.normalize();
-        let foot = q0 + ex * (l - q0).dot(ex);
-        let to_light = l - foot;
-        if to_light.length_squared() == 0.0 {
-            return false;
-        }
-        let k = to_light.normalize();
-        let n = ex.cross(k);
-        let Some((phi_lo, phi_hi)) = light.angle_range(q0, ex, k, n) else {
+        let near_margin = near_margin(view);
+        let Some(edge) = EdgeFrame::new(light, &quad) else {
             return false;
         };
-        // Side planes: at each end, the tangent through `q` (containing n)
-        // whose shadow ray is the most outward along the edge.
-        let side = |q: DVec3, outward: f64| -> Option<DVec3> {
-            let (base, lo, hi) = light.in_plane_angles(q, ex, k)?;
-            // Shadow rays through q run at angles (light angle + π); pick
-            // the light angle whose continuation leans furthest outward.
-            let cand = [base + lo, base + hi];
-            let lean = |a: f64| -(a.cos()) * outward;
-            let a = if lean(cand[0]) >= lean(cand[1]) {
-                cand[0]
-            } else {
-                cand[1]
-            };
-            let d2 = -(ex * a.cos() + k * a.sin()); // shadow-ray direction
-            let m = n.cross(d2).normalize();
-            // Inside is towards the other end of the edge.
-            let m = if m.dot(ex) * outward < 0.0 { m } else { -m };
-            // The light must be wholly outside: otherwise some shadow ray
-            // through q leans further out than the chosen one.
-            (m.dot(ex).abs() > 1e-9 && light.behind(q, m)).then_some(m)
-        };
-        let (Some(m0), Some(m1)) = (side(q0, -1.0), side(q1, 1.0)) else {
+        let (Some(side0), Some(side1)) = (
+            edge.side_plane(light, edge.q0, -1.0),
+            edge.side_plane(light, edge.q1, 1.0),
+        ) else {
             return false;
         };
         // The shadow-volume quad's vertices exactly as that pass made them.
-        let sv = [
+        let volume_quad = [
             view.clip_point(quad.q0),
             view.clip_point(quad.q1),
             view.clip_direction(quad.q1 - light_point),
             view.clip_direction(quad.q0 - light_point),
         ];
-        let d0 = (quad.q0 - light_point).as_dvec3();
-        let d1 = (quad.q1 - light_point).as_dvec3();
+        // The quad's corners at infinity (directions from the light point).
+        let far0 = (quad.q0 - light_point).as_dvec3();
+        let far1 = (quad.q1 - light_point).as_dvec3();
         // Outward normal of the quad for the volume (inner half's outside).
-        let n_out = homogeneous_normal([(q0, 1.0), (q1, 1.0), (d1, 0.0)]);
+        let n_out = homogeneous_normal([(edge.q0, 1.0), (edge.q1, 1.0), (far1, 0.0)]);
         if n_out.length_squared() == 0.0 {
             return false;
         }
         for outer in [false, true] {
-            if only.is_some_and(|o| o != outer) {
+            if only.is_some_and(|wanted| wanted != outer) {
                 continue;
             }
-            // The bounding plane of this half: angle ψ = π + φ.
-            let phi = if (n_out.dot(n) > 0.0) == outer {
-                phi_lo
-            } else {
-                phi_hi
-            };
-            let dir_b = -(k * phi.cos() + n * phi.sin());
-            let nb = {
-                let nb = ex.cross(dir_b).normalize();
-                // Inside contains the quad's half-plane (direction −k).
-                if nb.dot(-k) >= 0.0 {
-                    nb
-                } else {
-                    -nb
-                }
-            };
-            let ray = |a: DVec3, b: DVec3, into: DVec3| {
-                let d = a.cross(b);
-                if d.dot(into) >= 0.0 {
-                    d
-                } else {
-                    -d
-                }
-            };
-            let c0 = ray(n, m0, -k);
-            let c1 = ray(n, m1, -k);
-            let b0 = ray(nb, m0, dir_b);
-            let b1 = ray(nb, m1, dir_b);
-            if [c0, c1, b0, b1]
-                .iter()
-                .any(|d| !(d.length_squared() > 0.0) || !d.is_finite())
-            {
+            let Some(rays) = HalfRays::new(&edge, n_out, outer, [side0, side1]) else {
                 return false;
-            }
-            // An interior point, for orienting the faces outward.
-            let mid = (q0 + q1) * 0.5;
-            let spread = c0.normalize() + c1.normalize() + b0.normalize() + b1.normalize();
-            let interior = mid + spread * (0.05 * along.length());
-
+            };
             // Inside-test of the eye with a margin covering the near
             // rectangle: when some plane has the eye clearly outside, no
             // face is cut by the near plane and z-pass counting is exact
             // (and never needs the faces behind the receivers).
-            let nc = if outer { n_out } else { -n_out }.normalize();
+            let central_normal = if outer { n_out } else { -n_out }.normalize();
             let eye = view.eye;
             let eye_outside = [
-                nc.dot(eye - q0),
-                nb.dot(eye - q0),
-                m0.dot(eye - q0),
-                m1.dot(eye - q1),
+                central_normal.dot(eye - edge.q0),
+                rays.bound_normal.dot(eye - edge.q0),
+                side0.dot(eye - edge.q0),
+                side1.dot(eye - edge.q1),
             ]
             .iter()
-            .any(|&d| d < -near_margin);
+            .any(|&distance| distance < -near_margin);
             let set = if eye_outside {
                 &mut self.zpass
             } else {
                 &mut self.zfail
             };
-            let half = set.halves.len() as u32;
-            set.halves.push(HalfWedge {
-                q0,
-                q1,
+            let half = HalfWedge {
+                q0: edge.q0,
+                q1: edge.q1,
                 weight: quad.weight,
                 outer,
-            });
-            let iq0 = set.vertex(sv[0]);
-            let iq1 = set.vertex(sv[1]);
-            let id1 = set.vertex(sv[2]);
-            let id0 = set.vertex(sv[3]);
-            let dir = |set: &mut WedgeSet, d: DVec3| set.vertex(view.clip_direction(d.as_vec3()));
-            let ic0 = dir(set, c0);
-            let ic1 = dir(set, c1);
-            let ib0 = dir(set, b0);
-            let ib1 = dir(set, b1);
-            // The shared quad, as drawn by the volume pass.
-            let flip = if outer { -1 } else { 1 };
-            for t in [[iq0, iq1, id1], [iq0, id1, id0]] {
-                set.triangles.push(t);
-                set.primitives.push(WedgePrimitive { half, flip });
-            }
-            // World-space (homogeneous) position of each vertex index, for
-            // orientation.
-            let world = |i: u32| -> (DVec3, f64) {
-                match i {
-                    _ if i == iq0 => (q0, 1.0),
-                    _ if i == iq1 => (q1, 1.0),
-                    _ if i == id0 => (d0, 0.0),
-                    _ if i == id1 => (d1, 0.0),
-                    _ if i == ic0 => (c0, 0.0),
-                    _ if i == ic1 => (c1, 0.0),
-                    _ if i == ib0 => (b0, 0.0),
-                    _ => (b1, 0.0),
-                }
             };
-            let face = |set: &mut WedgeSet, [a, b, c]: [u32; 3]| {
-                let p = [world(a), world(b), world(c)];
-                let outward = match p.iter().find(|(_, w)| *w == 1.0) {
-                    Some((f, _)) => homogeneous_normal(p).dot(interior - *f) < 0.0,
-                    // At infinity: outward when the directions turn
-                    // positively (the volume pass's back caps agree).
-                    None => p[0].0.dot(p[1].0.cross(p[2].0)) > 0.0,
-                };
-                set.triangles
-                    .push(if outward { [a, b, c] } else { [a, c, b] });
-                set.primitives.push(WedgePrimitive { half, flip: 1 });
-            };
-            // The rest of the central face: the cones beside the quad.
-            face(set, [iq0, id0, ic0]);
-            face(set, [iq1, ic1, id1]);
-            // The bounding (front or back) face.
-            face(set, [iq0, iq1, ib1]);
-            face(set, [iq0, ib1, ib0]);
-            // The sides.
-            face(set, [iq0, ib0, ic0]);
-            face(set, [iq1, ic1, ib1]);
-            // The cap at infinity, fanned from b0 through every direction
-            // its edges share with the other faces. Never in front of a
-            // receiver, so z-pass halves leave it out.
-            if !eye_outside {
-                face(set, [ib0, ic0, id0]);
-                face(set, [ib0, id0, id1]);
-                face(set, [ib0, id1, ic1]);
-                face(set, [ib0, ic1, ib1]);
-            }
+            set.push_half(view, half, volume_quad, [far0, far1], &rays, eye_outside);
         }
         true
+    }
+}
+
+/// The radius of a ball around the eye holding the near rectangle, with
+/// slack.
+#[inline]
+fn near_margin(view: &View) -> f64 {
+    let aspect = view.width as f64 / view.height as f64;
+    let tan_half_fov = view.tan_half_fov;
+    2.0 * view.near * (1.0 + tan_half_fov * tan_half_fov * (1.0 + aspect * aspect)).sqrt()
+}
+
+/// A silhouette edge in f64 with its frame around the light's centre.
+struct EdgeFrame {
+    q0: DVec3,
+    q1: DVec3,
+    /// `q1 − q0`.
+    along: DVec3,
+    /// Unit edge direction.
+    ex: DVec3,
+    /// Unit, ⟂ `ex`, from the edge's line towards the light's centre.
+    k: DVec3,
+    /// `ex × k`: the central plane's normal.
+    n: DVec3,
+    /// The angles the light spans around the edge's line, from `k`
+    /// towards `n`.
+    phi_lo: f64,
+    /// Upper end.
+    phi_hi: f64,
+}
+
+impl EdgeFrame {
+    /// `None` for an edge without a bounded wedge: zero length or weight,
+    /// through the light's centre, or too close to the light.
+    #[inline]
+    fn new(light: &LightBound, quad: &SilhouetteQuad) -> Option<EdgeFrame> {
+        let (q0, q1) = (quad.q0.as_dvec3(), quad.q1.as_dvec3());
+        let centre = light.center();
+        let along = q1 - q0;
+        if along.length_squared() == 0.0 || quad.weight == 0 {
+            return None;
+        }
+        let ex = along.normalize();
+        let foot = q0 + ex * (centre - q0).dot(ex);
+        let to_light = centre - foot;
+        if to_light.length_squared() == 0.0 {
+            return None;
+        }
+        let k = to_light.normalize();
+        let n = ex.cross(k);
+        let (phi_lo, phi_hi) = light.angle_range(q0, ex, k, n)?;
+        Some(EdgeFrame {
+            q0,
+            q1,
+            along,
+            ex,
+            k,
+            n,
+            phi_lo,
+            phi_hi,
+        })
+    }
+
+    /// The side plane's inward normal at end `q` (`outward`: −1 at `q0`,
+    /// +1 at `q1`): the tangent through `q` (containing `n`) whose shadow
+    /// ray is the most outward along the edge.
+    #[inline]
+    fn side_plane(&self, light: &LightBound, q: DVec3, outward: f64) -> Option<DVec3> {
+        let (ex, k, n) = (self.ex, self.k, self.n);
+        let (base, lo, hi) = light.in_plane_angles(q, ex, k)?;
+        // Shadow rays through q run at angles (light angle + π); pick
+        // the light angle whose continuation leans furthest outward.
+        let candidates = [base + lo, base + hi];
+        let lean = |angle: f64| -(angle.cos()) * outward;
+        let angle = if lean(candidates[0]) >= lean(candidates[1]) {
+            candidates[0]
+        } else {
+            candidates[1]
+        };
+        let shadow_ray = -(ex * angle.cos() + k * angle.sin());
+        let normal = n.cross(shadow_ray).normalize();
+        // Inside is towards the other end of the edge.
+        let normal = if normal.dot(ex) * outward < 0.0 {
+            normal
+        } else {
+            -normal
+        };
+        // The light must be wholly outside: otherwise some shadow ray
+        // through q leans further out than the chosen one.
+        (normal.dot(ex).abs() > 1e-9 && light.behind(q, normal)).then_some(normal)
+    }
+}
+
+/// One half's bounding (front or back) plane and its edges at infinity.
+struct HalfRays {
+    /// Inward normal of the bounding plane.
+    bound_normal: DVec3,
+    /// Where the central plane meets the side planes at `q0` and `q1`
+    /// (the cones beside the quad).
+    cone: [DVec3; 2],
+    /// Where the bounding plane meets the side planes at `q0` and `q1`.
+    bound: [DVec3; 2],
+    /// A point inside the half, for orienting its faces outward.
+    interior: DVec3,
+}
+
+impl HalfRays {
+    /// `None` when a ray is degenerate (zero or not finite).
+    #[inline]
+    fn new(edge: &EdgeFrame, n_out: DVec3, outer: bool, sides: [DVec3; 2]) -> Option<HalfRays> {
+        let (ex, k, n) = (edge.ex, edge.k, edge.n);
+        let [side0, side1] = sides;
+        // The bounding plane of this half: angle ψ = π + φ.
+        let phi = if (n_out.dot(n) > 0.0) == outer {
+            edge.phi_lo
+        } else {
+            edge.phi_hi
+        };
+        let bound_dir = -(k * phi.cos() + n * phi.sin());
+        let bound_normal = {
+            let normal = ex.cross(bound_dir).normalize();
+            // Inside contains the quad's half-plane (direction −k).
+            if normal.dot(-k) >= 0.0 {
+                normal
+            } else {
+                -normal
+            }
+        };
+        let ray = |a: DVec3, b: DVec3, into: DVec3| {
+            let direction = a.cross(b);
+            if direction.dot(into) >= 0.0 {
+                direction
+            } else {
+                -direction
+            }
+        };
+        let cone0 = ray(n, side0, -k);
+        let cone1 = ray(n, side1, -k);
+        let bound0 = ray(bound_normal, side0, bound_dir);
+        let bound1 = ray(bound_normal, side1, bound_dir);
+        if [cone0, cone1, bound0, bound1]
+            .iter()
+            .any(|direction| !(direction.length_squared() > 0.0) || !direction.is_finite())
+        {
+            return None;
+        }
+        let mid = (edge.q0 + edge.q1) * 0.5;
+        let spread =
+            cone0.normalize() + cone1.normalize() + bound0.normalize() + bound1.normalize();
+        let interior = mid + spread * (0.05 * edge.along.length());
+        Some(HalfRays {
+            bound_normal,
+            cone: [cone0, cone1],
+            bound: [bound0, bound1],
+            interior,
+        })
+    }
+}
+
+impl WedgeSet {
+    /// Adds one half-wedge: its vertices, the shared quad (`volume_quad`,
+    /// as the volume pass drew it, with corners at infinity `far`) and
+    /// its faces, the cap at infinity only when counted z-fail.
+    #[inline]
+    fn push_half(
+        &mut self,
+        view: &View,
+        half_wedge: HalfWedge,
+        volume_quad: [glam::Vec4; 4],
+        far: [DVec3; 2],
+        rays: &HalfRays,
+        eye_outside: bool,
+    ) {
+        let (q0, q1) = (half_wedge.q0, half_wedge.q1);
+        let [far0, far1] = far;
+        let [cone0, cone1] = rays.cone;
+        let [bound0, bound1] = rays.bound;
+        let interior = rays.interior;
+        let outer = half_wedge.outer;
+        let set = self;
+        let half = set.halves.len() as u32;
+        set.halves.push(half_wedge);
+        let iq0 = set.vertex(volume_quad[0]);
+        let iq1 = set.vertex(volume_quad[1]);
+        let ifar1 = set.vertex(volume_quad[2]);
+        let ifar0 = set.vertex(volume_quad[3]);
+        let dir = |set: &mut WedgeSet, d: DVec3| set.vertex(view.clip_direction(d.as_vec3()));
+        let icone0 = dir(set, cone0);
+        let icone1 = dir(set, cone1);
+        let ibound0 = dir(set, bound0);
+        let ibound1 = dir(set, bound1);
+        // The shared quad, as drawn by the volume pass.
+        let flip = if outer { -1 } else { 1 };
+        for triangle in [[iq0, iq1, ifar1], [iq0, ifar1, ifar0]] {
+            set.triangles.push(triangle);
+            set.primitives.push(WedgePrimitive { half, flip });
+        }
+        // World-space (homogeneous) position of each vertex index, for
+        // orientation.
+        let world = |i: u32| -> (DVec3, f64) {
+            match i {
+                _ if i == iq0 => (q0, 1.0),
+                _ if i == iq1 => (q1, 1.0),
+                _ if i == ifar0 => (far0, 0.0),
+                _ if i == ifar1 => (far1, 0.0),
+                _ if i == icone0 => (cone0, 0.0),
+                _ if i == icone1 => (cone1, 0.0),
+                _ if i == ibound0 => (bound0, 0.0),
+                _ => (bound1, 0.0),
+            }
+        };
+        let face = |set: &mut WedgeSet, [a, b, c]: [u32; 3]| {
+            let p = [world(a), world(b), world(c)];
+            let outward = match p.iter().find(|(_, w)| *w == 1.0) {
+                Some((finite, _)) => homogeneous_normal(p).dot(interior - *finite) < 0.0,
+                // At infinity: outward when the directions turn
+                // positively (the volume pass's back caps agree).
+                None => p[0].0.dot(p[1].0.cross(p[2].0)) > 0.0,
+            };
+            set.triangles
+                .push(if outward { [a, b, c] } else { [a, c, b] });
+            set.primitives.push(WedgePrimitive { half, flip: 1 });
+        };
+        // The rest of the central face: the cones beside the quad.
+        face(set, [iq0, ifar0, icone0]);
+        face(set, [iq1, icone1, ifar1]);
+        // The bounding (front or back) face.
+        face(set, [iq0, iq1, ibound1]);
+        face(set, [iq0, ibound1, ibound0]);
+        // The sides.
+        face(set, [iq0, ibound0, icone0]);
+        face(set, [iq1, icone1, ibound1]);
+        // The cap at infinity, fanned from bound0 through every direction
+        // its edges share with the other faces. Never in front of a
+        // receiver, so z-pass halves leave it out.
+        if !eye_outside {
+            face(set, [ibound0, icone0, ifar0]);
+            face(set, [ibound0, ifar0, ifar1]);
+            face(set, [ibound0, ifar1, icone1]);
+            face(set, [ibound0, icone1, ibound1]);
+        }
     }
 }
