@@ -1021,7 +1021,8 @@ mod tests {
     }
 
     /// The scripts of every kind of sweep, with awkward paths and words,
-    /// are valid `sh` (`sh -n` parses them without running anything).
+    /// are valid bash, their shebang (`bash -n` parses them without
+    /// running anything; the merge of a banded render uses an array).
     #[test]
     fn scripts_are_valid_sh() {
         let s = slurm(&["--job-name=it's", "--mem=4G", "--setup=module load x"]);
@@ -1057,12 +1058,12 @@ mod tests {
             for (_, text) in sc.references.iter().chain([&sc.array, &sc.merge]) {
                 let file = dir.join("job.sbatch");
                 std::fs::write(&file, text).unwrap();
-                let status = std::process::Command::new("sh")
+                let status = std::process::Command::new("bash")
                     .arg("-n")
                     .arg(&file)
                     .status()
                     .unwrap();
-                assert!(status.success(), "sh -n refused\n{text}");
+                assert!(status.success(), "bash -n refused\n{text}");
             }
         }
         let _ = std::fs::remove_dir_all(&dir);
