@@ -11,19 +11,14 @@
 /// is unchanged (freed memory is reused, not added to).
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 pub fn keep_freed_memory() {
-    const M_TRIM_THRESHOLD: i32 = -1;
-    const M_MMAP_THRESHOLD: i32 = -3;
-    extern "C" {
-        fn mallopt(param: i32, value: i32) -> i32;
-    }
     // SAFETY: `mallopt` is glibc's (this cfg), takes two plain ints, only
     // sets allocator parameters and is MT-Safe (glibc manual), so calling
     // it at any time from any thread cannot break memory safety. 32 MiB is
     // glibc's largest accepted mmap threshold on 64-bit; a refused value
     // leaves the default (the return value is ignored).
     unsafe {
-        mallopt(M_MMAP_THRESHOLD, 32 << 20);
-        mallopt(M_TRIM_THRESHOLD, i32::MAX);
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, libc::c_int::MAX);
     }
 }
 

@@ -9,7 +9,9 @@ use crate::compare::{
 use crate::error::{Error, Result};
 use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
 use crate::raster::MAX_SIDE;
-use crate::render::{progress_for_render, render, verify_render, with_threads, Aov, RenderOptions};
+use crate::render::{
+    progress_for_render, render, verify_render, with_threads, Aov, RenderOptions, RenderOutput,
+};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
@@ -18,7 +20,7 @@ use crate::shadow::registry::DEFAULT_TECHNIQUE;
 use crate::shadow::verify::check_verifiable;
 use crate::shadow::{Technique, TechniqueOptions};
 use clap::{Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// penumbra: physically based soft shadows on the CPU.
 #[derive(Debug, Parser)]
@@ -36,71 +38,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Render a scene to PNG and/or EXR (with AOV layers).
-    Render {
-        /// Scene file (TOML).
-        scene: PathBuf,
-        /// Output image, in the format of its extension: .png (radiance,
-        /// clamped, sRGB) or .exr (linear radiance plus the --aov layers).
-        /// With --tiles, the part file (any name).
-        #[arg(short, long, help_heading = "Output")]
-        output: PathBuf,
-        /// Also an EXR (linear radiance plus the --aov layers), beside the
-        /// -o image; all outputs are written, or none.
-        #[arg(long, help_heading = "Output")]
-        exr: Option<PathBuf>,
-        /// Comma-separated AOV layers for the EXR: depth, position, normal,
-        /// albedo, mask, vcoef.
-        #[arg(long, value_delimiter = ',', help_heading = "Output")]
-        aov: Vec<String>,
-        /// Image width (overrides the scene's camera).
-        #[arg(long, help_heading = "Image")]
-        width: Option<u32>,
-        /// Image height (overrides the scene's camera).
-        #[arg(long, help_heading = "Image")]
-        height: Option<u32>,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Shadow technique (`penumbra techniques` lists them with their
-        /// capabilities).
-        #[arg(long, default_value = DEFAULT_TECHNIQUE, value_parser = technique_parser())]
-        technique: Technique,
-        /// Light samples per pixel and light (sampling techniques; wedges,
-        /// wedge-blend and shadow-volumes: for S-triangles only).
-        #[arg(long, default_value_t = 64, help_heading = "Light sampling")]
-        samples: u32,
-        /// Seed of the per-pixel random numbers.
-        #[arg(long, default_value_t = 0, help_heading = "Light sampling")]
-        seed: u64,
-        /// Placement of light samples (reference, dcs, multi-map,
-        /// penumbra-casting; S-triangles of the others): stratified,
-        /// correlated, rotated, poisson, sobol (also 02, sobol02), grid,
-        /// interleaved (4×4), interleavedN or interleaved:N (N in 2..=16).
-        #[arg(long, default_value = "stratified", value_parser = SamplePattern::parse, help_heading = "Light sampling")]
-        pattern: SamplePattern,
-        #[command(flatten)]
-        options: TechniqueOptions,
-        /// Print each pass's time to stderr.
-        #[arg(long, help_heading = "Diagnostics")]
-        timings: bool,
-        /// Print which passes ran and which buffers the render allocated
-        /// (or left out, and why), with their memory.
-        #[arg(long, help_heading = "Diagnostics")]
-        explain: bool,
-        /// Exactness certificate: re-cast this many random (pixel, light
-        /// sample) relations, keyed by --seed, or `all` of them (every
-        /// sample of every receiving pixel), with the reference's shadow
-        /// rays and compare them with the technique's own decisions (dcs,
-        /// penumbra-casting); a disagreement beyond the tie distance is an
-        /// error, and then no output is written (verification runs before
-        /// the outputs are).
-        #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount, help_heading = "Diagnostics")]
-        verify: Option<u64>,
-        /// Render only band I of N (whole rows of 64-pixel tiles) into the
-        /// part file -o; `merge-tiles` assembles the image.
-        #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"], help_heading = "Output")]
-        tiles: Option<String>,
-    },
+    Render(RenderArgs),
     /// Assemble `render --tiles` parts into the PNG (and EXR) a single
     /// render writes, byte for byte.
     MergeTiles(crate::cluster::tiles::MergeArgs),
@@ -109,91 +47,7 @@ enum Command {
     /// Time every technique at several quality settings and measure its
     /// error against a cached ray-traced reference at the same receiver
     /// points; writes results.csv/json/md, charts, images and heat maps.
-    Compare {
-        /// Scene files (TOML); each gets its own subdirectory of --out when
-        /// there are several.
-        #[arg(required_unless_present = "merge")]
-        scenes: Vec<PathBuf>,
-        /// Run only shard I of N (I in 1..=N, 1-based: map a 0-based Slurm
-        /// array index to I = index + 1) of the sweep's (scene, technique,
-        /// setting) runs, balanced by an estimate of their cost, and write
-        /// its partial result to --out as shard-I-of-N.json (with its
-        /// images). The first shard to need a scene's reference computes it
-        /// under a lock in the cache, which must be shared; the others wait
-        /// and read it. Join the shards with --merge.
-        #[arg(long, value_name = "I/N")]
-        shard: Option<String>,
-        /// Only compute (or find in the cache) each scene's reference, for a
-        /// job the shards depend on; with --shard I/N only scenes I, I+N, ...
-        #[arg(long, conflicts_with = "merge")]
-        references_only: bool,
-        /// Merge the partial results in these directories (from --shard runs)
-        /// into --out: the tables, charts, images and heat maps of one
-        /// unsharded run. Scenes and options come from the partials; a
-        /// missing shard or a mismatch is an error that names it.
-        #[arg(long, value_name = "DIR", num_args = 1.., conflicts_with_all = ["shard", "references_only"])]
-        merge: Vec<PathBuf>,
-        /// Comma-separated techniques (`penumbra techniques` lists them).
-        #[arg(
-            long,
-            value_delimiter = ',',
-            default_value = "shadow-volumes,reference",
-            value_parser = technique_parser()
-        )]
-        techniques: Vec<Technique>,
-        /// Comma-separated light-sample counts for sampling techniques.
-        #[arg(long, value_delimiter = ',', default_value = "4,16,64,256")]
-        samples: Vec<u32>,
-        /// Samples per light of the reference (even: it is two halves).
-        #[arg(long, default_value_t = 4096)]
-        reference_samples: u32,
-        /// Comma-separated sample patterns DCS is measured with (one curve
-        /// each; the first is the reference's and whole-light silhouettes').
-        #[arg(long, value_delimiter = ',', default_value = "stratified")]
-        patterns: Vec<String>,
-        /// Timed runs per setting; the median is reported.
-        #[arg(long, default_value_t = 3)]
-        repeat: u32,
-        /// Image width (overrides the scene's camera).
-        #[arg(long)]
-        width: Option<u32>,
-        /// Image height (overrides the scene's camera).
-        #[arg(long)]
-        height: Option<u32>,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Seed of the techniques' light samples.
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// Output directory.
-        #[arg(long, default_value = "compare")]
-        out: PathBuf,
-        /// Reference cache (default: $PENUMBRA_CACHE, $XDG_CACHE_HOME/penumbra
-        /// or ~/.cache/penumbra).
-        #[arg(long)]
-        cache_dir: Option<PathBuf>,
-        /// Also write the markdown report here, with links relative to it
-        /// (e.g. docs/results.md).
-        #[arg(long)]
-        report: Option<PathBuf>,
-        /// Skip per-run images and heat maps (charts and tables only).
-        #[arg(long)]
-        no_images: bool,
-        /// Exactness certificate per run of a technique that exposes its
-        /// decisions (dcs, penumbra-casting): this many relations re-cast
-        /// with shadow rays (a `verify` column; not timed). A run that
-        /// declares itself exact and disagrees beyond the tie distance
-        /// fails the command (exit 2) once the results are written: unlike
-        /// render --verify, the results stay, with the failure in their
-        /// verify column. `all` checks every relation of every pixel.
-        #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount)]
-        verify: Option<u64>,
-        /// The techniques' own options, the base every quality setting
-        /// starts from.
-        #[command(flatten)]
-        options: TechniqueOptions,
-    },
+    Compare(CompareArgs),
     /// List the shadow techniques with what each can honour.
     Techniques {
         /// Print the markdown table of the docs instead (links relative to
@@ -207,53 +61,213 @@ enum Command {
     /// Error metrics between two images (PNG or EXR), and with --flip the
     /// perceptual FLIP error; exits with 1 when a tolerance is exceeded, 2
     /// on an error.
-    Diff {
-        /// First image (the one under test).
-        a: PathBuf,
-        /// Second image (the reference).
-        b: PathBuf,
-        /// Channels of A, comma-separated (default: those both images have).
-        #[arg(long, value_delimiter = ',')]
-        channels_a: Vec<String>,
-        /// Channels of B paired with --channels-a by position (default: the
-        /// same names).
-        #[arg(long, value_delimiter = ',')]
-        channels_b: Vec<String>,
-        /// Only pixels where this image's mask channel is > 0.5.
-        #[arg(long)]
-        mask: Option<PathBuf>,
-        /// The mask image's channel (default: mask.Y, Y, R or its first).
-        #[arg(long)]
-        mask_channel: Option<String>,
-        /// Fail when any absolute error exceeds this.
-        #[arg(long)]
-        max_abs: Option<f64>,
-        /// Fail when the RMSE over all compared values exceeds this.
-        #[arg(long)]
-        rmse: Option<f64>,
-        /// Also FLIP (NVlabs' perceptual error, 0..1) between the images'
-        /// R, G, B: both tone-mapped as the PNG output (clamped, sRGB,
-        /// 8-bit), 67 pixels per degree; A is the test, B the reference;
-        /// pooled over the --mask pixels if given. Prints its mean,
-        /// percentiles and max.
-        #[arg(long)]
-        flip: bool,
-        /// Fail (exit 1) when the FLIP mean exceeds this (implies --flip).
-        #[arg(long, value_name = "X")]
-        flip_threshold: Option<f64>,
-        /// Write FLIP's error map here as a PNG in its magma colours
-        /// (implies --flip); never over an input.
-        #[arg(long, value_name = "OUT.png")]
-        flip_map: Option<PathBuf>,
-        /// Print the report as JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    Diff(DiffArgs),
     /// Print a scene's statistics.
     Info {
         /// Scene file (TOML).
         scene: PathBuf,
     },
+}
+
+/// `penumbra render`: its command line.
+#[derive(Debug, clap::Args)]
+struct RenderArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Output image, in the format of its extension: .png (radiance,
+    /// clamped, sRGB) or .exr (linear radiance plus the --aov layers).
+    /// With --tiles, the part file (any name).
+    #[arg(short, long, help_heading = "Output")]
+    output: PathBuf,
+    /// Also an EXR (linear radiance plus the --aov layers), beside the
+    /// -o image; all outputs are written, or none.
+    #[arg(long, help_heading = "Output")]
+    exr: Option<PathBuf>,
+    /// Comma-separated AOV layers for the EXR: depth, position, normal,
+    /// albedo, mask, vcoef.
+    #[arg(long, value_delimiter = ',', help_heading = "Output")]
+    aov: Vec<String>,
+    /// Image width (overrides the scene's camera).
+    #[arg(long, help_heading = "Image")]
+    width: Option<u32>,
+    /// Image height (overrides the scene's camera).
+    #[arg(long, help_heading = "Image")]
+    height: Option<u32>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Shadow technique (`penumbra techniques` lists them with their
+    /// capabilities).
+    #[arg(long, default_value = DEFAULT_TECHNIQUE, value_parser = technique_parser())]
+    technique: Technique,
+    /// Light samples per pixel and light (sampling techniques; wedges,
+    /// wedge-blend and shadow-volumes: for S-triangles only).
+    #[arg(long, default_value_t = 64, help_heading = "Light sampling")]
+    samples: u32,
+    /// Seed of the per-pixel random numbers.
+    #[arg(long, default_value_t = 0, help_heading = "Light sampling")]
+    seed: u64,
+    /// Placement of light samples (reference, dcs, multi-map,
+    /// penumbra-casting; S-triangles of the others): stratified,
+    /// correlated, rotated, poisson, sobol (also 02, sobol02), grid,
+    /// interleaved (4×4), interleavedN or interleaved:N (N in 2..=16).
+    #[arg(long, default_value = "stratified", value_parser = SamplePattern::parse, help_heading = "Light sampling")]
+    pattern: SamplePattern,
+    #[command(flatten)]
+    options: TechniqueOptions,
+    /// Print each pass's time to stderr.
+    #[arg(long, help_heading = "Diagnostics")]
+    timings: bool,
+    /// Print which passes ran and which buffers the render allocated
+    /// (or left out, and why), with their memory.
+    #[arg(long, help_heading = "Diagnostics")]
+    explain: bool,
+    /// Exactness certificate: re-cast this many random (pixel, light
+    /// sample) relations, keyed by --seed, or `all` of them (every
+    /// sample of every receiving pixel), with the reference's shadow
+    /// rays and compare them with the technique's own decisions (dcs,
+    /// penumbra-casting); a disagreement beyond the tie distance is an
+    /// error, and then no output is written (verification runs before
+    /// the outputs are).
+    #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount, help_heading = "Diagnostics")]
+    verify: Option<u64>,
+    /// Render only band I of N (whole rows of 64-pixel tiles) into the
+    /// part file -o; `merge-tiles` assembles the image.
+    #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"], help_heading = "Output")]
+    tiles: Option<String>,
+}
+
+/// `penumbra compare`: its command line.
+#[derive(Debug, clap::Args)]
+struct CompareArgs {
+    /// Scene files (TOML); each gets its own subdirectory of --out when
+    /// there are several.
+    #[arg(required_unless_present = "merge")]
+    scenes: Vec<PathBuf>,
+    /// Run only shard I of N (I in 1..=N, 1-based: map a 0-based Slurm
+    /// array index to I = index + 1) of the sweep's (scene, technique,
+    /// setting) runs, balanced by an estimate of their cost, and write
+    /// its partial result to --out as shard-I-of-N.json (with its
+    /// images). The first shard to need a scene's reference computes it
+    /// under a lock in the cache, which must be shared; the others wait
+    /// and read it. Join the shards with --merge.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// Only compute (or find in the cache) each scene's reference, for a
+    /// job the shards depend on; with --shard I/N only scenes I, I+N, ...
+    #[arg(long, conflicts_with = "merge")]
+    references_only: bool,
+    /// Merge the partial results in these directories (from --shard runs)
+    /// into --out: the tables, charts, images and heat maps of one
+    /// unsharded run. Scenes and options come from the partials; a
+    /// missing shard or a mismatch is an error that names it.
+    #[arg(long, value_name = "DIR", num_args = 1.., conflicts_with_all = ["shard", "references_only"])]
+    merge: Vec<PathBuf>,
+    /// Comma-separated techniques (`penumbra techniques` lists them).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "shadow-volumes,reference",
+        value_parser = technique_parser()
+    )]
+    techniques: Vec<Technique>,
+    /// Comma-separated light-sample counts for sampling techniques.
+    #[arg(long, value_delimiter = ',', default_value = "4,16,64,256")]
+    samples: Vec<u32>,
+    /// Samples per light of the reference (even: it is two halves).
+    #[arg(long, default_value_t = 4096)]
+    reference_samples: u32,
+    /// Comma-separated sample patterns DCS is measured with (one curve
+    /// each; the first is the reference's and whole-light silhouettes').
+    #[arg(long, value_delimiter = ',', default_value = "stratified")]
+    patterns: Vec<String>,
+    /// Timed runs per setting; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    repeat: u32,
+    /// Image width (overrides the scene's camera).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (overrides the scene's camera).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Seed of the techniques' light samples.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output directory.
+    #[arg(long, default_value = "compare")]
+    out: PathBuf,
+    /// Reference cache (default: $PENUMBRA_CACHE, $XDG_CACHE_HOME/penumbra
+    /// or ~/.cache/penumbra).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Also write the markdown report here, with links relative to it
+    /// (e.g. docs/results.md).
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Skip per-run images and heat maps (charts and tables only).
+    #[arg(long)]
+    no_images: bool,
+    /// Exactness certificate per run of a technique that exposes its
+    /// decisions (dcs, penumbra-casting): this many relations re-cast
+    /// with shadow rays (a `verify` column; not timed). A run that
+    /// declares itself exact and disagrees beyond the tie distance
+    /// fails the command (exit 2) once the results are written: unlike
+    /// render --verify, the results stay, with the failure in their
+    /// verify column. `all` checks every relation of every pixel.
+    #[arg(long, value_name = "K|all", value_parser = crate::shadow::kit::verify::parse_amount)]
+    verify: Option<u64>,
+    /// The techniques' own options, the base every quality setting
+    /// starts from.
+    #[command(flatten)]
+    options: TechniqueOptions,
+}
+
+/// `penumbra diff`: its command line.
+#[derive(Debug, clap::Args)]
+struct DiffArgs {
+    /// First image (the one under test).
+    a: PathBuf,
+    /// Second image (the reference).
+    b: PathBuf,
+    /// Channels of A, comma-separated (default: those both images have).
+    #[arg(long, value_delimiter = ',')]
+    channels_a: Vec<String>,
+    /// Channels of B paired with --channels-a by position (default: the
+    /// same names).
+    #[arg(long, value_delimiter = ',')]
+    channels_b: Vec<String>,
+    /// Only pixels where this image's mask channel is > 0.5.
+    #[arg(long)]
+    mask: Option<PathBuf>,
+    /// The mask image's channel (default: mask.Y, Y, R or its first).
+    #[arg(long)]
+    mask_channel: Option<String>,
+    /// Fail when any absolute error exceeds this.
+    #[arg(long)]
+    max_abs: Option<f64>,
+    /// Fail when the RMSE over all compared values exceeds this.
+    #[arg(long)]
+    rmse: Option<f64>,
+    /// Also FLIP (NVlabs' perceptual error, 0..1) between the images'
+    /// R, G, B: both tone-mapped as the PNG output (clamped, sRGB,
+    /// 8-bit), 67 pixels per degree; A is the test, B the reference;
+    /// pooled over the --mask pixels if given. Prints its mean,
+    /// percentiles and max.
+    #[arg(long)]
+    flip: bool,
+    /// Fail (exit 1) when the FLIP mean exceeds this (implies --flip).
+    #[arg(long, value_name = "X")]
+    flip_threshold: Option<f64>,
+    /// Write FLIP's error map here as a PNG in its magma colours
+    /// (implies --flip); never over an input.
+    #[arg(long, value_name = "OUT.png")]
+    flip_map: Option<PathBuf>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 /// How a command ended without an error.
@@ -265,12 +279,89 @@ pub enum Outcome {
     ToleranceExceeded,
 }
 
-/// Runs the parsed command line.
+/// Runs the parsed command line: checks the environment, then hands the
+/// subcommand to its `run_*` function.
 pub fn run(cli: Cli) -> Result<Outcome> {
     crate::simd::level::check_env().map_err(|e| Error::param("PENUMBRA_SIMD", e))?;
-    let given = cli.given;
     match cli.command {
-        Command::Render {
+        Command::Render(args) => run_render(args, &cli.given),
+        Command::MergeTiles(args) => {
+            crate::cluster::tiles::run_merge(&args)?;
+            Ok(Outcome::Success)
+        }
+        Command::Sweep(args) => {
+            crate::cluster::slurm::run_sweep(args)?;
+            Ok(Outcome::Success)
+        }
+        Command::Compare(args) => run_compare(args),
+        Command::Diff(args) => run_diff(args),
+        Command::Techniques { markdown, names } => run_techniques(markdown, names),
+        Command::Info { scene } => run_info(&scene),
+    }
+}
+
+/// `penumbra render`.
+fn run_render(args: RenderArgs, given: &[(String, String)]) -> Result<Outcome> {
+    let plan = RenderPlan::check(args)?;
+    let (threads, options) = (plan.threads, &plan.options);
+    let scene = load_scene(&plan.scene)?;
+    warn_unread_options(options, &scene, given);
+    let progress = with_threads(threads, || progress_for_render(&scene, options))??;
+    if let Some((i, n)) = plan.band {
+        with_threads(threads, || {
+            crate::cluster::tiles::render_part(&scene, options, i, n, &plan.output, &progress)
+        })??;
+        progress.finish();
+        return Ok(Outcome::Success);
+    }
+    let out = with_threads(threads, || render(&scene, options, &progress))??;
+    progress.finish();
+    print_render_notes(&out, plan.timings, plan.explain);
+    // Verified before anything is written: a failed certificate
+    // leaves no unverified image behind.
+    if let Some(k) = plan.verify {
+        let report = with_threads(threads, || verify_render(&scene, options, k))??;
+        write_stderr(&format!("penumbra: {report}\n"));
+        report.check()?;
+    }
+    // All outputs or none: all are staged, then moved into place.
+    let mut outputs = OutputSet::new();
+    for (path, format) in &plan.images {
+        outputs.image(
+            path,
+            *format,
+            out.width,
+            out.height,
+            &out.radiance,
+            &out.layers,
+        )?;
+    }
+    outputs.commit()?;
+    Ok(Outcome::Success)
+}
+
+/// A `render` command line checked before the scene is loaded.
+struct RenderPlan {
+    /// The scene file.
+    scene: PathBuf,
+    /// `-o`: the image, or with `--tiles` the part file.
+    output: PathBuf,
+    /// The images to write, with their formats (none for a part).
+    images: Vec<(PathBuf, Format)>,
+    /// `--tiles I/N`: render band I of N into the part file.
+    band: Option<(u32, u32)>,
+    options: RenderOptions,
+    threads: Option<usize>,
+    timings: bool,
+    explain: bool,
+    verify: Option<u64>,
+}
+
+impl RenderPlan {
+    /// Checks `args` in the order the errors are reported (each option's
+    /// own message), refusing what would fail only after the render.
+    fn check(args: RenderArgs) -> Result<RenderPlan> {
+        let RenderArgs {
             scene,
             output,
             exr,
@@ -287,266 +378,312 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             explain,
             verify,
             tiles,
-        } => {
-            let aovs = aov
-                .iter()
-                .map(|s| s.trim().parse())
-                .collect::<Result<Vec<Aov>>>()?;
-            let tiles = tiles
-                .map(|t| crate::cluster::tiles::parse_share("--tiles", &t))
-                .transpose()?;
-            // Fail on a bad output path before the render, not after it;
-            // a part (--tiles) takes any name, an image's extension decides
-            // its format.
-            let images = match tiles {
-                Some(_) => {
-                    check_output(&output)?;
-                    Vec::new()
-                }
-                None => image_outputs(&output, exr.as_deref(), &[])?,
-            };
-            if !aovs.is_empty() && tiles.is_none() && !images.iter().any(|(_, f)| *f == Format::Exr)
-            {
-                return Err(Error::param(
-                    "--aov",
-                    "AOV layers need an EXR output (-o NAME.exr or --exr)",
-                ));
+        } = args;
+        let aovs = aov
+            .iter()
+            .map(|s| s.trim().parse())
+            .collect::<Result<Vec<Aov>>>()?;
+        let band = tiles
+            .map(|t| crate::cluster::tiles::parse_share("--tiles", &t))
+            .transpose()?;
+        // Fail on a bad output path before the render, not after it;
+        // a part (--tiles) takes any name, an image's extension decides
+        // its format.
+        let images = match band {
+            Some(_) => {
+                check_output(&output)?;
+                Vec::new()
             }
-            let options = RenderOptions {
-                width,
-                height,
-                aovs,
-                technique,
-                samples,
-                seed,
-                pattern,
-                options: technique_options,
-            };
-            if samples == 0 || samples > 1 << 20 {
-                return Err(Error::param(
-                    "--samples",
-                    format!("{samples} is outside 1..=1048576"),
-                ));
-            }
-            // One limit for the CLI and scene files: the rasterizer's.
-            for (name, v) in [("--width", width), ("--height", height)] {
-                if let Some(v) = v.filter(|v| !(1..=MAX_SIDE).contains(v)) {
-                    return Err(Error::param(name, format!("{v} is outside 1..={MAX_SIDE}")));
-                }
-            }
-            if let Some(k) = verify {
-                // Refused before the render, not after it.
-                check_verifiable(options.technique, &options.build_params(), k)?;
-            }
-            let scene = load_scene(&scene)?;
-            warn_unread_options(&options, &scene, &given);
-            let progress = with_threads(threads, || progress_for_render(&scene, &options))??;
-            if let Some((i, n)) = tiles {
-                with_threads(threads, || {
-                    crate::cluster::tiles::render_part(&scene, &options, i, n, &output, &progress)
-                })??;
-                progress.finish();
-                return Ok(Outcome::Success);
-            }
-            let out = with_threads(threads, || render(&scene, &options, &progress))??;
-            progress.finish();
-            if timings || explain {
-                for p in &out.passes {
-                    let ms = p.time.as_secs_f64() * 1e3;
-                    write_stderr(&format!("{ms:>12.3} ms  {}\n", p.name));
-                }
-            }
-            for w in &out.warnings {
-                write_stderr(&format!("penumbra: warning: {w}\n"));
-            }
-            if explain {
-                let simd = crate::simd::level::describe();
-                write_stderr(&format!("simd: {simd} (PENUMBRA_SIMD)\n"));
-                write_stderr("buffers:\n");
-                for b in &out.buffers {
-                    let size = if b.bytes == 0 {
-                        "-".to_string()
-                    } else {
-                        format!("{:.2} MiB", b.bytes as f64 / (1u64 << 20) as f64)
-                    };
-                    write_stderr(&format!("{size:>12}  {}: {}\n", b.name, b.detail));
-                }
-                for w in &out.warnings {
-                    write_stderr(&format!("{:>12}  note: {w}\n", "-"));
-                }
-            }
-            // Verified before anything is written: a failed certificate
-            // leaves no unverified image behind.
-            if let Some(k) = verify {
-                let report = with_threads(threads, || verify_render(&scene, &options, k))??;
-                write_stderr(&format!("penumbra: {report}\n"));
-                report.check()?;
-            }
-            // All outputs or none: all are staged, then moved into place.
-            let mut outputs = OutputSet::new();
-            for (path, format) in &images {
-                outputs.image(
-                    path,
-                    *format,
-                    out.width,
-                    out.height,
-                    &out.radiance,
-                    &out.layers,
-                )?;
-            }
-            outputs.commit()?;
-            Ok(Outcome::Success)
+            None => image_outputs(&output, exr.as_deref(), &[])?,
+        };
+        if !aovs.is_empty() && band.is_none() && !images.iter().any(|(_, f)| *f == Format::Exr) {
+            return Err(Error::param(
+                "--aov",
+                "AOV layers need an EXR output (-o NAME.exr or --exr)",
+            ));
         }
-        Command::Compare {
-            scenes,
-            shard,
-            references_only,
-            merge,
-            techniques,
-            samples,
-            reference_samples,
-            patterns,
-            repeat,
+        let options = RenderOptions {
             width,
             height,
-            threads,
+            aovs,
+            technique,
+            samples,
             seed,
-            out,
-            cache_dir,
-            report,
-            no_images,
-            verify,
+            pattern,
             options: technique_options,
-        } => {
-            if !merge.is_empty() {
-                if !scenes.is_empty() {
-                    return Err(Error::param(
-                        "--merge",
-                        "takes the partial results' directories only: scenes and options come from the partials",
-                    ));
-                }
-                if let Some(report) = &report {
-                    check_output(report)?;
-                }
-                let merged = merge_partials(&merge, &out, !no_images)?;
-                write_results(&out, &merged.results, report.as_deref(), &merged.command)?;
-                let runs: usize = merged.results.iter().map(|(r, _)| r.runs.len()).sum();
-                write_stderr(&format!(
-                    "merged {} partial results: {} scenes, {runs} runs; results in {}\n",
-                    merged.partials,
-                    merged.results.len(),
-                    out.display()
-                ));
-                check_verified(&merged.results)?;
-                return Ok(Outcome::Success);
+        };
+        if samples == 0 || samples > 1 << 20 {
+            return Err(Error::param(
+                "--samples",
+                format!("{samples} is outside 1..=1048576"),
+            ));
+        }
+        // One limit for the CLI and scene files: the rasterizer's.
+        for (name, v) in [("--width", width), ("--height", height)] {
+            if let Some(v) = v.filter(|v| !(1..=MAX_SIDE).contains(v)) {
+                return Err(Error::param(name, format!("{v} is outside 1..={MAX_SIDE}")));
             }
-            let shard = shard.as_deref().map(ShardSpec::parse).transpose()?;
-            if shard.is_some() && report.is_some() && !references_only {
-                return Err(Error::param(
-                    "--report",
-                    "a shard writes a partial result: give --report to --merge",
-                ));
-            }
-            let options = CompareOptions {
-                techniques,
-                technique_options,
-                samples,
-                reference_samples,
-                repeat,
-                width,
-                height,
-                seed,
-                cache_dir: cache_dir.unwrap_or_else(|| default_cache_dir(&out.join("cache"))),
-                images: !no_images,
-                verify,
-                patterns: patterns
-                    .iter()
-                    .map(|p| {
-                        SamplePattern::parse(p.trim()).map_err(|e| Error::param("--patterns", e))
-                    })
-                    .collect::<Result<Vec<_>>>()?,
+        }
+        if let Some(k) = verify {
+            // Refused before the render, not after it.
+            check_verifiable(options.technique, &options.build_params(), k)?;
+        }
+        Ok(RenderPlan {
+            scene,
+            output,
+            images,
+            band,
+            options,
+            threads,
+            timings,
+            explain,
+            verify,
+        })
+    }
+}
+
+/// The render's notes on stderr: pass times (`--timings`, `--explain`),
+/// warnings, and with `--explain` the SIMD level and the buffers.
+fn print_render_notes(out: &RenderOutput, timings: bool, explain: bool) {
+    if timings || explain {
+        for pass in &out.passes {
+            let ms = pass.time.as_secs_f64() * 1e3;
+            write_stderr(&format!("{ms:>12.3} ms  {}\n", pass.name));
+        }
+    }
+    for warning in &out.warnings {
+        write_stderr(&format!("penumbra: warning: {warning}\n"));
+    }
+    if explain {
+        let simd = crate::simd::level::describe();
+        write_stderr(&format!("simd: {simd} (PENUMBRA_SIMD)\n"));
+        write_stderr("buffers:\n");
+        for buffer in &out.buffers {
+            let size = if buffer.bytes == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.2} MiB", buffer.bytes as f64 / (1u64 << 20) as f64)
             };
-            options.validate()?;
-            if let Some(report) = &report {
-                check_output(report)?;
-            }
-            let loaded = scenes
-                .iter()
-                .map(|p| load_scene(p))
-                .collect::<Result<Vec<Scene>>>()?;
-            if references_only {
-                for (i, scene) in loaded.iter().enumerate() {
-                    if shard.is_some_and(|s| i as u32 % s.count != s.index - 1) {
-                        continue;
-                    }
-                    let (file, cached) = with_threads(threads, || {
-                        reference_only(scene, &options, &Progress::hidden())
-                    })??;
-                    write_stderr(&format!(
-                        "{}: reference {} {}\n",
-                        scene.name,
-                        if cached {
-                            "already in"
-                        } else {
-                            "computed into"
-                        },
-                        file.display()
-                    ));
-                }
-                return Ok(Outcome::Success);
-            }
-            if let Some(shard) = shard {
-                let args: Vec<String> = std::env::args().skip(1).collect();
-                let summary = with_threads(threads, || {
-                    run_shard(
-                        &loaded,
-                        &options,
-                        shard,
-                        &out,
-                        &unsharded_command(&args),
-                        true,
-                    )
-                })??;
-                write_stderr(&format!(
-                    "shard {shard}: {} of the sweep's {} runs; partial result in {}\n",
-                    summary.runs,
-                    summary.sweep_runs,
-                    summary.partial.display()
+            write_stderr(&format!("{size:>12}  {}: {}\n", buffer.name, buffer.detail));
+        }
+        for warning in &out.warnings {
+            write_stderr(&format!("{:>12}  note: {warning}\n", "-"));
+        }
+    }
+}
+
+/// `penumbra compare`: a merge of shards' partial results, the
+/// references alone, one shard, or the whole sweep.
+fn run_compare(args: CompareArgs) -> Result<Outcome> {
+    let CompareArgs {
+        scenes,
+        shard,
+        references_only,
+        merge,
+        techniques,
+        samples,
+        reference_samples,
+        patterns,
+        repeat,
+        width,
+        height,
+        threads,
+        seed,
+        out,
+        cache_dir,
+        report,
+        no_images,
+        verify,
+        options: technique_options,
+    } = args;
+    if !merge.is_empty() {
+        if !scenes.is_empty() {
+            return Err(Error::param(
+                "--merge",
+                "takes the partial results' directories only: scenes and options come from the partials",
+            ));
+        }
+        if let Some(report) = &report {
+            check_output(report)?;
+        }
+        return merge_compare(&merge, &out, report.as_deref(), no_images);
+    }
+    let shard = shard.as_deref().map(ShardSpec::parse).transpose()?;
+    if shard.is_some() && report.is_some() && !references_only {
+        return Err(Error::param(
+            "--report",
+            "a shard writes a partial result: give --report to --merge",
+        ));
+    }
+    let options = CompareOptions {
+        techniques,
+        technique_options,
+        samples,
+        reference_samples,
+        repeat,
+        width,
+        height,
+        seed,
+        cache_dir: cache_dir.unwrap_or_else(|| default_cache_dir(&out.join("cache"))),
+        images: !no_images,
+        verify,
+        patterns: patterns
+            .iter()
+            .map(|p| SamplePattern::parse(p.trim()).map_err(|e| Error::param("--patterns", e)))
+            .collect::<Result<Vec<_>>>()?,
+    };
+    options.validate()?;
+    if let Some(report) = &report {
+        check_output(report)?;
+    }
+    let loaded = scenes
+        .iter()
+        .map(|p| load_scene(p))
+        .collect::<Result<Vec<Scene>>>()?;
+    if references_only {
+        return compute_references(&loaded, &options, shard, threads);
+    }
+    if let Some(shard) = shard {
+        return compare_shard(&loaded, &options, shard, &out, threads);
+    }
+    compare_scenes(&loaded, &options, &out, report.as_deref(), threads)
+}
+
+/// `compare --merge`: the shards' partial results in `partials` joined
+/// into the results of one unsharded run in `out`.
+fn merge_compare(
+    partials: &[PathBuf],
+    out: &Path,
+    report: Option<&Path>,
+    no_images: bool,
+) -> Result<Outcome> {
+    let merged = merge_partials(partials, out, !no_images)?;
+    write_results(out, &merged.results, report, &merged.command)?;
+    let runs: usize = merged.results.iter().map(|(r, _)| r.runs.len()).sum();
+    write_stderr(&format!(
+        "merged {} partial results: {} scenes, {runs} runs; results in {}\n",
+        merged.partials,
+        merged.results.len(),
+        out.display()
+    ));
+    check_verified(&merged.results)?;
+    Ok(Outcome::Success)
+}
+
+/// `compare --references-only`: each scene's reference computed into
+/// the cache (or found there); with `--shard I/N` scenes I, I+N, ... only.
+fn compute_references(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    shard: Option<ShardSpec>,
+    threads: Option<usize>,
+) -> Result<Outcome> {
+    for (i, scene) in scenes.iter().enumerate() {
+        if shard.is_some_and(|s| i as u32 % s.count != s.index - 1) {
+            continue;
+        }
+        let (file, cached) = with_threads(threads, || {
+            reference_only(scene, options, &Progress::hidden())
+        })??;
+        write_stderr(&format!(
+            "{}: reference {} {}\n",
+            scene.name,
+            if cached {
+                "already in"
+            } else {
+                "computed into"
+            },
+            file.display()
+        ));
+    }
+    Ok(Outcome::Success)
+}
+
+/// `compare --shard I/N`: this shard's runs, written as a partial result
+/// in `out`.
+fn compare_shard(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    shard: ShardSpec,
+    out: &Path,
+    threads: Option<usize>,
+) -> Result<Outcome> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let summary = with_threads(threads, || {
+        run_shard(scenes, options, shard, out, &unsharded_command(&args), true)
+    })??;
+    write_stderr(&format!(
+        "shard {shard}: {} of the sweep's {} runs; partial result in {}\n",
+        summary.runs,
+        summary.sweep_runs,
+        summary.partial.display()
+    ));
+    Ok(Outcome::Success)
+}
+
+/// The whole compare sweep over `scenes`, its results written to `out`.
+fn compare_scenes(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    out: &Path,
+    report: Option<&Path>,
+    threads: Option<usize>,
+) -> Result<Outcome> {
+    let progress = Progress::new(progress_steps(options) * scenes.len() as u64, true);
+    let mut results = Vec::new();
+    for scene in scenes {
+        let dir = scene_dir(out, &scene.name, scenes.len());
+        let result = with_threads(threads, || compare_scene(scene, options, &dir, &progress))??;
+        results.push((result, dir));
+    }
+    progress.finish();
+    write_results(out, &results, report, &command_line())?;
+    for (result, dir) in &results {
+        write_stderr(&format!(
+            "{}: {} runs; results in {}\n",
+            result.scene,
+            result.runs.len(),
+            dir.display()
+        ));
+    }
+    check_verified(&results)?;
+    Ok(Outcome::Success)
+}
+
+/// `penumbra diff`.
+fn run_diff(args: DiffArgs) -> Result<Outcome> {
+    let DiffArgs {
+        a,
+        b,
+        channels_a,
+        channels_b,
+        mask,
+        mask_channel,
+        max_abs,
+        rmse,
+        flip,
+        flip_threshold,
+        flip_map,
+        json,
+    } = args;
+    for (name, v) in [
+        ("--max-abs", max_abs),
+        ("--rmse", rmse),
+        ("--flip-threshold", flip_threshold),
+    ] {
+        if let Some(v) = v {
+            if !(v >= 0.0) || !v.is_finite() {
+                return Err(Error::param(
+                    name,
+                    format!("{v} is not a finite tolerance >= 0"),
                 ));
-                return Ok(Outcome::Success);
             }
-            let progress = Progress::new(progress_steps(&options) * loaded.len() as u64, true);
-            let mut results = Vec::new();
-            for scene in &loaded {
-                let dir = scene_dir(&out, &scene.name, loaded.len());
-                let result =
-                    with_threads(threads, || compare_scene(scene, &options, &dir, &progress))??;
-                results.push((result, dir));
-            }
-            progress.finish();
-            write_results(&out, &results, report.as_deref(), &command_line())?;
-            for (r, dir) in &results {
-                write_stderr(&format!(
-                    "{}: {} runs; results in {}\n",
-                    r.scene,
-                    r.runs.len(),
-                    dir.display()
-                ));
-            }
-            check_verified(&results)?;
-            Ok(Outcome::Success)
         }
-        Command::MergeTiles(args) => {
-            crate::cluster::tiles::run_merge(&args)?;
-            Ok(Outcome::Success)
-        }
-        Command::Sweep(args) => {
-            crate::cluster::slurm::run_sweep(args)?;
-            Ok(Outcome::Success)
-        }
-        Command::Diff {
-            a,
-            b,
+    }
+    let report = diff_images(
+        &a,
+        &b,
+        &DiffOptions {
             channels_a,
             channels_b,
             mask,
@@ -556,74 +693,90 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             flip,
             flip_threshold,
             flip_map,
-            json,
-        } => {
-            for (name, v) in [
-                ("--max-abs", max_abs),
-                ("--rmse", rmse),
-                ("--flip-threshold", flip_threshold),
-            ] {
-                if let Some(v) = v {
-                    if !(v >= 0.0) || !v.is_finite() {
-                        return Err(Error::param(
-                            name,
-                            format!("{v} is not a finite tolerance >= 0"),
-                        ));
-                    }
+        },
+    )?;
+    if json {
+        let text = serde_json::to_string_pretty(&report)
+            .map_err(|e| Error::param("--json", e.to_string()))?;
+        write_stdout(&format!("{text}\n"))?;
+    } else {
+        write_stdout(&report.to_text())?;
+    }
+    Ok(if report.passed() {
+        Outcome::Success
+    } else {
+        Outcome::ToleranceExceeded
+    })
+}
+
+/// `penumbra techniques`.
+fn run_techniques(markdown: bool, names: bool) -> Result<Outcome> {
+    // Checked writes, not print!: a full disk behind `>` is an
+    // error, a closed pipe a quiet end (never a panic).
+    let text = if markdown {
+        crate::shadow::registry::markdown_table("algorithms/")
+    } else if names {
+        let mut s = String::new();
+        for name in crate::shadow::registry::names() {
+            s.push_str(name);
+            s.push('\n');
+        }
+        s
+    } else {
+        let listing = crate::shadow::registry::listing();
+        // Wrapped on a terminal only: piped, each technique keeps its two
+        // whole lines for grep and scripts.
+        match console::Term::stdout().size_checked() {
+            Some((_rows, columns)) => fit_listing(&listing, usize::from(columns)),
+            None => listing,
+        }
+    };
+    write_stdout(&text)?;
+    Ok(Outcome::Success)
+}
+
+/// The narrowest text column [`fit_listing`] wraps into; a terminal with
+/// less room gets the lines whole.
+const MIN_LISTING_TEXT: usize = 24;
+
+/// The `techniques` listing fitted to `columns`: a line too long breaks
+/// at spaces and goes on under the text column (where the summaries
+/// start), so that nothing runs into the names' column.
+fn fit_listing(listing: &str, columns: usize) -> String {
+    // The text column: the indentation of the capability lines.
+    let column = listing
+        .lines()
+        .map(|line| line.len() - line.trim_start().len())
+        .find(|&indent| indent > 0)
+        .unwrap_or(0);
+    let indent = " ".repeat(column);
+    let mut fitted = String::new();
+    for line in listing.lines() {
+        let head = line.get(..column).filter(|head| head.ends_with(' '));
+        match head {
+            Some(head) if columns >= column + MIN_LISTING_TEXT => {
+                let options = textwrap::Options::new(columns)
+                    .initial_indent(head)
+                    .subsequent_indent(&indent);
+                for piece in textwrap::wrap(&line[column..], options) {
+                    fitted.push_str(&piece);
+                    fitted.push('\n');
                 }
             }
-            let report = diff_images(
-                &a,
-                &b,
-                &DiffOptions {
-                    channels_a,
-                    channels_b,
-                    mask,
-                    mask_channel,
-                    max_abs,
-                    rmse,
-                    flip,
-                    flip_threshold,
-                    flip_map,
-                },
-            )?;
-            if json {
-                let text = serde_json::to_string_pretty(&report)
-                    .map_err(|e| Error::param("--json", e.to_string()))?;
-                write_stdout(&format!("{text}\n"))?;
-            } else {
-                write_stdout(&report.to_text())?;
+            _ => {
+                fitted.push_str(line);
+                fitted.push('\n');
             }
-            Ok(if report.passed() {
-                Outcome::Success
-            } else {
-                Outcome::ToleranceExceeded
-            })
-        }
-        Command::Techniques { markdown, names } => {
-            // Checked writes, not print!: a full disk behind `>` is an
-            // error, a closed pipe a quiet end (never a panic).
-            let text = if markdown {
-                crate::shadow::registry::markdown_table("algorithms/")
-            } else if names {
-                let mut s = String::new();
-                for name in crate::shadow::registry::names() {
-                    s.push_str(name);
-                    s.push('\n');
-                }
-                s
-            } else {
-                crate::shadow::registry::listing()
-            };
-            write_stdout(&text)?;
-            Ok(Outcome::Success)
-        }
-        Command::Info { scene } => {
-            let scene = load_scene(&scene)?;
-            write_stdout(&describe(&scene))?;
-            Ok(Outcome::Success)
         }
     }
+    fitted
+}
+
+/// `penumbra info`.
+fn run_info(scene: &Path) -> Result<Outcome> {
+    let scene = load_scene(scene)?;
+    write_stdout(&describe(&scene))?;
+    Ok(Outcome::Success)
 }
 
 /// The `info` report.
@@ -833,4 +986,34 @@ fn technique_parser() -> impl clap::builder::TypedValueParser<Value = Technique>
     clap::builder::PossibleValuesParser::new(crate::shadow::registry::names()).map(
         |name: String| Technique::named(&name).expect("the parser offers registered names only"),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Fitted to 80 columns, the listing keeps every word in order, starts
+    /// each technique's line with its name and indents the rest under the
+    /// text column.
+    #[test]
+    fn the_techniques_listing_fits_a_terminal() {
+        let listing = crate::shadow::registry::listing();
+        let fitted = fit_listing(&listing, 80);
+        assert!(fitted.lines().all(|l| l.chars().count() <= 80), "{fitted}");
+        let words = |text: &str| {
+            text.split_whitespace()
+                .map(String::from)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(words(&fitted), words(&listing));
+        let names = crate::shadow::registry::names();
+        let starts: Vec<&str> = fitted
+            .lines()
+            .filter(|l| !l.starts_with(' '))
+            .map(|l| l.split_whitespace().next().unwrap_or(""))
+            .collect();
+        assert_eq!(starts, names);
+        // Too narrow to wrap into: the lines stay whole.
+        assert_eq!(fit_listing(&listing, 20), listing);
+    }
 }

@@ -143,19 +143,19 @@ pub struct Scripts {
     pub merge: (PathBuf, String),
 }
 
-/// Quotes `s` for a POSIX shell (bare when nothing needs quoting).
-pub fn shell_quote(s: &str) -> String {
-    let plain = !s.is_empty()
-        && s.chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+%@".contains(c));
-    if plain {
-        s.to_string()
-    } else {
-        format!("'{}'", s.replace('\'', "'\\''"))
-    }
+/// Quotes `s` as one word of a POSIX shell (bare when nothing needs
+/// quoting), as `shlex` does; a NUL byte, which no shell word can hold,
+/// is an error.
+pub fn shell_quote(s: &str) -> Result<String> {
+    shlex::try_quote(s).map(String::from).map_err(|_| {
+        Error::param(
+            "sweep",
+            format!("{s:?} holds a NUL byte, which a script cannot pass on"),
+        )
+    })
 }
 
-fn quote_path(p: &Path) -> String {
+fn quote_path(p: &Path) -> Result<String> {
     shell_quote(&p.display().to_string())
 }
 
@@ -196,16 +196,16 @@ fn header(
     time: Option<&str>,
     mem: Option<&str>,
     chdir: &Path,
-) -> String {
+) -> Result<String> {
     let mut h = String::from("#!/bin/bash\n");
     let mut line = |opt: String| {
         h.push_str("#SBATCH ");
         h.push_str(&opt);
         h.push('\n');
     };
-    line(format!("--job-name={}", shell_quote(name)));
-    line(format!("--output={}", quote_path(log)));
-    line(format!("--chdir={}", quote_path(chdir)));
+    line(format!("--job-name={}", shell_quote(name)?));
+    line(format!("--output={}", quote_path(log)?));
+    line(format!("--chdir={}", quote_path(chdir)?));
     line("--nodes=1".into());
     line("--ntasks=1".into());
     line(format!("--cpus-per-task={}", slurm.cpus_per_task));
@@ -218,13 +218,13 @@ fn header(
         ("constraint", slurm.constraint.as_deref()),
     ] {
         if let Some(v) = v {
-            line(format!("--{opt}={}", shell_quote(v)));
+            line(format!("--{opt}={}", shell_quote(v)?));
         }
     }
     for a in &slurm.sbatch_arg {
         line(a.clone());
     }
-    h
+    Ok(h)
 }
 
 /// The shell lines every job starts with after its header.
@@ -240,13 +240,14 @@ fn prologue(slurm: &SlurmArgs) -> String {
     s
 }
 
-fn command(penumbra: &Path, words: &[String]) -> String {
-    let mut s = quote_path(penumbra);
+/// `penumbra` and `words` as one quoted shell command line.
+fn command(penumbra: &Path, words: &[String]) -> Result<String> {
+    let mut s = quote_path(penumbra)?;
     for w in words {
         s.push(' ');
-        s.push_str(&shell_quote(w));
+        s.push_str(&shell_quote(w)?);
     }
-    s
+    Ok(s)
 }
 
 /// `--threads "$SLURM_CPUS_PER_TASK"` unless the arguments set it.
@@ -271,6 +272,44 @@ pub fn scripts(
     penumbra: &Path,
     slurm: &SlurmArgs,
 ) -> Result<Scripts> {
+    check_settings(tasks, out, chdir, penumbra, slurm)?;
+    let jobs = Jobs {
+        slurm,
+        tasks,
+        out,
+        chdir,
+        penumbra,
+        logs: slurm.log_dir.clone().unwrap_or_else(|| out.join("logs")),
+    };
+    let mut array = jobs.array_start()?;
+    let mut merge = jobs.merge_start()?;
+    let references = match work {
+        Work::Compare {
+            args,
+            references_job,
+        } => jobs.compare_commands(args, *references_job, &mut array, &mut merge)?,
+        Work::Render { scene, args } => {
+            jobs.render_commands(scene, args, &mut array, &mut merge)?;
+            None
+        }
+    };
+    let dir = out.join("slurm");
+    Ok(Scripts {
+        references: references.map(|text| (dir.join("references.sbatch"), text)),
+        array: (dir.join("array.sbatch"), array),
+        merge: (dir.join("merge.sbatch"), merge),
+    })
+}
+
+/// Refuses settings that Slurm would reject or that would not stay on
+/// their line of a script, before any script is written.
+fn check_settings(
+    tasks: u32,
+    out: &Path,
+    chdir: &Path,
+    penumbra: &Path,
+    slurm: &SlurmArgs,
+) -> Result<()> {
     if tasks == 0 {
         return Err(Error::param("--shards/--tiles", "at least 1 task"));
     }
@@ -320,130 +359,166 @@ pub fn scripts(
             "a non-empty name without / or newlines",
         ));
     }
-    let name = &slurm.job_name;
-    let dir = out.join("slurm");
-    let logs = slurm.log_dir.clone().unwrap_or_else(|| out.join("logs"));
-    let time = slurm.time.as_deref();
-    let mem = slurm.mem.as_deref();
-    let array_range = match slurm.throttle {
-        Some(k) => format!("1-{tasks}%{k}"),
-        None => format!("1-{tasks}"),
-    };
-    let mut array = header(
-        slurm,
-        name,
-        &logs.join(format!("{name}_%A_%a.out")),
-        time,
-        mem,
-        chdir,
-    );
-    array.push_str(&format!("#SBATCH --array={array_range}\n"));
-    array.push_str(&prologue(slurm));
-    let task = "\"$SLURM_ARRAY_TASK_ID\"";
-    let mut merge = header(
-        slurm,
-        &format!("{name}-merge"),
-        &logs.join(format!("{name}-merge_%j.out")),
-        slurm.merge_time.as_deref().or(time),
-        slurm.merge_mem.as_deref().or(mem),
-        chdir,
-    );
-    merge.push_str(&prologue(slurm));
-    let mut references = None;
-    match work {
-        Work::Compare {
-            args,
-            references_job,
-        } => {
-            // The reference cache must be shared by every task: the
-            // default (~/.cache) is not always on a shared filesystem.
-            let args = &if args
-                .iter()
-                .any(|a| a == "--cache-dir" || a.starts_with("--cache-dir="))
-            {
-                args.clone()
-            } else {
-                [
-                    args.as_slice(),
-                    &[
-                        "--cache-dir".to_string(),
-                        out.join("cache").display().to_string(),
-                    ],
-                ]
-                .concat()
-            };
-            // What belongs to the merge: --report (a shard refuses it)
-            // and --no-images (the merge must be told the shards had none).
-            let (args, merge_words) = &split_merge_args(args);
-            let shards = out.join("shards");
-            array.push_str(&format!(
-                "{}{} --shard {task}/{tasks} --out {}\n",
-                command(
-                    penumbra,
-                    &[&["compare".to_string()], args.as_slice()].concat()
-                ),
-                threads(args),
-                quote_path(&shards),
-            ));
-            merge.push_str(&format!(
-                "{} --merge {} --out {}\n",
-                command(
-                    penumbra,
-                    &[&["compare".to_string()], merge_words.as_slice()].concat()
-                ),
-                quote_path(&shards),
-                quote_path(out),
-            ));
-            if *references_job {
-                let mut r = header(
-                    slurm,
-                    &format!("{name}-refs"),
-                    &logs.join(format!("{name}-refs_%j.out")),
-                    time,
-                    mem,
-                    chdir,
-                );
-                r.push_str(&prologue(slurm));
-                r.push_str(&format!(
-                    "{}{} --references-only --out {}\n",
-                    command(
-                        penumbra,
-                        &[&["compare".to_string()], args.as_slice()].concat()
-                    ),
-                    threads(args),
-                    quote_path(&out.join("references")),
-                ));
-                references = Some((dir.join("references.sbatch"), r));
-            }
-        }
-        Work::Render { scene, args } => {
-            let tiles = out.join("tiles");
-            let words = [
-                &["render".to_string(), scene.display().to_string()],
-                args.as_slice(),
-            ]
-            .concat();
-            array.push_str(&format!(
-                "{}{} --tiles {task}/{tasks} -o {}/{task}.part\n",
-                command(penumbra, &words),
-                threads(args),
-                quote_path(&tiles),
-            ));
-            merge.push_str(&format!(
-                "parts=()\nfor i in $(seq 1 {tasks}); do parts+=({}/\"$i\".part); done\n\
-                 {} \"${{parts[@]}}\" -o {} --exr {}\n",
-                quote_path(&tiles),
-                command(penumbra, &["merge-tiles".to_string()]),
-                quote_path(&out.join("render.png")),
-                quote_path(&out.join("render.exr")),
-            ));
-        }
+    Ok(())
+}
+
+/// What every job script of one (checked) sweep shares.
+struct Jobs<'a> {
+    slurm: &'a SlurmArgs,
+    /// Array tasks (shards or bands).
+    tasks: u32,
+    /// The sweep's output directory (absolute).
+    out: &'a Path,
+    /// Where the jobs run.
+    chdir: &'a Path,
+    /// The binary the jobs run.
+    penumbra: &'a Path,
+    /// Where the jobs' logs go.
+    logs: PathBuf,
+}
+
+/// The array task's index in a script line.
+const TASK: &str = "\"$SLURM_ARRAY_TASK_ID\"";
+
+impl Jobs<'_> {
+    /// The array job up to its command: header, `--array` and prologue.
+    fn array_start(&self) -> Result<String> {
+        let (slurm, name, tasks) = (self.slurm, &self.slurm.job_name, self.tasks);
+        let array_range = match slurm.throttle {
+            Some(k) => format!("1-{tasks}%{k}"),
+            None => format!("1-{tasks}"),
+        };
+        let mut array = header(
+            slurm,
+            name,
+            &self.logs.join(format!("{name}_%A_%a.out")),
+            slurm.time.as_deref(),
+            slurm.mem.as_deref(),
+            self.chdir,
+        )?;
+        array.push_str(&format!("#SBATCH --array={array_range}\n"));
+        array.push_str(&prologue(slurm));
+        Ok(array)
     }
-    Ok(Scripts {
-        references,
-        array: (dir.join("array.sbatch"), array),
-        merge: (dir.join("merge.sbatch"), merge),
-    })
+
+    /// The merge job up to its command (`--merge-time` and `--merge-mem`
+    /// default to the tasks' settings).
+    fn merge_start(&self) -> Result<String> {
+        let (slurm, name) = (self.slurm, &self.slurm.job_name);
+        let mut merge = header(
+            slurm,
+            &format!("{name}-merge"),
+            &self.logs.join(format!("{name}-merge_%j.out")),
+            slurm.merge_time.as_deref().or(slurm.time.as_deref()),
+            slurm.merge_mem.as_deref().or(slurm.mem.as_deref()),
+            self.chdir,
+        )?;
+        merge.push_str(&prologue(slurm));
+        Ok(merge)
+    }
+
+    /// A compare sweep's commands: a shard per array task, the merge, and
+    /// with `references_job` the references job's whole script.
+    fn compare_commands(
+        &self,
+        args: &[String],
+        references_job: bool,
+        array: &mut String,
+        merge: &mut String,
+    ) -> Result<Option<String>> {
+        let (penumbra, out, tasks) = (self.penumbra, self.out, self.tasks);
+        // The reference cache must be shared by every task: the
+        // default (~/.cache) is not always on a shared filesystem.
+        let args = &if args
+            .iter()
+            .any(|a| a == "--cache-dir" || a.starts_with("--cache-dir="))
+        {
+            args.to_vec()
+        } else {
+            [
+                args,
+                &[
+                    "--cache-dir".to_string(),
+                    out.join("cache").display().to_string(),
+                ],
+            ]
+            .concat()
+        };
+        // What belongs to the merge: --report (a shard refuses it)
+        // and --no-images (the merge must be told the shards had none).
+        let (args, merge_words) = &split_merge_args(args);
+        let shards = out.join("shards");
+        array.push_str(&format!(
+            "{}{} --shard {TASK}/{tasks} --out {}\n",
+            command(
+                penumbra,
+                &[&["compare".to_string()], args.as_slice()].concat()
+            )?,
+            threads(args),
+            quote_path(&shards)?,
+        ));
+        merge.push_str(&format!(
+            "{} --merge {} --out {}\n",
+            command(
+                penumbra,
+                &[&["compare".to_string()], merge_words.as_slice()].concat()
+            )?,
+            quote_path(&shards)?,
+            quote_path(out)?,
+        ));
+        if !references_job {
+            return Ok(None);
+        }
+        let name = &self.slurm.job_name;
+        let mut references = header(
+            self.slurm,
+            &format!("{name}-refs"),
+            &self.logs.join(format!("{name}-refs_%j.out")),
+            self.slurm.time.as_deref(),
+            self.slurm.mem.as_deref(),
+            self.chdir,
+        )?;
+        references.push_str(&prologue(self.slurm));
+        references.push_str(&format!(
+            "{}{} --references-only --out {}\n",
+            command(
+                penumbra,
+                &[&["compare".to_string()], args.as_slice()].concat()
+            )?,
+            threads(args),
+            quote_path(&out.join("references"))?,
+        ));
+        Ok(Some(references))
+    }
+
+    /// A banded render's commands: a band per array task, then
+    /// `merge-tiles` of every part.
+    fn render_commands(
+        &self,
+        scene: &Path,
+        args: &[String],
+        array: &mut String,
+        merge: &mut String,
+    ) -> Result<()> {
+        let (penumbra, out, tasks) = (self.penumbra, self.out, self.tasks);
+        let tiles = out.join("tiles");
+        let words = [&["render".to_string(), scene.display().to_string()], args].concat();
+        array.push_str(&format!(
+            "{}{} --tiles {TASK}/{tasks} -o {}/{TASK}.part\n",
+            command(penumbra, &words)?,
+            threads(args),
+            quote_path(&tiles)?,
+        ));
+        merge.push_str(&format!(
+            "parts=()\nfor i in $(seq 1 {tasks}); do parts+=({}/\"$i\".part); done\n\
+             {} \"${{parts[@]}}\" -o {} --exr {}\n",
+            quote_path(&tiles)?,
+            command(penumbra, &["merge-tiles".to_string()])?,
+            quote_path(&out.join("render.png"))?,
+            quote_path(&out.join("render.exr"))?,
+        ));
+        Ok(())
+    }
 }
 
 /// Splits forwarded compare arguments into the shards' and the extra
@@ -811,7 +886,7 @@ mod tests {
             "#SBATCH --account=lab\n",
             "#SBATCH --qos=long\n",
             "#SBATCH --job-name=sw\n",
-            "#SBATCH --output=/o/logs/sw_%A_%a.out\n",
+            "#SBATCH --output='/o/logs/sw_%A_%a.out'\n",
             "#SBATCH --mail-type=END\n",
             "#SBATCH --chdir=/w\n",
             "module load x\n",
@@ -906,7 +981,92 @@ mod tests {
         assert_eq!(parse_job_id("77;cluster\n").unwrap(), "77");
         assert!(parse_job_id("Submitted batch job 5\n").is_err());
         assert!(parse_job_id("").is_err());
-        assert_eq!(shell_quote("it's"), "'it'\\''s'");
-        assert_eq!(shell_quote(""), "''");
+    }
+
+    /// Every quoted word reads back as itself through a POSIX shell
+    /// split, alone and as part of a command line; plain words stay bare.
+    #[test]
+    fn quoting_round_trips_through_a_shell_split() {
+        let words = [
+            "it's",
+            "",
+            "a b.toml",
+            "/o/logs/sw_%A_%a.out",
+            "$HOME",
+            "say \"hi\"",
+            "back\\slash",
+            "tab\there",
+            "glob*?[x]",
+            "--opt=a,b;c&d|e",
+            "~user",
+            "{a,b}",
+            "äöü",
+            "!bang^",
+        ];
+        for word in words {
+            let quoted = shell_quote(word).unwrap();
+            assert_eq!(
+                shlex::split(&quoted),
+                Some(vec![word.to_string()]),
+                "{word:?} quoted as {quoted}"
+            );
+        }
+        let line = command(Path::new("/bin/pen umbra"), &words.map(String::from)).unwrap();
+        let mut expected = vec!["/bin/pen umbra".to_string()];
+        expected.extend(words.map(String::from));
+        assert_eq!(shlex::split(&line), Some(expected), "{line}");
+        for plain in ["dcs", "--samples", "/o/shards", "1:00:00", "16G"] {
+            assert_eq!(shell_quote(plain).unwrap(), plain);
+        }
+        assert!(shell_quote("nul\0byte").is_err());
+    }
+
+    /// The scripts of every kind of sweep, with awkward paths and words,
+    /// are valid bash, their shebang (`bash -n` parses them without
+    /// running anything; the merge of a banded render uses an array).
+    #[test]
+    fn scripts_are_valid_sh() {
+        let s = slurm(&["--job-name=it's", "--mem=4G", "--setup=module load x"]);
+        let works = [
+            Work::Compare {
+                args: [
+                    "a b.toml",
+                    "--report",
+                    "r's.md",
+                    "--techniques=dcs,reference",
+                ]
+                .map(String::from)
+                .to_vec(),
+                references_job: true,
+            },
+            Work::Render {
+                scene: "my scene.toml".into(),
+                args: vec!["--samples".into(), "$16".into()],
+            },
+        ];
+        let dir = std::env::temp_dir().join(format!("penumbra-sh-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for work in &works {
+            let sc = scripts(
+                work,
+                3,
+                Path::new("/o ut/%x"),
+                Path::new("/w'd"),
+                Path::new("/bin/p q"),
+                &s,
+            )
+            .unwrap();
+            for (_, text) in sc.references.iter().chain([&sc.array, &sc.merge]) {
+                let file = dir.join("job.sbatch");
+                std::fs::write(&file, text).unwrap();
+                let status = std::process::Command::new("bash")
+                    .arg("-n")
+                    .arg(&file)
+                    .status()
+                    .unwrap();
+                assert!(status.success(), "bash -n refused\n{text}");
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::render::{RenderOptions, Technique};
-use crate::sampling::SamplePattern;
+use crate::sampling::{SamplePattern, SplitMix64};
 use crate::shadow::technique::{QualitySetting, Sweep};
 use crate::shadow::TechniqueOptions;
 use std::path::PathBuf;
@@ -92,17 +92,10 @@ impl CompareOptions {
     /// the techniques' seed, so no technique shares the reference's noise.
     pub fn reference_seeds(&self) -> [u64; 2] {
         [
-            splitmix(self.seed ^ 0x5245_4630),
-            splitmix(self.seed ^ 0x5245_4631),
+            SplitMix64::new(self.seed ^ 0x5245_4630).next_u64(),
+            SplitMix64::new(self.seed ^ 0x5245_4631).next_u64(),
         ]
     }
-}
-
-fn splitmix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
 }
 
 /// The quality settings `compare` runs for `technique`, from the

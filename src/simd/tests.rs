@@ -7,19 +7,16 @@
 //! result, NaNs passed through included, is compared bit for bit.
 
 use super::scalar;
+use crate::sampling::SplitMix64;
 
 const ROUNDS: usize = 20_000;
 
-/// SplitMix64.
-struct Rng(u64);
+/// The test inputs' generator: SplitMix64 and a draw below a bound.
+struct Rng(SplitMix64);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     fn below(&mut self, n: u64) -> u64 {
@@ -150,7 +147,7 @@ macro_rules! float_tests {
         fn $name() {
             use super::$ty as V;
             use scalar::$ty as S;
-            let mut rng = Rng(stringify!($ty).len() as u64 * 7919 + $n);
+            let mut rng = Rng(SplitMix64::new(stringify!($ty).len() as u64 * 7919 + $n));
             let ones = <$t>::from_bits(!0);
             for _ in 0..ROUNDS {
                 let a: [$t; $n] = lanes(&mut rng, &[0.0; $n]);
@@ -260,7 +257,7 @@ macro_rules! int_tests {
         fn $name() {
             use super::$ty as V;
             use scalar::$ty as S;
-            let mut rng = Rng(stringify!($ty).len() as u64 * 104729 + $n);
+            let mut rng = Rng(SplitMix64::new(stringify!($ty).len() as u64 * 104729 + $n));
             for _ in 0..ROUNDS {
                 let a: [$t; $n] = lanes(&mut rng, &[0; $n]);
                 let b: [$t; $n] = lanes(&mut rng, &a);
@@ -329,7 +326,7 @@ macro_rules! signed_tests {
         fn $name() {
             use super::$ty as V;
             use scalar::$ty as S;
-            let mut rng = Rng(31 * $n);
+            let mut rng = Rng(SplitMix64::new(31 * $n));
             for _ in 0..ROUNDS {
                 let a: [i32; $n] = lanes(&mut rng, &[0; $n]);
                 let b: [i32; $n] = lanes(&mut rng, &a);
@@ -362,7 +359,7 @@ signed_tests!(i32x4_compares_agree, i32x4, 4);
 
 #[test]
 fn i32x4_min_max_agree() {
-    let mut rng = Rng(77);
+    let mut rng = Rng(SplitMix64::new(77));
     for _ in 0..ROUNDS {
         let a: [i32; 4] = lanes(&mut rng, &[0; 4]);
         let b: [i32; 4] = lanes(&mut rng, &a);
@@ -389,7 +386,7 @@ fn i32x4_min_max_agree() {
 /// Bit casts, truncation and the transpose.
 #[test]
 fn conversions_agree() {
-    let mut rng = Rng(5);
+    let mut rng = Rng(SplitMix64::new(5));
     for _ in 0..ROUNDS {
         let a: [f32; 8] = lanes(&mut rng, &[0.0; 8]);
         let i = &format!("{a:?}");

@@ -216,9 +216,11 @@ pub fn pcf_visibility(
 /// `n` Poisson-disk taps in a disk of `radius`: dart throwing with a fixed
 /// seed, the same disk for every pixel (callers rotate it per pixel).
 pub fn poisson_disk(n: u32, radius: f64) -> Vec<DVec2> {
-    let mut state = 0x9e37_79b9_7f4a_7c15u64 ^ u64::from(n);
+    let mut state = crate::sampling::GOLDEN ^ u64::from(n);
     let mut next = || {
-        state = crate::sampling::mix64(state.wrapping_add(0x9e37_79b9_7f4a_7c15));
+        // Each draw is one SplitMix64 step from the previous draw (not one
+        // stream): the taps, and so the images, stay as they were.
+        state = crate::sampling::SplitMix64::new(state).next_u64();
         (state >> 11) as f64 / (1u64 << 53) as f64
     };
     let min_dist = radius * (0.75 / f64::from(n)).sqrt();

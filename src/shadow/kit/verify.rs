@@ -20,7 +20,7 @@
 
 use super::rays::ShadowTracer;
 use crate::error::{Error, Result};
-use crate::sampling::mix64;
+use crate::sampling::{mix64, SplitMix64, GOLDEN};
 use crate::shadow::technique::{SampleDecisions, ShadowContext};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -217,9 +217,12 @@ fn relations(ctx: &ShadowContext, k: u64, seed: u64) -> Vec<Relation> {
         return Vec::new();
     }
     let key = mix64(seed ^ 0x7665_7269_6679_2121);
+    // Relation j draws output j of the stream whose first output is
+    // `mix64(key)`.
+    let mut hashes = SplitMix64::new(key.wrapping_sub(GOLDEN));
     (0..k)
-        .map(|j| {
-            let h = mix64(key.wrapping_add(j.wrapping_mul(0x9e37_79b9_7f4a_7c15)));
+        .map(|_| {
+            let h = hashes.next_u64();
             let (h1, h2) = (mix64(h ^ 1), mix64(h ^ 2));
             Relation {
                 light: (h % lights as u64) as usize,

@@ -1355,7 +1355,8 @@ mod tests {
 
     /// A small reproducible generator.
     fn rng(state: &mut u64) -> f64 {
-        *state = crate::sampling::mix64(state.wrapping_add(0x9e37_79b9_7f4a_7c15));
+        // One SplitMix64 step from the previous draw.
+        *state = crate::sampling::SplitMix64::new(*state).next_u64();
         (*state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     }
 

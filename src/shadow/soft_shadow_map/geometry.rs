@@ -129,7 +129,8 @@ mod tests {
     fn rng(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed;
         move || {
-            s = crate::sampling::mix64(s.wrapping_add(0x9e37_79b9_7f4a_7c15));
+            // One SplitMix64 step from the previous draw.
+            s = crate::sampling::SplitMix64::new(s).next_u64();
             (s >> 11) as f64 / (1u64 << 53) as f64
         }
     }
