@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Table 2 of Laine & Aila 2005 for penumbra casting (issue 16, point 8).
+"""Table 2 of Laine & Aila 2005 for penumbra casting.
 
 Per scene (spheres, bunny, sponza-plants, flowers) the paper's five rows:
 640×480, 1280×960 and 2560×1920 with 256 samples, 1280×960 with 1024

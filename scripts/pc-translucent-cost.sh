@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Penumbra casting's translucent pass (issue 16, points 5a/5b): its memory
+# Penumbra casting's translucent pass: its memory
 # (--explain's translucent records against the bit masks) and its time, as
 # a ratio robust to machine load: instructions (perf stat, --threads 1) of
 # the scene against the same scene with every constant opacity set to 0

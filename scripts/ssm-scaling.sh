@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Soft shadow maps against penumbra wedges as the occluder's polygon count
-# grows (issue 15, point 9: SSM scales with the map, not the triangles).
+# grows (SSM scales with the map, not the triangles).
 #
 #   scripts/ssm-scaling.sh [--quick] [--runs N] [--maps "256 512 1024"] [--bin PATH]
 #
