@@ -8,7 +8,6 @@ use crate::compare::{
 };
 use crate::error::{Error, Result};
 use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
-use crate::raster::MAX_SIDE;
 use crate::render::{
     progress_for_render, render, verify_render, with_threads, Aov, RenderOptions, RenderOutput,
 };
@@ -412,18 +411,7 @@ impl RenderPlan {
             pattern,
             options: technique_options,
         };
-        if samples == 0 || samples > 1 << 20 {
-            return Err(Error::param(
-                "--samples",
-                format!("{samples} is outside 1..=1048576"),
-            ));
-        }
-        // One limit for the CLI and scene files: the rasterizer's.
-        for (name, v) in [("--width", width), ("--height", height)] {
-            if let Some(v) = v.filter(|v| !(1..=MAX_SIDE).contains(v)) {
-                return Err(Error::param(name, format!("{v} is outside 1..={MAX_SIDE}")));
-            }
-        }
+        options.validate()?;
         if let Some(k) = verify {
             // Refused before the render, not after it.
             check_verifiable(options.technique, &options.build_params(), k)?;

@@ -229,3 +229,61 @@ fn render_help_is_short_grouped_and_plain() {
         );
     }
 }
+
+/// The library refuses what the command line refuses, with the same
+/// message: both go through `RenderOptions::validate`.
+#[test]
+fn the_library_refuses_what_the_command_line_refuses() {
+    use penumbra::render::{render, RenderOptions};
+    use penumbra::report::Progress;
+    let (dir, path) = scene("library_refuses", QUAD);
+    let scene = penumbra::scene::load_scene(&path).unwrap();
+    let cases: [(&[&str], RenderOptions); 4] = [
+        (
+            &["--samples", "0"],
+            RenderOptions {
+                samples: 0,
+                ..RenderOptions::default()
+            },
+        ),
+        (
+            &["--width", "0"],
+            RenderOptions {
+                width: Some(0),
+                ..RenderOptions::default()
+            },
+        ),
+        (
+            &["--samples", "2000000"],
+            RenderOptions {
+                samples: 2_000_000,
+                ..RenderOptions::default()
+            },
+        ),
+        (
+            &["--technique", "pcss", "--depth-bias=-1"],
+            RenderOptions {
+                technique: "pcss".parse().unwrap(),
+                options: {
+                    let mut o = penumbra::shadow::TechniqueOptions::default();
+                    o.shadow_map.depth_bias = -1.0;
+                    o
+                },
+                ..RenderOptions::default()
+            },
+        ),
+    ];
+    for (args, options) in cases {
+        let library = render(&scene, &options, &Progress::new(1, false))
+            .expect_err("the library refuses")
+            .to_string();
+        let mut cli_args = vec!["render", "scene.toml", "-o", "out.png"];
+        cli_args.extend_from_slice(args);
+        let (code, cli) = penumbra_in(&dir, &cli_args);
+        assert_ne!(code, 0, "{args:?}: the command line refuses");
+        assert!(
+            cli.contains(&library),
+            "{args:?}: the command line says\n{cli}\nthe library says\n{library}"
+        );
+    }
+}

@@ -18,6 +18,7 @@ use crate::shadow::kit::verify::VerifyReport;
 use crate::shadow::kit::PassTimer;
 use crate::shadow::technique::BuildParams;
 use crate::shadow::verify;
+use crate::shadow::OptionGroup;
 use crate::shadow::{
     run_technique, BufferNote, LightTerm, PassTiming, ShadowCache, ShadowContext, TechniqueOptions,
     Warning,
@@ -103,7 +104,42 @@ pub struct RenderOptions {
     pub options: TechniqueOptions,
 }
 
+/// Most light samples per pixel and light a render takes.
+pub const MAX_SAMPLES: u32 = 1 << 20;
+
 impl RenderOptions {
+    /// Every range check of the options, in one place: the command line
+    /// calls it before it loads the scene and [`render`] before it renders,
+    /// so the library refuses exactly what the command line refuses. The
+    /// chosen technique's own option groups are checked too (the map
+    /// techniques' depth bias, PCSS's sample counts); options it does not
+    /// read are not.
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=MAX_SAMPLES).contains(&self.samples) {
+            return Err(Error::param(
+                "--samples",
+                format!("{} is outside 1..={MAX_SAMPLES}", self.samples),
+            ));
+        }
+        // One limit for the CLI and scene files: the rasterizer's.
+        for (name, v) in [("--width", self.width), ("--height", self.height)] {
+            if let Some(v) = v.filter(|v| !(1..=crate::raster::MAX_SIDE).contains(v)) {
+                return Err(Error::param(
+                    name,
+                    format!("{v} is outside 1..={}", crate::raster::MAX_SIDE),
+                ));
+            }
+        }
+        for group in self.technique.info().reads {
+            match group {
+                OptionGroup::ShadowMaps => self.options.shadow_map.bias().validate()?,
+                OptionGroup::Pcss => self.options.pcss.validate()?,
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
     /// What the technique is built from.
     pub fn build_params(&self) -> BuildParams<'_> {
         BuildParams {
@@ -215,6 +251,7 @@ pub fn render_rows(
     progress: &Progress,
     rows: Option<std::ops::Range<u32>>,
 ) -> Result<RenderOutput> {
+    options.validate()?;
     let view = view_for(scene, options)?;
     check_memory(scene, options, &view)?;
     let mut passes = Vec::new();
