@@ -267,7 +267,6 @@ fn the_list_and_the_technique_folders_agree() {
         "technique.rs",
         "registry.rs",
         "options.rs",
-        "defaults.rs",
         "run.rs",
         "verify.rs",
         "kit",

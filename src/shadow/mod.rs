@@ -15,13 +15,11 @@
 //! - [`technique`]: the interface and the vocabulary techniques describe
 //!   themselves with; [`kit`]: building blocks several techniques share.
 //! - [`options`]: every technique's options gathered from the leaf
-//!   `options.rs` files; [`defaults`].
+//!   `options.rs` files.
 
 #[forbid(unsafe_code)]
 pub mod adaptive_maps;
 pub mod dcs;
-#[forbid(unsafe_code)]
-pub(crate) mod defaults;
 pub mod kit;
 #[forbid(unsafe_code)]
 pub mod multi_map;

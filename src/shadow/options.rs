@@ -3,7 +3,9 @@
 //! [`OptionGroup`]s a technique declares it reads. Written once: one line
 //! per options group below yields the struct's field, its help heading
 //! and its group. Each group's type lives in a leaf `options.rs` beside
-//! the code that reads it, so this file imports no technique.
+//! the code that reads it, so this file imports no technique. Each
+//! group's `Default` is written out in plain Rust; a test holds it to
+//! clap's.
 
 use super::adaptive_maps::options::AdaptiveMapsOptions;
 use super::dcs::options::DcsOptions;
@@ -92,9 +94,35 @@ option_groups! {
 }
 
 impl Default for TechniqueOptions {
-    /// The command line's defaults, so that the library and the CLI can
-    /// never disagree on them.
+    /// The command line's defaults, from each group's own plain-Rust
+    /// `Default` (tested below against clap's, so that the library and the
+    /// CLI can never disagree on them).
     fn default() -> Self {
-        super::defaults::clap_defaults()
+        TechniqueOptions {
+            shadow_volumes: Default::default(),
+            dcs: Default::default(),
+            shadow_map: Default::default(),
+            pcss: Default::default(),
+            adaptive_maps: Default::default(),
+            ssm: Default::default(),
+            penumbra_casting: Default::default(),
+            stsv: Default::default(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The plain-Rust defaults are the command line's, group by group.
+    #[test]
+    fn plain_defaults_are_the_command_lines() {
+        use clap::{Args, FromArgMatches};
+        let matches = TechniqueOptions::augment_args(clap::Command::new("defaults"))
+            .get_matches_from(["defaults"]);
+        let clap =
+            TechniqueOptions::from_arg_matches(&matches).expect("every option has a default");
+        assert_eq!(TechniqueOptions::default(), clap);
     }
 }

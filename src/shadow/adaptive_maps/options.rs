@@ -45,8 +45,17 @@ pub struct AdaptiveMapsOptions {
 }
 
 impl Default for AdaptiveMapsOptions {
-    /// The command line's defaults.
+    /// The command line's defaults, written out (`shadow::options` tests
+    /// that clap gives the same).
     fn default() -> Self {
-        crate::shadow::defaults::clap_defaults()
+        AdaptiveMapsOptions {
+            adaptive_threshold: 0,
+            max_depth: 4,
+            comparison_scale: 1.0,
+            adaptive_centre_depth: 2,
+            adaptive_split_all: false,
+            adaptive_band_low: 0.5,
+            adaptive_band_high: 4.0,
+        }
     }
 }

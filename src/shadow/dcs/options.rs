@@ -53,9 +53,15 @@ pub struct DcsOptions {
 }
 
 impl Default for DcsOptions {
-    /// The command line's defaults (exact: whole-light silhouettes).
+    /// The command line's defaults, written out (`shadow::options` tests
+    /// that clap gives the same).
     fn default() -> Self {
-        crate::shadow::defaults::clap_defaults()
+        DcsOptions {
+            silhouettes: SilhouetteMode::WholeLight,
+            mode: DcsMode::Direct,
+            transmittance: TransmittanceMode::Exact,
+            coverage: CoverageTest::Exact,
+        }
     }
 }
 

@@ -106,9 +106,16 @@ pub struct ShadowMapOptions {
 }
 
 impl Default for ShadowMapOptions {
-    /// The command line's defaults.
+    /// The command line's defaults, written out (`shadow::options` tests
+    /// that clap gives the same).
     fn default() -> Self {
-        crate::shadow::defaults::clap_defaults()
+        ShadowMapOptions {
+            map_size: 1024,
+            pcf: Pcf::Nearest,
+            depth_bias: 1e-4,
+            slope_bias: 0.0,
+            normal_offset: 0.5,
+        }
     }
 }
 

@@ -38,9 +38,15 @@ pub struct PcssOptions {
 }
 
 impl Default for PcssOptions {
-    /// The command line's defaults.
+    /// The command line's defaults, written out (`shadow::options` tests
+    /// that clap gives the same).
     fn default() -> Self {
-        crate::shadow::defaults::clap_defaults()
+        PcssOptions {
+            pcss_blocker_samples: 16,
+            pcss_filter_samples: 16,
+            pcss_kernel: PcssKernel::Poisson,
+            pcss_flat_receiver: false,
+        }
     }
 }
 

@@ -83,9 +83,27 @@ pub struct PenumbraCastingOptions {
 }
 
 impl Default for PenumbraCastingOptions {
-    /// The command line's defaults (every optimisation on).
+    /// The command line's defaults, written out (`shadow::options` tests
+    /// that clap gives the same).
     fn default() -> Self {
-        crate::shadow::defaults::clap_defaults()
+        PenumbraCastingOptions {
+            pc_sample_sets: 0,
+            pc_umbra_bits: true,
+            pc_active_planes: true,
+            pc_lazy_volumes: true,
+            pc_on_demand_masks: true,
+            pc_sort_blockers: true,
+            pc_simd: true,
+            pc_cone_prefilter: true,
+            pc_cone_decides: true,
+            pc_cone_split: true,
+            pc_cull_back_faces: true,
+            pc_rebuild_percent: 25,
+            pc_chunk: 256,
+            pc_split_work: 1 << 17,
+            pc_mask_budget_mib: 1024,
+            opacity_filter: Filter::Nearest,
+        }
     }
 }
 

@@ -48,8 +48,14 @@ pub struct SsmOptions {
 }
 
 impl Default for SsmOptions {
-    /// The command line's defaults.
+    /// The command line's defaults, written out (`shadow::options` tests
+    /// that clap gives the same).
     fn default() -> Self {
-        crate::shadow::defaults::clap_defaults()
+        SsmOptions {
+            ssm_passes: 1,
+            ssm_bottom_patches: false,
+            ssm_accumulate: Accumulate::F32,
+            ssm_lookup: Lookup::Bilinear,
+        }
     }
 }
