@@ -1052,3 +1052,35 @@ fn out_of_range_values_say_so() {
         "beyond the supported range",
     );
 }
+
+/// A scene given as TOML text is the scene its file gives (relative paths
+/// resolved against the folder given), and a bad one is refused with the
+/// file's message, naming the text instead of the file.
+#[test]
+fn a_scene_from_text_is_the_scene_from_its_file() {
+    use penumbra::scene::{load_scene, scene_from_toml, TOML_TEXT};
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    for name in ["bunny", "fence", "tinted"] {
+        let path = scenes.join(format!("{name}.toml"));
+        let from_file = load_scene(&path).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut from_text = scene_from_toml(&text, &scenes).unwrap();
+        assert_eq!(from_text.path, std::path::Path::new(TOML_TEXT));
+        from_text.path = from_file.path.clone();
+        if from_file.name == name {
+            from_text.name = from_file.name.clone();
+        }
+        assert_eq!(format!("{from_text:?}"), format!("{from_file:?}"), "{name}");
+    }
+    let bad = "[camera]\neye = [0.0, 1.0]\n";
+    let dir = common::ScratchDir::new("scene_from_text");
+    let file = dir.write("bad.toml", bad);
+    let file_error = load_scene(&file).unwrap_err().to_string();
+    let text_error = scene_from_toml(bad, &dir.0).unwrap_err().to_string();
+    assert_eq!(
+        text_error,
+        file_error.replace(&file.display().to_string(), TOML_TEXT),
+        "the same message, naming the text"
+    );
+    assert!(text_error.contains(":2"), "{text_error}");
+}

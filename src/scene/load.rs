@@ -854,6 +854,25 @@ fn key_of_value(text: &str, offset: usize) -> Option<&str> {
 /// itself is an [`Error::Io`].
 pub fn load_scene(path: &Path) -> Result<Scene> {
     let bytes = super::input::read(path).map_err(|e| Error::io(path, e))?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    parse_scene(&bytes, path, dir)
+}
+
+/// What errors of a scene given as text name as its file.
+pub const TOML_TEXT: &str = "<scene text>";
+
+/// A scene from TOML text, validated exactly as [`load_scene`] validates a
+/// file, with the same messages: they name [`TOML_TEXT`] and the line
+/// where the file would be named. Relative paths in it (OBJ models,
+/// textures) are resolved against `base_dir`, as a file's are against its
+/// folder.
+pub fn scene_from_toml(text: &str, base_dir: &Path) -> Result<Scene> {
+    parse_scene(text.as_bytes(), Path::new(TOML_TEXT), base_dir)
+}
+
+/// Parses and validates scene `bytes`, named `path` in messages, with
+/// relative paths resolved against `dir`.
+fn parse_scene(bytes: &[u8], path: &Path, dir: &Path) -> Result<Scene> {
     let line_starts: Vec<usize> = std::iter::once(0)
         .chain(
             bytes
@@ -863,13 +882,12 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
                 .map(|(i, _)| i + 1),
         )
         .collect();
-    let dir = path.parent().unwrap_or(Path::new(""));
     let ctx = Ctx {
         path,
         dir,
         line_starts,
     };
-    let text = std::str::from_utf8(&bytes).map_err(|e| {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
         let at = e.valid_up_to();
         ctx.err(at..at, "not valid UTF-8 text")
     })?;
@@ -899,7 +917,8 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
 
     let section = &file.scene;
     let name = section.name.clone().unwrap_or_else(|| {
-        path.file_stem()
+        (path.file_stem())
+            .filter(|_| path != Path::new(TOML_TEXT))
             .map_or("scene".into(), |s| s.to_string_lossy().into_owned())
     });
     let ambient = ctx.color(section.ambient.as_ref(), "scene.ambient", Vec3::ZERO)?;

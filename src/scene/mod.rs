@@ -14,7 +14,7 @@ mod obj;
 mod shapes;
 mod texture;
 
-pub use load::load_scene;
+pub use load::{load_scene, scene_from_toml, TOML_TEXT};
 pub use texture::{Texture, TextureData};
 
 use crate::geom::Mesh;
