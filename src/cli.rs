@@ -56,6 +56,10 @@ enum Command {
         /// Print only the names, one per line (for scripts).
         #[arg(long, conflicts_with = "markdown")]
         names: bool,
+        /// Print every technique and its capabilities as JSON (for
+        /// programs).
+        #[arg(long, conflicts_with_all = ["markdown", "names"])]
+        json: bool,
     },
     /// Error metrics between two images (PNG or EXR), and with --flip the
     /// perceptual FLIP error; exits with 1 when a tolerance is exceeded, 2
@@ -294,7 +298,11 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         }
         Command::Compare(args) => run_compare(args),
         Command::Diff(args) => run_diff(args),
-        Command::Techniques { markdown, names } => run_techniques(markdown, names),
+        Command::Techniques {
+            markdown,
+            names,
+            json,
+        } => run_techniques(markdown, names, json),
         Command::Info { scene } => run_info(&scene),
     }
 }
@@ -698,10 +706,14 @@ fn run_diff(args: DiffArgs) -> Result<Outcome> {
 }
 
 /// `penumbra techniques`.
-fn run_techniques(markdown: bool, names: bool) -> Result<Outcome> {
+fn run_techniques(markdown: bool, names: bool, json: bool) -> Result<Outcome> {
     // Checked writes, not print!: a full disk behind `>` is an
     // error, a closed pipe a quiet end (never a panic).
-    let text = if markdown {
+    let text = if json {
+        let data = crate::shadow::registry::technique_data();
+        serde_json::to_string_pretty(&data).map_err(|e| Error::param("--json", e.to_string()))?
+            + "\n"
+    } else if markdown {
         crate::shadow::registry::markdown_table("algorithms/")
     } else if names {
         let mut s = String::new();

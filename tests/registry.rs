@@ -296,3 +296,37 @@ fn the_list_and_the_technique_folders_agree() {
         );
     }
 }
+
+/// `penumbra techniques --json` is the registry as data: every registered
+/// technique, in order, with its capabilities as the listing states them.
+#[test]
+fn techniques_as_json_are_the_registry() {
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(["techniques", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    let listed: Vec<&str> = json
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(listed, names());
+    let defaults = TechniqueOptions::default();
+    for (entry, t) in json.as_array().unwrap().iter().zip(Technique::all()) {
+        let caps = t.capabilities(&defaults);
+        assert_eq!(entry["exact"], caps.exact, "{}", t.name());
+        assert_eq!(entry["exact_image"], caps.exact_image, "{}", t.name());
+        let sphere = entry["support"]["sphere_lights"].as_str().unwrap();
+        match caps.sphere_lights {
+            Support::Yes => assert_eq!(sphere, "yes"),
+            Support::Refused { why, .. } => assert_eq!(sphere, format!("refused: {why}")),
+            _ => assert!(!sphere.is_empty()),
+        }
+    }
+    let dcs = &json.as_array().unwrap()[names().iter().position(|n| *n == "dcs").unwrap()];
+    assert_eq!(dcs["output"], "radiance");
+    assert_eq!(dcs["cost"], "raster");
+}

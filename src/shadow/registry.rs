@@ -13,8 +13,8 @@
 
 use super::options::{OptionGroup, TechniqueOptions};
 use super::technique::{
-    has_s_triangles, BuildParams, Capabilities, QualitySetting, ShadowTechnique, Support, Sweep,
-    TechniqueInfo, TermKind,
+    has_s_triangles, BuildParams, Capabilities, CostClass, QualitySetting, ShadowTechnique,
+    Support, Sweep, TechniqueInfo, TermKind,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -160,6 +160,83 @@ pub fn markdown_table(pages: &str) -> String {
         ));
     }
     s
+}
+
+/// One technique as data: what `penumbra techniques --json` prints and
+/// what a program (or the Python package) reads instead of the listing.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TechniqueData {
+    /// The command-line name.
+    pub name: &'static str,
+    /// One line on what it does.
+    pub summary: &'static str,
+    /// Its module under `src/`.
+    pub module: &'static str,
+    /// Its page under docs/algorithms, if it has one.
+    pub page: Option<&'static str>,
+    /// Per-sample visibility equals the shadow rays' (with the default
+    /// options).
+    pub exact: bool,
+    /// The image converges to the contract's radiance (default options).
+    pub exact_image: bool,
+    /// `vcoef` or `radiance`.
+    pub output: &'static str,
+    /// Per kind of scene content (`rect_lights`, `sphere_lights`,
+    /// `textured_lights`, `enclosed_lights`, `reached_lights`,
+    /// `semi_opaque`, `s_triangles`): `yes`, `stsv add-on`, `ignored: why`
+    /// or `refused: why`.
+    pub support: std::collections::BTreeMap<&'static str, String>,
+    /// How its time grows with the light samples: `free`, `raster` or
+    /// `rays`.
+    pub cost: &'static str,
+}
+
+/// Every registered technique as data, in registry order, with the
+/// default options.
+pub fn technique_data() -> Vec<TechniqueData> {
+    let options = TechniqueOptions::default();
+    Technique::all()
+        .map(|t| {
+            let info = t.info();
+            let caps = t.capabilities(&options);
+            let words = |s: Support| match s {
+                Support::Yes => "yes".to_string(),
+                Support::StsvAddOn => "stsv add-on".to_string(),
+                Support::Ignored(why) => format!("ignored: {why}"),
+                Support::Refused { why, .. } => format!("refused: {why}"),
+            };
+            let support = [
+                ("rect_lights", caps.rect_lights),
+                ("sphere_lights", caps.sphere_lights),
+                ("textured_lights", caps.textured_lights),
+                ("enclosed_lights", caps.enclosed_lights),
+                ("reached_lights", caps.reached_lights),
+                ("semi_opaque", caps.semi_opaque),
+                ("s_triangles", caps.s_triangles),
+            ]
+            .into_iter()
+            .map(|(content, s)| (content, words(s)))
+            .collect();
+            TechniqueData {
+                name: info.name,
+                summary: info.summary,
+                module: info.module,
+                page: info.page,
+                exact: caps.exact,
+                exact_image: caps.exact_image,
+                output: match caps.output {
+                    TermKind::Vcoef => "vcoef",
+                    TermKind::Radiance => "radiance",
+                },
+                support,
+                cost: match info.cost {
+                    CostClass::Free => "free",
+                    CostClass::Raster => "raster",
+                    CostClass::Rays => "rays",
+                },
+            }
+        })
+        .collect()
 }
 
 /// The `penumbra techniques` listing.
