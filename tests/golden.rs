@@ -118,12 +118,13 @@ fn hash_run(run: &Run, dir: &Path) -> BTreeMap<String, String> {
 
 /// The record as lines `scene technique item hash`, sorted.
 fn render_record() -> Vec<String> {
+    let techniques = techniques();
     let runs: Vec<Run> = scenes()
         .into_iter()
         .flat_map(|scene| {
-            techniques().into_iter().map(move |technique| Run {
+            techniques.iter().map(move |technique| Run {
                 scene: scene.clone(),
-                technique,
+                technique: technique.clone(),
             })
         })
         .collect();

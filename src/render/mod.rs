@@ -18,7 +18,6 @@ use crate::shadow::kit::verify::VerifyReport;
 use crate::shadow::kit::PassTimer;
 use crate::shadow::technique::BuildParams;
 use crate::shadow::verify;
-use crate::shadow::OptionGroup;
 use crate::shadow::{
     run_technique, BufferNote, LightTerm, PassTiming, ShadowCache, ShadowContext, TechniqueOptions,
     Warning,
@@ -130,14 +129,7 @@ impl RenderOptions {
                 ));
             }
         }
-        for group in self.technique.info().reads {
-            match group {
-                OptionGroup::ShadowMaps => self.options.shadow_map.bias().validate()?,
-                OptionGroup::Pcss => self.options.pcss.validate()?,
-                _ => {}
-            }
-        }
-        Ok(())
+        self.options.validate(self.technique.info().reads)
     }
 
     /// What the technique is built from.

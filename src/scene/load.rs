@@ -855,7 +855,8 @@ fn key_of_value(text: &str, offset: usize) -> Option<&str> {
 pub fn load_scene(path: &Path) -> Result<Scene> {
     let bytes = super::input::read(path).map_err(|e| Error::io(path, e))?;
     let dir = path.parent().unwrap_or(Path::new(""));
-    parse_scene(&bytes, path, dir)
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+    parse_scene(&bytes, path, dir, stem.as_deref().unwrap_or("scene"))
 }
 
 /// What errors of a scene given as text name as its file.
@@ -867,12 +868,13 @@ pub const TOML_TEXT: &str = "<scene text>";
 /// textures) are resolved against `base_dir`, as a file's are against its
 /// folder.
 pub fn scene_from_toml(text: &str, base_dir: &Path) -> Result<Scene> {
-    parse_scene(text.as_bytes(), Path::new(TOML_TEXT), base_dir)
+    parse_scene(text.as_bytes(), Path::new(TOML_TEXT), base_dir, "scene")
 }
 
 /// Parses and validates scene `bytes`, named `path` in messages, with
-/// relative paths resolved against `dir`.
-fn parse_scene(bytes: &[u8], path: &Path, dir: &Path) -> Result<Scene> {
+/// relative paths resolved against `dir`; `name` unless the scene names
+/// itself.
+fn parse_scene(bytes: &[u8], path: &Path, dir: &Path, name: &str) -> Result<Scene> {
     let line_starts: Vec<usize> = std::iter::once(0)
         .chain(
             bytes
@@ -916,11 +918,7 @@ fn parse_scene(bytes: &[u8], path: &Path, dir: &Path) -> Result<Scene> {
     })?;
 
     let section = &file.scene;
-    let name = section.name.clone().unwrap_or_else(|| {
-        (path.file_stem())
-            .filter(|_| path != Path::new(TOML_TEXT))
-            .map_or("scene".into(), |s| s.to_string_lossy().into_owned())
-    });
+    let name = section.name.clone().unwrap_or_else(|| name.to_string());
     let ambient = ctx.color(section.ambient.as_ref(), "scene.ambient", Vec3::ZERO)?;
     let background = ctx.color(section.background.as_ref(), "scene.background", Vec3::ZERO)?;
     let mut camera = camera(&ctx, &file.camera)?;

@@ -111,6 +111,22 @@ impl Default for TechniqueOptions {
     }
 }
 
+impl TechniqueOptions {
+    /// The range checks of `groups` (those a technique reads): the map
+    /// techniques' depth bias, PCSS's sample counts. Groups whose ranges
+    /// clap's parsers already hold have none.
+    pub fn validate(&self, groups: &[OptionGroup]) -> crate::error::Result<()> {
+        for group in groups {
+            match group {
+                OptionGroup::ShadowMaps => self.shadow_map.bias().validate()?,
+                OptionGroup::Pcss => self.pcss.validate()?,
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

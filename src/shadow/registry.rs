@@ -179,12 +179,12 @@ pub struct TechniqueData {
     pub exact: bool,
     /// The image converges to the contract's radiance (default options).
     pub exact_image: bool,
-    /// `vcoef` or `radiance`.
+    /// `Vcoef` or `radiance`, as the listing says.
     pub output: &'static str,
     /// Per kind of scene content (`rect_lights`, `sphere_lights`,
     /// `textured_lights`, `enclosed_lights`, `reached_lights`,
-    /// `semi_opaque`, `s_triangles`): `yes`, `stsv add-on`, `ignored: why`
-    /// or `refused: why`.
+    /// `semi_opaque`, `s_triangles`): the listing's words (`yes`,
+    /// `yes (STSV add-on)`, `ignored (warning): why`, `refused: why`).
     pub support: std::collections::BTreeMap<&'static str, String>,
     /// How its time grows with the light samples: `free`, `raster` or
     /// `rays`.
@@ -199,11 +199,12 @@ pub fn technique_data() -> Vec<TechniqueData> {
         .map(|t| {
             let info = t.info();
             let caps = t.capabilities(&options);
+            // The listing's words, with the reason where there is one.
             let words = |s: Support| match s {
-                Support::Yes => "yes".to_string(),
-                Support::StsvAddOn => "stsv add-on".to_string(),
-                Support::Ignored(why) => format!("ignored: {why}"),
-                Support::Refused { why, .. } => format!("refused: {why}"),
+                Support::Ignored(why) | Support::Refused { why, .. } => {
+                    format!("{}: {why}", support_name(s))
+                }
+                _ => support_name(s).to_string(),
             };
             let support = [
                 ("rect_lights", caps.rect_lights),
@@ -224,10 +225,7 @@ pub fn technique_data() -> Vec<TechniqueData> {
                 page: info.page,
                 exact: caps.exact,
                 exact_image: caps.exact_image,
-                output: match caps.output {
-                    TermKind::Vcoef => "vcoef",
-                    TermKind::Radiance => "radiance",
-                },
+                output: term_name(caps.output),
                 support,
                 cost: match info.cost {
                     CostClass::Free => "free",
