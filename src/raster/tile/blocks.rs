@@ -6,7 +6,7 @@
 //! batch) is shared with the counting walk.
 
 use super::depth_bounds::{DepthBounds, Verdict};
-use super::job::{TileJob, TileStats, BLOCK, OFFSETS_I32};
+use super::job::{clip_to_tile, TileJob, TileStats, BLOCK, OFFSETS_I32};
 use crate::raster::fragment::{FragmentBatch, FragmentStage};
 use crate::raster::framebuffer::{DepthStencilTile, TILE_SIZE};
 use crate::raster::setup::SetupTriangle;
@@ -69,7 +69,6 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
     ) -> TileStats {
         let mut stats = TileStats::default();
         let (tx, ty) = self.origin;
-        let last = TILE_SIZE as i32 - 1;
         // Depth bounds skip rectangles where no fragment can pass, for
         // passes whose only effect is on passing fragments (no depth
         // write, no stencil): a wedge pass counting faces in front of
@@ -91,15 +90,9 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         };
         for &ti in self.bin {
             let t = &self.triangles[ti as usize];
-            let clip = [
-                t.bbox[0].max(tx),
-                t.bbox[1].max(ty),
-                t.bbox[2].min(tx + last),
-                t.bbox[3].min(ty + last),
-            ];
-            if clip[0] > clip[2] || clip[1] > clip[3] {
+            let Some(clip) = clip_to_tile(t.bbox, tx, ty) else {
                 continue;
-            }
+            };
             if skip(t, clip, &ds.depth) {
                 continue;
             }

@@ -4,7 +4,9 @@
 //! quads carry a fourth edge and a second depth plane.
 
 use super::depth_bounds::{DepthBounds, Verdict};
-use super::job::{CountingPass, TileJob, TileStats, BLOCK, MAX_DEPTH_SHIFTS, OFFSETS_I32};
+use super::job::{
+    clip_to_tile, CountingPass, TileJob, TileStats, BLOCK, MAX_DEPTH_SHIFTS, OFFSETS_I32,
+};
 use crate::raster::fragment::FragmentStage;
 use crate::raster::framebuffer::{DepthStencilTile, TILE_SIZE};
 use crate::raster::setup::{EdgeFunction, Plane, QuadExtra, SetupTriangle};
@@ -262,7 +264,6 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
     ) -> TileStats {
         let mut stats = TileStats::default();
         let (tx, ty) = self.origin;
-        let last = TILE_SIZE as i32 - 1;
         let walk = CountingWalk::new(c, self.state.depth_func, test);
         // Depth bounds of the tile's blocks, made on first use: a pass
         // that counts does not write depth, so they hold for the whole
@@ -270,15 +271,9 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let mut bounds: Option<DepthBounds> = None;
         for &ti in self.bin {
             let t = &self.triangles[ti as usize];
-            let clip = [
-                t.bbox[0].max(tx),
-                t.bbox[1].max(ty),
-                t.bbox[2].min(tx + last),
-                t.bbox[3].min(ty + last),
-            ];
-            if clip[0] > clip[2] || clip[1] > clip[3] {
+            let Some(clip) = clip_to_tile(t.bbox, tx, ty) else {
                 continue;
-            }
+            };
             if t.small {
                 self.small(t, clip, ds, target, &mut stats);
                 continue;

@@ -11,6 +11,20 @@ use crate::simd::i32x8;
 
 /// Side of a block, and lanes per row of it.
 pub(crate) const BLOCK: i32 = 8;
+
+/// A triangle's pixel bounding box `[x0, y0, x1, y1]` (inclusive) clipped
+/// to the tile at `(tx, ty)`; `None` when they do not meet.
+#[inline(always)]
+pub(crate) fn clip_to_tile(bbox: [i32; 4], tx: i32, ty: i32) -> Option<[i32; 4]> {
+    let last = crate::raster::TILE_SIZE as i32 - 1;
+    let clip = [
+        bbox[0].max(tx),
+        bbox[1].max(ty),
+        bbox[2].min(tx + last),
+        bbox[3].min(ty + last),
+    ];
+    (clip[0] <= clip[2] && clip[1] <= clip[3]).then_some(clip)
+}
 pub(crate) const OFFSETS_I32: i32x8 = i32x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
 
 /// Per-tile counters.
