@@ -22,9 +22,9 @@
 #![allow(missing_docs)]
 
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use penumbra::sampling::{PatternSampler, SamplePattern};
-use penumbra::shadow::dcs::bitfield::{CoverageTables, TableResolution};
-use penumbra::shadow::dcs::counters::{add_covered, ChartSamples, OrientedEdge};
+use penumbra::internal::sampling::{PatternSampler, SamplePattern};
+use penumbra::internal::shadow::dcs::bitfield::{CoverageTables, TableResolution};
+use penumbra::internal::shadow::dcs::counters::{add_covered, ChartSamples, OrientedEdge};
 use std::time::{Duration, Instant};
 
 const EDGES: usize = 4096;

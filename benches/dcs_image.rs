@@ -22,10 +22,10 @@
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use penumbra::render::shade;
-use penumbra::sampling::SamplePattern;
-use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
-use penumbra::shadow::ShadowTechnique;
+use penumbra::internal::render::shade;
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
+use penumbra::internal::shadow::ShadowTechnique;
 use std::time::Duration;
 
 const SIZE: u32 = 1024;

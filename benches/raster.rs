@@ -9,11 +9,13 @@
 #![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use penumbra::gbuffer::{depth_pass, gbuffer_pass, transform_vertices, GBufferPass};
-use penumbra::geom::SceneGeometry;
-use penumbra::render::{view_for, RenderOptions};
-use penumbra::scene::load_scene;
-use penumbra::shadow::kit::volumes::{build_volume, caster_adjacency, light_point, stencil_counts};
+use penumbra::internal::gbuffer::{depth_pass, gbuffer_pass, transform_vertices, GBufferPass};
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::render::{view_for, RenderOptions};
+use penumbra::internal::scene::load_scene;
+use penumbra::internal::shadow::kit::volumes::{
+    build_volume, caster_adjacency, light_point, stencil_counts,
+};
 use std::path::Path;
 
 fn raster(c: &mut Criterion) {

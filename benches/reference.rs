@@ -19,9 +19,9 @@
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use penumbra::shadow::kit::rays::ShadowTracer;
-use penumbra::shadow::reference::Reference;
-use penumbra::shadow::ShadowTechnique;
+use penumbra::internal::shadow::kit::rays::ShadowTracer;
+use penumbra::internal::shadow::reference::Reference;
+use penumbra::internal::shadow::ShadowTechnique;
 use std::time::Duration;
 
 const SAMPLES: u32 = 16;

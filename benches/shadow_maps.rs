@@ -21,12 +21,12 @@
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use penumbra::geom::SceneGeometry;
-use penumbra::scene::{load_scene, Scene};
-use penumbra::shadow::kit::light_view::{caster_bounds, receiver_bounds};
-use penumbra::shadow::kit::shadow_maps::{centre_point, light_view_at, opaque_depth_map};
-use penumbra::shadow::multi_map::MultiMap;
-use penumbra::shadow::{ShadowTechnique, TechniqueOptions};
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::scene::{load_scene, Scene};
+use penumbra::internal::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+use penumbra::internal::shadow::kit::shadow_maps::{centre_point, light_view_at, opaque_depth_map};
+use penumbra::internal::shadow::multi_map::MultiMap;
+use penumbra::internal::shadow::{ShadowTechnique, TechniqueOptions};
 use std::path::Path;
 
 fn scene(name: &str) -> Scene {
@@ -74,7 +74,7 @@ fn multi_map_64(c: &mut Criterion) {
     maps.map_size = 512;
     let technique = MultiMap {
         maps: 64,
-        pattern: penumbra::sampling::SamplePattern::Stratified,
+        pattern: penumbra::internal::sampling::SamplePattern::Stratified,
         seed: 0,
         options: maps,
     };

@@ -14,9 +14,9 @@
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use penumbra::shadow::soft_shadow_map::{SoftShadowMap, SsmOptions};
-use penumbra::shadow::wedges::PenumbraWedges;
-use penumbra::shadow::{ShadowTechnique, TechniqueOptions};
+use penumbra::internal::shadow::soft_shadow_map::{SoftShadowMap, SsmOptions};
+use penumbra::internal::shadow::wedges::PenumbraWedges;
+use penumbra::internal::shadow::{ShadowTechnique, TechniqueOptions};
 use std::time::Duration;
 
 const SIZE: u32 = 512;

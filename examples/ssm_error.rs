@@ -8,11 +8,10 @@
 //! overlap/gap bound on tilted planes, `fig10` one pass against two on a
 //! pillar whose sides cast the shadow (`PILLAR`; `pillar` prints it).
 
-use penumbra::render::{render, Aov, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::scene::{load_scene, Scene};
-use penumbra::shadow::soft_shadow_map::Accumulate;
-use penumbra::shadow::Technique;
+use penumbra::internal::render::{render, Aov, RenderOptions};
+use penumbra::internal::scene::{load_scene, Scene};
+use penumbra::internal::shadow::soft_shadow_map::Accumulate;
+use penumbra::internal::shadow::Technique;
 use std::time::Instant;
 
 const SIZE: u32 = 160;
@@ -46,7 +45,7 @@ fn run(scene: &Scene, technique: &str, f: impl Fn(&mut RenderOptions)) -> Run {
     };
     f(&mut o);
     let t = Instant::now();
-    let out = render(scene, &o, &Progress::hidden()).unwrap();
+    let out = render(scene, &o).unwrap();
     let seconds = t.elapsed().as_secs_f64();
     let y = &out
         .layers
@@ -166,7 +165,7 @@ fn main() {
                     o.options.ssm.ssm_bottom_patches = bottom;
                     if nearest {
                         o.options.ssm.ssm_lookup =
-                            penumbra::shadow::soft_shadow_map::Lookup::Nearest;
+                            penumbra::internal::shadow::soft_shadow_map::Lookup::Nearest;
                     }
                 });
                 let (rmse, mae, paper) = metrics(&r.vcoef, &reference.vcoef, &all(&r));
@@ -381,9 +380,9 @@ fn fig10() {
 /// the SSM's actual error against the exact (polygon-clipped) occlusion.
 fn tilt() {
     use glam::DVec3;
-    use penumbra::geom::SceneGeometry;
-    use penumbra::shadow::kit::light_view::{caster_bounds, receiver_bounds};
-    use penumbra::shadow::TechniqueOptions;
+    use penumbra::internal::geom::SceneGeometry;
+    use penumbra::internal::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+    use penumbra::internal::shadow::TechniqueOptions;
     println!(
         "\n## Eq. 3 on a tilted plane (quad at height 1.5, light half-size 0.5 at 4, 64² map)\n"
     );
@@ -399,7 +398,7 @@ fn tilt() {
         let geometry = SceneGeometry::new(&sc);
         let mut o = TechniqueOptions::default();
         o.shadow_map.map_size = 64;
-        let ssm = penumbra::shadow::soft_shadow_map::build_light(
+        let ssm = penumbra::internal::shadow::soft_shadow_map::build_light(
             &sc,
             &geometry,
             0,
@@ -463,7 +462,8 @@ fn tilt() {
         // projected from the receiver onto the light's plane (a convex
         // quadrilateral: the quad lies between them), clipped to the
         // light, its area over the light's.
-        let penumbra::scene::LightShape::Rect { center, u, v, .. } = sc.lights[0].shape else {
+        let penumbra::internal::scene::LightShape::Rect { center, u, v, .. } = sc.lights[0].shape
+        else {
             unreachable!()
         };
         let (c, u, v) = (center.as_dvec3(), u.as_dvec3(), v.as_dvec3());

@@ -9,7 +9,7 @@ use crate::compare::{
 use crate::error::{Error, Result};
 use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
 use crate::render::{
-    progress_for_render, render, verify_render, with_threads, Aov, RenderOptions, RenderOutput,
+    progress_for_render, render_with, verify_render, with_threads, Aov, Render, RenderOptions,
 };
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
@@ -321,7 +321,7 @@ fn run_render(args: RenderArgs, given: &[(String, String)]) -> Result<Outcome> {
         progress.finish();
         return Ok(Outcome::Success);
     }
-    let out = with_threads(threads, || render(&scene, options, &progress))??;
+    let out = render_with(&scene, options, &progress)?;
     progress.finish();
     print_render_notes(&out, plan.timings, plan.explain);
     // Verified before anything is written: a failed certificate
@@ -418,6 +418,7 @@ impl RenderPlan {
             seed,
             pattern,
             options: technique_options,
+            threads,
         };
         options.validate()?;
         if let Some(k) = verify {
@@ -440,7 +441,7 @@ impl RenderPlan {
 
 /// The render's notes on stderr: pass times (`--timings`, `--explain`),
 /// warnings, and with `--explain` the SIMD level and the buffers.
-fn print_render_notes(out: &RenderOutput, timings: bool, explain: bool) {
+fn print_render_notes(out: &Render, timings: bool, explain: bool) {
     if timings || explain {
         for pass in &out.passes {
             let ms = pass.time.as_secs_f64() * 1e3;
@@ -451,10 +452,9 @@ fn print_render_notes(out: &RenderOutput, timings: bool, explain: bool) {
         write_stderr(&format!("penumbra: warning: {warning}\n"));
     }
     if explain {
-        let simd = crate::simd::level::describe();
-        write_stderr(&format!("simd: {simd} (PENUMBRA_SIMD)\n"));
+        write_stderr(&format!("simd: {} (PENUMBRA_SIMD)\n", out.explain.simd));
         write_stderr("buffers:\n");
-        for buffer in &out.buffers {
+        for buffer in &out.explain.buffers {
             let size = if buffer.bytes == 0 {
                 "-".to_string()
             } else {

@@ -31,6 +31,9 @@ pub enum Error {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// The render was cancelled through its observer before it finished
+    /// ([`crate::observe::Observer::cancelled`]); nothing was produced.
+    Cancelled,
 }
 
 impl Error {
@@ -75,6 +78,7 @@ impl fmt::Display for Error {
             } => write!(f, "{}: {}", path.display(), message),
             Error::Parameter { name, message } => write!(f, "parameter `{}`: {}", name, message),
             Error::Io { path, source } => write!(f, "{}: {}", path.display(), source),
+            Error::Cancelled => write!(f, "cancelled"),
         }
     }
 }

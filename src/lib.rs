@@ -1,19 +1,17 @@
 //! penumbra: a pure-software renderer for physically based soft shadows.
 //!
-//! The modules mirror the pipeline: [`scene`] loading → [`geom`]etry →
-//! the [`raster`] pipeline → the [`gbuffer`] → [`shadow`] techniques →
-//! [`shade`] → [`output`] and [`report`]s; [`render`] runs them in order.
-//!
-//! Rendering into memory: a scene from a file ([`scene::load_scene`]) or
-//! from TOML text ([`scene::scene_from_toml`]), options checked as the
-//! command line checks them ([`render::RenderOptions::validate`], which
-//! [`render::render`] calls first), and the radiance, AOV layers, per-light
-//! terms and pass timings back as data:
+//! The library is the items at this crate's root: a [`Scene`] (from a file
+//! with [`load_scene`], from TOML text with [`scene_from_toml`]), the
+//! [`RenderOptions`] of one render (plain defaults, one [`validate`] for
+//! every range check, which the command line calls too), and [`render`],
+//! which returns a [`Render`]: radiance, the requested AOV layers and
+//! each light's term as typed buffers, the time of every pass and the
+//! `--explain` report as data. [`render_with`] reports progress to an
+//! [`Observer`] and stops when it says so ([`Cancel`]). [`techniques`]
+//! lists the shadow techniques and what each can honour.
 //!
 //! ```
-//! use penumbra::render::{render, RenderOptions};
-//! use penumbra::report::Progress;
-//! use penumbra::scene::scene_from_toml;
+//! use penumbra::{render, scene_from_toml, RenderOptions};
 //!
 //! let scene = scene_from_toml(
 //!     r#"
@@ -45,46 +43,46 @@
 //!     samples: 16,
 //!     ..RenderOptions::default() // dcs: the exact image
 //! };
-//! let out = render(&scene, &options, &Progress::new(1, false))?;
-//! assert_eq!(out.radiance.len(), 32 * 24);
-//! assert_eq!(out.lights.len(), 1);
+//! let image = render(&scene, &options)?;
+//! assert_eq!(image.radiance.len(), 32 * 24);
 //! // The occluder's shadow: some pixels see less of the light.
-//! let vcoef = out.lights[0].vcoef();
+//! let vcoef = image.lights[0].vcoef();
 //! assert!(vcoef.iter().any(|&v| v < 1.0) && vcoef.iter().any(|&v| v == 1.0));
-//! # Ok::<(), penumbra::error::Error>(())
+//! # Ok::<(), penumbra::Error>(())
 //! ```
+//!
+//! The pipeline's modules (scene loading → geometry → the raster pipeline
+//! → the G-buffer → shadow techniques → shading → output and reports) are
+//! not part of this interface; the command line, the benches and the tests
+//! reach them through `penumbra::internal`, which may change at any time.
+//! docs/library.md and docs/architecture.md describe both.
+//!
+//! [`validate`]: RenderOptions::validate
 
 // `!(x > 0.0)` is how this crate rejects NaN together with the failing
 // range: the negation is the point, not an accident.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod allocator;
-#[forbid(unsafe_code)]
-pub mod cli;
-#[forbid(unsafe_code)]
-pub mod cluster;
-#[forbid(unsafe_code)]
-pub mod compare;
-#[forbid(unsafe_code)]
-pub mod error;
-#[forbid(unsafe_code)]
-pub mod gbuffer;
-pub mod geom;
-#[forbid(unsafe_code)]
-pub mod output;
-pub mod raster;
-#[forbid(unsafe_code)]
-pub mod render;
-#[forbid(unsafe_code)]
-pub mod report;
-#[forbid(unsafe_code)]
-pub mod sampling;
-#[forbid(unsafe_code)]
-pub mod scene;
-pub mod shade;
-pub mod shadow;
-pub mod simd;
-#[forbid(unsafe_code)]
-pub mod view;
+/// The pipeline's modules: not the library's interface (see the module).
+#[doc(hidden)]
+pub mod internal;
+
+pub(crate) use internal::{
+    allocator, cluster, compare, error, gbuffer, geom, observe, output, raster, render, report,
+    sampling, scene, shade, shadow, simd, view,
+};
 
 pub use error::{Error, Result};
+pub use observe::{Cancel, Observer, Silent};
+pub use output::Layer;
+pub use render::{render, render_with, Aov, Explain, Render, RenderOptions, Technique};
+pub use sampling::SamplePattern;
+pub use scene::{load_scene, scene_from_toml, Scene};
+pub use shadow::registry::TechniqueData;
+pub use shadow::{BufferNote, LightTerm, PassTiming, TechniqueOptions, Warning};
+
+/// Every shadow technique, in the registry's order, with what it can
+/// honour and what it costs (`penumbra techniques --json` prints the same).
+pub fn techniques() -> Vec<TechniqueData> {
+    shadow::registry::technique_data()
+}

@@ -6,13 +6,12 @@
 
 mod common;
 
-use penumbra::render::{render, with_threads, RenderOptions, RenderOutput};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::Technique;
+use penumbra::internal::render::{render, with_threads, Render, RenderOptions};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::Technique;
 
-fn run(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> RenderOutput {
+fn run(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> Render {
     let mut options = RenderOptions {
         width: Some(size),
         height: Some(size),
@@ -20,7 +19,7 @@ fn run(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> 
         ..RenderOptions::default()
     };
     f(&mut options);
-    render(scene, &options, &Progress::hidden()).expect("render")
+    render(scene, &options).expect("render")
 }
 
 fn grid289(o: &mut RenderOptions) {
@@ -29,8 +28,9 @@ fn grid289(o: &mut RenderOptions) {
 }
 
 /// Maps rendered, from the `--explain` note (`N rendered ...`).
-fn rendered(out: &RenderOutput) -> u32 {
+fn rendered(out: &Render) -> u32 {
     let note = out
+        .explain
         .buffers
         .iter()
         .find(|b| b.name == "shadow maps")
@@ -102,7 +102,7 @@ fn lit_and_umbra_receivers_of_the_17x17_result_are_kept() {
 
 /// Mean |Vcoef − reference| over the ground receivers of the thin-occluder
 /// scene (reference at the same 289 grid points).
-fn thin_error(out: &RenderOutput, reference: &RenderOutput) -> f64 {
+fn thin_error(out: &Render, reference: &Render) -> f64 {
     let (a, r) = (out.lights[0].vcoef(), reference.lights[0].vcoef());
     let keep: Vec<usize> = (0..r.len()).filter(|&i| r[i] > 0.0).collect();
     keep.iter()
@@ -216,18 +216,18 @@ fn sphere_lights_and_absurd_parameters_are_refused() {
         technique: Technique::named("adaptive-maps").unwrap(),
         ..RenderOptions::default()
     };
-    let e = render(&sphere, &options, &Progress::hidden()).expect_err("refused");
+    let e = render(&sphere, &options).expect_err("refused");
     assert!(e.to_string().contains("--technique"), "{e}");
     let quad = common::shipped("quad.toml");
     for (name, scale) in [("--comparison-scale", 0.0), ("--comparison-scale", 1.5)] {
         let mut o = options.clone();
         o.options.adaptive_maps.comparison_scale = scale;
-        let e = render(&quad, &o, &Progress::hidden()).expect_err("refused");
+        let e = render(&quad, &o).expect_err("refused");
         assert!(e.to_string().contains(name), "{e}");
     }
     let mut o = options.clone();
     o.options.adaptive_maps.max_depth = 9;
-    let e = render(&quad, &o, &Progress::hidden()).expect_err("refused");
+    let e = render(&quad, &o).expect_err("refused");
     assert!(e.to_string().contains("--max-depth"), "{e}");
     for (name, low, high) in [
         ("--adaptive-band-low", -1.0, 4.0),
@@ -236,7 +236,7 @@ fn sphere_lights_and_absurd_parameters_are_refused() {
         let mut o = options.clone();
         o.options.adaptive_maps.adaptive_band_low = low;
         o.options.adaptive_maps.adaptive_band_high = high;
-        let e = render(&quad, &o, &Progress::hidden()).expect_err("refused");
+        let e = render(&quad, &o).expect_err("refused");
         assert!(e.to_string().contains(name), "{e}");
     }
 }

@@ -26,10 +26,9 @@
 mod common;
 
 use common::Rng;
-use penumbra::render::{render, Aov, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::shadow::technique::Support;
-use penumbra::shadow::{Technique, TechniqueOptions};
+use penumbra::internal::render::{render, Aov, RenderOptions};
+use penumbra::internal::shadow::technique::Support;
+use penumbra::internal::shadow::{Technique, TechniqueOptions};
 
 /// Image side of each case.
 const SIZE: u32 = 32;
@@ -149,7 +148,7 @@ fn check(case: &Case, technique: Technique, reference: &[f32], mask: &[bool]) ->
     let scene = common::scene_in_scratch("agreement", &case.toml(), &[]);
     let defaults = TechniqueOptions::default();
     let caps = technique.capabilities(&defaults);
-    let out = match render(&scene, &options(technique), &Progress::hidden()) {
+    let out = match render(&scene, &options(technique)) {
         Ok(out) => out,
         Err(e) => {
             let e = e.to_string();
@@ -233,8 +232,8 @@ fn failure(case: &Case, technique: Technique) -> Option<String> {
     let mut ref_options = options(technique);
     ref_options.technique = Technique::named("reference").unwrap();
     ref_options.aovs = vec![Aov::Mask];
-    let reference = render(&scene, &ref_options, &Progress::hidden())
-        .expect("the reference renders every generated scene");
+    let reference =
+        render(&scene, &ref_options).expect("the reference renders every generated scene");
     let v = reference.lights[0].vcoef();
     assert!(v.iter().all(|x| x.is_finite()), "reference non-finite");
     let mask_layer = reference

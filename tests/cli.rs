@@ -3,7 +3,7 @@
 
 mod common;
 
-use penumbra::output::read_image;
+use penumbra::internal::output::read_image;
 use std::path::Path;
 use std::process::Command;
 
@@ -447,7 +447,7 @@ fn huge_sphere_is_refused_before_allocating() {
 /// this CPU lacks is an error naming the variable.
 #[test]
 fn simd_level_from_the_environment() {
-    use penumbra::simd::level::Level;
+    use penumbra::internal::simd::level::Level;
     let dir = common::scratch_dir("cli-simd-level");
     let run = |level: Option<&str>, name: &str| {
         let exr = dir.join(format!("{name}.exr"));

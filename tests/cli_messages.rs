@@ -234,10 +234,9 @@ fn render_help_is_short_grouped_and_plain() {
 /// message: both go through `RenderOptions::validate`.
 #[test]
 fn the_library_refuses_what_the_command_line_refuses() {
-    use penumbra::render::{render, RenderOptions};
-    use penumbra::report::Progress;
+    use penumbra::internal::render::{render, RenderOptions};
     let (dir, path) = scene("library_refuses", QUAD);
-    let scene = penumbra::scene::load_scene(&path).unwrap();
+    let scene = penumbra::internal::scene::load_scene(&path).unwrap();
     let cases: [(&[&str], RenderOptions); 4] = [
         (
             &["--samples", "0"],
@@ -265,7 +264,7 @@ fn the_library_refuses_what_the_command_line_refuses() {
             RenderOptions {
                 technique: "pcss".parse().unwrap(),
                 options: {
-                    let mut o = penumbra::shadow::TechniqueOptions::default();
+                    let mut o = penumbra::internal::shadow::TechniqueOptions::default();
                     o.shadow_map.depth_bias = -1.0;
                     o
                 },
@@ -274,7 +273,7 @@ fn the_library_refuses_what_the_command_line_refuses() {
         ),
     ];
     for (args, options) in cases {
-        let library = render(&scene, &options, &Progress::new(1, false))
+        let library = render(&scene, &options)
             .expect_err("the library refuses")
             .to_string();
         let mut cli_args = vec!["render", "scene.toml", "-o", "out.png"];

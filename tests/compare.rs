@@ -3,9 +3,9 @@
 
 mod common;
 
-use penumbra::compare::{compare_scene, CompareOptions, RunResult, SceneComparison};
-use penumbra::render::Technique;
-use penumbra::report::Progress;
+use penumbra::internal::compare::{compare_scene, CompareOptions, RunResult, SceneComparison};
+use penumbra::internal::render::Technique;
+use penumbra::internal::report::Progress;
 use std::path::Path;
 use std::process::Command;
 
@@ -36,7 +36,7 @@ fn options(cache: &Path, reference_samples: u32) -> CompareOptions {
         seed: 7,
         cache_dir: cache.to_path_buf(),
         images: true,
-        patterns: vec![penumbra::sampling::SamplePattern::Stratified],
+        patterns: vec![penumbra::internal::sampling::SamplePattern::Stratified],
         verify: None,
     }
 }
@@ -50,7 +50,7 @@ fn run_named<'a>(
     c: &'a SceneComparison,
     technique: &str,
     setting: &str,
-) -> &'a penumbra::compare::RunResult {
+) -> &'a penumbra::internal::compare::RunResult {
     c.runs
         .iter()
         .find(|r| r.technique == technique && r.setting == setting)
@@ -97,7 +97,7 @@ fn compare_measures_every_setting_and_caches_the_reference() {
     let sv = run_named(&first, "shadow-volumes", "hard (z-fail)");
     let r4 = run_named(&first, "reference", "4 spp");
     let r64 = run_named(&first, "reference", "64 spp");
-    let e = |r: &penumbra::compare::RunResult| r.vcoef_all_lights.unwrap().penumbra.rmse;
+    let e = |r: &penumbra::internal::compare::RunResult| r.vcoef_all_lights.unwrap().penumbra.rmse;
     assert!(e(r64) * 2.0 < e(r4), "{} vs {}", e(r64), e(r4));
     assert!(
         e(sv) > 2.0 * e(r4),
@@ -293,8 +293,8 @@ fn diff_command_exit_codes() {
     let (a, b) = (dir.join("a.exr"), dir.join("b.exr"));
     let px = vec![glam::Vec3::splat(0.5); 16];
     let shifted: Vec<_> = px.iter().map(|c| *c + glam::Vec3::splat(0.02)).collect();
-    penumbra::output::write_exr(&a, 4, 4, &px, &[]).unwrap();
-    penumbra::output::write_exr(&b, 4, 4, &shifted, &[]).unwrap();
+    penumbra::internal::output::write_exr(&a, 4, 4, &px, &[]).unwrap();
+    penumbra::internal::output::write_exr(&b, 4, 4, &shifted, &[]).unwrap();
     let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
     let (code, msg) = penumbra_cli(&["diff", a, a, "--max-abs", "0"]);
     assert_eq!(code, Some(0), "{msg}");

@@ -461,14 +461,16 @@ fn bad_shard_specs_are_parameter_errors() {
 
 #[test]
 fn a_dead_holders_lock_is_taken_over_and_references_only_fills_the_cache() {
-    use penumbra::compare::cache::{hash_scene, ReferenceKey, StableHasher, REFERENCE_VERSION};
+    use penumbra::internal::compare::cache::{
+        hash_scene, ReferenceKey, StableHasher, REFERENCE_VERSION,
+    };
     let dir = common::scratch_dir("shard-lock");
     let cache = dir.join("cache");
     std::fs::create_dir_all(&cache).unwrap();
     let scene = common::shipped("quad.toml");
     let mut h = StableHasher::default();
     hash_scene(&mut h, &scene);
-    let options = penumbra::compare::CompareOptions {
+    let options = penumbra::internal::compare::CompareOptions {
         techniques: Vec::new(),
         technique_options: Default::default(),
         samples: vec![4],
@@ -511,7 +513,7 @@ fn a_dead_holders_lock_is_taken_over_and_references_only_fills_the_cache() {
         &["--references-only"],
     ));
     assert!(
-        start.elapsed() < penumbra::compare::cache::STALE_AFTER,
+        start.elapsed() < penumbra::internal::compare::cache::STALE_AFTER,
         "the dead pid is seen at once, not after the heartbeat timeout"
     );
     assert!(msg.contains("stale reference lock"), "{msg}");

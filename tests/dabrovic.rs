@@ -5,13 +5,12 @@
 
 mod common;
 
-use penumbra::render::{render, RenderOptions, Technique};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
-use penumbra::shadow::kit::rays::ShadowTracer;
-use penumbra::shadow::kit::stsv::Filter;
+use penumbra::internal::render::{render, RenderOptions, Technique};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
+use penumbra::internal::shadow::kit::rays::ShadowTracer;
+use penumbra::internal::shadow::kit::stsv::Filter;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// `(pixel, sample)` relations of exact DCS (whole-light silhouettes)
@@ -110,8 +109,8 @@ fn every_technique_renders() {
             height: Some(32),
             technique,
             samples: 16,
-            options: penumbra::shadow::TechniqueOptions {
-                dcs: penumbra::shadow::dcs::DcsOptions {
+            options: penumbra::internal::shadow::TechniqueOptions {
+                dcs: penumbra::internal::shadow::dcs::DcsOptions {
                     silhouettes,
                     ..Default::default()
                 },
@@ -119,8 +118,7 @@ fn every_technique_renders() {
             },
             ..RenderOptions::default()
         };
-        let out = render(&scene, &options, &Progress::hidden())
-            .unwrap_or_else(|e| panic!("{technique:?}: {e}"));
+        let out = render(&scene, &options).unwrap_or_else(|e| panic!("{technique:?}: {e}"));
         assert!(
             out.radiance.iter().all(|c| c.is_finite()),
             "{technique:?}: NaN or infinite radiance"
@@ -153,7 +151,7 @@ fn every_technique_renders() {
 /// the other pixel on such a line, now agrees with the shadow rays.
 #[test]
 fn a_pixel_whose_centre_ray_meets_an_edge_is_exact() {
-    use penumbra::shadow::technique::SampleDecisions;
+    use penumbra::internal::shadow::technique::SampleDecisions;
     let scene = common::shipped("dabrovic.toml");
     let frame = common::Frame::new(&scene, 768, 512);
     let ctx = frame.ctx(&scene);

@@ -9,11 +9,13 @@
 mod common;
 
 use glam::DVec3;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shade::LightSample;
-use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode};
-use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shade::LightSample;
+use penumbra::internal::shadow::dcs::{
+    DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode,
+};
+use penumbra::internal::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
 use std::sync::Mutex;
 
 /// What the exactness check measured.
@@ -144,9 +146,9 @@ fn dcs_equals_ray_casting_on_the_quad_and_the_bunny() {
 /// receivers get the unshadowed light exactly.
 #[test]
 fn textured_light_vcoef_is_luminance_weighted() {
-    use penumbra::shade::{surface_point, PreparedLight};
-    use penumbra::shadow::reference::Reference;
-    use penumbra::shadow::ShadowTechnique;
+    use penumbra::internal::shade::{surface_point, PreparedLight};
+    use penumbra::internal::shadow::reference::Reference;
+    use penumbra::internal::shadow::ShadowTechnique;
     let mut png = Vec::new();
     image::RgbImage::from_raw(2, 1, vec![255, 255, 255, 0, 0, 0])
         .expect("2×1 image")
@@ -218,8 +220,8 @@ translate = [0.3, 1.5, 0.0]
 /// a cell of an edge), and it is refused for per-pixel patterns.
 #[test]
 fn bitfield_coverage_is_close_to_exact_and_refused_where_invalid() {
-    use penumbra::shadow::dcs::CoverageTest;
-    use penumbra::shadow::ShadowTechnique;
+    use penumbra::internal::shadow::dcs::CoverageTest;
+    use penumbra::internal::shadow::ShadowTechnique;
     let scene = common::shipped("quad.toml");
     let frame = common::Frame::new(&scene, 128, 128);
     let ctx = frame.ctx(&scene);
@@ -266,7 +268,7 @@ fn bitfield_coverage_is_close_to_exact_and_refused_where_invalid() {
 /// at 256 samples, where the blocks apply.
 #[test]
 fn shortcuts_equal_the_full_counters() {
-    use penumbra::shadow::ShadowTechnique;
+    use penumbra::internal::shadow::ShadowTechnique;
     for (name, w, h) in [("spheres.toml", 96, 80), ("bunny.toml", 96, 96)] {
         let scene = common::shipped(name);
         let frame = common::Frame::new(&scene, w, h);

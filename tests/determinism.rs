@@ -4,9 +4,8 @@
 
 mod common;
 
-use penumbra::render::{render, with_threads, Aov, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::scene::{load_scene, Scene};
+use penumbra::internal::render::{render, with_threads, Aov, RenderOptions};
+use penumbra::internal::scene::{load_scene, Scene};
 use std::path::Path;
 
 #[test]
@@ -23,10 +22,7 @@ fn bit_identical_for_1_2_and_8_threads() {
             ..RenderOptions::default()
         };
         let run = |threads| {
-            with_threads(Some(threads), || {
-                render(&scene, &options, &Progress::hidden()).expect("render")
-            })
-            .expect("pool")
+            with_threads(Some(threads), || render(&scene, &options).expect("render")).expect("pool")
         };
         let one = run(1);
         assert!(
@@ -99,8 +95,10 @@ material = { albedo = [0.2, 0.7, 0.3] }
 /// same albedo (textured or not).
 #[test]
 fn simd_resolve_matches_scalar_twin() {
-    use penumbra::gbuffer::{resolve, resolve_scalar, transform_vertices, visibility_pass};
-    use penumbra::geom::SceneGeometry;
+    use penumbra::internal::gbuffer::{
+        resolve, resolve_scalar, transform_vertices, visibility_pass,
+    };
+    use penumbra::internal::geom::SceneGeometry;
     let scenes = [
         ("spheres", common::shipped("spheres.toml")),
         ("bunny", common::shipped("bunny.toml")),
@@ -112,7 +110,7 @@ fn simd_resolve_matches_scalar_twin() {
             height: Some(120),
             ..RenderOptions::default()
         };
-        let view = penumbra::render::view_for(scene, &options).expect("view");
+        let view = penumbra::internal::render::view_for(scene, &options).expect("view");
         let geometry = SceneGeometry::new(scene);
         let vertices = transform_vertices(&geometry, &view);
         let (_, ids, _) = visibility_pass(scene, &geometry, &view, &vertices).expect("draw");
@@ -144,8 +142,8 @@ fn simd_resolve_matches_scalar_twin() {
 /// and a render is the same for 1 and 2 threads.
 #[test]
 fn textured_albedo_in_gbuffer() {
-    use penumbra::gbuffer::gbuffer_pass;
-    use penumbra::geom::SceneGeometry;
+    use penumbra::internal::gbuffer::gbuffer_pass;
+    use penumbra::internal::geom::SceneGeometry;
     let scene = textured_scene();
     let options = RenderOptions {
         width: Some(97),
@@ -153,7 +151,7 @@ fn textured_albedo_in_gbuffer() {
         aovs: Aov::ALL.to_vec(),
         ..RenderOptions::default()
     };
-    let view = penumbra::render::view_for(&scene, &options).expect("view");
+    let view = penumbra::internal::render::view_for(&scene, &options).expect("view");
     let geometry = SceneGeometry::new(&scene);
     let (gbuffer, _, _) = gbuffer_pass(&scene, &geometry, &view).expect("g-buffer");
     let seen = |object: u32, albedo: [f32; 3]| {
@@ -177,10 +175,7 @@ fn textured_albedo_in_gbuffer() {
         .all(|g| g.albedo.to_array() == [0.2, 0.7, 0.3]));
     assert!(seen(2, [0.2, 0.7, 0.3]), "box not seen");
     let run = |threads| {
-        with_threads(Some(threads), || {
-            render(&scene, &options, &Progress::hidden()).expect("render")
-        })
-        .expect("pool")
+        with_threads(Some(threads), || render(&scene, &options).expect("render")).expect("pool")
     };
     assert!(common::render_bits(&run(1)) == common::render_bits(&run(2)));
 }
@@ -190,8 +185,8 @@ fn textured_albedo_in_gbuffer() {
 /// the same bits for any thread count.
 #[test]
 fn shadow_techniques_bit_identical_across_threads() {
-    use penumbra::render::Technique;
-    use penumbra::sampling::SamplePattern;
+    use penumbra::internal::render::Technique;
+    use penumbra::internal::sampling::SamplePattern;
     for (name, technique, pattern) in [
         (
             "tinted.toml",
@@ -220,10 +215,7 @@ fn shadow_techniques_bit_identical_across_threads() {
             ..RenderOptions::default()
         };
         let run = |threads| {
-            with_threads(Some(threads), || {
-                render(&scene, &options, &Progress::hidden()).expect("render")
-            })
-            .expect("pool")
+            with_threads(Some(threads), || render(&scene, &options).expect("render")).expect("pool")
         };
         let one = common::render_bits(&run(1));
         for threads in [2, 8] {

@@ -4,8 +4,8 @@
 mod common;
 
 use glam::Vec3;
-use penumbra::output::{srgb_decode, srgb_encode_u8, write_exr, write_png, Layer};
-use penumbra::report::{diff_images, DiffOptions, DiffReport, ErrorMetrics};
+use penumbra::internal::output::{srgb_decode, srgb_encode_u8, write_exr, write_png, Layer};
+use penumbra::internal::report::{diff_images, DiffOptions, DiffReport, ErrorMetrics};
 use penumbra::Error;
 use std::path::{Path, PathBuf};
 

@@ -28,9 +28,8 @@
 mod common;
 
 use glam::Vec3;
-use penumbra::render::{render, RenderOptions, Technique};
-use penumbra::report::Progress;
-use penumbra::scene::Scene;
+use penumbra::internal::render::{render, RenderOptions, Technique};
+use penumbra::internal::scene::Scene;
 
 const W: u32 = 64;
 const H: u32 = 48;
@@ -45,7 +44,7 @@ fn output(
     technique: &str,
     samples: u32,
     seed: u64,
-) -> penumbra::render::RenderOutput {
+) -> penumbra::internal::render::Render {
     let options = RenderOptions {
         width: Some(W),
         height: Some(H),
@@ -54,7 +53,7 @@ fn output(
         seed,
         ..RenderOptions::default()
     };
-    render(scene, &options, &Progress::hidden()).unwrap_or_else(|e| panic!("{technique}: {e}"))
+    render(scene, &options).unwrap_or_else(|e| panic!("{technique}: {e}"))
 }
 
 /// Surface pixels of the view.
@@ -87,7 +86,7 @@ fn mean_and_error(e: &[f64]) -> (f64, f64) {
 
 #[test]
 fn the_registry_says_which_images_are_exact() {
-    use penumbra::shadow::TechniqueOptions;
+    use penumbra::internal::shadow::TechniqueOptions;
     let options = TechniqueOptions::default();
     let exact: Vec<&str> = Technique::all()
         .filter(|t| t.capabilities(&options).exact_image)
@@ -95,7 +94,7 @@ fn the_registry_says_which_images_are_exact() {
         .collect();
     assert_eq!(exact, ["reference", "dcs", "penumbra-casting"]);
     let mut vcoef = options.clone();
-    vcoef.dcs.mode = penumbra::shadow::dcs::DcsMode::Vcoef;
+    vcoef.dcs.mode = penumbra::internal::shadow::dcs::DcsMode::Vcoef;
     let dcs = Technique::named("dcs").unwrap();
     assert!(dcs.capabilities(&vcoef).exact && !dcs.capabilities(&vcoef).exact_image);
 }
@@ -148,7 +147,8 @@ fn dcs_gives_the_references_image_at_the_same_samples() {
         // Opacity-textured casters (fence) have no edges: their receivers
         // take the samples wherever the light is partly hidden. (Constant
         // semi-opaque casters, tinted, give constant partial values.)
-        let constant_layers = penumbra::shadow::technique::has_semi_opaque_casters(&scene);
+        let constant_layers =
+            penumbra::internal::shadow::technique::has_semi_opaque_casters(&scene);
         let pixels: Vec<usize> = surface(&scene)
             .into_iter()
             .filter(|&i| {

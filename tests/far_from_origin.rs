@@ -8,10 +8,9 @@
 
 mod common;
 
-use penumbra::render::{render, Aov, RenderOptions, RenderOutput};
-use penumbra::report::Progress;
-use penumbra::scene::Scene;
-use penumbra::shadow::Technique;
+use penumbra::internal::render::{render, Aov, Render, RenderOptions};
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::Technique;
 
 fn scene_at(name: &str, sphere_light: bool, dx: f64, dz: f64) -> Scene {
     let at = |x: f64, y: f64, z: f64| format!("[{:?}, {y:?}, {:?}]", x + dx, z + dz);
@@ -67,7 +66,7 @@ translate = {ball}
     common::scene_in_scratch(name, &toml, &[])
 }
 
-fn run(scene: &Scene, t: Technique) -> Option<RenderOutput> {
+fn run(scene: &Scene, t: Technique) -> Option<Render> {
     render(
         scene,
         &RenderOptions {
@@ -76,7 +75,6 @@ fn run(scene: &Scene, t: Technique) -> Option<RenderOutput> {
             aovs: vec![Aov::Position],
             ..RenderOptions::default()
         },
-        &Progress::hidden(),
     )
     .ok()
 }
@@ -98,7 +96,7 @@ fn every_technique_gives_the_same_bits_far_from_the_origin() {
                 let out =
                     run(&far, t).unwrap_or_else(|| panic!("{} refused at {offset}", t.name()));
                 // Radiance and every layer but the world positions.
-                let bits = |o: &RenderOutput| {
+                let bits = |o: &Render| {
                     let mut o = o.clone();
                     o.layers.retain(|l| l.name != "position");
                     common::render_bits(&o)

@@ -4,9 +4,9 @@
 mod common;
 
 use glam::Vec3;
-use penumbra::output::{read_image, srgb8, write_exr, write_png};
-use penumbra::render::{render, Aov, RenderOptions, Technique};
-use penumbra::report::{diff_images, flip_radiance, interior_mask, DiffOptions, Progress};
+use penumbra::internal::output::{read_image, srgb8, write_exr, write_png};
+use penumbra::internal::render::{render, Aov, RenderOptions, Technique};
+use penumbra::internal::report::{diff_images, flip_radiance, interior_mask, DiffOptions};
 use std::path::Path;
 use std::process::Command;
 
@@ -199,7 +199,6 @@ fn the_interior_excludes_silhouettes_on_a_rendered_scene() {
             technique: Technique::named("none").unwrap(),
             ..RenderOptions::default()
         },
-        &Progress::hidden(),
     )
     .unwrap();
     let channel = |layer: &str, c: &str| -> Vec<f32> {

@@ -54,14 +54,13 @@ mod common;
 use clap::Parser;
 use common::Rng;
 use glam::Vec3;
-use penumbra::output::{read_image, write_exr, write_png, Layer};
-use penumbra::render::{render, Aov, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::load_scene;
-use penumbra::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
-use penumbra::shadow::kit::stsv::Filter;
-use penumbra::shadow::soft_shadow_map::{Accumulate, Lookup};
+use penumbra::internal::output::{read_image, write_exr, write_png, Layer};
+use penumbra::internal::render::{render, Aov, RenderOptions};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::load_scene;
+use penumbra::internal::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
+use penumbra::internal::shadow::kit::stsv::Filter;
+use penumbra::internal::shadow::soft_shadow_map::{Accumulate, Lookup};
 use penumbra::Error;
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -754,7 +753,7 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
         Ok(s) => s,
         Err(e) => return check_load_error(&e),
     };
-    let names = penumbra::shadow::registry::names();
+    let names = penumbra::internal::shadow::registry::names();
     let technique = names[rng.range(0, names.len() as i64 - 1) as usize];
     let patterns = [
         "stratified",
@@ -769,46 +768,48 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
     let pattern = SamplePattern::parse(patterns[rng.range(0, 5) as usize]).unwrap();
     // Field by field (in this order, which is the generator's), so that a
     // new options group needs no edit here.
-    let mut technique_options = penumbra::shadow::TechniqueOptions::default();
-    technique_options.shadow_volumes = penumbra::shadow::shadow_volumes::ShadowVolumeOptions {
-        zpass: rng.range(0, 1) == 1,
-    };
-    technique_options.dcs = penumbra::shadow::dcs::DcsOptions {
+    let mut technique_options = penumbra::internal::shadow::TechniqueOptions::default();
+    technique_options.shadow_volumes =
+        penumbra::internal::shadow::shadow_volumes::ShadowVolumeOptions {
+            zpass: rng.range(0, 1) == 1,
+        };
+    technique_options.dcs = penumbra::internal::shadow::dcs::DcsOptions {
         silhouettes: [SilhouetteMode::Centre, SilhouetteMode::WholeLight][rng.range(0, 1) as usize],
         mode: [DcsMode::Vcoef, DcsMode::Direct][rng.range(0, 1) as usize],
         transmittance: [TransmittanceMode::Exact, TransmittanceMode::Summed]
             [rng.range(0, 1) as usize],
         coverage: [CoverageTest::Exact, CoverageTest::BitField][rng.range(0, 1) as usize],
     };
-    technique_options.stsv = penumbra::shadow::kit::stsv::StsvOptions {
+    technique_options.stsv = penumbra::internal::shadow::kit::stsv::StsvOptions {
         opacity_filter: [Filter::Nearest, Filter::Bilinear][rng.range(0, 1) as usize],
     };
-    technique_options.adaptive_maps = penumbra::shadow::adaptive_maps::AdaptiveMapsOptions {
-        adaptive_threshold: [0, 3][rng.range(0, 1) as usize],
-        max_depth: rng.range(0, 2) as u32,
-        comparison_scale: [1.0, 0.5, 0.01][rng.range(0, 2) as usize],
-        adaptive_centre_depth: rng.range(0, 2) as u32,
-        adaptive_split_all: rng.range(0, 3) == 0,
-        adaptive_band_low: 0.5,
-        adaptive_band_high: [0.0, 4.0][rng.range(0, 1) as usize],
-    };
-    technique_options.shadow_map = penumbra::shadow::shadow_map::ShadowMapOptions {
+    technique_options.adaptive_maps =
+        penumbra::internal::shadow::adaptive_maps::AdaptiveMapsOptions {
+            adaptive_threshold: [0, 3][rng.range(0, 1) as usize],
+            max_depth: rng.range(0, 2) as u32,
+            comparison_scale: [1.0, 0.5, 0.01][rng.range(0, 2) as usize],
+            adaptive_centre_depth: rng.range(0, 2) as u32,
+            adaptive_split_all: rng.range(0, 3) == 0,
+            adaptive_band_low: 0.5,
+            adaptive_band_high: [0.0, 4.0][rng.range(0, 1) as usize],
+        };
+    technique_options.shadow_map = penumbra::internal::shadow::shadow_map::ShadowMapOptions {
         map_size: [1, 16, 64][rng.range(0, 2) as usize],
         pcf: ["1", "2x2", "3x3", "poisson:8"][rng.range(0, 3) as usize]
             .parse()
             .unwrap(),
         ..Default::default()
     };
-    technique_options.pcss = penumbra::shadow::pcss::PcssOptions {
+    technique_options.pcss = penumbra::internal::shadow::pcss::PcssOptions {
         pcss_blocker_samples: [1, 4, 16][rng.range(0, 2) as usize],
         pcss_filter_samples: [1, 4, 16][rng.range(0, 2) as usize],
         pcss_kernel: [
-            penumbra::shadow::pcss::PcssKernel::Poisson,
-            penumbra::shadow::pcss::PcssKernel::Box,
+            penumbra::internal::shadow::pcss::PcssKernel::Poisson,
+            penumbra::internal::shadow::pcss::PcssKernel::Box,
         ][rng.range(0, 1) as usize],
         pcss_flat_receiver: rng.range(0, 1) == 1,
     };
-    technique_options.ssm = penumbra::shadow::soft_shadow_map::SsmOptions {
+    technique_options.ssm = penumbra::internal::shadow::soft_shadow_map::SsmOptions {
         ssm_passes: [1, 2][rng.range(0, 1) as usize],
         ssm_bottom_patches: rng.range(0, 1) == 1,
         ssm_accumulate: [Accumulate::F32, Accumulate::F16, Accumulate::F16Batched]
@@ -816,7 +817,7 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
         ssm_lookup: [Lookup::Nearest, Lookup::Bilinear][rng.range(0, 1) as usize],
     };
     technique_options.penumbra_casting =
-        penumbra::shadow::penumbra_casting::PenumbraCastingOptions {
+        penumbra::internal::shadow::penumbra_casting::PenumbraCastingOptions {
             pc_sample_sets: [1, 2, 8][rng.range(0, 2) as usize],
             pc_umbra_bits: rng.range(0, 1) == 1,
             pc_on_demand_masks: rng.range(0, 1) == 1,
@@ -831,9 +832,10 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
         seed,
         pattern,
         options: technique_options,
+        threads: None,
     };
     let _ = write!(case.log, "| render {options:?}");
-    match render(&scene, &options, &Progress::new(5, false)) {
+    match render(&scene, &options) {
         Ok(out) => {
             let radiance: Vec<f32> = out.radiance.iter().flat_map(|c| c.to_array()).collect();
             if any_nan(&radiance) {
@@ -1116,13 +1118,13 @@ fn print_cli_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
 /// as, or a finding) or ran (with the command's result).
 enum CliResult {
     Usage(Result<Outcome, String>),
-    Ran(Result<penumbra::cli::Outcome, Error>),
+    Ran(Result<penumbra::internal::cli::Outcome, Error>),
 }
 
 /// Parses and runs a command line in-process.
 fn cli(args: &[String]) -> CliResult {
-    match penumbra::cli::Cli::try_parse_from(args) {
-        Ok(parsed) => CliResult::Ran(penumbra::cli::run(parsed)),
+    match penumbra::internal::cli::Cli::try_parse_from(args) {
+        Ok(parsed) => CliResult::Ran(penumbra::internal::cli::run(parsed)),
         Err(e) => CliResult::Usage(match e.kind() {
             clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion => {
                 Ok(Outcome::Printed)
@@ -1201,7 +1203,10 @@ translate = [0.0, 1.0, 0.0]
 
 /// Bit-for-bit equality of two decoded images (sizes, channel names and
 /// values).
-fn same_image(a: &penumbra::output::LoadedImage, b: &penumbra::output::LoadedImage) -> bool {
+fn same_image(
+    a: &penumbra::internal::output::LoadedImage,
+    b: &penumbra::internal::output::LoadedImage,
+) -> bool {
     a.width == b.width
         && a.height == b.height
         && a.channels.len() == b.channels.len()
@@ -1272,8 +1277,8 @@ fn changed(before: &[(PathBuf, Vec<u8>)], after: &[(PathBuf, Vec<u8>)]) -> Vec<S
 /// made once per worker.
 struct TileBase {
     parts: [Vec<u8>; 2],
-    png: penumbra::output::LoadedImage,
-    exr: penumbra::output::LoadedImage,
+    png: penumbra::internal::output::LoadedImage,
+    exr: penumbra::internal::output::LoadedImage,
 }
 
 fn tile_base(case: &Case) -> Result<&'static TileBase, String> {
@@ -1976,7 +1981,7 @@ fn option_values(sub: &str, long: &str, arg: &clap::Arg, case: &Case) -> Vec<Str
 /// `sweep` is always a dry run, which must write nothing).
 fn options_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
     use clap::CommandFactory;
-    let command = penumbra::cli::Cli::command();
+    let command = penumbra::internal::cli::Cli::command();
     let subs = [
         "compare",
         "merge-tiles",
@@ -2201,13 +2206,13 @@ fn agreement_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
         .copied()
         .filter(|&i| !scene.objects[frame.gbuffer.sample(i).object as usize].receive_shadows)
         .collect();
-    let vcoef_of = |technique: penumbra::shadow::Technique,
+    let vcoef_of = |technique: penumbra::internal::shadow::Technique,
                     reference: bool|
      -> Result<(Vec<f32>, bool), Error> {
         let (options, pattern) = common::matched_sampling(technique);
         let options = RenderOptions {
             technique: match reference {
-                true => penumbra::shadow::Technique::named("reference").unwrap(),
+                true => penumbra::internal::shadow::Technique::named("reference").unwrap(),
                 false => technique,
             },
             samples: 16,
@@ -2217,14 +2222,15 @@ fn agreement_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
             pattern,
             options,
             aovs: vec![Aov::Vcoef],
+            threads: None,
         };
-        let out = render(&scene, &options, &Progress::hidden())?;
+        let out = render(&scene, &options)?;
         let layer = out.layers.iter().find(|l| l.name == "vcoef");
         let v = layer.map(|l| l.channels[0].1.clone()).unwrap_or_default();
         Ok((v, out.warnings.is_empty()))
     };
     let mut failures: Vec<String> = Vec::new();
-    for technique in penumbra::shadow::Technique::all() {
+    for technique in penumbra::internal::shadow::Technique::all() {
         let name = technique.name();
         let mut fail = |f: String| failures.push(f);
         let (v, quiet) = match vcoef_of(technique, false) {
@@ -2251,7 +2257,7 @@ fn agreement_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
             ));
         }
         if technique
-            .capabilities(&penumbra::shadow::TechniqueOptions::default())
+            .capabilities(&penumbra::internal::shadow::TechniqueOptions::default())
             .exact
             && quiet
             && name != "reference"

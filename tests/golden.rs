@@ -105,7 +105,7 @@ fn hash_run(run: &Run, dir: &Path) -> BTreeMap<String, String> {
     }
     let pixels = image::open(&png).expect("read the PNG").to_rgb8();
     entries.insert("png".to_owned(), digest(pixels.as_raw()));
-    let layers = penumbra::output::read_image(&exr).expect("read the EXR");
+    let layers = penumbra::internal::output::read_image(&exr).expect("read the EXR");
     for (name, values) in &layers.channels {
         let bytes: Vec<u8> = values
             .iter()

@@ -1,12 +1,12 @@
 //! What penumbra reads and what it refuses to read: only regular files
 //! (a FIFO would block, `/dev/zero` never ends), at most the input size
 //! limit, and meshes only as OBJ (other mesh formats would load as
-//! nothing). Every input file goes through `penumbra::scene::input::read`:
+//! nothing). Every input file goes through `penumbra::internal::scene::input::read`:
 //! scenes, OBJ and MTL files, textures, `diff` images and tile parts.
 
 mod common;
 
-use penumbra::scene::{input, load_scene};
+use penumbra::internal::scene::{input, load_scene};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -101,12 +101,14 @@ fn fifos_are_refused_not_waited_on() {
     // `diff` inputs and tile parts.
     let f = fifo.clone();
     let msg = within_time("image", move || {
-        penumbra::output::read_image(&f).unwrap_err().to_string()
+        penumbra::internal::output::read_image(&f)
+            .unwrap_err()
+            .to_string()
     });
     expect("diff input", &msg, &fifo_name);
     let f = fifo.clone();
     let msg = within_time("tile part", move || {
-        penumbra::cluster::tiles::read_part(&f)
+        penumbra::internal::cluster::tiles::read_part(&f)
             .expect_err("a FIFO is no part")
             .to_string()
     });
@@ -127,7 +129,7 @@ fn devices_and_directories_are_refused_before_reading() {
     let scene = dir.scene("shape = \"quad\"\nmaterial = { albedo_texture = \"/dev/zero\" }");
     let msg = load_error("texture", scene);
     assert!(msg.contains("character device"), "{msg}");
-    let msg = penumbra::output::read_image(Path::new("/dev/zero"))
+    let msg = penumbra::internal::output::read_image(Path::new("/dev/zero"))
         .unwrap_err()
         .to_string();
     assert!(msg.contains("character device"), "{msg}");

@@ -11,9 +11,8 @@
 
 mod common;
 
-use penumbra::render::{render, RenderOptions, Technique};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
+use penumbra::internal::render::{render, RenderOptions, Technique};
+use penumbra::internal::sampling::SamplePattern;
 
 const GROUND: &str = r#"
 [camera]
@@ -67,9 +66,8 @@ fn options(name: &str) -> RenderOptions {
     }
 }
 
-fn vcoef(scene: &penumbra::scene::Scene, name: &str) -> Vec<f32> {
-    let out = render(scene, &options(name), &Progress::hidden())
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
+fn vcoef(scene: &penumbra::internal::scene::Scene, name: &str) -> Vec<f32> {
+    let out = render(scene, &options(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     out.lights[0].vcoef().to_vec()
 }
 
@@ -77,7 +75,7 @@ fn vcoef(scene: &penumbra::scene::Scene, name: &str) -> Vec<f32> {
 /// that take the scene agree bit for bit, and the caster does shadow.
 fn assert_refused_and_others_agree(case: &str, toml: &str, caster: &str) {
     let scene = common::scene_in_scratch(case, toml, &[]);
-    let err = render(&scene, &options("dcs"), &Progress::hidden())
+    let err = render(&scene, &options("dcs"))
         .err()
         .unwrap_or_else(|| panic!("{case}: dcs rendered a caster reaching into the light"))
         .to_string();
@@ -162,8 +160,8 @@ fn casters_just_short_of_the_light_render_exactly() {
 /// beside it.
 #[test]
 fn touching_a_rect_light_is_reaching_it() {
-    use penumbra::geom::SceneGeometry;
-    use penumbra::shadow::kit::enclosure::reached_lights;
+    use penumbra::internal::geom::SceneGeometry;
+    use penumbra::internal::shadow::kit::enclosure::reached_lights;
     let cases = [
         // The quad's top edge exactly in a rect light's plane.
         ("touch-rect", format!("{GROUND}{RECT}{}", quad_at(3.5)), 1),

@@ -5,13 +5,13 @@
 mod common;
 
 use glam::{DVec2, DVec3, Vec3};
-use penumbra::geom::bvh::Bvh;
-use penumbra::geom::SceneGeometry;
-use penumbra::scene::{Light, LightShape, Scene};
-use penumbra::shadow::kit::light_view::{
+use penumbra::internal::geom::bvh::Bvh;
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::scene::{Light, LightShape, Scene};
+use penumbra::internal::shadow::kit::light_view::{
     caster_bounds, caster_depth_map, depth_map, receiver_bounds, LightView, MAX_TAN,
 };
-use penumbra::view::{Extent, View};
+use penumbra::internal::view::{Extent, View};
 
 /// A texel may disagree with its ray (hit against miss, or a different
 /// surface) only if its centre lies within this many texels of the
@@ -551,7 +551,7 @@ fn bad_input_is_an_error() {
         caster_bounds(&scene).unwrap(),
         receiver_bounds(&scene).unwrap(),
     );
-    let err = |r: penumbra::error::Result<Option<LightView>>| r.unwrap_err().to_string();
+    let err = |r: penumbra::internal::error::Result<Option<LightView>>| r.unwrap_err().to_string();
     for size in [(0, 16), (16, 0), (20000, 1), (8193, 8192)] {
         let e = err(LightView::from_rect_light(light, c, cb, rb, size));
         assert!(e.contains("size"), "{e}");

@@ -6,8 +6,8 @@
 //! own quadrature), in `f64`, from the `f32` inputs the renderer sees.
 
 use glam::{DVec3, Vec2, Vec3};
-use penumbra::scene::{Light, LightShape, Texture, TextureData};
-use penumbra::shade::{
+use penumbra::internal::scene::{Light, LightShape, Texture, TextureData};
+use penumbra::internal::shade::{
     brdf, direct_from_samples, unshadowed_direct, LightSample, PreparedLight, SurfacePoint,
 };
 use std::f64::consts::PI;

@@ -3,7 +3,7 @@
 
 mod common;
 
-use penumbra::report::{
+use penumbra::internal::report::{
     error_metrics, heatmap_colour, pareto_front, write_error_heatmap, write_error_vs_time,
     write_error_vs_time_sized, ChartPoint, ErrorAccumulator, ErrorMetrics, CHART_SIZE,
     HEATMAP_BACKGROUND, HEATMAP_NON_FINITE, VISIBLE_ERROR,

@@ -6,13 +6,12 @@
 
 mod common;
 
-use penumbra::render::{render, with_threads, Aov, RenderOptions, RenderOutput};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::Technique;
+use penumbra::internal::render::{render, with_threads, Aov, Render, RenderOptions};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::Technique;
 
-fn run(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> RenderOutput {
+fn run(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> Render {
     let mut options = RenderOptions {
         width: Some(size),
         height: Some(size),
@@ -20,7 +19,7 @@ fn run(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> 
         ..RenderOptions::default()
     };
     f(&mut options);
-    render(scene, &options, &Progress::hidden()).expect("render")
+    render(scene, &options).expect("render")
 }
 
 /// Receivers that face the light (the others get Vcoef 0 by design, the
@@ -156,8 +155,9 @@ fn same_bits_for_any_thread_count() {
     assert!(one.radiance == go(3).radiance);
 }
 
-fn note<'a>(out: &'a RenderOutput, name: &str) -> &'a penumbra::shadow::BufferNote {
-    out.buffers
+fn note<'a>(out: &'a Render, name: &str) -> &'a penumbra::internal::shadow::BufferNote {
+    out.explain
+        .buffers
         .iter()
         .find(|b| b.name == name)
         .unwrap_or_else(|| panic!("no buffer note {name}"))
@@ -211,7 +211,7 @@ fn absurd_map_counts_are_refused() {
         samples: 0,
         ..RenderOptions::default()
     };
-    let e = render(&scene, &options, &Progress::hidden()).expect_err("refused");
+    let e = render(&scene, &options).expect_err("refused");
     assert!(e.to_string().contains("--samples"), "{e}");
 }
 
@@ -221,12 +221,12 @@ fn absurd_map_counts_are_refused() {
 /// behind the view, outside the window), from a corner of the light.
 #[test]
 fn lane_look_up_equals_the_scalar_one() {
-    use penumbra::gbuffer::{gbuffer_pass, GSample};
-    use penumbra::geom::SceneGeometry;
-    use penumbra::render::view_for;
-    use penumbra::shadow::kit::light_view::{caster_bounds, receiver_bounds};
-    use penumbra::shadow::kit::many_maps::{point_on_light, HardLanes};
-    use penumbra::shadow::kit::shadow_maps::{
+    use penumbra::internal::gbuffer::{gbuffer_pass, GSample};
+    use penumbra::internal::geom::SceneGeometry;
+    use penumbra::internal::render::view_for;
+    use penumbra::internal::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+    use penumbra::internal::shadow::kit::many_maps::{point_on_light, HardLanes};
+    use penumbra::internal::shadow::kit::shadow_maps::{
         light_view_at, opaque_depth_map, pcf_visibility, project_receiver, DepthBias, Pcf,
     };
     let scene = common::shipped("spheres.toml");
@@ -261,7 +261,7 @@ fn lane_look_up_equals_the_scalar_one() {
     let n = points.len();
     let mut state = 0x1234_5678u64;
     for k in 0..n {
-        state = penumbra::sampling::mix64(state);
+        state = penumbra::internal::sampling::mix64(state);
         let j = |s: u64| ((s & 0xffff) as f32 / 65535.0 - 0.5) * 0.05;
         let (p, nm) = points[k];
         points.push((

@@ -4,7 +4,7 @@
 //! docs/scene-format.md ("OBJ and MTL files in the wild").
 
 use glam::Vec3;
-use penumbra::scene::{load_scene, Scene, TextureData};
+use penumbra::internal::scene::{load_scene, Scene, TextureData};
 use penumbra::Error;
 use std::path::{Path, PathBuf};
 

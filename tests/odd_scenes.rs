@@ -5,11 +5,10 @@
 
 mod common;
 
-use penumbra::render::{render, RenderOptions, RenderOutput};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::{Technique, TechniqueOptions};
+use penumbra::internal::render::{render, Render, RenderOptions};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::{Technique, TechniqueOptions};
 
 const SIZE: u32 = 48;
 
@@ -17,7 +16,7 @@ fn run(
     scene: &Scene,
     technique: Technique,
     options: TechniqueOptions,
-) -> penumbra::error::Result<RenderOutput> {
+) -> penumbra::internal::error::Result<Render> {
     run_with(scene, technique, options, SamplePattern::default())
 }
 
@@ -26,7 +25,7 @@ fn run_with(
     technique: Technique,
     options: TechniqueOptions,
     pattern: SamplePattern,
-) -> penumbra::error::Result<RenderOutput> {
+) -> penumbra::internal::error::Result<Render> {
     render(
         scene,
         &RenderOptions {
@@ -38,11 +37,10 @@ fn run_with(
             pattern,
             ..RenderOptions::default()
         },
-        &Progress::hidden(),
     )
 }
 
-fn vcoef(out: &RenderOutput) -> Vec<f32> {
+fn vcoef(out: &Render) -> Vec<f32> {
     out.lights[0].vcoef().to_vec()
 }
 
@@ -147,7 +145,7 @@ fn enclosed(scene: &Scene, object: &str) {
                 let e = e.to_string();
                 let other_refusal = matches!(
                     t.capabilities(&TechniqueOptions::default()).sphere_lights,
-                    penumbra::shadow::technique::Support::Refused { .. }
+                    penumbra::internal::shadow::technique::Support::Refused { .. }
                 ) && e.contains("sphere lights");
                 assert!(
                     other_refusal

@@ -2,7 +2,7 @@
 //! errors that name the output path.
 
 use glam::Vec3;
-use penumbra::output::{
+use penumbra::internal::output::{
     check_output, read_image, srgb_encode_u8, write_atomically, write_exr, write_png, Layer,
     OutputSet,
 };

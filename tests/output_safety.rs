@@ -280,7 +280,7 @@ fn a_directory_like_output_path_changes_nothing() {
 /// outputs were staged) puts the first output's old content back.
 #[test]
 fn a_late_rename_failure_restores_replaced_outputs() {
-    use penumbra::output::OutputSet;
+    use penumbra::internal::output::OutputSet;
     let dir = common::scratch_dir("safety-undo");
     let (a, sub) = (dir.join("a.png"), dir.join("sub"));
     std::fs::create_dir(&sub).unwrap();

@@ -7,18 +7,18 @@
 mod common;
 
 use glam::Vec3;
-use penumbra::gbuffer::gbuffer_pass;
-use penumbra::geom::SceneGeometry;
-use penumbra::render::{view_for, RenderOptions};
-use penumbra::sampling::{
+use penumbra::internal::gbuffer::gbuffer_pass;
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::render::{view_for, RenderOptions};
+use penumbra::internal::sampling::{
     light_samples, toroidal_distance2, LightSampler, PatternSampler, SamplePattern, Strata,
 };
-use penumbra::scene::{Light, LightShape, Scene};
-use penumbra::shade::gather::{gather_filter, GatherParams};
-use penumbra::shade::LightSample;
-use penumbra::shadow::kit::rays::ShadowTracer;
-use penumbra::shadow::reference::Reference;
-use penumbra::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
+use penumbra::internal::scene::{Light, LightShape, Scene};
+use penumbra::internal::shade::gather::{gather_filter, GatherParams};
+use penumbra::internal::shade::LightSample;
+use penumbra::internal::shadow::kit::rays::ShadowTracer;
+use penumbra::internal::shadow::reference::Reference;
+use penumbra::internal::shadow::{ShadowContext, ShadowOutput, ShadowTechnique};
 
 const ALL: [SamplePattern; 7] = [
     SamplePattern::Stratified,
@@ -122,7 +122,7 @@ fn frame_ctx<R>(scene: &Scene, w: u32, h: u32, f: impl FnOnce(&ShadowContext) ->
     let view = view_for(scene, &options).expect("view");
     let geometry = SceneGeometry::new(scene);
     let (gbuffer, depth, _) = gbuffer_pass(scene, &geometry, &view).expect("g-buffer");
-    let cache = penumbra::shadow::ShadowCache::new(scene, &geometry);
+    let cache = penumbra::internal::shadow::ShadowCache::new(scene, &geometry);
     f(&ShadowContext {
         scene,
         geometry: &geometry,
@@ -130,6 +130,7 @@ fn frame_ctx<R>(scene: &Scene, w: u32, h: u32, f: impl FnOnce(&ShadowContext) ->
         gbuffer: &gbuffer,
         depth: &depth,
         cache: &cache,
+        observer: &penumbra::internal::observe::Silent,
     })
 }
 

@@ -12,13 +12,12 @@
 mod common;
 
 use common::Frame;
-use penumbra::render::{render, with_threads, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::pcss::PcssKernel;
-use penumbra::shadow::technique::BuildParams;
-use penumbra::shadow::{run_technique, Technique, TechniqueOptions};
+use penumbra::internal::render::{render, with_threads, RenderOptions};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::pcss::PcssKernel;
+use penumbra::internal::shadow::technique::BuildParams;
+use penumbra::internal::shadow::{run_technique, Technique, TechniqueOptions};
 
 /// Light (half-vectors `light_uv`), ground and camera of the test scenes,
 /// then `occluders`: `[x0, x1, z0, z1, y]` horizontal quads (a map sees
@@ -299,10 +298,7 @@ fn the_same_bits_for_any_thread_count() {
         ..RenderOptions::default()
     };
     let run = |threads| {
-        with_threads(Some(threads), || {
-            render(&s, &options, &Progress::hidden()).expect("render")
-        })
-        .expect("pool")
+        with_threads(Some(threads), || render(&s, &options).expect("render")).expect("pool")
     };
     let (one, two) = (run(1), run(2));
     assert_eq!(one.lights[0].vcoef(), two.lights[0].vcoef());
@@ -326,7 +322,7 @@ fn sample_counts_are_validated_with_their_name() {
         };
         options.options.pcss.pcss_blocker_samples = blocker;
         options.options.pcss.pcss_filter_samples = filter;
-        let e = render(&s, &options, &Progress::hidden()).expect_err("refused");
+        let e = render(&s, &options).expect_err("refused");
         assert!(e.to_string().contains(name), "{e}");
     }
 }

@@ -10,13 +10,15 @@
 mod common;
 
 use glam::DVec3;
-use penumbra::sampling::{LightSampler, PatternSampler, SamplePattern};
-use penumbra::scene::LightShape;
-use penumbra::scene::Scene;
-use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
-use penumbra::shadow::penumbra_casting::samples::{SampleKey, GROUP};
-use penumbra::shadow::penumbra_casting::{LightMasks, PenumbraCasting, PenumbraCastingOptions};
-use penumbra::shadow::ShadowTechnique;
+use penumbra::internal::sampling::{LightSampler, PatternSampler, SamplePattern};
+use penumbra::internal::scene::LightShape;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
+use penumbra::internal::shadow::penumbra_casting::samples::{SampleKey, GROUP};
+use penumbra::internal::shadow::penumbra_casting::{
+    LightMasks, PenumbraCasting, PenumbraCastingOptions,
+};
+use penumbra::internal::shadow::ShadowTechnique;
 
 /// A tie: the ray passes this close to a caster edge, relative to its
 /// length (the same bound as DCS's exactness test).
@@ -311,10 +313,10 @@ fn splitting_heavy_chunks_changes_no_mask() {
 /// Vcoef or radiance (those with a relation at a tie), and more than a
 /// tenth must be shadowed. Gives penumbra casting's output.
 fn assert_reference_bits(
-    ctx: &penumbra::shadow::ShadowContext,
+    ctx: &penumbra::internal::shadow::ShadowContext,
     pc: &PenumbraCasting,
-) -> penumbra::shadow::ShadowOutput {
-    use penumbra::shadow::reference::Reference;
+) -> penumbra::internal::shadow::ShadowOutput {
+    use penumbra::internal::shadow::reference::Reference;
     let ours = pc.compute(ctx).expect("penumbra casting runs");
     let reference = Reference {
         samples: pc.samples,
@@ -696,7 +698,7 @@ fn boundary_loops_close_open_casters() {
                     radiance = [1.0, 1.0, 1.0]\n[[object]]\nobj = \"cube.obj\"\n";
         let obj = open_cube_obj(missing);
         let scene = common::scene_in_scratch("pc-loops", toml, &[("cube.obj", obj.as_bytes())]);
-        let g = penumbra::geom::SceneGeometry::new(&scene);
+        let g = penumbra::internal::geom::SceneGeometry::new(&scene);
         let adj = &g.adjacency;
         let found = adj.boundary_loops(&g, 0);
         assert_eq!(found.len(), loops, "{missing:?}: {found:?}");

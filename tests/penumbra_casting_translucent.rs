@@ -9,13 +9,17 @@
 mod common;
 
 use glam::{DVec3, Vec3};
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::kit::rays::{scene_diagonal, ShadowTracer, END_SHORTEN, MERGE_SCENE};
-use penumbra::shadow::kit::stsv::{Filter, STriangle, STriangles};
-use penumbra::shadow::penumbra_casting::samples::SampleKey;
-use penumbra::shadow::penumbra_casting::{LightMasks, PenumbraCasting, PenumbraCastingOptions};
-use penumbra::shadow::ShadowTechnique;
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::kit::rays::{
+    scene_diagonal, ShadowTracer, END_SHORTEN, MERGE_SCENE,
+};
+use penumbra::internal::shadow::kit::stsv::{Filter, STriangle, STriangles};
+use penumbra::internal::shadow::penumbra_casting::samples::SampleKey;
+use penumbra::internal::shadow::penumbra_casting::{
+    LightMasks, PenumbraCasting, PenumbraCastingOptions,
+};
+use penumbra::internal::shadow::ShadowTechnique;
 use std::collections::HashMap;
 
 /// An edge tie, relative to the segment's length.
@@ -317,7 +321,7 @@ fn stacked_faint_and_dense_layers_are_the_references_product() {
 
 #[test]
 fn vcoef_and_radiance_follow_the_reference_with_translucent_casters() {
-    use penumbra::shadow::reference::Reference;
+    use penumbra::internal::shadow::reference::Reference;
     let scene = common::shipped("tinted.toml");
     let frame = common::Frame::new(&scene, 48, 36);
     let ctx = frame.ctx(&scene);

@@ -3,7 +3,7 @@
 //! terminal nothing else is drawn. (The bar itself, on a terminal, is
 //! seen with `script -qc "penumbra render ..." /dev/null`.)
 
-use penumbra::render::{estimate_render, RenderOptions, Technique};
+use penumbra::internal::render::{estimate_render, RenderOptions, Technique};
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -77,7 +77,7 @@ fn silent_when_stderr_is_not_a_terminal() {
 /// shared machine.
 #[test]
 fn the_estimate_grows_with_the_work() {
-    let scene = penumbra::scene::load_scene(&scene("spheres.toml")).unwrap();
+    let scene = penumbra::internal::scene::load_scene(&scene("spheres.toml")).unwrap();
     let options = |samples| RenderOptions {
         width: Some(64),
         height: Some(64),

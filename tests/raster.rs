@@ -6,7 +6,7 @@ mod common;
 
 use common::Rng;
 use glam::Vec4;
-use penumbra::raster::{
+use penumbra::internal::raster::{
     draw, ClipVertex, CompareFunc, CullMode, FragmentBatch, FragmentStage, Framebuffer,
     RasterState, StencilFace, StencilOp, StencilState, TileGrid, TiledTarget,
 };
@@ -460,7 +460,7 @@ fn stencil_operation_table_and_wide_counts() {
         &RasterState::default(),
         &v,
         &t,
-        &penumbra::raster::NoFragmentStage,
+        &penumbra::internal::raster::NoFragmentStage,
     )
     .unwrap();
     fb.clear_stencil(0);
@@ -492,7 +492,7 @@ fn stencil_operation_table_and_wide_counts() {
             &state,
             &v,
             &t,
-            &penumbra::raster::NoFragmentStage,
+            &penumbra::internal::raster::NoFragmentStage,
         )
         .unwrap();
     }
@@ -506,7 +506,7 @@ fn stencil_operation_table_and_wide_counts() {
             &state,
             &v,
             &t,
-            &penumbra::raster::NoFragmentStage,
+            &penumbra::internal::raster::NoFragmentStage,
         )
         .unwrap();
     }
@@ -519,7 +519,7 @@ fn stencil_operation_table_and_wide_counts() {
         &state,
         &v,
         &t,
-        &penumbra::raster::NoFragmentStage,
+        &penumbra::internal::raster::NoFragmentStage,
     )
     .unwrap();
     assert_eq!(fb.stencil(3, 3), -10);
@@ -546,7 +546,7 @@ fn stencil_operation_table_and_wide_counts() {
         &st2,
         &v,
         &t,
-        &penumbra::raster::NoFragmentStage,
+        &penumbra::internal::raster::NoFragmentStage,
     )
     .unwrap();
     assert_eq!(fb.stencil(5, 9), 7);
@@ -557,7 +557,7 @@ fn stencil_operation_table_and_wide_counts() {
         &st2,
         &v,
         &t,
-        &penumbra::raster::NoFragmentStage,
+        &penumbra::internal::raster::NoFragmentStage,
     )
     .unwrap();
     assert_eq!(fb.stencil(5, 9), !7);
@@ -650,7 +650,7 @@ fn scene_depth(grid: TileGrid, scene: &[ClipVertex<0>], tris: &[[u32; 3]]) -> Fr
         &state,
         scene,
         tris,
-        &penumbra::raster::NoFragmentStage,
+        &penumbra::internal::raster::NoFragmentStage,
     )
     .unwrap();
     fb
@@ -679,12 +679,12 @@ fn counting_path_equals_general_stencil_path() {
     let (volume, volume_tris) = triangle_soup(&mut rng, 100);
     for zpass in [false, true] {
         // The states the shadow-volume technique itself uses.
-        let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
+        let state = penumbra::internal::shadow::kit::volumes::stencil_state(zpass);
         let run = |general: bool| {
             let grid = TileGrid::new(w, h).unwrap();
             let mut fb = scene_depth(grid, &scene, &scene_tris);
             let mut none = vec![(); grid.tile_count()];
-            let nf = penumbra::raster::NoFragmentStage;
+            let nf = penumbra::internal::raster::NoFragmentStage;
             fb.clear_stencil(0);
             if general {
                 draw(&mut fb, &mut none, &state, &volume, &volume_tris, &Shades).unwrap();
@@ -769,12 +769,12 @@ fn counting_path_merges_quads_exactly() {
         }
     }
     for zpass in [false, true] {
-        let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
+        let state = penumbra::internal::shadow::kit::volumes::stencil_state(zpass);
         let run = |general: bool| {
             let grid = TileGrid::new(w, h).unwrap();
             let mut fb = scene_depth(grid, &scene, &scene_tris);
             let mut none = vec![(); grid.tile_count()];
-            let nf = penumbra::raster::NoFragmentStage;
+            let nf = penumbra::internal::raster::NoFragmentStage;
             fb.clear_stencil(0);
             let stats = if general {
                 draw(&mut fb, &mut none, &state, &volume, &volume_tris, &Shades).unwrap()
@@ -895,7 +895,7 @@ fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
     }
     let grid = TileGrid::new(w, h).unwrap();
     for zpass in [false, true] {
-        let state = penumbra::shadow::kit::volumes::stencil_state(zpass);
+        let state = penumbra::internal::shadow::kit::volumes::stencil_state(zpass);
         let plain = |scale: Option<f32>| {
             let mut fb = scene_depth(grid, &scene, &scene_tris);
             if let Some(s) = scale {
@@ -903,7 +903,7 @@ fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
             }
             fb.clear_stencil(0);
             let mut none = vec![(); grid.tile_count()];
-            let nf = penumbra::raster::NoFragmentStage;
+            let nf = penumbra::internal::raster::NoFragmentStage;
             draw(&mut fb, &mut none, &state, &volume, &volume_tris, &nf).unwrap();
             fb.stencil_image()
         };
@@ -914,7 +914,7 @@ fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
             vec![Some(0.9)],
         ] {
             let mut fb = scene_depth(grid, &scene, &scene_tris);
-            let images = penumbra::raster::draw_depth_shift_counts(
+            let images = penumbra::internal::raster::draw_depth_shift_counts(
                 &mut fb,
                 &state,
                 &volume,
@@ -948,9 +948,9 @@ fn depth_shift_counts_are_scaled_counts_minus_plain_ones() {
     }
     // More distinct scales than one walk records (4): a parameter error.
     let mut fb = scene_depth(grid, &scene, &scene_tris);
-    let state = penumbra::shadow::kit::volumes::stencil_state(false);
+    let state = penumbra::internal::shadow::kit::volumes::stencil_state(false);
     let five = [Some(1.1), Some(1.2), Some(1.3), Some(1.4), Some(1.5)];
-    assert!(penumbra::raster::draw_depth_shift_counts(
+    assert!(penumbra::internal::raster::draw_depth_shift_counts(
         &mut fb,
         &state,
         &volume,

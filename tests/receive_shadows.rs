@@ -6,9 +6,8 @@
 
 mod common;
 
-use penumbra::render::{render, Aov, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::shadow::Technique;
+use penumbra::internal::render::{render, Aov, RenderOptions};
+use penumbra::internal::shadow::Technique;
 
 const SCENE: &str = r#"
 [camera]
@@ -58,7 +57,7 @@ fn non_receivers_have_vcoef_one_for_every_technique() {
                 aovs: vec![Aov::Vcoef],
                 ..RenderOptions::default()
             };
-            let out = match render(&scene, &options, &Progress::hidden()) {
+            let out = match render(&scene, &options) {
                 Ok(out) => out,
                 // A technique that refuses the light (said by the registry).
                 Err(e) => {

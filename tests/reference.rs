@@ -7,18 +7,18 @@ mod common;
 
 use common::{shipped, Rng};
 use glam::{Vec2, Vec3};
-use penumbra::gbuffer::GSample;
-use penumbra::geom::bvh::{intersect_triangle, Bvh};
-use penumbra::geom::SceneGeometry;
-use penumbra::render::with_threads;
-use penumbra::sampling::{light_samples, pixel_key, LightSampler, Strata};
-use penumbra::scene::{Light, LightShape, Scene};
-use penumbra::shade::{LightSample, PreparedLight, SurfacePoint};
-use penumbra::shadow::kit::rays::ShadowTracer;
-use penumbra::shadow::reference::Reference;
-use penumbra::shadow::{ShadowOutput, ShadowTechnique};
-use penumbra::simd::level::Level;
-use penumbra::view::View;
+use penumbra::internal::gbuffer::GSample;
+use penumbra::internal::geom::bvh::{intersect_triangle, Bvh};
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::render::with_threads;
+use penumbra::internal::sampling::{light_samples, pixel_key, LightSampler, Strata};
+use penumbra::internal::scene::{Light, LightShape, Scene};
+use penumbra::internal::shade::{LightSample, PreparedLight, SurfacePoint};
+use penumbra::internal::shadow::kit::rays::ShadowTracer;
+use penumbra::internal::shadow::reference::Reference;
+use penumbra::internal::shadow::{ShadowOutput, ShadowTechnique};
+use penumbra::internal::simd::level::Level;
+use penumbra::internal::view::View;
 use rayon::prelude::*;
 
 // ---------------------------------------------------------------- set-up
@@ -433,7 +433,7 @@ translate = [0.0, 1.0, 0.0]
     let frame = Frame::new(&scene, 64, 64);
     let out = run(&scene, &frame, 64, 1);
     let ctx = frame.ctx(&scene);
-    let hard = penumbra::shadow::reference::hard_visibility(&ctx, 0);
+    let hard = penumbra::internal::shadow::reference::hard_visibility(&ctx, 0);
     // The camera sees the occluder's top at the centre: look just beside
     // it, under its edge region, and far away.
     let lit = frame.pixel_near(Vec3::new(2.5, 0.0, 2.5));
@@ -589,7 +589,7 @@ fn ray_bundles_agree_with_single_rays_bit_for_bit() {
 /// toward random points of a random rect light.
 #[test]
 fn hull_bundles_agree_with_single_rays_bit_for_bit() {
-    use penumbra::geom::bvh::SegmentHull;
+    use penumbra::internal::geom::bvh::SegmentHull;
     let (geometry, bvh, lo, size) = bunny_bvh();
     let verts = &geometry.positions;
     let mut rng = Rng(4242);
@@ -817,7 +817,7 @@ fn watertight_test_agrees_with_f64_moller_trumbore() {
         let d = v(&mut rng) - o;
         let t_max = 1.0f32;
         let ours = intersect_triangle(o, d, t_max, &tri);
-        let reference = penumbra::geom::TriangleFrame::new(tri.map(|p| p.as_dvec3()))
+        let reference = penumbra::internal::geom::TriangleFrame::new(tri.map(|p| p.as_dvec3()))
             .hit(o.as_dvec3(), d.as_dvec3());
         let Some((t, b1, b2)) = reference else {
             // Parallel in f64 or behind the origin: ours must miss too.
@@ -1196,12 +1196,12 @@ fn same_bits_for_one_and_two_threads() {
 /// The technique plugs into the renderer by name, and rejects N = 0.
 #[test]
 fn technique_is_wired_into_the_renderer() {
-    use penumbra::render::Technique;
+    use penumbra::internal::render::Technique;
     assert_eq!(
         "reference".parse::<Technique>().ok(),
         Some(Technique::named("reference").unwrap())
     );
-    assert!(penumbra::shadow::registry::names().contains(&"reference"));
+    assert!(penumbra::internal::shadow::registry::names().contains(&"reference"));
     let scene = shipped("quad.toml");
     let frame = Frame::new(&scene, 8, 8);
     let none = Reference::new(0, 0).compute(&frame.ctx(&scene));

@@ -4,12 +4,11 @@
 
 mod common;
 
-use penumbra::geom::SceneGeometry;
-use penumbra::render::{render, view_for, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::shadow::registry::{markdown_table, names, DEFAULT_TECHNIQUE};
-use penumbra::shadow::technique::{check_scene, Support, TermKind, Warning};
-use penumbra::shadow::{Technique, TechniqueOptions};
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::render::{render, view_for, RenderOptions};
+use penumbra::internal::shadow::registry::{markdown_table, names, DEFAULT_TECHNIQUE};
+use penumbra::internal::shadow::technique::{check_scene, Support, TermKind, Warning};
+use penumbra::internal::shadow::{Technique, TechniqueOptions};
 use std::process::Command;
 
 #[test]
@@ -97,14 +96,13 @@ fn the_default_is_exact_dcs_and_equals_the_command_line_defaults() {
         &RenderOptions {
             width: Some(48),
             height: Some(32),
-            aovs: vec![penumbra::render::Aov::Vcoef],
+            aovs: vec![penumbra::internal::render::Aov::Vcoef],
             ..RenderOptions::default()
         },
-        &Progress::hidden(),
     )
     .expect("render");
     let lib = dir.join("lib.exr");
-    penumbra::output::write_exr(&lib, out.width, out.height, &out.radiance, &out.layers)
+    penumbra::internal::output::write_exr(&lib, out.width, out.height, &out.radiance, &out.layers)
         .expect("exr");
     assert_eq!(
         std::fs::read(&exr).expect("cli exr"),
@@ -161,7 +159,6 @@ translate = [0.0, 1.0, 0.0]
                         technique: t,
                         ..RenderOptions::default()
                     },
-                    &Progress::hidden(),
                 );
                 assert!(r.is_err(), "{}", t.name());
             }
@@ -170,7 +167,7 @@ translate = [0.0, 1.0, 0.0]
     }
     // An option can change a capability: bit fields need rect lights.
     let mut bitfield = TechniqueOptions::default();
-    bitfield.dcs.coverage = penumbra::shadow::dcs::CoverageTest::BitField;
+    bitfield.dcs.coverage = penumbra::internal::shadow::dcs::CoverageTest::BitField;
     let dcs = Technique::named("dcs").unwrap();
     let e = check_scene(
         dcs.info(),
@@ -215,7 +212,7 @@ fn declared_output_kinds_match_the_terms_returned() {
             samples: 4,
             ..RenderOptions::default()
         };
-        let out = render(&scene, &options, &Progress::hidden()).expect("render");
+        let out = render(&scene, &options).expect("render");
         let kind = t.capabilities(&options.options).output;
         for term in &out.lights {
             assert_eq!(
@@ -240,9 +237,9 @@ fn every_technique_has_quality_settings_and_a_listing_line() {
     let defaults = TechniqueOptions::default();
     for t in Technique::all() {
         assert!(text.lines().any(|l| l.starts_with(t.name())), "{text}");
-        let sweep = penumbra::shadow::technique::Sweep {
+        let sweep = penumbra::internal::shadow::technique::Sweep {
             samples: &[4, 16],
-            patterns: &[penumbra::sampling::SamplePattern::Stratified],
+            patterns: &[penumbra::internal::sampling::SamplePattern::Stratified],
             semi_opaque: true,
             base: &defaults,
         };

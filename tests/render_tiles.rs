@@ -4,12 +4,12 @@
 
 mod common;
 
-use penumbra::cluster::tiles::{band_rows, merge_parts, read_part, render_part};
-use penumbra::output::OutputSet;
-use penumbra::render::{render, with_threads, Aov, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::scene::Scene;
-use penumbra::shadow::Technique;
+use penumbra::internal::cluster::tiles::{band_rows, merge_parts, read_part, render_part};
+use penumbra::internal::output::OutputSet;
+use penumbra::internal::render::{render, with_threads, Aov, RenderOptions};
+use penumbra::internal::report::Progress;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::Technique;
 use std::path::{Path, PathBuf};
 
 fn options(technique: Technique, w: u32, h: u32) -> RenderOptions {
@@ -25,7 +25,7 @@ fn options(technique: Technique, w: u32, h: u32) -> RenderOptions {
 
 /// The single render's PNG and EXR bytes.
 fn whole(scene: &Scene, o: &RenderOptions, dir: &Path) -> (Vec<u8>, Vec<u8>) {
-    let out = render(scene, o, &Progress::hidden()).expect("render");
+    let out = render(scene, o).expect("render");
     let (png, exr) = (dir.join("whole.png"), dir.join("whole.exr"));
     let mut set = OutputSet::new();
     set.png(&png, out.width, out.height, &out.radiance).unwrap();

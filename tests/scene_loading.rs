@@ -5,7 +5,7 @@
 mod common;
 
 use glam::{Vec2, Vec3};
-use penumbra::scene::{load_scene, LightShape, Scene, TextureData};
+use penumbra::internal::scene::{load_scene, LightShape, Scene, TextureData};
 use penumbra::Error;
 use std::path::{Path, PathBuf};
 
@@ -1058,7 +1058,7 @@ fn out_of_range_values_say_so() {
 /// file's message, naming the text instead of the file.
 #[test]
 fn a_scene_from_text_is_the_scene_from_its_file() {
-    use penumbra::scene::{load_scene, scene_from_toml, TOML_TEXT};
+    use penumbra::internal::scene::{load_scene, scene_from_toml, TOML_TEXT};
     let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     for name in ["bunny", "fence", "tinted"] {
         let path = scenes.join(format!("{name}.toml"));

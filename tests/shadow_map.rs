@@ -5,11 +5,14 @@
 
 mod common;
 
-use penumbra::render::{render, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::shadow::Technique;
+use penumbra::internal::render::{render, RenderOptions};
+use penumbra::internal::shadow::Technique;
 
-fn vcoef(scene: &penumbra::scene::Scene, name: &str, f: impl Fn(&mut RenderOptions)) -> Vec<f32> {
+fn vcoef(
+    scene: &penumbra::internal::scene::Scene,
+    name: &str,
+    f: impl Fn(&mut RenderOptions),
+) -> Vec<f32> {
     let mut options = RenderOptions {
         width: Some(96),
         height: Some(96),
@@ -18,7 +21,7 @@ fn vcoef(scene: &penumbra::scene::Scene, name: &str, f: impl Fn(&mut RenderOptio
         ..RenderOptions::default()
     };
     f(&mut options);
-    let out = render(scene, &options, &Progress::hidden()).expect("render");
+    let out = render(scene, &options).expect("render");
     out.lights[0].vcoef().to_vec()
 }
 
@@ -75,11 +78,11 @@ fn absurd_parameters_are_refused_with_their_name() {
     ] {
         let mut o = options.clone();
         set(&mut o);
-        let e = render(&scene, &o, &Progress::hidden()).expect_err("refused");
+        let e = render(&scene, &o).expect_err("refused");
         assert!(e.to_string().contains(name), "{e}");
     }
     let e = "poisson:0"
-        .parse::<penumbra::shadow::shadow_map::Pcf>()
+        .parse::<penumbra::internal::shadow::shadow_map::Pcf>()
         .expect_err("refused");
     assert!(e.contains("poisson"), "{e}");
 }

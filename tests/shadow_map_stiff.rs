@@ -14,10 +14,9 @@
 mod common;
 
 use glam::DVec3;
-use penumbra::render::{render, Aov, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::scene::{LightShape, Scene};
-use penumbra::shadow::Technique;
+use penumbra::internal::render::{render, Aov, RenderOptions};
+use penumbra::internal::scene::{LightShape, Scene};
+use penumbra::internal::shadow::Technique;
 
 /// What one case measured for one technique.
 #[derive(Debug)]
@@ -50,7 +49,7 @@ fn vcoef_and_facing(
         aovs: vec![Aov::Position, Aov::Normal],
         ..RenderOptions::default()
     };
-    let out = render(scene, &options, &Progress::hidden()).expect("render");
+    let out = render(scene, &options).expect("render");
     let layer = |name: &str| {
         let l = out.layers.iter().find(|l| l.name == name).expect("layer");
         let c = |k: usize| &l.channels[k].1;

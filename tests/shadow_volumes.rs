@@ -10,16 +10,16 @@
 
 mod common;
 
-use penumbra::gbuffer::{gbuffer_pass, GBuffer};
-use penumbra::geom::SceneGeometry;
-use penumbra::raster::{draw, Framebuffer, NoFragmentStage};
-use penumbra::render::{view_for, RenderOptions};
-use penumbra::scene::Scene;
-use penumbra::shadow::kit::rays::ShadowTracer;
-use penumbra::shadow::kit::volumes::{
+use penumbra::internal::gbuffer::{gbuffer_pass, GBuffer};
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::raster::{draw, Framebuffer, NoFragmentStage};
+use penumbra::internal::render::{view_for, RenderOptions};
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::kit::rays::ShadowTracer;
+use penumbra::internal::shadow::kit::volumes::{
     build_volume, caster_adjacency, light_point, stencil_counts, stencil_state,
 };
-use penumbra::view::View;
+use penumbra::internal::view::View;
 
 struct Frame {
     scene: Scene,
@@ -335,7 +335,7 @@ fn zpass_stands_in_for_zfail_only_with_the_same_counts() {
 /// where faces on the receivers flip) and large ones (where many do).
 #[test]
 fn depth_shift_counts_equal_the_difference_of_two_passes() {
-    use penumbra::shadow::kit::volumes::stencil_count_shifts;
+    use penumbra::internal::shadow::kit::volumes::stencil_count_shifts;
     for name in ["bunny.toml", "spheres.toml", "quad.toml"] {
         let f = frame(shipped(name), 192, 160);
         let adj = caster_adjacency(&f.scene, &f.geometry);

@@ -5,11 +5,10 @@
 mod common;
 
 use glam::DVec3;
-use penumbra::render::{render, RenderOptions};
-use penumbra::report::Progress;
-use penumbra::scene::Scene;
-use penumbra::shadow::soft_shadow_map::SsmLight;
-use penumbra::shadow::{Technique, TechniqueOptions};
+use penumbra::internal::render::{render, RenderOptions};
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::soft_shadow_map::SsmLight;
+use penumbra::internal::shadow::{Technique, TechniqueOptions};
 
 fn vcoef(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -> Vec<f32> {
     let mut options = RenderOptions {
@@ -20,17 +19,17 @@ fn vcoef(scene: &Scene, name: &str, size: u32, f: impl Fn(&mut RenderOptions)) -
         ..RenderOptions::default()
     };
     f(&mut options);
-    let out = render(scene, &options, &Progress::hidden()).expect("render");
+    let out = render(scene, &options).expect("render");
     out.lights[0].vcoef().to_vec()
 }
 
 /// Builds light 0's soft shadow map of `scene`.
 fn build(scene: &Scene, f: impl Fn(&mut TechniqueOptions)) -> SsmLight {
-    use penumbra::shadow::kit::light_view::{caster_bounds, receiver_bounds};
+    use penumbra::internal::shadow::kit::light_view::{caster_bounds, receiver_bounds};
     let mut o = TechniqueOptions::default();
     f(&mut o);
-    let geometry = penumbra::geom::SceneGeometry::new(scene);
-    penumbra::shadow::soft_shadow_map::build_light(
+    let geometry = penumbra::internal::geom::SceneGeometry::new(scene);
+    penumbra::internal::shadow::soft_shadow_map::build_light(
         scene,
         &geometry,
         0,
@@ -134,7 +133,8 @@ fn rect_overlap(r: DVec3, corners: &[DVec3; 4], c: DVec3, u: DVec3, v: DVec3) ->
 #[test]
 fn an_aligned_planar_occluder_gives_the_closed_form_overlap() {
     let scene = split_quad("ssm-closed-form", 1.0, 0.5);
-    let penumbra::scene::LightShape::Rect { center, u, v, .. } = scene.lights[0].shape else {
+    let penumbra::internal::scene::LightShape::Rect { center, u, v, .. } = scene.lights[0].shape
+    else {
         unreachable!()
     };
     let (c, u, v) = (center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
@@ -429,7 +429,7 @@ fn touching_the_receiver_or_the_light_against_the_reference() {
 /// Same bits for 1 and 2 threads, every accumulation, both passes.
 #[test]
 fn the_same_bits_for_any_thread_count() {
-    use penumbra::render::with_threads;
+    use penumbra::internal::render::with_threads;
     let scene = common::shipped("spheres.toml");
     for acc in ["f32", "f16-batched"] {
         let run = |threads| {
@@ -468,7 +468,7 @@ fn sphere_lights_are_refused() {
         technique: Technique::named("soft-shadow-map").unwrap(),
         ..RenderOptions::default()
     };
-    let e = render(&scene, &options, &Progress::hidden()).expect_err("refused");
+    let e = render(&scene, &options).expect_err("refused");
     let msg = e.to_string();
     assert!(
         msg.contains("--technique") && msg.contains("rectangle"),

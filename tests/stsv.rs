@@ -1,4 +1,4 @@
-//! Soft textured shadow volumes (`penumbra::shadow::kit::stsv`) against the
+//! Soft textured shadow volumes (`penumbra::internal::shadow::kit::stsv`) against the
 //! ray-traced reference, relation by relation: per (receiver, light
 //! sample, S-triangle) the per-sample opacity look-up must equal the
 //! reference's opacity of that triangle on the shadow ray, except at
@@ -9,12 +9,12 @@
 mod common;
 
 use glam::{DVec3, Vec3};
-use penumbra::sampling::{LightSampler, PatternSampler, SamplePattern};
-use penumbra::scene::{LightShape, Scene};
-use penumbra::shade::LightSample;
-use penumbra::shadow::kit::membership::light_bound;
-use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
-use penumbra::shadow::kit::stsv::{
+use penumbra::internal::sampling::{LightSampler, PatternSampler, SamplePattern};
+use penumbra::internal::scene::{LightShape, Scene};
+use penumbra::internal::shade::LightSample;
+use penumbra::internal::shadow::kit::membership::light_bound;
+use penumbra::internal::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
+use penumbra::internal::shadow::kit::stsv::{
     build_volumes, membership, Filter, STriangle, STriangles, SamplePositions, SampleProjector,
     ShadowOrigin, StsvMembership, VolumeParams,
 };

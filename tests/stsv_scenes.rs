@@ -6,13 +6,12 @@
 
 mod common;
 
-use penumbra::render::{render, RenderOptions, Technique};
-use penumbra::report::Progress;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::kit::stsv::{Filter, StsvSampling};
-use penumbra::shadow::reference::Reference;
-use penumbra::shadow::ShadowTechnique;
+use penumbra::internal::render::{render, RenderOptions, Technique};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::kit::stsv::{Filter, StsvSampling};
+use penumbra::internal::shadow::reference::Reference;
+use penumbra::internal::shadow::ShadowTechnique;
 
 /// The shipped fence with its light made a sphere of the same half-size.
 fn sphere_fence() -> Scene {
@@ -55,21 +54,21 @@ const EXACT: f32 = 1e-5;
 fn run_with(
     name: &str,
     sampling: StsvSampling,
-    ctx: &penumbra::shadow::ShadowContext,
-) -> penumbra::Result<penumbra::shadow::ShadowOutput> {
-    let options = penumbra::shadow::TechniqueOptions {
-        stsv: penumbra::shadow::kit::stsv::StsvOptions {
+    ctx: &penumbra::internal::shadow::ShadowContext,
+) -> penumbra::Result<penumbra::internal::shadow::ShadowOutput> {
+    let options = penumbra::internal::shadow::TechniqueOptions {
+        stsv: penumbra::internal::shadow::kit::stsv::StsvOptions {
             opacity_filter: sampling.filter,
         },
         ..Default::default()
     };
-    let params = penumbra::shadow::technique::BuildParams {
+    let params = penumbra::internal::shadow::technique::BuildParams {
         samples: sampling.samples,
         seed: sampling.seed,
         pattern: sampling.pattern,
         options: &options,
     };
-    penumbra::shadow::run_technique(Technique::named(name)?, &params, ctx)
+    penumbra::internal::shadow::run_technique(Technique::named(name)?, &params, ctx)
 }
 
 fn vcoef_diff(
@@ -187,15 +186,16 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
                 samples,
                 seed,
                 pattern,
-                options: penumbra::shadow::TechniqueOptions {
-                    stsv: penumbra::shadow::kit::stsv::StsvOptions {
+                options: penumbra::internal::shadow::TechniqueOptions {
+                    stsv: penumbra::internal::shadow::kit::stsv::StsvOptions {
                         opacity_filter: filter,
                     },
                     ..Default::default()
                 },
-                aovs: vec![penumbra::render::Aov::Vcoef],
+                aovs: vec![penumbra::internal::render::Aov::Vcoef],
+                threads: None,
             };
-            render(&scene, &options, &Progress::new(5, false)).expect("render")
+            render(&scene, &options).expect("render")
         };
         let a = run(64, 0, SamplePattern::Stratified, Filter::Nearest);
         let b = run(3, 99, SamplePattern::Poisson, Filter::Bilinear);
@@ -206,6 +206,7 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
         );
         assert!(a.layers.iter().all(|l| l.name != "stsv"));
         let note = a
+            .explain
             .buffers
             .iter()
             .find(|b| b.name == "soft textured shadow volumes")
@@ -228,8 +229,9 @@ fn explain_says_the_wedges_use_stsv() {
             samples: 4,
             ..RenderOptions::default()
         };
-        let out = render(&scene, &options, &Progress::new(5, false)).expect("render");
+        let out = render(&scene, &options).expect("render");
         let note = out
+            .explain
             .buffers
             .iter()
             .find(|b| b.name == "soft textured shadow volumes")
@@ -274,8 +276,8 @@ struct Relations {
 }
 
 fn dcs_relations(scene: &Scene, w: u32, h: u32, n: u32, seed: u64) -> Relations {
-    use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
-    use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
+    use penumbra::internal::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode};
+    use penumbra::internal::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
     use std::sync::atomic::{AtomicUsize, Ordering};
     let frame = common::Frame::new(scene, w, h);
     let ctx = frame.ctx(scene);

@@ -10,10 +10,12 @@
 mod common;
 
 use glam::DVec3;
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::dcs::{DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode};
-use penumbra::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::dcs::{
+    DcsMode, DepthComplexitySampling, SilhouetteMode, TransmittanceMode,
+};
+use penumbra::internal::shadow::kit::rays::{ShadowTracer, END_SHORTEN};
 use std::sync::Mutex;
 
 /// Relative agreement of `V·T` (the two sides form the same product in
@@ -137,7 +139,7 @@ fn agreement(scene: &Scene, n: u32, mode: TransmittanceMode, summed_alpha: f64) 
             .push((i, xs, px.counters.to_vec(), px.transmittance.to_vec()));
     })
     .expect("dcs runs");
-    let adj = penumbra::geom::EdgeAdjacency::build(&frame.geometry, |_| true);
+    let adj = penumbra::internal::geom::EdgeAdjacency::build(&frame.geometry, |_| true);
     let edges: Vec<(DVec3, DVec3)> = adj
         .edges
         .iter()

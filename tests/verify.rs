@@ -5,14 +5,14 @@
 
 mod common;
 
-use penumbra::error::Result;
-use penumbra::render::{verify_render, RenderOptions, Technique};
-use penumbra::sampling::SamplePattern;
-use penumbra::scene::Scene;
-use penumbra::shadow::dcs::{DepthComplexitySampling, SilhouetteMode};
-use penumbra::shadow::kit::verify::{verify_with, VerifyReport, TIE_DISTANCE};
-use penumbra::shadow::technique::{PixelVisibility, SampleDecisions};
-use penumbra::shadow::ShadowContext;
+use penumbra::internal::error::Result;
+use penumbra::internal::render::{verify_render, RenderOptions, Technique};
+use penumbra::internal::sampling::SamplePattern;
+use penumbra::internal::scene::Scene;
+use penumbra::internal::shadow::dcs::{DepthComplexitySampling, SilhouetteMode};
+use penumbra::internal::shadow::kit::verify::{verify_with, VerifyReport, TIE_DISTANCE};
+use penumbra::internal::shadow::technique::{PixelVisibility, SampleDecisions};
+use penumbra::internal::shadow::ShadowContext;
 use std::process::Command;
 
 fn options(technique: &str, samples: u32, w: u32, h: u32, seed: u64) -> RenderOptions {
@@ -253,7 +253,7 @@ fn compare_reports_it_per_run() {
 /// centre silhouettes fail it, and both count the same relations.
 #[test]
 fn verify_all_checks_every_relation() {
-    use penumbra::shadow::kit::verify::{parse_amount, EVERY_RELATION};
+    use penumbra::internal::shadow::kit::verify::{parse_amount, EVERY_RELATION};
     assert_eq!(parse_amount("all"), Ok(EVERY_RELATION));
     assert_eq!(parse_amount("12"), Ok(12));
     assert!(parse_amount("some").is_err());

@@ -3,9 +3,9 @@
 
 mod common;
 
-use penumbra::compare::{compare_scene, CompareOptions};
-use penumbra::render::Technique;
-use penumbra::report::Progress;
+use penumbra::internal::compare::{compare_scene, CompareOptions};
+use penumbra::internal::render::Technique;
+use penumbra::internal::report::Progress;
 
 /// The quad scene at 96², optionally with its light made a sphere.
 fn quad(sphere: bool) -> String {
@@ -71,7 +71,7 @@ fn check_exact_case(name: &str, toml: &str) {
         seed: 3,
         cache_dir: dir.join("cache"),
         images: false,
-        patterns: vec![penumbra::sampling::SamplePattern::Stratified],
+        patterns: vec![penumbra::internal::sampling::SamplePattern::Stratified],
         verify: None,
     };
     let c = compare_scene(&scene, &options, &dir, &Progress::hidden()).expect("compare");
@@ -111,7 +111,7 @@ fn check_exact_case(name: &str, toml: &str) {
 /// through the cosine): they are measured, not held to this tolerance.
 #[test]
 fn sphere_over_a_plane_on_the_ground() {
-    use penumbra::render::{render, Aov, RenderOptions};
+    use penumbra::internal::render::{render, Aov, RenderOptions};
     let toml = r#"
 [scene]
 name = "one-sphere"
@@ -146,9 +146,9 @@ translate = [0.0, 1.2, 0.0]
             seed: 11,
             ..RenderOptions::default()
         };
-        render(&scene, &options, &Progress::hidden()).expect("render")
+        render(&scene, &options).expect("render")
     };
-    let channel = |out: &penumbra::render::RenderOutput, layer: &str, ch: &str| -> Vec<f32> {
+    let channel = |out: &penumbra::internal::render::Render, layer: &str, ch: &str| -> Vec<f32> {
         let l = out.layers.iter().find(|l| l.name == layer).unwrap();
         l.channels.iter().find(|(n, _)| n == ch).unwrap().1.clone()
     };
@@ -192,7 +192,7 @@ fn penumbra_errors(
     technique: Technique,
     select: impl Fn([f32; 3]) -> bool,
 ) -> (f64, f32, usize, usize) {
-    use penumbra::render::{render, Aov, RenderOptions};
+    use penumbra::internal::render::{render, Aov, RenderOptions};
     let scene = common::scene_in_scratch(name, toml, &[]);
     let run = |technique, samples| {
         let options = RenderOptions {
@@ -202,9 +202,9 @@ fn penumbra_errors(
             seed: 5,
             ..RenderOptions::default()
         };
-        render(&scene, &options, &Progress::hidden()).expect("render")
+        render(&scene, &options).expect("render")
     };
-    let channel = |out: &penumbra::render::RenderOutput, layer: &str, ch: &str| -> Vec<f32> {
+    let channel = |out: &penumbra::internal::render::Render, layer: &str, ch: &str| -> Vec<f32> {
         let l = out.layers.iter().find(|l| l.name == layer).unwrap();
         l.channels.iter().find(|(n, _)| n == ch).unwrap().1.clone()
     };

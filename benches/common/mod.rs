@@ -1,13 +1,13 @@
 //! What the shadow benches share: a shipped scene with its G-buffer at a
 //! square size, ready to hand to a technique as a [`ShadowContext`].
 
-use penumbra::gbuffer::{gbuffer_pass, GBuffer};
-use penumbra::geom::SceneGeometry;
-use penumbra::raster::Framebuffer;
-use penumbra::render::{view_for, RenderOptions};
-use penumbra::scene::{load_scene, Scene};
-use penumbra::shadow::{ShadowCache, ShadowContext};
-use penumbra::view::View;
+use penumbra::internal::gbuffer::{gbuffer_pass, GBuffer};
+use penumbra::internal::geom::SceneGeometry;
+use penumbra::internal::raster::Framebuffer;
+use penumbra::internal::render::{view_for, RenderOptions};
+use penumbra::internal::scene::{load_scene, Scene};
+use penumbra::internal::shadow::{ShadowCache, ShadowContext};
+use penumbra::internal::view::View;
 use std::path::Path;
 
 /// A shipped scene's receivers, computed once per bench.
@@ -58,6 +58,7 @@ impl Prepared {
             gbuffer: &self.gbuffer,
             depth: &self.depth,
             cache,
+            observer: &penumbra::internal::observe::Silent,
         }
     }
 }

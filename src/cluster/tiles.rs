@@ -40,7 +40,7 @@ use crate::compare::cache::{hash_scene, StableHasher};
 use crate::error::{Error, Result};
 use crate::output::{image_outputs, write_atomically, Layer, OutputSet};
 use crate::raster::{MAX_SIDE, TILE_SIZE};
-use crate::render::{render_rows, view_for, RenderOptions, RenderOutput};
+use crate::render::{render_rows, view_for, Render, RenderOptions};
 use crate::report::Progress;
 use crate::scene::Scene;
 use crate::shadow::technique::Bands;
@@ -176,7 +176,7 @@ pub fn render_part(
     let view = view_for(scene, options)?;
     let rows = band_rows(view.height, index, count)?;
     let kept = kept_rows(options, rows.clone(), view.height)?;
-    let RenderOutput {
+    let Render {
         radiance, layers, ..
     } = render_rows(scene, options, progress, Some(kept))?;
 

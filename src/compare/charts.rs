@@ -6,7 +6,7 @@ use super::model::RunResult;
 use super::reference::ReferenceImages;
 use crate::error::{Error, Result};
 use crate::output::write_png;
-use crate::render::RenderOutput;
+use crate::render::Render;
 use crate::report::{pareto_front, write_error_heatmap, write_error_vs_time, ChartPoint};
 use std::path::Path;
 
@@ -33,7 +33,7 @@ pub(super) fn write_run_images(
     out: &Path,
     stem: &str,
     (width, height): (u32, u32),
-    rendered: &RenderOutput,
+    rendered: &Render,
     tests: &[Option<&[f32]>],
     reference: &ReferenceImages,
 ) -> Result<(Option<String>, Vec<String>)> {

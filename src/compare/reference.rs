@@ -10,7 +10,7 @@ use super::model::{NoiseFloor, RegionMetrics};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
-use crate::render::{render, Aov, RenderOptions, RenderOutput, Technique};
+use crate::render::{render, Aov, Render, RenderOptions, Technique};
 use crate::report::{
     error_metrics, flip_rgb8, interior_mask, ErrorAccumulator, FlipRegions, Progress,
 };
@@ -227,7 +227,7 @@ impl ReferenceImages {
 
 /// The Vcoef of light `k` of a render, background pixels 0 (as in the
 /// `vcoef` AOV the cached references store).
-pub(super) fn vcoef_of(out: &RenderOutput, k: usize, surface: &[bool]) -> Option<Vec<f32>> {
+pub(super) fn vcoef_of(out: &Render, k: usize, surface: &[bool]) -> Option<Vec<f32>> {
     let term = out.lights.get(k)?;
     Some(
         term.vcoef()
@@ -253,7 +253,6 @@ pub(super) fn interior_of(scene: &Scene, options: &CompareOptions) -> Result<Vec
             technique: Technique::named("none")?,
             ..RenderOptions::default()
         },
-        &Progress::hidden(),
     )?;
     let channel = |layer: &str, c: &str| -> Result<&[f32]> {
         out.layers
@@ -340,7 +339,6 @@ pub(super) fn reference(
                 seed,
                 ..view_options.clone()
             },
-            &Progress::hidden(),
         )?;
         mask = out
             .layers

@@ -9,7 +9,7 @@ use super::reference::{vcoef_of, ReferenceImages};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
-use crate::render::{render, RenderOptions, RenderOutput};
+use crate::render::{render, Render, RenderOptions};
 use crate::report::{flip_rgb8, Progress};
 use crate::shadow::technique::QualitySetting;
 use std::path::Path;
@@ -18,7 +18,7 @@ use std::time::Instant;
 /// One setting's timed renders.
 pub(super) struct TimedRuns {
     /// The first run's output (every run's is the same).
-    pub rendered: RenderOutput,
+    pub rendered: Render,
     /// Each run's wall-clock milliseconds.
     pub totals: Vec<f64>,
     /// Per-pass medians, in execution order.
@@ -39,7 +39,7 @@ pub(super) fn time_setting(
     let mut totals = Vec::new();
     let mut pass_times: Vec<Vec<f64>> = Vec::new();
     let mut pass_names: Vec<String> = Vec::new();
-    let mut first: Option<RenderOutput> = None;
+    let mut first: Option<Render> = None;
     for r in 0..repeat {
         progress.stage(&format!(
             "{name} {} (run {}/{})",
@@ -48,7 +48,7 @@ pub(super) fn time_setting(
             repeat
         ));
         let start = Instant::now();
-        let rendered = render(scene, setting_options, &Progress::hidden())?;
+        let rendered = render(scene, setting_options)?;
         totals.push(start.elapsed().as_secs_f64() * 1e3);
         if pass_names.is_empty() {
             pass_names = rendered.passes.iter().map(|p| p.name.clone()).collect();

@@ -58,7 +58,7 @@ pub fn estimate_render(scene: &Scene, options: &RenderOptions) -> Result<Duratio
             ..options.clone()
         };
         let t = Instant::now();
-        render(scene, &o, &Progress::hidden())?;
+        render(scene, &o)?;
         let pixels = f64::from(pw) * f64::from(ph);
         Ok((pixels, f64::from(samples), t.elapsed().as_secs_f64()))
     };

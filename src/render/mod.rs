@@ -9,9 +9,9 @@ pub use shading::shade;
 use crate::error::{Error, Result};
 use crate::gbuffer::{gbuffer_pass, GBuffer};
 use crate::geom::SceneGeometry;
+use crate::observe::{Observer, Silent};
 use crate::output::Layer;
 use crate::raster::DrawStats;
-use crate::report::Progress;
 use crate::sampling::SamplePattern;
 use crate::scene::Scene;
 use crate::shadow::kit::verify::VerifyReport;
@@ -101,7 +101,13 @@ pub struct RenderOptions {
     pub pattern: SamplePattern,
     /// Every technique's own options (only the chosen one's matter).
     pub options: TechniqueOptions,
+    /// Worker threads of [`render_with`] (all cores when `None`); the
+    /// image is the same for any count.
+    pub threads: Option<usize>,
 }
+
+/// Most worker threads a render takes.
+pub const MAX_THREADS: usize = 1024;
 
 /// Most light samples per pixel and light a render takes.
 pub const MAX_SAMPLES: u32 = 1 << 20;
@@ -129,6 +135,12 @@ impl RenderOptions {
                 ));
             }
         }
+        if let Some(n) = self.threads.filter(|n| !(1..=MAX_THREADS).contains(n)) {
+            return Err(Error::param(
+                "--threads",
+                format!("{n} is outside 1..={MAX_THREADS}"),
+            ));
+        }
         self.options.validate(self.technique.info().reads)
     }
 
@@ -155,32 +167,58 @@ impl Default for RenderOptions {
             seed: 0,
             pattern: SamplePattern::Stratified,
             options: TechniqueOptions::default(),
+            threads: None,
         }
     }
 }
 
-/// A finished render.
+/// A finished render: the image, its layers and per-light terms as typed
+/// buffers (row-major, row 0 at the top), and how it was made.
 #[derive(Debug, Clone)]
-pub struct RenderOutput {
+pub struct Render {
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// Linear radiance, row-major, row 0 at the top.
+    /// Linear radiance.
     pub radiance: Vec<Vec3>,
-    /// Requested AOV layers and the technique's own.
+    /// The requested AOV layers, in [`Aov::ALL`] order, then the
+    /// technique's own; each channel is one `f32` per pixel.
     pub layers: Vec<Layer>,
+    /// The technique's result per light, in light order.
+    pub lights: Vec<LightTerm>,
     /// Every pass with its wall-clock time, in order.
     pub passes: Vec<PassTiming>,
     /// Raster counters of the G-buffer pass.
     pub gbuffer_stats: DrawStats,
-    /// The buffers the render used (and those it left out), for
-    /// `--explain`.
-    pub buffers: Vec<BufferNote>,
-    /// The technique's result per light, in light order.
-    pub lights: Vec<LightTerm>,
     /// What the result leaves out of the scene.
     pub warnings: Vec<Warning>,
+    /// How the render was made (`--explain`), as data.
+    pub explain: Explain,
+}
+
+/// How a render was made: what `render --explain` prints.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Explain {
+    /// The technique's name.
+    pub technique: String,
+    /// Light samples per pixel and light.
+    pub samples: u32,
+    /// The SIMD level the kernels ran at, in words.
+    pub simd: String,
+    /// Worker threads the render ran on.
+    pub threads: usize,
+    /// The buffers the render used, and those it left out (0 bytes).
+    pub buffers: Vec<BufferNote>,
+    /// The warnings, in words.
+    pub notes: Vec<String>,
+}
+
+impl Render {
+    /// The layer named `name` (`depth`, `vcoef`, ...), if produced.
+    pub fn layer(&self, name: &str) -> Option<&Layer> {
+        self.layers.iter().find(|l| l.name == name)
+    }
 }
 
 /// The view a render of `scene` with `options` uses.
@@ -227,9 +265,28 @@ pub fn check_memory(scene: &Scene, options: &RenderOptions, view: &View) -> Resu
     Ok(())
 }
 
-/// Renders a scene.
-pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Result<RenderOutput> {
-    render_rows(scene, options, progress, None)
+/// Renders a scene: checks the options ([`RenderOptions::validate`]), then
+/// runs the G-buffer, the technique and shading on `options.threads`
+/// worker threads.
+pub fn render(scene: &Scene, options: &RenderOptions) -> Result<Render> {
+    render_with(scene, options, &Silent)
+}
+
+/// [`render`], telling `observer` each stage as it starts and ends and
+/// stopping with [`Error::Cancelled`] once it reports
+/// [`Observer::cancelled`].
+pub fn render_with(
+    scene: &Scene,
+    options: &RenderOptions,
+    observer: &dyn Observer,
+) -> Result<Render> {
+    options.validate()?;
+    match options.threads {
+        Some(_) => with_threads(options.threads, || {
+            render_rows(scene, options, observer, None)
+        })?,
+        None => render_rows(scene, options, observer, None),
+    }
 }
 
 /// Renders a scene with only the pixels of `rows` as receivers (all when
@@ -240,23 +297,27 @@ pub fn render(scene: &Scene, options: &RenderOptions, progress: &Progress) -> Re
 pub fn render_rows(
     scene: &Scene,
     options: &RenderOptions,
-    progress: &Progress,
+    progress: &dyn Observer,
     rows: Option<std::ops::Range<u32>>,
-) -> Result<RenderOutput> {
+) -> Result<Render> {
     options.validate()?;
     let view = view_for(scene, options)?;
     check_memory(scene, options, &view)?;
     let mut passes = Vec::new();
-    // Each top-level pass is one progress step.
+    // Each top-level pass is one progress step, and a point to stop at.
     let timed = |t: PassTimer, passes: &mut Vec<PassTiming>| {
         t.finish(passes);
         progress.step();
+        match progress.cancelled() {
+            true => Err(Error::Cancelled),
+            false => Ok(()),
+        }
     };
 
     progress.stage("geometry");
     let t = PassTimer::start("geometry");
     let geometry = SceneGeometry::new(scene);
-    timed(t, &mut passes);
+    timed(t, &mut passes)?;
 
     progress.stage("g-buffer");
     let t = PassTimer::start("gbuffer");
@@ -264,7 +325,7 @@ pub fn render_rows(
     if let Some(rows) = rows {
         gbuffer.keep_rows(rows);
     }
-    timed(t, &mut passes);
+    timed(t, &mut passes)?;
 
     progress.stage("shadows");
     let cache = ShadowCache::new(scene, &geometry);
@@ -275,16 +336,22 @@ pub fn render_rows(
         gbuffer: &gbuffer,
         depth: &depth,
         cache: &cache,
+        observer: progress,
     };
     let mut shadows = run_technique(options.technique, &options.build_params(), &ctx)?;
     unshadow_non_receivers(scene, &gbuffer, &mut shadows.lights);
     passes.extend(shadows.passes.iter().cloned());
     progress.step();
+    // The long passes stop early when cancelled, leaving their buffers
+    // unfinished: nothing of them may be used.
+    if progress.cancelled() {
+        return Err(Error::Cancelled);
+    }
 
     progress.stage("shading");
     let t = PassTimer::start("shading");
     let radiance = shade(scene, &view, &gbuffer, &shadows.lights);
-    timed(t, &mut passes);
+    timed(t, &mut passes)?;
 
     let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs, scene.origin);
     layers.extend(shadows.layers);
@@ -302,19 +369,28 @@ pub fn render_rows(
         },
     ];
     buffers.extend(shadows.buffers);
-    Ok(RenderOutput {
+    let warnings: Vec<Warning> = (crate::scene::lint::warnings(scene).into_iter())
+        .map(Warning::Scene)
+        .chain(shadows.warnings)
+        .collect();
+    let explain = Explain {
+        technique: options.technique.name().to_string(),
+        samples: options.samples,
+        simd: crate::simd::level::describe(),
+        threads: rayon::current_num_threads(),
         buffers,
+        notes: warnings.iter().map(|w| w.to_string()).collect(),
+    };
+    Ok(Render {
         lights: shadows.lights,
-        warnings: (crate::scene::lint::warnings(scene).into_iter())
-            .map(Warning::Scene)
-            .chain(shadows.warnings)
-            .collect(),
+        warnings,
         width: view.width,
         height: view.height,
         radiance,
         layers,
         passes,
         gbuffer_stats,
+        explain,
     })
 }
 
@@ -368,6 +444,7 @@ pub fn verify_render(scene: &Scene, options: &RenderOptions, k: u64) -> Result<V
         gbuffer: &gbuffer,
         depth: &depth,
         cache: &cache,
+        observer: &Silent,
     };
     crate::shadow::technique::check_scene(
         options.technique.info(),
@@ -444,10 +521,10 @@ pub fn aov_layers(
 pub fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> Result<R> {
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
-        if n == 0 || n > 1024 {
+        if !(1..=MAX_THREADS).contains(&n) {
             return Err(Error::param(
                 "--threads",
-                format!("{n} is outside 1..=1024"),
+                format!("{n} is outside 1..={MAX_THREADS}"),
             ));
         }
         builder = builder.num_threads(n);

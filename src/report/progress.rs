@@ -113,6 +113,17 @@ impl Progress {
     }
 }
 
+/// The command line's bar hears a render's stages; it never cancels.
+impl crate::observe::Observer for Progress {
+    fn stage(&self, name: &str) {
+        Progress::stage(self, name);
+    }
+
+    fn step(&self) {
+        Progress::step(self);
+    }
+}
+
 impl Drop for Progress {
     /// A reporter dropped on an error path must not draw afterwards.
     fn drop(&mut self) {

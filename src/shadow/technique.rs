@@ -11,6 +11,7 @@ use super::options::{OptionGroup, TechniqueOptions};
 use crate::error::{Error, Result};
 use crate::gbuffer::GBuffer;
 use crate::geom::SceneGeometry;
+use crate::observe::Observer;
 use crate::output::Layer;
 use crate::raster::Framebuffer;
 use crate::sampling::SamplePattern;
@@ -37,6 +38,10 @@ pub struct ShadowContext<'a> {
     /// What several techniques and lights derive from the scene, computed
     /// once per render on first use.
     pub cache: &'a ShadowCache<'a>,
+    /// Who watches the render: the long passes poll
+    /// [`Observer::cancelled`] between tiles and stop early (the render
+    /// then discards everything).
+    pub observer: &'a dyn Observer,
 }
 
 /// A technique's result for one light, per pixel (row-major).
@@ -83,7 +88,7 @@ pub struct PassTiming {
 }
 
 /// One buffer (or pass) a render used, for `--explain`.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct BufferNote {
     /// What it is, e.g. `counters light 0`.
     pub name: String,

@@ -58,32 +58,39 @@ impl Drop for ScratchDir {
 
 /// Loads a scene file written, with extra files (name, bytes), into a
 /// scratch directory.
-pub fn scene_in_scratch(name: &str, toml: &str, files: &[(&str, &[u8])]) -> penumbra::scene::Scene {
+pub fn scene_in_scratch(
+    name: &str,
+    toml: &str,
+    files: &[(&str, &[u8])],
+) -> penumbra::internal::scene::Scene {
     let dir = scratch_dir(name);
     for (file, bytes) in files {
         std::fs::write(dir.join(file), bytes).expect("write scratch file");
     }
     let path = dir.join("scene.toml");
     std::fs::write(&path, toml).expect("write scene");
-    let scene = penumbra::scene::load_scene(&path).expect("test scene loads");
+    let scene = penumbra::internal::scene::load_scene(&path).expect("test scene loads");
     // Everything is in memory now: leave nothing behind in the temp dir.
     let _ = std::fs::remove_dir_all(&dir);
     scene
 }
 
 /// Loads a scene shipped in `scenes/`.
-pub fn shipped(name: &str) -> penumbra::scene::Scene {
+pub fn shipped(name: &str) -> penumbra::internal::scene::Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenes")
         .join(name);
-    penumbra::scene::load_scene(&path).expect("shipped scene loads")
+    penumbra::internal::scene::load_scene(&path).expect("shipped scene loads")
 }
 
 /// `scene` with its first light (a rect) made a sphere of radius `radius`
 /// at the same centre.
 #[allow(dead_code)]
-pub fn with_sphere_light(mut scene: penumbra::scene::Scene, radius: f32) -> penumbra::scene::Scene {
-    use penumbra::scene::LightShape;
+pub fn with_sphere_light(
+    mut scene: penumbra::internal::scene::Scene,
+    radius: f32,
+) -> penumbra::internal::scene::Scene {
+    use penumbra::internal::scene::LightShape;
     let LightShape::Rect { center, .. } = scene.lights[0].shape else {
         panic!("a rect light");
     };
@@ -93,23 +100,23 @@ pub fn with_sphere_light(mut scene: penumbra::scene::Scene, radius: f32) -> penu
 
 /// Everything a technique reads, for `scene` at `w × h`.
 pub struct Frame {
-    pub geometry: penumbra::geom::SceneGeometry,
-    pub view: penumbra::view::View,
-    pub gbuffer: penumbra::gbuffer::GBuffer,
-    pub depth: penumbra::raster::Framebuffer,
+    pub geometry: penumbra::internal::geom::SceneGeometry,
+    pub view: penumbra::internal::view::View,
+    pub gbuffer: penumbra::internal::gbuffer::GBuffer,
+    pub depth: penumbra::internal::raster::Framebuffer,
 }
 
 impl Frame {
-    pub fn new(scene: &penumbra::scene::Scene, w: u32, h: u32) -> Frame {
-        let options = penumbra::render::RenderOptions {
+    pub fn new(scene: &penumbra::internal::scene::Scene, w: u32, h: u32) -> Frame {
+        let options = penumbra::internal::render::RenderOptions {
             width: Some(w),
             height: Some(h),
-            ..penumbra::render::RenderOptions::default()
+            ..penumbra::internal::render::RenderOptions::default()
         };
-        let view = penumbra::render::view_for(scene, &options).expect("view");
-        let geometry = penumbra::geom::SceneGeometry::new(scene);
+        let view = penumbra::internal::render::view_for(scene, &options).expect("view");
+        let geometry = penumbra::internal::geom::SceneGeometry::new(scene);
         let (gbuffer, depth, _) =
-            penumbra::gbuffer::gbuffer_pass(scene, &geometry, &view).expect("g-buffer");
+            penumbra::internal::gbuffer::gbuffer_pass(scene, &geometry, &view).expect("g-buffer");
         Frame {
             geometry,
             view,
@@ -120,21 +127,22 @@ impl Frame {
 
     pub fn ctx<'a>(
         &'a self,
-        scene: &'a penumbra::scene::Scene,
-    ) -> penumbra::shadow::ShadowContext<'a> {
+        scene: &'a penumbra::internal::scene::Scene,
+    ) -> penumbra::internal::shadow::ShadowContext<'a> {
         // A test's few contexts each get their own cache, leaked: the
         // context must borrow it for as long as the frame, and tests are
         // short-lived processes.
-        let cache: &'a penumbra::shadow::ShadowCache<'a> = Box::leak(Box::new(
-            penumbra::shadow::ShadowCache::new(scene, &self.geometry),
+        let cache: &'a penumbra::internal::shadow::ShadowCache<'a> = Box::leak(Box::new(
+            penumbra::internal::shadow::ShadowCache::new(scene, &self.geometry),
         ));
-        penumbra::shadow::ShadowContext {
+        penumbra::internal::shadow::ShadowContext {
             scene,
             geometry: &self.geometry,
             view: &self.view,
             gbuffer: &self.gbuffer,
             depth: &self.depth,
             cache,
+            observer: &penumbra::internal::observe::Silent,
         }
     }
 
@@ -175,7 +183,7 @@ pub fn segment_distance(p0: glam::DVec3, p1: glam::DVec3, q0: glam::DVec3, q1: g
 }
 
 /// Every bit of a render's radiance and layers (for bit-identity checks).
-pub fn render_bits(out: &penumbra::render::RenderOutput) -> Vec<u32> {
+pub fn render_bits(out: &penumbra::internal::render::Render) -> Vec<u32> {
     let mut v: Vec<u32> = out
         .radiance
         .iter()
@@ -196,16 +204,16 @@ pub fn render_bits(out: &penumbra::render::RenderOutput) -> Vec<u32> {
 /// pattern, is exact for samples that are not the reference's). Render the
 /// reference with the same pattern.
 pub fn matched_sampling(
-    technique: penumbra::shadow::Technique,
+    technique: penumbra::internal::shadow::Technique,
 ) -> (
-    penumbra::shadow::TechniqueOptions,
-    penumbra::sampling::SamplePattern,
+    penumbra::internal::shadow::TechniqueOptions,
+    penumbra::internal::sampling::SamplePattern,
 ) {
-    let mut options = penumbra::shadow::TechniqueOptions::default();
-    let mut pattern = penumbra::sampling::SamplePattern::default();
+    let mut options = penumbra::internal::shadow::TechniqueOptions::default();
+    let mut pattern = penumbra::internal::sampling::SamplePattern::default();
     if technique.name() == "penumbra-casting" {
         options.penumbra_casting.pc_sample_sets = 4;
-        pattern = penumbra::sampling::SamplePattern::Interleaved { n: 2 };
+        pattern = penumbra::internal::sampling::SamplePattern::Interleaved { n: 2 };
     }
     (options, pattern)
 }

@@ -720,6 +720,19 @@ pub(super) struct TileResult {
     recounted: usize,
 }
 
+impl TileResult {
+    /// A tile not computed (the render was cancelled).
+    fn blank() -> Self {
+        TileResult {
+            pixels: vec![PixelResult::default(); TILE_PIXELS],
+            pairs: 0,
+            sampled: 0,
+            unbounded: 0,
+            recounted: 0,
+        }
+    }
+}
+
 /// Side of the blocks whose receivers' bounding box narrows a tile's
 /// unbounded edges first.
 const OUTER: usize = 16;
@@ -747,6 +760,11 @@ pub(super) fn count_tiles(
         .enumerate()
         .map_init(Scratch::default, |scratch, (tile, t)| {
             let entries = std::mem::take(&mut t.data);
+            if pass.ctx.observer.cancelled() {
+                // The render discards a cancelled pass: a blank tile of
+                // the right size keeps the assembly's indices valid.
+                return TileResult::blank();
+            }
             let stsv_entries: &[u64] = stsv.map_or(&[], |m| &m.tiles[tile]);
             let unbounded = (unbounded, clusters);
             tile_counters(pass, grid, tile, entries, unbounded, stsv_entries, scratch)

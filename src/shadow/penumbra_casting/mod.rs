@@ -481,6 +481,10 @@ impl PenumbraCasting {
         let waves = waves(inputs, per_receiver, budget);
         report.waves = waves.len();
         for wave in waves {
+            // The render discards a cancelled pass: later waves are skipped.
+            if ctx.observer.cancelled() {
+                break;
+            }
             cast.run_wave(wave, &mut report, &finish);
         }
         Ok((sets, report))

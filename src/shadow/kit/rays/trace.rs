@@ -65,6 +65,10 @@ impl ShadowTracer<'_> {
                 let mut vts = Vec::new();
                 let mut scratch = Scratch::default();
                 let mut rays = 0u64;
+                if ctx.observer.cancelled() {
+                    // The render discards a cancelled pass.
+                    return rays;
+                }
                 for (x, (v, r)) in vrow.iter_mut().zip(rrow.iter_mut()).enumerate() {
                     let Some(g) = gbuffer.get(y * width + x) else {
                         continue;
