@@ -92,7 +92,7 @@ pub fn draw_numbered<const N: usize, S: FragmentStage<N>>(
 /// (the f32 product): the fragments whose depth test flips, signed, i.e.
 /// the count a depth-scaled copy would get minus the framebuffer's own,
 /// exactly. One walk over one setup and binning of the triangles makes
-/// them all (at most [`MAX_DEPTH_SHIFTS`] distinct scales): each fragment's
+/// them all (at most `MAX_DEPTH_SHIFTS` distinct scales): each fragment's
 /// depth is computed once and tested against each depth, and for a
 /// change, rectangles where no fragment's test can flip (the volume in
 /// front of or behind both depths throughout) are skipped by the depth

@@ -48,7 +48,7 @@ pub fn check_verifiable(technique: Technique, params: &BuildParams, k: u64) -> R
 
 /// Checks `k` relations of `technique` (built from `params`) on `ctx`.
 /// The technique's light passes run again through its
-/// [`SampleDecisions`] (deterministic: the render's own decisions).
+/// [`SampleDecisions`](crate::shadow::technique::SampleDecisions) (deterministic: the render's own decisions).
 pub fn verify(
     technique: Technique,
     params: &BuildParams,

@@ -9,7 +9,7 @@
 //! and tests only the samples of blocks some edge may cover
 //! ([`BlockSamples::count`]); every other sample keeps `D(O)`.
 //!
-//! Exactness: the per-sample test is [`add_covered_in`]'s, on the same
+//! Exactness: the per-sample test is `add_covered_in`'s, on the same
 //! bits (the samples are made as the sampling module makes them), so a
 //! tested sample gets the same count; a block is skipped only when, for
 //! one of the test's three conditions, the exact linear function of the

@@ -403,7 +403,7 @@ pub(crate) fn verify_all(
     ))
 }
 
-/// [`verify`] with any [`SampleDecisions`] (named `name`, declaring itself
+/// [`verify`](crate::shadow::verify::verify) with any [`SampleDecisions`] (named `name`, declaring itself
 /// exact or not), `k` relations keyed by `seed`.
 pub fn verify_with(
     decisions: &dyn SampleDecisions,
