@@ -1,11 +1,13 @@
 //! Scenes: the TOML contract (`shared/spec/scene-format.md`), OBJ/MTL models,
-//! built-in shapes, materials, textures, lights and the camera.
+//! built-in shapes, materials, textures, lights and the camera; from a file,
+//! from TOML text or built in code ([`SceneBuilder`]).
 //!
 //! Everything here is validated on load: a `Scene` that exists is finite,
 //! in range and consistent (indices in bounds, lights with area, ...), so
 //! later stages never re-check user input.
 
 mod assets;
+mod builder;
 pub mod frame;
 pub mod input;
 pub mod lint;
@@ -14,7 +16,10 @@ mod obj;
 mod shapes;
 mod texture;
 
-pub use load::{load_scene, scene_from_toml, TOML_TEXT};
+pub use builder::{
+    CameraDesc, Geometry, LightDesc, MaterialDesc, MeshData, ObjectDesc, SceneBuilder,
+};
+pub use load::{load_scene, scene_from_toml, BUILT_SCENE, TOML_TEXT};
 pub use texture::{Texture, TextureData};
 
 use crate::geom::Mesh;
