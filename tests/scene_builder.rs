@@ -442,7 +442,7 @@ fn bad_values_fail_as_in_a_scene_file() {
 #[test]
 fn camera_errors_fail_as_in_a_scene_file() {
     let no_camera = SceneBuilder::new().object(ObjectDesc::sphere(1.0));
-    let e = built_error(no_camera, "scene", "`camera`");
+    let e = built_error(no_camera, "camera", "missing field `camera`");
     let toml = scene_from_toml("[[object]]\nshape = \"sphere\"\n", Path::new("."));
     assert_eq!(message(&e), message(&toml.expect_err("no camera")));
 

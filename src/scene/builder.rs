@@ -639,11 +639,19 @@ impl Document {
             } if path == Path::new(BUILT_SCENE) => {
                 let line = line.unwrap_or(1);
                 let at = self.lines.partition_point(|(l, _)| *l <= line);
-                let name = match at {
+                let mut name = match at {
                     0 => "scene",
                     _ => self.lines[at - 1].1.as_str(),
                 };
-                Error::param(name, message)
+                // A missing section has no place in the text; the
+                // message names it, and so does the error.
+                if let Some(section) = (message.strip_prefix("missing field `"))
+                    .and_then(|rest| rest.strip_suffix('`'))
+                    .filter(|_| name == "scene")
+                {
+                    name = section;
+                }
+                Error::param(name.to_string(), message)
             }
             e => e,
         }
