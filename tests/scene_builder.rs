@@ -559,3 +559,63 @@ fn obj_errors_name_the_obj_file_or_the_object() {
         other => panic!("expected the OBJ's error, got {other:?}"),
     }
 }
+
+#[test]
+fn textures_resolve_against_the_base_dir_as_in_a_scene_file() {
+    let dir = ScratchDir::new("builder-textures");
+    std::fs::create_dir_all(dir.0.join("tex")).unwrap();
+    let checker = image::RgbaImage::from_fn(4, 4, |x, y| match (x + y) % 2 {
+        0 => image::Rgba([255, 200, 50, 255]),
+        _ => image::Rgba([20, 40, 220, 0]),
+    });
+    checker.save(dir.0.join("tex/checker.png")).unwrap();
+    let textured = |light_texture: &str| {
+        SceneBuilder::new()
+            .base_dir(&dir.0)
+            .camera(CAMERA)
+            .light(LightDesc::Rect {
+                center: [0.0, 4.0, 0.0],
+                u: [0.8, 0.0, 0.0],
+                v: [0.0, 0.0, 0.8],
+                radiance: [9.0; 3],
+                texture: Some(light_texture.into()),
+                two_sided: false,
+            })
+            .object(ObjectDesc::quad([8.0, 8.0]).material(MaterialDesc {
+                albedo_texture: Some("tex/checker.png".into()),
+                ..MaterialDesc::default()
+            }))
+            .object(
+                ObjectDesc::quad([2.0, 2.0])
+                    .translate([0.0, 1.5, 0.0])
+                    .material(MaterialDesc {
+                        opacity_texture: Some("tex/checker.png".into()),
+                        ..MaterialDesc::default()
+                    }),
+            )
+    };
+    let body = |light_texture: &str| {
+        format!(
+            "{CAMERA_TOML}[[light]]\ntype = \"rect\"\ncenter = [0, 4, 0]\nu = [0.8, 0, 0]\n\
+             v = [0, 0, 0.8]\nradiance = 9\ntexture = \"{light_texture}\"\n\
+             [[object]]\nshape = \"quad\"\nsize = [8, 8]\n\
+             material = {{ albedo_texture = \"tex/checker.png\" }}\n\
+             [[object]]\nshape = \"quad\"\nsize = [2, 2]\ntranslate = [0, 1.5, 0]\n\
+             material = {{ opacity_texture = \"tex/checker.png\" }}\n"
+        )
+    };
+    let built = textured("tex/checker.png").build().expect("build");
+    let loaded = scene_from_toml(&body("tex/checker.png"), &dir.0).expect("toml");
+    assert_eq!(
+        built.textures.len(),
+        2,
+        "one colour and one opacity texture"
+    );
+    assert_eq!(built.lights, loaded.lights);
+    assert_eq!(built.materials, loaded.materials);
+    assert_same_render(&built, &loaded);
+
+    let e = built_error(textured("tex/none.png"), "light[0].texture", "none.png");
+    let toml = scene_from_toml(&body("tex/none.png"), &dir.0).expect_err("missing texture");
+    assert_eq!(message(&e), message(&toml));
+}

@@ -13,7 +13,7 @@
 //! of a file, through the checks and the placement every object gets.
 
 use super::load::{parse_scene, MemoryMeshes, BUILT_SCENE};
-use super::Scene;
+use super::{MeshData, Scene};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 use toml::Value;
@@ -131,20 +131,6 @@ pub enum Geometry {
     Mesh(MeshData),
 }
 
-/// A triangle mesh given in memory, in object space.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct MeshData {
-    /// Vertex positions.
-    pub positions: Vec<[f32; 3]>,
-    /// Triangles as indices into `positions` (from 0), counter-clockwise =
-    /// front.
-    pub triangles: Vec<[u32; 3]>,
-    /// One shading normal per position; absent: the geometric normal.
-    pub normals: Option<Vec<[f32; 3]>>,
-    /// One texture coordinate per position.
-    pub uvs: Option<Vec<[f32; 2]>>,
-}
-
 /// An inline material (a scene file's `material = { ... }`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MaterialDesc {
@@ -249,18 +235,6 @@ impl Default for MaterialDesc {
             shininess: 0.0,
             opacity: 1.0,
             opacity_texture: None,
-        }
-    }
-}
-
-impl MeshData {
-    /// A mesh of `positions` and `triangles`, without normals or uvs.
-    pub fn new(positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Self {
-        MeshData {
-            positions,
-            triangles,
-            normals: None,
-            uvs: None,
         }
     }
 }

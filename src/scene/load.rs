@@ -7,9 +7,9 @@
 //! and the line of the offending key.
 
 use super::assets::{Assets, TextureKind, DEFAULT_MATERIAL};
-use super::builder::MeshData;
 use super::{
-    shapes, Camera, Light, LightShape, Material, Object, Scene, MAX_MAGNITUDE, MIN_MAGNITUDE,
+    shapes, Camera, Light, LightShape, Material, MeshData, Object, Scene, MAX_MAGNITUDE,
+    MIN_MAGNITUDE,
 };
 use crate::error::{Error, Result};
 use crate::geom::Mesh;

@@ -16,9 +16,7 @@ mod obj;
 mod shapes;
 mod texture;
 
-pub use builder::{
-    CameraDesc, Geometry, LightDesc, MaterialDesc, MeshData, ObjectDesc, SceneBuilder,
-};
+pub use builder::{CameraDesc, Geometry, LightDesc, MaterialDesc, ObjectDesc, SceneBuilder};
 pub use load::{load_scene, scene_from_toml, BUILT_SCENE, TOML_TEXT};
 pub use texture::{Texture, TextureData};
 
@@ -182,4 +180,30 @@ pub struct Object {
     pub cast_shadows: bool,
     /// Receives shadows (false: Vcoef = 1 on it).
     pub receive_shadows: bool,
+}
+
+/// A triangle mesh given in memory, in object space.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeshData {
+    /// Vertex positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Triangles as indices into `positions` (from 0), counter-clockwise =
+    /// front.
+    pub triangles: Vec<[u32; 3]>,
+    /// One shading normal per position; absent: the geometric normal.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// One texture coordinate per position.
+    pub uvs: Option<Vec<[f32; 2]>>,
+}
+
+impl MeshData {
+    /// A mesh of `positions` and `triangles`, without normals or uvs.
+    pub fn new(positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Self {
+        MeshData {
+            positions,
+            triangles,
+            normals: None,
+            uvs: None,
+        }
+    }
 }
