@@ -440,6 +440,26 @@ fn bad_values_fail_as_in_a_scene_file() {
 }
 
 #[test]
+fn names_are_taken_as_given() {
+    let odd = "two\nlines \"quoted\" = [[object]] \u{e9}";
+    let scene = with_camera()
+        .name(odd)
+        .object(ObjectDesc::sphere(1.0).named(odd))
+        .build()
+        .expect("odd names");
+    assert_eq!(
+        (scene.name.as_str(), scene.objects[0].name.as_str()),
+        (odd, odd)
+    );
+    let e = built_error(
+        with_camera().object(ObjectDesc::sphere(0.0).named(odd)),
+        &format!("object {odd:?}.radius"),
+        "`object[0].radius` must be positive",
+    );
+    assert!(!e.to_string().contains(penumbra::scene::BUILT_SCENE), "{e}");
+}
+
+#[test]
 fn camera_errors_fail_as_in_a_scene_file() {
     let no_camera = SceneBuilder::new().object(ObjectDesc::sphere(1.0));
     let e = built_error(no_camera, "camera", "missing field `camera`");

@@ -434,7 +434,7 @@ impl SceneBuilder {
         }
         for (i, o) in self.objects.iter().enumerate() {
             let label = match &o.name {
-                Some(name) => format!("object {}", Value::String(name.clone())),
+                Some(name) => format!("object {name:?}"),
                 None => format!("object[{i}]"),
             };
             let entries = object_entries(o, &label)?;
