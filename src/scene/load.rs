@@ -8,7 +8,8 @@
 
 use super::assets::{Assets, TextureKind, DEFAULT_MATERIAL};
 use super::{
-    shapes, Camera, Light, LightShape, Material, Object, Scene, MAX_MAGNITUDE, MIN_MAGNITUDE,
+    shapes, Camera, Light, LightShape, Material, MeshData, Object, Scene, MAX_MAGNITUDE,
+    MIN_MAGNITUDE,
 };
 use crate::error::{Error, Result};
 use crate::geom::Mesh;
@@ -16,6 +17,7 @@ use crate::raster::MAX_SIDE;
 use glam::{DVec3, Mat3, Vec3};
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
+use std::collections::HashMap;
 use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -222,7 +224,13 @@ struct Ctx<'a> {
     path: &'a Path,
     dir: &'a Path,
     line_starts: Vec<usize>,
+    /// In-memory meshes of a built scene, by object index: such an
+    /// object's `obj` stands for its mesh rather than a file.
+    meshes: &'a MemoryMeshes<'a>,
 }
+
+/// The in-memory meshes of a scene built in code, by object index.
+pub(super) type MemoryMeshes<'a> = HashMap<usize, &'a MeshData>;
 
 impl Ctx<'_> {
     /// 1-based line of a byte offset.
@@ -641,7 +649,8 @@ fn place(
 }
 
 /// Builds object `i`; `before` is the triangle count of the objects loaded
-/// before it (for the memory estimate of built-in shapes).
+/// before it (for the memory estimate of built-in shapes and in-memory
+/// meshes).
 fn object(
     ctx: &Ctx,
     assets: &mut Assets,
@@ -651,7 +660,6 @@ fn object(
     origin: glam::DVec3,
 ) -> Result<Object> {
     let o = entry.get_ref();
-    let key = |k: &str| format!("object[{i}].{k}");
     let material = match &o.material {
         Some(m) => {
             let m = inline_material(ctx, assets, i, m.get_ref())?;
@@ -663,12 +671,78 @@ fn object(
     // Into the scene's local frame before the mesh is placed, so that a
     // built-in shape far from the origin rounds as it would at the origin.
     transform.translate = super::frame::shift(transform.translate, origin);
-    let present = [
+    let (mut mesh, origin, name) = match (&o.obj, &o.shape) {
+        (Some(_), Some(shape)) => {
+            return Err(ctx.err(
+                shape.span(),
+                "an object has either `obj` or `shape`, not both",
+            ))
+        }
+        (None, None) => return Err(ctx.err(entry.span(), "an object needs `obj` or `shape`")),
+        (Some(file), None) => {
+            only(ctx, "obj objects", &[], &present_shape_keys(o))?;
+            let m = material.unwrap_or(DEFAULT_MATERIAL);
+            if let Some(data) = ctx.meshes.get(&i) {
+                let mesh = memory_mesh(ctx, i, file.span(), data, m, before)?;
+                (mesh, file, "mesh".to_string())
+            } else {
+                let path = ctx.resolve(file.get_ref());
+                let line = ctx.line(file.span().start);
+                let mesh = super::obj::load_obj(&path, ctx.path, line, material, assets)?;
+                let stem = path
+                    .file_stem()
+                    .map_or("obj".into(), |s| s.to_string_lossy().into_owned());
+                (mesh, file, stem)
+            }
+        }
+        (None, Some(shape)) => {
+            let m = material.unwrap_or(DEFAULT_MATERIAL);
+            let mesh = shape_mesh(ctx, i, o, shape, m, before)?;
+            (mesh, shape, shape.get_ref().clone())
+        }
+    };
+    let name = o.name.clone().unwrap_or_else(|| format!("{name}#{i}"));
+    let dropped = place(ctx, origin.span(), &name, &mut mesh, &transform)?;
+    if dropped > 0 {
+        // A built scene has no file, so no line to point at.
+        let at = match ctx.path == Path::new(BUILT_SCENE) {
+            true => String::new(),
+            false => format!("{}:{}: ", ctx.path.display(), ctx.line(origin.span().start)),
+        };
+        crate::output::write_stderr(&format!(
+            "note: {at}object `{name}`: dropped {dropped} degenerate triangle(s)\n"
+        ));
+    }
+    Ok(Object {
+        name,
+        mesh,
+        cast_shadows: o.cast_shadows.unwrap_or(true),
+        receive_shadows: o.receive_shadows.unwrap_or(true),
+    })
+}
+
+/// The shape keys an object entry gives, where they are (for [`only`]).
+fn present_shape_keys(o: &ObjectEntry) -> [(&'static str, Option<Range<usize>>); 4] {
+    [
         ("radius", span(&o.radius)),
         ("segments", span(&o.segments)),
         ("rings", span(&o.rings)),
         ("size", span(&o.size)),
-    ];
+    ]
+}
+
+/// The object-space mesh of built-in shape `shape` of object `i`, every
+/// triangle with material `m`.
+fn shape_mesh(
+    ctx: &Ctx,
+    i: usize,
+    o: &ObjectEntry,
+    shape: &Sp<String>,
+    m: u32,
+    before: u64,
+) -> Result<Mesh> {
+    let key = |k: &str| format!("object[{i}].{k}");
+    let present = present_shape_keys(o);
     let positive = |v: &Sp<f64>, k: &str| -> Result<f32> {
         let x = ctx.number(v, &key(k))?;
         match x > 0.0 {
@@ -695,88 +769,134 @@ fn object(
         }
         Ok(out)
     };
-    let (mut mesh, origin, name) = match (&o.obj, &o.shape) {
-        (Some(_), Some(shape)) => {
+    let mesh = match shape.get_ref().as_str() {
+        "sphere" => {
+            only(ctx, "spheres", &["radius", "segments", "rings"], &present)?;
+            let r = o
+                .radius
+                .as_ref()
+                .map_or(Ok(1.0), |r| positive(r, "radius"))?;
+            let segments = ctx.int(&o.segments, &key("segments"), SEGMENTS, 20)?;
+            let rings = ctx.int(&o.rings, &key("rings"), RINGS, 20)?;
+            // In range by the checks above.
+            let (segments, rings) = (segments as u32, rings as u32);
+            let at = o
+                .rings
+                .as_ref()
+                .or(o.segments.as_ref())
+                .map_or(shape.span(), Sp::span);
+            let triangles = shapes::sphere_triangle_count(segments, rings);
+            check_geometry_memory(
+                ctx,
+                at,
+                &format!("a sphere of {segments} segments × {rings} rings"),
+                triangles,
+                before,
+            )?;
+            shapes::sphere(r, segments, rings, m)
+        }
+        "box" => {
+            only(ctx, "boxes", &["size"], &present)?;
+            shapes::cuboid(Vec3::from_slice(&size(3)?), m)
+        }
+        "quad" => {
+            only(ctx, "quads", &["size"], &present)?;
+            let s = size(2)?;
+            shapes::quad(s[0], s[1], m)
+        }
+        other => {
             return Err(ctx.err(
                 shape.span(),
-                "an object has either `obj` or `shape`, not both",
+                format!("unknown shape `{other}` (expected \"sphere\", \"box\" or \"quad\")"),
             ))
         }
-        (None, None) => return Err(ctx.err(entry.span(), "an object needs `obj` or `shape`")),
-        (Some(file), None) => {
-            only(ctx, "obj objects", &[], &present)?;
-            let path = ctx.resolve(file.get_ref());
-            let line = ctx.line(file.span().start);
-            let mesh = super::obj::load_obj(&path, ctx.path, line, material, assets)?;
-            let stem = path
-                .file_stem()
-                .map_or("obj".into(), |s| s.to_string_lossy().into_owned());
-            (mesh, file, stem)
-        }
-        (None, Some(shape)) => {
-            let m = material.unwrap_or(DEFAULT_MATERIAL);
-            let mesh = match shape.get_ref().as_str() {
-                "sphere" => {
-                    only(ctx, "spheres", &["radius", "segments", "rings"], &present)?;
-                    let r = o
-                        .radius
-                        .as_ref()
-                        .map_or(Ok(1.0), |r| positive(r, "radius"))?;
-                    let segments = ctx.int(&o.segments, &key("segments"), SEGMENTS, 20)?;
-                    let rings = ctx.int(&o.rings, &key("rings"), RINGS, 20)?;
-                    // In range by the checks above.
-                    let (segments, rings) = (segments as u32, rings as u32);
-                    let at = o
-                        .rings
-                        .as_ref()
-                        .or(o.segments.as_ref())
-                        .map_or(shape.span(), Sp::span);
-                    let triangles = shapes::sphere_triangle_count(segments, rings);
-                    check_geometry_memory(
-                        ctx,
-                        at,
-                        &format!("a sphere of {segments} segments × {rings} rings"),
-                        triangles,
-                        before,
-                    )?;
-                    shapes::sphere(r, segments, rings, m)
-                }
-                "box" => {
-                    only(ctx, "boxes", &["size"], &present)?;
-                    shapes::cuboid(Vec3::from_slice(&size(3)?), m)
-                }
-                "quad" => {
-                    only(ctx, "quads", &["size"], &present)?;
-                    let s = size(2)?;
-                    shapes::quad(s[0], s[1], m)
-                }
-                other => {
-                    return Err(ctx.err(
-                        shape.span(),
-                        format!(
-                            "unknown shape `{other}` (expected \"sphere\", \"box\" or \"quad\")"
-                        ),
-                    ))
-                }
-            };
-            (mesh, shape, shape.get_ref().clone())
-        }
     };
-    let name = o.name.clone().unwrap_or_else(|| format!("{name}#{i}"));
-    let dropped = place(ctx, origin.span(), &name, &mut mesh, &transform)?;
-    if dropped > 0 {
-        crate::output::write_stderr(&format!(
-            "note: {}:{}: object `{name}`: dropped {dropped} degenerate triangle(s)\n",
-            ctx.path.display(),
-            ctx.line(origin.span().start)
-        ));
+    Ok(mesh)
+}
+
+/// The object-space mesh of object `i` given in memory (`at`: its
+/// entry), every triangle with material `m`, checked as the OBJ path checks
+/// a loaded mesh: finite numbers, indices in range, some triangles, the
+/// memory estimate, and unusable normals replaced by their face's; the
+/// transform's range check and dropping degenerate triangles are
+/// [`place`]'s, as for every object.
+fn memory_mesh(
+    ctx: &Ctx,
+    i: usize,
+    at: Range<usize>,
+    data: &MeshData,
+    m: u32,
+    before: u64,
+) -> Result<Mesh> {
+    let key = |k: &str| format!("object[{i}].{k}");
+    let err = |message: String| ctx.err(at.clone(), message);
+    let triangles = data.triangles.len() as u64;
+    check_geometry_memory(
+        ctx,
+        at.clone(),
+        &format!("a mesh of {triangles} triangles"),
+        triangles,
+        before,
+    )?;
+    if data.triangles.is_empty() {
+        // As an OBJ without faces: refused rather than an invisible object.
+        return Err(err(format!(
+            "`{}` is empty: nothing to render",
+            key("triangles")
+        )));
     }
-    Ok(Object {
-        name,
-        mesh,
-        cast_shadows: o.cast_shadows.unwrap_or(true),
-        receive_shadows: o.receive_shadows.unwrap_or(true),
-    })
+    let n = data.positions.len();
+    for (len, what) in [
+        (data.normals.as_ref().map(Vec::len), "normals"),
+        (data.uvs.as_ref().map(Vec::len), "uvs"),
+    ] {
+        if let Some(len) = len.filter(|&len| len != n) {
+            return Err(err(format!(
+                "`{}` has {len} entries for {n} positions (one per position)",
+                key(what)
+            )));
+        }
+    }
+    // As the OBJ scan refuses a non-finite `v` or `vt` number (normals
+    // are replaced below, as the OBJ path replaces them).
+    let uvs = data.uvs.as_deref().unwrap_or_default();
+    for (what, bad) in [
+        ("positions", first_not_finite(&data.positions)),
+        ("uvs", first_not_finite(uvs)),
+    ] {
+        if let Some(k) = bad {
+            return Err(err(format!("`{}[{k}]` must be finite", key(what))));
+        }
+    }
+    if let Some((t, bad)) = (data.triangles.iter().enumerate())
+        .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= n).map(|&v| (t, v)))
+    {
+        return Err(err(format!(
+            "`{}[{t}]`: vertex index {bad} out of range: the mesh has {n} positions \
+             (indices start at 0)",
+            key("triangles")
+        )));
+    }
+    let mut mesh = Mesh {
+        positions: data.positions.iter().map(|&p| Vec3::from(p)).collect(),
+        normals: (data.normals.as_ref()).map(|ns| ns.iter().map(|&v| Vec3::from(v)).collect()),
+        uvs: (data.uvs.as_ref()).map(|uvs| uvs.iter().map(|&v| glam::Vec2::from(v)).collect()),
+        triangles: data.triangles.clone(),
+        material_ids: vec![m; data.triangles.len()],
+    };
+    let corners = super::obj::replace_unusable_normals(&mut mesh);
+    if corners > 0 {
+        eprintln!(
+            "warning: object[{i}]: zero or non-finite normals; the {corners} triangle \
+             corner(s) using them take their face's geometric normal"
+        );
+    }
+    Ok(mesh)
+}
+
+/// The index of the first vector of `xs` with a non-finite component.
+fn first_not_finite<const N: usize>(xs: &[[f32; N]]) -> Option<usize> {
+    xs.iter().position(|x| !x.iter().all(|x| x.is_finite()))
 }
 
 /// Bytes a triangle of a built-in shape costs from loading through the
@@ -856,7 +976,8 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
     let bytes = super::input::read(path).map_err(|e| Error::io(path, e))?;
     let dir = path.parent().unwrap_or(Path::new(""));
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
-    parse_scene(&bytes, path, dir, stem.as_deref().unwrap_or("scene"))
+    let stem = stem.as_deref().unwrap_or("scene");
+    parse_scene(&bytes, path, dir, stem, &MemoryMeshes::new())
 }
 
 /// What errors of a scene given as text name as its file.
@@ -868,13 +989,31 @@ pub const TOML_TEXT: &str = "<scene text>";
 /// textures) are resolved against `base_dir`, as a file's are against its
 /// folder.
 pub fn scene_from_toml(text: &str, base_dir: &Path) -> Result<Scene> {
-    parse_scene(text.as_bytes(), Path::new(TOML_TEXT), base_dir, "scene")
+    let meshes = MemoryMeshes::new();
+    parse_scene(
+        text.as_bytes(),
+        Path::new(TOML_TEXT),
+        base_dir,
+        "scene",
+        &meshes,
+    )
 }
+
+/// What a scene built in code ([`super::SceneBuilder`]) is named as its
+/// [`Scene::path`]. Its errors name no file: the builder turns them into
+/// parameter errors that name the item at fault.
+pub const BUILT_SCENE: &str = "<built scene>";
 
 /// Parses and validates scene `bytes`, named `path` in messages, with
 /// relative paths resolved against `dir`; `name` unless the scene names
-/// itself.
-fn parse_scene(bytes: &[u8], path: &Path, dir: &Path, name: &str) -> Result<Scene> {
+/// itself. `meshes` gives the objects whose geometry is in memory.
+pub(super) fn parse_scene(
+    bytes: &[u8],
+    path: &Path,
+    dir: &Path,
+    name: &str,
+    meshes: &MemoryMeshes,
+) -> Result<Scene> {
     let line_starts: Vec<usize> = std::iter::once(0)
         .chain(
             bytes
@@ -888,6 +1027,7 @@ fn parse_scene(bytes: &[u8], path: &Path, dir: &Path, name: &str) -> Result<Scen
         path,
         dir,
         line_starts,
+        meshes,
     };
     let text = std::str::from_utf8(bytes).map_err(|e| {
         let at = e.valid_up_to();

@@ -1,11 +1,13 @@
 //! Scenes: the TOML contract (`shared/spec/scene-format.md`), OBJ/MTL models,
-//! built-in shapes, materials, textures, lights and the camera.
+//! built-in shapes, materials, textures, lights and the camera; from a file,
+//! from TOML text or built in code ([`SceneBuilder`]).
 //!
 //! Everything here is validated on load: a `Scene` that exists is finite,
 //! in range and consistent (indices in bounds, lights with area, ...), so
 //! later stages never re-check user input.
 
 mod assets;
+mod builder;
 pub mod frame;
 pub mod input;
 pub mod lint;
@@ -14,7 +16,8 @@ mod obj;
 mod shapes;
 mod texture;
 
-pub use load::{load_scene, scene_from_toml, TOML_TEXT};
+pub use builder::{CameraDesc, Geometry, LightDesc, MaterialDesc, ObjectDesc, SceneBuilder};
+pub use load::{load_scene, scene_from_toml, BUILT_SCENE, TOML_TEXT};
 pub use texture::{Texture, TextureData};
 
 use crate::geom::Mesh;
@@ -177,4 +180,30 @@ pub struct Object {
     pub cast_shadows: bool,
     /// Receives shadows (false: Vcoef = 1 on it).
     pub receive_shadows: bool,
+}
+
+/// A triangle mesh given in memory, in object space.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeshData {
+    /// Vertex positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Triangles as indices into `positions` (from 0), counter-clockwise =
+    /// front.
+    pub triangles: Vec<[u32; 3]>,
+    /// One shading normal per position; absent: the geometric normal.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// One texture coordinate per position.
+    pub uvs: Option<Vec<[f32; 2]>>,
+}
+
+impl MeshData {
+    /// A mesh of `positions` and `triangles`, without normals or uvs.
+    pub fn new(positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Self {
+        MeshData {
+            positions,
+            triangles,
+            normals: None,
+            uvs: None,
+        }
+    }
 }

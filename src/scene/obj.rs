@@ -914,7 +914,7 @@ fn finish_mesh(
 /// triangles with different normals share; returns how many corners
 /// changed. Vertices no triangle uses get an arbitrary unit normal, so
 /// that every normal of the mesh stays finite through the transform.
-fn replace_unusable_normals(mesh: &mut Mesh) -> usize {
+pub(super) fn replace_unusable_normals(mesh: &mut Mesh) -> usize {
     let Some(normals) = mesh.normals.as_mut() else {
         return 0;
     };
