@@ -6,7 +6,10 @@ use std::fmt;
 use std::path::PathBuf;
 
 /// An error a user can act on. Never a panic: bad input always ends here.
+/// Non-exhaustive: a program matches the kinds it handles and keeps a
+/// catch-all, so a new kind is not a breaking change.
 #[derive(Debug)]
+#[non_exhaustive]
 pub enum Error {
     /// A problem inside an input file (scene TOML, OBJ, MTL, texture).
     File {

@@ -1,7 +1,8 @@
 //! penumbra: a pure-software renderer for physically based soft shadows.
 //!
 //! The library is the items at this crate's root: a [`Scene`] (from a file
-//! with [`load_scene`], from TOML text with [`scene_from_toml`]), the
+//! with [`load_scene`], from TOML text with [`scene_from_toml`], or
+//! described in code with a [`SceneBuilder`]), the
 //! [`RenderOptions`] of one render (plain defaults, one [`validate`] for
 //! every range check, which the command line calls too), and [`render`],
 //! which returns a [`Render`]: radiance, the requested AOV layers and
@@ -77,7 +78,10 @@ pub use observe::{Cancel, Observer, Silent};
 pub use output::Layer;
 pub use render::{render, render_with, Aov, Explain, Render, RenderOptions, Technique};
 pub use sampling::SamplePattern;
-pub use scene::{load_scene, scene_from_toml, Scene};
+pub use scene::{
+    load_scene, scene_from_toml, CameraDesc, Geometry, LightDesc, MaterialDesc, MeshData,
+    ObjectDesc, Scene, SceneBuilder, BUILT_SCENE,
+};
 pub use shadow::registry::TechniqueData;
 pub use shadow::{BufferNote, LightTerm, PassTiming, TechniqueOptions, Warning};
 

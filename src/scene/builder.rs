@@ -24,7 +24,7 @@ use toml::Value;
 /// The smallest scene: a camera, a light and one object.
 ///
 /// ```
-/// use penumbra::scene::{CameraDesc, LightDesc, ObjectDesc, SceneBuilder};
+/// use penumbra::{CameraDesc, LightDesc, ObjectDesc, SceneBuilder};
 ///
 /// let scene = SceneBuilder::new()
 ///     .camera(CameraDesc::new([0.0, 2.0, 5.0], [0.0, 0.0, 0.0], 45.0).size(32, 24))
@@ -41,7 +41,7 @@ use toml::Value;
 ///     .build()
 ///     .unwrap_err();
 /// assert!(err.to_string().contains("`object[0].radius` must be positive"));
-/// # Ok::<(), penumbra::error::Error>(())
+/// # Ok::<(), penumbra::Error>(())
 /// ```
 #[derive(Debug, Clone, Default)]
 pub struct SceneBuilder {
