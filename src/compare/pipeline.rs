@@ -90,7 +90,8 @@ pub fn compare(
 }
 
 /// The `penumbra compare` command that reruns a library call, for the
-/// report's "regenerate with" (scenes built in code have no file to name).
+/// report's "regenerate with" (scenes built in code or from text have no
+/// file to name).
 fn equivalent_command(scenes: &[Scene], options: &CompareOptions, out: &Path) -> String {
     let quote = |s: String| {
         if !s.is_empty()
@@ -105,9 +106,9 @@ fn equivalent_command(scenes: &[Scene], options: &CompareOptions, out: &Path) ->
     let list = |items: Vec<String>| items.join(",");
     let mut words = vec!["penumbra".to_string(), "compare".to_string()];
     for scene in scenes {
-        words.push(match scene.path.as_os_str().is_empty() {
-            true => format!("<{}: built in code>", scene.name),
-            false => quote(scene.path.display().to_string()),
+        words.push(match scene.path.is_file() {
+            true => quote(scene.path.display().to_string()),
+            false => format!("'<{}: not from a file>'", scene.name),
         });
     }
     let mut option = |name: &str, value: String| words.push(format!("--{name} {value}"));
