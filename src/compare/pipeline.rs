@@ -71,6 +71,26 @@ fn measure_scene(
 /// written, and, with `options.verify`, a technique that declares itself
 /// exact disagreeing with the shadow rays (after the files are written,
 /// as the command does).
+///
+/// ```no_run
+/// use penumbra::compare::{compare, CompareOptions};
+/// use penumbra::render::Technique;
+///
+/// let scene = penumbra::scene::load_scene("scenes/quad.toml".as_ref())?;
+/// let options = CompareOptions {
+///     techniques: vec![Technique::named("dcs")?, Technique::named("reference")?],
+///     samples: vec![4, 16],
+///     width: Some(64),
+///     height: Some(48),
+///     ..CompareOptions::default()
+/// };
+/// for row in compare(&[scene], &options, None)? {
+///     if row.quantity == "flip" && row.region == "all" {
+///         println!("{} {}: {:?} ms, FLIP {}", row.technique, row.setting, row.median_ms, row.mean_abs);
+///     }
+/// }
+/// # Ok::<(), penumbra::error::Error>(())
+/// ```
 pub fn compare(
     scenes: &[Scene],
     options: &CompareOptions,
