@@ -3,8 +3,8 @@
 use crate::compare::cache::default_cache_dir;
 use crate::compare::shard::{run_shard, unsharded_command, ShardSpec};
 use crate::compare::{
-    check_verified, compare_scene, merge_partials, progress_steps, reference_only, scene_dir,
-    write_results, CompareOptions,
+    check_verified, merge_partials, progress_steps, reference_only, scene_dir, sweep,
+    write_results, CompareOptions, SweepOutput,
 };
 use crate::error::{Error, Result};
 use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
@@ -626,14 +626,20 @@ fn compare_scenes(
     threads: Option<usize>,
 ) -> Result<Outcome> {
     let progress = Progress::new(progress_steps(options) * scenes.len() as u64, true);
-    let mut results = Vec::new();
-    for scene in scenes {
-        let dir = scene_dir(out, &scene.name, scenes.len());
-        let result = with_threads(threads, || compare_scene(scene, options, &dir, &progress))??;
-        results.push((result, dir));
-    }
+    let command = command_line();
+    let files = SweepOutput {
+        dir: out,
+        report,
+        command: &command,
+    };
+    let results = with_threads(threads, || sweep(scenes, options, Some(&files), &progress))??;
     progress.finish();
-    write_results(out, &results, report, &command_line())?;
+    let results: Vec<_> = (results.into_iter())
+        .map(|result| {
+            let dir = scene_dir(out, &result.scene, scenes.len());
+            (result, dir)
+        })
+        .collect();
     for (result, dir) in &results {
         write_stderr(&format!(
             "{}: {} runs; results in {}\n",

@@ -75,14 +75,15 @@ pub(super) struct ImageCharts {
     pub radiance: Option<String>,
 }
 
-/// Marks the runs on the Pareto front of (time, FLIP mean) and writes the
-/// image's error-vs-time charts into `out`: FLIP mean over the whole frame
+/// Marks the runs on the Pareto front of (time, FLIP mean) and, given an
+/// `out` directory, writes the image's error-vs-time charts there: FLIP
+/// mean over the whole frame
 /// (`flip_vs_time.png`) and over the interior (`flip_vs_time_interior.png`),
 /// and radiance RMSE over all shading points (`radiance_vs_time.png`,
 /// with the reference's noise floor `floor_radiance`). Every run has an
 /// image, so every run is charted.
 pub(super) fn image_charts(
-    out: &Path,
+    out: Option<&Path>,
     scene_name: &str,
     runs: &mut [RunResult],
     floor_radiance: f64,
@@ -103,13 +104,13 @@ pub(super) fn image_charts(
     for (r, front) in runs.iter_mut().zip(pareto_front(&flip)) {
         r.pareto_flip = front;
     }
-    if runs.is_empty() {
+    let Some(out) = out.filter(|_| !runs.is_empty()) else {
         return Ok(ImageCharts {
             flip: None,
             flip_interior: None,
             radiance: None,
         });
-    }
+    };
     let charts = [
         (
             "flip_vs_time.png",
@@ -164,13 +165,13 @@ fn chart_points(runs: &[RunResult], all: bool) -> Vec<(usize, ChartPoint)> {
         .collect()
 }
 
-/// Marks the runs on the Pareto front of (time, penumbra Vcoef RMSE) and
-/// writes the error-vs-time charts (penumbra, all shading points) into
-/// `out`, with the reference's noise floors `floor` (`(penumbra, all)`
+/// Marks the runs on the Pareto front of (time, penumbra Vcoef RMSE) and,
+/// given an `out` directory, writes the error-vs-time charts (penumbra, all
+/// shading points) there, with the reference's noise floors `floor` (`(penumbra, all)`
 /// RMSE) drawn; returns their paths relative to `out`, `None` without a
-/// run to chart.
+/// run to chart or without `out`.
 pub(super) fn pareto_and_charts(
-    out: &Path,
+    out: Option<&Path>,
     scene_name: &str,
     runs: &mut [RunResult],
     (floor_penumbra, floor_all): (f64, f64),
@@ -180,9 +181,9 @@ pub(super) fn pareto_and_charts(
     for ((i, _), front) in penumbra_points.iter().zip(pareto_front(&only)) {
         runs[*i].pareto = front;
     }
-    if only.is_empty() {
+    let Some(out) = out.filter(|_| !only.is_empty()) else {
         return Ok((None, None));
-    }
+    };
     write_error_vs_time(
         &out.join("error_vs_time.png"),
         &format!("{scene_name}: Vcoef error in the penumbra vs time"),

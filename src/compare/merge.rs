@@ -281,7 +281,7 @@ pub fn merge_partials(dirs: &[PathBuf], out: &Path, images: bool) -> Result<Merg
     }
     let mut results = Vec::new();
     for (header, runs, dir) in scenes_done {
-        results.push((finish_scene(header, runs, &dir)?, dir));
+        results.push((finish_scene(header, runs, Some(&dir))?, dir));
     }
     Ok(Merged {
         results,

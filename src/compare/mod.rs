@@ -19,6 +19,10 @@
 //! noise floor): for independent estimates `A`, `B` of variance `2σ²/M`
 //! each, `(A − B)/2` has the variance `σ²/M` of the mean `(A + B)/2`.
 //!
+//! [`compare`] is the whole comparison as one call, returning the rows
+//! of `results.csv` as [`Record`]s; the command goes through the same
+//! sweep, so the two cannot drift.
+//!
 //! A sweep can be sharded over machines ([`shard`], `--shard I/N`) and
 //! merged back ([`merge_partials`], `--merge`): [`compare_scene`] is
 //! `scene_runs` (the plan), `prepare_scene` (the reference),
@@ -33,6 +37,7 @@ mod host;
 mod merge;
 mod model;
 mod pipeline;
+mod record;
 mod reference;
 mod results;
 mod run;
@@ -47,7 +52,9 @@ pub use merge::merge_partials;
 pub use model::{
     NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
 };
-pub use pipeline::{compare_scene, scene_dir};
+pub use pipeline::{compare, compare_scene, scene_dir};
+pub(crate) use pipeline::{sweep, SweepOutput};
+pub use record::{records, Record, CSV_COLUMNS};
 pub use reference::reference_only;
 pub use results::{check_verified, write_csv, write_json, write_markdown, write_results};
 pub use settings::{progress_steps, quality_settings, CompareOptions};

@@ -6,7 +6,9 @@
 
 use super::charts;
 use super::model::{ReferenceSummary, RunResult, SceneComparison};
+use super::record::{records, Record};
 use super::reference::{interior_of, reference, NoiseFloors, ReferenceImages};
+use super::results::{verified, write_results};
 use super::run::{run_result, time_setting};
 use super::settings::{quality_settings, CompareOptions};
 use crate::error::{Error, Result};
@@ -16,12 +18,15 @@ use crate::report::Progress;
 use crate::scene::Scene;
 use crate::shadow::technique::{has_semi_opaque_casters, QualitySetting};
 use crate::shadow::verify::check_verifiable;
+use crate::shadow::TechniqueOptions;
 use std::path::Path;
 
 /// Runs every technique and setting on `scene`, writes images, heat maps
 /// and charts into `out` (created if missing) and returns the measurements.
 /// Result tables are written by the caller ([`write_csv`], ...), which may
 /// combine several scenes.
+///
+/// [`write_csv`]: super::write_csv
 pub fn compare_scene(
     scene: &Scene,
     options: &CompareOptions,
@@ -29,6 +34,17 @@ pub fn compare_scene(
     progress: &Progress,
 ) -> Result<SceneComparison> {
     options.validate()?;
+    measure_scene(scene, options, Some(out), progress)
+}
+
+/// [`compare_scene`] with its files optional: without `out` nothing is
+/// written (but the reference cache) and the results name no files.
+fn measure_scene(
+    scene: &Scene,
+    options: &CompareOptions,
+    out: Option<&Path>,
+    progress: &Progress,
+) -> Result<SceneComparison> {
     let planned = scene_runs(scene, options)?;
     let prepared = prepare_scene(scene, options, out, progress)?;
     let mut runs = Vec::new();
@@ -36,6 +52,157 @@ pub fn compare_scene(
         runs.push(run_planned(scene, &prepared, run, options, out, progress)?);
     }
     finish_scene(prepared.header, runs, out)
+}
+
+/// Compares every technique at every quality setting on each of `scenes`
+/// against its ray-traced reference and returns the rows of
+/// `results.csv` as [`Record`]s, in the file's order: the library's
+/// `penumbra compare`.
+///
+/// With `out`, writes there what the command writes (`results.csv`,
+/// `.json`, `.md`, charts and, with `options.images`, images and heat
+/// maps; a subdirectory per scene when there are several). Without it
+/// nothing is written but the reference cache (`options.cache_dir`), and
+/// scenes built in code (with no file) work alike: the cache is keyed by
+/// the scene's contents. Progress is not shown.
+///
+/// Errors: `options` out of range ([`CompareOptions::validate`], naming
+/// the parameter), a scene a technique refuses, a file that cannot be
+/// written, and, with `options.verify`, a technique that declares itself
+/// exact disagreeing with the shadow rays (after the files are written,
+/// as the command does).
+///
+/// ```no_run
+/// use penumbra::compare::{compare, CompareOptions};
+/// use penumbra::render::Technique;
+///
+/// let scene = penumbra::scene::load_scene("scenes/quad.toml".as_ref())?;
+/// let options = CompareOptions {
+///     techniques: vec![Technique::named("dcs")?, Technique::named("reference")?],
+///     samples: vec![4, 16],
+///     width: Some(64),
+///     height: Some(48),
+///     ..CompareOptions::default()
+/// };
+/// for row in compare(&[scene], &options, None)? {
+///     if row.quantity == "flip" && row.region == "all" {
+///         println!("{} {}: {:?} ms, FLIP {}", row.technique, row.setting, row.median_ms, row.mean_abs);
+///     }
+/// }
+/// # Ok::<(), penumbra::error::Error>(())
+/// ```
+pub fn compare(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    out: Option<&Path>,
+) -> Result<Vec<Record>> {
+    let command = out.map(|dir| equivalent_command(scenes, options, dir));
+    let files = out
+        .zip(command.as_deref())
+        .map(|(dir, command)| SweepOutput {
+            dir,
+            report: None,
+            command,
+        });
+    let results = sweep(scenes, options, files.as_ref(), &Progress::hidden())?;
+    verified(&results.iter().collect::<Vec<_>>())?;
+    Ok(records(&results))
+}
+
+/// The `penumbra compare` command that reruns a library call, for the
+/// report's "regenerate with" (scenes built in code or from text have no
+/// file to name).
+fn equivalent_command(scenes: &[Scene], options: &CompareOptions, out: &Path) -> String {
+    let quote = |s: String| {
+        if !s.is_empty()
+            && s.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "/._-,:+=".contains(c))
+        {
+            s
+        } else {
+            format!("'{}'", s.replace('\'', "'\\''"))
+        }
+    };
+    let list = |items: Vec<String>| items.join(",");
+    let mut words = vec!["penumbra".to_string(), "compare".to_string()];
+    for scene in scenes {
+        words.push(match scene.path.is_file() {
+            true => quote(scene.path.display().to_string()),
+            false => format!("'<{}: not from a file>'", scene.name),
+        });
+    }
+    let mut option = |name: &str, value: String| words.push(format!("--{name} {value}"));
+    option(
+        "techniques",
+        list(
+            options
+                .techniques
+                .iter()
+                .map(|t| t.name().to_string())
+                .collect(),
+        ),
+    );
+    option(
+        "samples",
+        list(options.samples.iter().map(u32::to_string).collect()),
+    );
+    option("reference-samples", options.reference_samples.to_string());
+    option(
+        "patterns",
+        list(options.patterns.iter().map(|p| p.name()).collect()),
+    );
+    option("repeat", options.repeat.to_string());
+    for (name, size) in [("width", options.width), ("height", options.height)] {
+        if let Some(size) = size {
+            option(name, size.to_string());
+        }
+    }
+    option("seed", options.seed.to_string());
+    option("out", quote(out.display().to_string()));
+    option("cache-dir", quote(options.cache_dir.display().to_string()));
+    if let Some(k) = options.verify {
+        option("verify", k.to_string());
+    }
+    if !options.images {
+        words.push("--no-images".to_string());
+    }
+    if options.technique_options != TechniqueOptions::default() {
+        words.push("# and the technique options given in code".to_string());
+    }
+    words.join(" ")
+}
+
+/// Where a sweep writes its files: every scene's images and charts
+/// ([`scene_dir`]) and the result tables ([`write_results`]).
+pub(crate) struct SweepOutput<'a> {
+    /// The output directory.
+    pub dir: &'a Path,
+    /// Also the markdown report here (`--report`).
+    pub report: Option<&'a Path>,
+    /// The command that regenerates the results, for the report.
+    pub command: &'a str,
+}
+
+/// The whole sweep over `scenes`: each scene compared in order and, with
+/// `out`, every file written there. The one route of `penumbra compare`
+/// and of [`compare`](super::compare), so that the two cannot drift.
+pub(crate) fn sweep(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    out: Option<&SweepOutput<'_>>,
+    progress: &Progress,
+) -> Result<Vec<SceneComparison>> {
+    options.validate()?;
+    let mut results = Vec::new();
+    for scene in scenes {
+        let dir = out.map(|out| scene_dir(out.dir, &scene.name, scenes.len()));
+        let result = measure_scene(scene, options, dir.as_deref(), progress)?;
+        results.push((result, dir.unwrap_or_default()));
+    }
+    if let Some(out) = out {
+        write_results(out.dir, &results, out.report, out.command)?;
+    }
+    Ok(results.into_iter().map(|(result, _)| result).collect())
 }
 
 /// One (technique, setting) run of a scene, before it runs.
@@ -92,19 +259,22 @@ pub(crate) struct PreparedScene {
 }
 
 /// Computes (or reads from the cache) `scene`'s reference and, with
-/// `options.images`, writes `out/images/reference.png`.
+/// `options.images` and an `out` directory, writes
+/// `out/images/reference.png`.
 pub(crate) fn prepare_scene(
     scene: &Scene,
     options: &CompareOptions,
-    out: &Path,
+    out: Option<&Path>,
     progress: &Progress,
 ) -> Result<PreparedScene> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    if let Some(out) = out {
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    }
     let (cached, key, from_cache) = reference(scene, options, progress)?;
     let reference = ReferenceImages::new(&cached, &interior_of(scene, options)?);
     let (width, height) = (key.width, key.height);
     let floors = NoiseFloors::new(&cached, &reference, (width, height));
-    if options.images {
+    if let Some(out) = out.filter(|_| options.images) {
         let dir = out.join("images");
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
         write_png(
@@ -151,13 +321,14 @@ pub(crate) fn prepare_scene(
     Ok(PreparedScene { reference, header })
 }
 
-/// Times and measures one planned run of `scene` (images into `out`).
+/// Times and measures one planned run of `scene` (images into `out`, if
+/// given).
 pub(crate) fn run_planned(
     scene: &Scene,
     prepared: &PreparedScene,
     run: &PlannedRun,
     options: &CompareOptions,
-    out: &Path,
+    out: Option<&Path>,
     progress: &Progress,
 ) -> Result<RunResult> {
     let setting = &run.setting;
@@ -176,14 +347,16 @@ pub(crate) fn run_planned(
 }
 
 /// The scene's comparison from its `header` and every run in order: marks
-/// the Pareto front and writes the charts into `out`. The one way results
-/// are completed, for a whole run and for merged shards alike.
+/// the Pareto front and writes the charts into `out`, if given. The one
+/// way results are completed, for a whole run and for merged shards alike.
 pub(crate) fn finish_scene(
     header: SceneComparison,
     mut runs: Vec<RunResult>,
-    out: &Path,
+    out: Option<&Path>,
 ) -> Result<SceneComparison> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    if let Some(out) = out {
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    }
     for r in &mut runs {
         r.pareto = false;
         r.pareto_flip = false;

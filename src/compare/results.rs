@@ -2,10 +2,11 @@
 //! JSON (everything) and a markdown report. The image's error (radiance
 //! RMSE, FLIP) comes first everywhere; Vcoef's follows.
 
-use super::model::{NoiseFloor, RegionMetrics, RunResult, SceneComparison};
+use super::model::{RunResult, SceneComparison};
+use super::record::{is_common_pass, records, CSV_COLUMNS};
 use crate::error::{Error, Result};
 use crate::output::write_atomically;
-use crate::report::{ErrorMetrics, FlipMetrics, FlipRegions, FLIP_PPD, VISIBLE_ERROR};
+use crate::report::{FlipMetrics, FlipRegions, FLIP_PPD, VISIBLE_ERROR};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -15,247 +16,28 @@ fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
-/// Passes that are not the shadow technique's own.
-fn is_common_pass(name: &str) -> bool {
-    matches!(name, "geometry" | "gbuffer" | "shading")
-}
-
-/// The columns of `results.csv`.
-const CSV_COLUMNS: [&str; 30] = [
-    "scene",
-    "technique",
-    "setting",
-    "samples",
-    "median_ms",
-    "min_ms",
-    "max_ms",
-    "runs",
-    "host",
-    "geometry_ms",
-    "gbuffer_ms",
-    "shadow_ms",
-    "shading_ms",
-    "quantity",
-    "region",
-    "count",
-    "rmse",
-    "mean_abs",
-    "max_abs",
-    "frac_over",
-    "non_finite",
-    "p50",
-    "p90",
-    "p99",
-    "pareto_flip",
-    "pareto",
-    "verify_checked",
-    "verify_disagreements",
-    "verify_beyond_tie",
-    "verify_max_tie",
-];
-
 /// `results.csv` being written: quoted only where a cell needs it (a
 /// comma, quote or line break), records ended by `\n`.
 type CsvTable = csv::Writer<Vec<u8>>;
 
 /// Writes `results.csv`: one row per (scene, run, quantity, region), and
 /// rows for each reference's noise floor (technique `reference-floor`)
-/// and FLIP between its halves (technique `reference-halves`).
-///
-/// Quantities, in this order: `radiance` and `flip` (the image's error),
-/// then `vcoef.<k>` per light and `vcoef` (all lights). Regions: `all`
-/// (every shading point; for `flip` the whole frame), `penumbra` (not for
-/// `flip`) and `interior`. A `flip` row's `mean_abs` is the FLIP mean,
-/// `max_abs` its maximum and `p50, p90, p99` its percentiles (empty in
-/// other rows); its `rmse`, `frac_over` and `non_finite` are empty.
+/// and FLIP between its halves (technique `reference-halves`): the
+/// [`records`] of `scenes`, which say what each row holds.
 pub fn write_csv(path: &Path, scenes: &[SceneComparison]) -> Result<()> {
     let csv_error = |e: csv::Error| Error::param("results.csv", e.to_string());
-    let mut table = csv::WriterBuilder::new()
+    let mut table: CsvTable = csv::WriterBuilder::new()
         .quote_style(csv::QuoteStyle::Necessary)
         .terminator(csv::Terminator::Any(b'\n'))
         .from_writer(Vec::new());
     table.write_record(CSV_COLUMNS).map_err(csv_error)?;
-    for sc in scenes {
-        for run in &sc.runs {
-            write_run_rows(&mut table, sc, run).map_err(csv_error)?;
-        }
-        write_reference_rows(&mut table, sc).map_err(csv_error)?;
+    for record in records(scenes) {
+        table.write_record(record.csv_cells()).map_err(csv_error)?;
     }
     let bytes = table
         .into_inner()
         .map_err(|e| Error::param("results.csv", e.to_string()))?;
     write_bytes(path, &bytes)
-}
-
-/// A run's rows: radiance and FLIP, then Vcoef per light and over all
-/// lights, each per region.
-fn write_run_rows(
-    table: &mut CsvTable,
-    scene: &SceneComparison,
-    run: &RunResult,
-) -> csv::Result<()> {
-    let run_cells: [String; 13] = [
-        scene.scene.clone(),
-        run.technique.clone(),
-        run.setting.clone(),
-        run.samples.map_or(String::new(), |n| n.to_string()),
-        format!("{:.4}", run.median_ms),
-        format!("{:.4}", run.min_ms),
-        format!("{:.4}", run.max_ms),
-        run.runs.to_string(),
-        run.host.clone(),
-        format!("{:.4}", run.pass_ms(|n| n == "geometry")),
-        format!("{:.4}", run.pass_ms(|n| n == "gbuffer")),
-        format!("{:.4}", run.pass_ms(|n| !is_common_pass(n))),
-        format!("{:.4}", run.pass_ms(|n| n == "shading")),
-    ];
-    let pareto_cells = [run.pareto_flip.to_string(), run.pareto.to_string()];
-    let verify_cells: [String; 4] = run.verify.as_ref().map_or(Default::default(), |verify| {
-        [
-            verify.checked.to_string(),
-            verify.disagreements.to_string(),
-            verify.beyond_tie.to_string(),
-            format!("{:e}", verify.max_tie_distance),
-        ]
-    });
-    let regions = |quantity: String, metrics: &RegionMetrics| {
-        [
-            (quantity.clone(), "all", error_cells(&metrics.all)),
-            (quantity.clone(), "penumbra", error_cells(&metrics.penumbra)),
-            (quantity, "interior", error_cells(&metrics.interior)),
-        ]
-    };
-    let mut rows: Vec<(String, &str, [String; 9])> = Vec::new();
-    rows.extend(regions("radiance".into(), &run.radiance));
-    rows.push(("flip".into(), "all", flip_cells(&run.flip.all)));
-    rows.push(("flip".into(), "interior", flip_cells(&run.flip.interior)));
-    for (light, metrics) in run.vcoef.iter().enumerate() {
-        if let Some(metrics) = metrics {
-            rows.extend(regions(format!("vcoef.{light}"), metrics));
-        }
-    }
-    if let Some(metrics) = &run.vcoef_all_lights {
-        rows.extend(regions("vcoef".into(), metrics));
-    }
-    for (quantity, region, cells) in &rows {
-        table.write_record(
-            run_cells
-                .iter()
-                .map(String::as_str)
-                .chain([quantity.as_str(), region])
-                .chain(cells.iter().map(String::as_str))
-                .chain(pareto_cells.iter().map(String::as_str))
-                .chain(verify_cells.iter().map(String::as_str)),
-        )?;
-    }
-    Ok(())
-}
-
-/// The reference's rows: its noise floors (radiance, Vcoef per light and
-/// over all lights, per region), then FLIP between its halves.
-fn write_reference_rows(table: &mut CsvTable, scene: &SceneComparison) -> csv::Result<()> {
-    let reference = &scene.reference;
-    // A reference row: the run columns empty after the setting and
-    // samples, no Pareto or verify cells.
-    let mut reference_row = |technique: &str,
-                             setting: String,
-                             samples: u32,
-                             quantity: &str,
-                             region: &str,
-                             cells: [String; 9]| {
-        table.write_record(
-            [
-                scene.scene.as_str(),
-                technique,
-                &setting,
-                &samples.to_string(),
-            ]
-            .into_iter()
-            .chain([""; 9])
-            .chain([quantity, region])
-            .chain(cells.iter().map(String::as_str))
-            .chain([""; 6]),
-        )
-    };
-    let mut floor_rows = |quantity: &str, floor: &NoiseFloor| -> csv::Result<()> {
-        for (region, rmse, mae) in [
-            ("all", floor.rmse_all, floor.mae_all),
-            ("penumbra", floor.rmse_penumbra, floor.mae_penumbra),
-            ("interior", floor.rmse_interior, floor.mae_interior),
-        ] {
-            let cells = [
-                String::new(),
-                format!("{rmse:e}"),
-                format!("{mae:e}"),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-            ];
-            reference_row(
-                "reference-floor",
-                format!("{} spp", reference.samples),
-                reference.samples,
-                quantity,
-                region,
-                cells,
-            )?;
-        }
-        Ok(())
-    };
-    floor_rows("radiance", &reference.floor_radiance)?;
-    for (light, floor) in reference.floor_vcoef.iter().enumerate() {
-        floor_rows(&format!("vcoef.{light}"), floor)?;
-    }
-    floor_rows("vcoef", &reference.floor_vcoef_all_lights)?;
-    let half = reference.samples / 2;
-    for (region, metrics) in [
-        ("all", &reference.flip_halves.all),
-        ("interior", &reference.flip_halves.interior),
-    ] {
-        reference_row(
-            "reference-halves",
-            format!("{half} spp vs {half} spp"),
-            half,
-            "flip",
-            region,
-            flip_cells(metrics),
-        )?;
-    }
-    Ok(())
-}
-
-/// `count,rmse,mean_abs,max_abs,frac_over,non_finite,p50,p90,p99` of a
-/// per-value error.
-fn error_cells(m: &ErrorMetrics) -> [String; 9] {
-    [
-        m.count.to_string(),
-        format!("{:e}", m.rmse),
-        format!("{:e}", m.mean_abs),
-        format!("{:e}", m.max_abs),
-        format!("{:e}", m.frac_over),
-        m.non_finite.to_string(),
-        String::new(),
-        String::new(),
-        String::new(),
-    ]
-}
-
-/// The same cells of a FLIP error (mean as `mean_abs`, max as `max_abs`).
-fn flip_cells(m: &FlipMetrics) -> [String; 9] {
-    [
-        m.count.to_string(),
-        String::new(),
-        format!("{:e}", m.mean),
-        format!("{:e}", m.max),
-        String::new(),
-        String::new(),
-        format!("{:e}", m.p50),
-        format!("{:e}", m.p90),
-        format!("{:e}", m.p99),
-    ]
 }
 
 /// Writes `results.json`: every measurement of every scene.
@@ -598,7 +380,13 @@ pub fn write_results(
 /// disagrees beyond the tie distance (inexact settings are expected to
 /// disagree).
 pub fn check_verified(scenes: &[(SceneComparison, PathBuf)]) -> Result<()> {
-    for (r, _) in scenes {
+    let comparisons: Vec<&SceneComparison> = scenes.iter().map(|(r, _)| r).collect();
+    verified(&comparisons)
+}
+
+/// [`check_verified`] of the comparisons alone.
+pub(crate) fn verified(scenes: &[&SceneComparison]) -> Result<()> {
+    for r in scenes {
         for run in &r.runs {
             if let Some(v) = run.verify.as_ref().filter(|v| v.declared_exact) {
                 v.check().map_err(|e| {

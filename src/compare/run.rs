@@ -98,14 +98,14 @@ pub(super) fn time_setting(
 }
 
 /// `setting`'s result from its timed `runs`: its errors against
-/// `reference` and, with `options.images`, its image and Vcoef heat maps
-/// written into `out`.
+/// `reference` and, with `options.images` and an `out` directory, its
+/// image and Vcoef heat maps written there.
 pub(super) fn run_result(
     setting: &QualitySetting,
     runs: TimedRuns,
     reference: &ReferenceImages,
     options: &CompareOptions,
-    out: &Path,
+    out: Option<&Path>,
     (width, height): (u32, u32),
 ) -> Result<RunResult> {
     let name = setting.curve.as_str();
@@ -123,11 +123,12 @@ pub(super) fn run_result(
         .enumerate()
         .map(|(k, t)| t.map(|t| reference.vcoef_metrics(k, t)))
         .collect();
-    let (image, heatmaps) = if options.images {
-        let stem = slug(&format!("{name}-{}", setting.label));
-        write_run_images(out, &stem, (width, height), &rendered, &tests, reference)?
-    } else {
-        (None, Vec::new())
+    let (image, heatmaps) = match out.filter(|_| options.images) {
+        Some(out) => {
+            let stem = slug(&format!("{name}-{}", setting.label));
+            write_run_images(out, &stem, (width, height), &rendered, &tests, reference)?
+        }
+        None => (None, Vec::new()),
     };
     Ok(RunResult {
         technique: name.to_string(),

@@ -1,14 +1,15 @@
 //! What `compare` runs: its options and their validation, and the quality
 //! settings of each technique (from the technique registry).
 
+use super::cache::default_cache_dir;
 use crate::error::{Error, Result};
 use crate::render::{RenderOptions, Technique};
 use crate::sampling::{SamplePattern, SplitMix64};
 use crate::shadow::technique::{QualitySetting, Sweep};
 use crate::shadow::TechniqueOptions;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-/// What `compare` runs.
+/// What `compare` runs. [`Default`] is `penumbra compare`'s defaults.
 #[derive(Debug, Clone)]
 pub struct CompareOptions {
     /// Techniques to measure, in order.
@@ -39,8 +40,36 @@ pub struct CompareOptions {
     pub verify: Option<u64>,
 }
 
+impl Default for CompareOptions {
+    /// `penumbra compare`'s defaults, in plain Rust (a test holds them to
+    /// clap's): shadow volumes and the reference technique, 4, 16, 64 and
+    /// 256 samples, a 4096-sample reference, 3 timed runs, images on, the
+    /// reference cache of [`default_cache_dir`] (falling back on
+    /// `compare/cache`, as the command's default `--out compare` does).
+    fn default() -> Self {
+        CompareOptions {
+            techniques: ["shadow-volumes", "reference"]
+                .into_iter()
+                .filter_map(|name| Technique::named(name).ok())
+                .collect(),
+            technique_options: TechniqueOptions::default(),
+            samples: vec![4, 16, 64, 256],
+            reference_samples: 4096,
+            repeat: 3,
+            width: None,
+            height: None,
+            seed: 0,
+            cache_dir: default_cache_dir(&Path::new("compare").join("cache")),
+            images: true,
+            patterns: vec![SamplePattern::Stratified],
+            verify: None,
+        }
+    }
+}
+
 impl CompareOptions {
-    /// Checks the options before any work starts.
+    /// Checks the options before any work starts: the one place of
+    /// `compare`'s range checks (the command and the library call it).
     pub fn validate(&self) -> Result<()> {
         if self.techniques.is_empty() {
             return Err(Error::param("--techniques", "name at least one technique"));
@@ -149,4 +178,75 @@ pub fn progress_steps(options: &CompareOptions) -> u64 {
         })
         .sum();
     2 + settings as u64 * options.repeat as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::{CommandFactory, FromArgMatches};
+
+    /// `CompareOptions::default()` is what `penumbra compare SCENE` runs
+    /// with: every option as clap parses it when none is given.
+    #[test]
+    fn defaults_match_the_command_line() {
+        let matches = crate::cli::Cli::command()
+            .try_get_matches_from(["penumbra", "compare", "scene.toml"])
+            .expect("`compare scene.toml` parses");
+        let (name, args) = matches.subcommand().expect("a subcommand");
+        assert_eq!(name, "compare");
+        let many = |id: &str| -> Vec<String> {
+            args.get_raw(id)
+                .into_iter()
+                .flatten()
+                .map(|v| v.to_string_lossy().into_owned())
+                .collect()
+        };
+        let defaults = CompareOptions::default();
+        let names: Vec<&str> = defaults.techniques.iter().map(|t| t.name()).collect();
+        assert_eq!(many("techniques").join(","), names.join(","));
+        assert_eq!(
+            args.get_many::<u32>("samples")
+                .map(|v| v.copied().collect::<Vec<_>>()),
+            Some(defaults.samples.clone())
+        );
+        let one = |id: &str| args.get_one::<u32>(id).copied();
+        assert_eq!(one("reference_samples"), Some(defaults.reference_samples));
+        assert_eq!(one("repeat"), Some(defaults.repeat));
+        assert_eq!(one("width"), defaults.width);
+        assert_eq!(one("height"), defaults.height);
+        assert_eq!(args.get_one::<u64>("seed").copied(), Some(defaults.seed));
+        assert_eq!(args.get_one::<u64>("verify").copied(), defaults.verify);
+        assert_eq!(args.get_flag("no_images"), !defaults.images);
+        let patterns: Vec<String> = defaults.patterns.iter().map(|p| p.name()).collect();
+        assert_eq!(many("patterns"), patterns);
+        // The command's cache falls back on `--out`'s `cache`.
+        let out = args.get_one::<PathBuf>("out").expect("--out has a default");
+        assert!(args.get_one::<PathBuf>("cache_dir").is_none());
+        assert_eq!(defaults.cache_dir, default_cache_dir(&out.join("cache")));
+        let technique_options =
+            TechniqueOptions::from_arg_matches(args).expect("technique options parse");
+        assert_eq!(defaults.technique_options, technique_options);
+        defaults.validate().expect("the defaults are valid");
+    }
+
+    /// Each range check names its parameter.
+    #[test]
+    fn validate_names_the_parameter() {
+        type Spoil = fn(&mut CompareOptions);
+        let cases: [(&str, Spoil); 7] = [
+            ("--techniques", |o| o.techniques.clear()),
+            ("--samples", |o| o.samples = vec![4, 0]),
+            ("--samples", |o| o.samples.clear()),
+            ("--reference-samples", |o| o.reference_samples = 63),
+            ("--repeat", |o| o.repeat = 0),
+            ("--width", |o| o.width = Some(0)),
+            ("--patterns", |o| o.patterns.clear()),
+        ];
+        for (param, spoil) in cases {
+            let mut options = CompareOptions::default();
+            spoil(&mut options);
+            let error = options.validate().expect_err(param).to_string();
+            assert!(error.contains(param), "{param}: {error}");
+        }
+    }
 }

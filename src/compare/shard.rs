@@ -873,12 +873,12 @@ pub fn run_shard(
     for &s in &needed {
         let scene = &scenes[s];
         let dir = out.join(&partial.scenes[s].dir);
-        let prepared = prepare_scene(scene, options, &dir, &progress)?;
+        let prepared = prepare_scene(scene, options, Some(&dir), &progress)?;
         partial.headers[s] = Some(PartialScene::new(&prepared.header));
         for e in mine.iter().filter(|e| e.scene == s) {
             let run = &planned[s][e.index];
             let (started, clock) = (unix_now(), Instant::now());
-            let result = run_planned(scene, &prepared, run, options, &dir, &progress)?;
+            let result = run_planned(scene, &prepared, run, options, Some(&dir), &progress)?;
             let finished = started + clock.elapsed().as_secs_f64();
             partial
                 .runs
