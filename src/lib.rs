@@ -9,7 +9,9 @@
 //! each light's term as typed buffers, the time of every pass and the
 //! `--explain` report as data. [`render_with`] reports progress to an
 //! [`Observer`] and stops when it says so ([`Cancel`]). [`techniques`]
-//! lists the shadow techniques and what each can honour.
+//! lists the shadow techniques and what each can honour; [`compare`]
+//! measures techniques against the ray-traced reference and returns the
+//! rows of `penumbra compare`'s results.csv as [`Record`]s.
 //!
 //! ```
 //! use penumbra::{render, scene_from_toml, RenderOptions};
@@ -73,6 +75,7 @@ pub(crate) use internal::{
     sampling, scene, shade, shadow, simd, view,
 };
 
+pub use compare::{compare, CompareOptions, Record, CSV_COLUMNS};
 pub use error::{Error, Result};
 pub use observe::{Cancel, Observer, Silent};
 pub use output::Layer;

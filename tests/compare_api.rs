@@ -5,9 +5,9 @@
 
 mod common;
 
-use penumbra::compare::{compare, CompareOptions, Record, CSV_COLUMNS};
-use penumbra::render::Technique;
-use penumbra::scene::{load_scene, scene_from_toml, Scene};
+use penumbra::{
+    compare, load_scene, scene_from_toml, CompareOptions, Record, Scene, Technique, CSV_COLUMNS,
+};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -73,10 +73,9 @@ fn measure_scene(
 /// as the command does).
 ///
 /// ```no_run
-/// use penumbra::compare::{compare, CompareOptions};
-/// use penumbra::render::Technique;
+/// use penumbra::{compare, CompareOptions, Technique};
 ///
-/// let scene = penumbra::scene::load_scene("scenes/quad.toml".as_ref())?;
+/// let scene = penumbra::load_scene("scenes/quad.toml".as_ref())?;
 /// let options = CompareOptions {
 ///     techniques: vec![Technique::named("dcs")?, Technique::named("reference")?],
 ///     samples: vec![4, 16],
@@ -89,7 +88,7 @@ fn measure_scene(
 ///         println!("{} {}: {:?} ms, FLIP {}", row.technique, row.setting, row.median_ms, row.mean_abs);
 ///     }
 /// }
-/// # Ok::<(), penumbra::error::Error>(())
+/// # Ok::<(), penumbra::Error>(())
 /// ```
 pub fn compare(
     scenes: &[Scene],

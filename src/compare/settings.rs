@@ -189,7 +189,7 @@ mod tests {
     /// with: every option as clap parses it when none is given.
     #[test]
     fn defaults_match_the_command_line() {
-        let matches = crate::cli::Cli::command()
+        let matches = crate::internal::cli::Cli::command()
             .try_get_matches_from(["penumbra", "compare", "scene.toml"])
             .expect("`compare scene.toml` parses");
         let (name, args) = matches.subcommand().expect("a subcommand");
