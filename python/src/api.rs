@@ -90,7 +90,10 @@ pub fn describe_error(e: &Error) -> (ErrorKind, String) {
         Error::Io { .. } => (ErrorKind::Io, e.to_string()),
         Error::Parameter { name, message } => {
             let name = python_name(name);
-            (ErrorKind::Parameter, format!("parameter `{name}`: {message}"))
+            (
+                ErrorKind::Parameter,
+                format!("parameter `{name}`: {message}"),
+            )
         }
     }
 }
@@ -176,7 +179,7 @@ fn render_options(request: &Request) -> Result<penumbra::render::RenderOptions> 
         Some(p) => p.parse().map_err(|e| Error::param("--pattern", e))?,
     };
     let words = std::iter::once("penumbra".to_string()).chain(request.option_args.iter().cloned());
-    let options = TechniqueOptions::augment_args(clap::Command::new("penumbra").no_binary_name(false))
+    let options = TechniqueOptions::augment_args(clap::Command::new("penumbra"))
         .try_get_matches_from(words)
         .and_then(|m| TechniqueOptions::from_arg_matches(&m))
         .map_err(|e| {

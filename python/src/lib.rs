@@ -78,10 +78,8 @@ impl NativeScene {
             option_args,
         };
         let cancel = api::Cancel::default();
-        let data = run_interruptible(py, &cancel, || {
-            api::render(&self.scene, &request, &cancel)
-        })?
-        .map_err(to_py_err)?;
+        let data = run_interruptible(py, &cancel, || api::render(&self.scene, &request, &cancel))?
+            .map_err(to_py_err)?;
         render_dict(py, data)
     }
 }
