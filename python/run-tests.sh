@@ -38,7 +38,7 @@ if [ "$("$venv/bin/python" -c 'import penumbra._penumbra as p; print(p.COMPARE_W
   # Its last cell plots penumbra.compare's records.
   echo "skipped: the notebook: penumbra.compare is not wired yet (COMPARE_WIRED in python/src/api.rs)"
 else
-  (cd examples && MPLBACKEND=Agg "$venv/bin/python" - <<'PY'
+  (cd examples && "$venv/bin/python" - <<'PY'
 import nbclient, nbformat
 nb = nbformat.read("soft-shadows.ipynb", as_version=4)
 nbclient.NotebookClient(nb, timeout=600, kernel_name="python3").execute()
