@@ -105,7 +105,8 @@ class Render:
         vcoef: the visibility coefficient per light, ``H x W`` each, as the
             technique returned it (whatever is requested as AOVs).
         timings: seconds per pass, in pass order.
-        explain: the ``--explain`` report (SIMD level, buffers).
+        explain: the ``--explain`` report: technique, samples, SIMD level,
+            threads, buffers, notes.
         warnings: what the result leaves out of the scene, in words.
     """
 

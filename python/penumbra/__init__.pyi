@@ -45,8 +45,9 @@ class Render:
     timings: Dict[str, float]
     """Seconds per pass, in pass order."""
     explain: Dict[str, Any]
-    """The ``--explain`` report: ``simd`` (the SIMD level) and ``buffers``
-    (dicts of ``name``, ``detail``, ``bytes``)."""
+    """The ``--explain`` report: ``technique``, ``samples``, ``simd`` (the
+    SIMD level), ``threads``, ``buffers`` (dicts of ``name``, ``detail``,
+    ``bytes``) and ``notes``."""
     warnings: List[str]
     """What the result leaves out of the scene, in words."""
 

@@ -3,47 +3,33 @@
 //! vectors, JSON text), so when the crate's public surface moves, this
 //! file is the one to change.
 
-use serde::Serialize;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 /// A loaded scene.
-pub use penumbra::scene::Scene;
+pub use penumbra::Scene;
 
 /// The crate's error: file and line, or a parameter's name, in its
 /// `Display`.
-pub use penumbra::error::Error;
+pub use penumbra::Error;
+
+/// A render's cancel flag, shared with the thread that polls for Ctrl-C.
+pub use penumbra::Cancel;
 
 /// Result with the crate's error.
 pub type Result<T> = std::result::Result<T, Error>;
 
-/// Whether [`Cancel`] stops a render early. Until the crate takes a cancel
-/// flag, Ctrl-C is still honoured but only once the render has finished;
-/// the test of prompt cancellation reads this to know whether to run.
-pub const CANCEL_WIRED: bool = false;
-
-/// A render's cancel flag, shared with the thread that polls for Ctrl-C.
-/// Until the crate has its own (`penumbra::CancelFlag`, an `Observer`), a
-/// flag nothing reads: switching is this type and the call in [`render`].
-#[derive(Clone, Default)]
-pub struct Cancel(Arc<AtomicBool>);
-
-impl Cancel {
-    /// Asks the render to stop.
-    pub fn cancel(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-}
+/// Whether [`Cancel`] stops a render early (the prompt-cancellation test
+/// runs when it does).
+pub const CANCEL_WIRED: bool = true;
 
 /// Loads a scene file (relative paths inside it resolve from its folder).
 pub fn load_scene(path: &Path) -> Result<Scene> {
-    penumbra::scene::load_scene(path)
+    penumbra::load_scene(path)
 }
 
 /// Parses scene TOML text; relative paths inside resolve from `base_dir`.
 pub fn scene_from_toml(text: &str, base_dir: &Path) -> Result<Scene> {
-    penumbra::scene::scene_from_toml(text, base_dir)
+    penumbra::scene_from_toml(text, base_dir)
 }
 
 /// What Python shows of a scene.
@@ -79,6 +65,8 @@ pub enum ErrorKind {
     Parameter,
     /// Reading or writing a path failed.
     Io,
+    /// The render was cancelled (Python raises the interrupt instead).
+    Cancelled,
 }
 
 /// The kind of `e`, and its message with parameter names as Python spells
@@ -88,6 +76,7 @@ pub fn describe_error(e: &Error) -> (ErrorKind, String) {
     match e {
         Error::File { .. } => (ErrorKind::File, e.to_string()),
         Error::Io { .. } => (ErrorKind::Io, e.to_string()),
+        Error::Cancelled => (ErrorKind::Cancelled, e.to_string()),
         Error::Parameter { name, message } => {
             let name = python_name(name);
             (
@@ -165,10 +154,9 @@ pub struct RenderData {
 
 /// The render options of `request`, checked as the command line checks
 /// them.
-fn render_options(request: &Request) -> Result<penumbra::render::RenderOptions> {
+fn render_options(request: &Request) -> Result<penumbra::RenderOptions> {
     use clap::{Args, FromArgMatches};
-    use penumbra::render::{Aov, RenderOptions};
-    use penumbra::shadow::TechniqueOptions;
+    use penumbra::{Aov, RenderOptions, TechniqueOptions};
     let aovs = request
         .aovs
         .iter()
@@ -196,34 +184,17 @@ fn render_options(request: &Request) -> Result<penumbra::render::RenderOptions> 
         seed: request.seed,
         pattern,
         options,
+        threads: request.threads,
     };
     options.validate()?;
     Ok(options)
 }
 
-/// The explain report: SIMD level and the buffers the render used.
-#[derive(Serialize)]
-struct Explain {
-    simd: String,
-    buffers: Vec<ExplainBuffer>,
-}
-
-/// One buffer of [`Explain`].
-#[derive(Serialize)]
-struct ExplainBuffer {
-    name: String,
-    detail: String,
-    bytes: u64,
-}
-
-/// Renders `scene` with `request` on `request.threads` threads.
-/// `cancel` is not read yet (see [`CANCEL_WIRED`]).
-pub fn render(scene: &Scene, request: &Request, _cancel: &Cancel) -> Result<RenderData> {
+/// Renders `scene` with `request` on `request.threads` threads, stopping
+/// with [`Error::Cancelled`] once `cancel` is raised.
+pub fn render(scene: &Scene, request: &Request, cancel: &Cancel) -> Result<RenderData> {
     let options = render_options(request)?;
-    let progress = penumbra::report::Progress::hidden();
-    let out = penumbra::render::with_threads(request.threads, || {
-        penumbra::render::render(scene, &options, &progress)
-    })??;
+    let out = penumbra::render_with(scene, &options, cancel)?;
     let mut timings: Vec<(String, f64)> = Vec::new();
     for pass in &out.passes {
         let seconds = pass.time.as_secs_f64();
@@ -233,18 +204,6 @@ pub fn render(scene: &Scene, request: &Request, _cancel: &Cancel) -> Result<Rend
             None => timings.push((pass.name.clone(), seconds)),
         }
     }
-    let explain = Explain {
-        simd: penumbra::simd::level::describe(),
-        buffers: out
-            .buffers
-            .iter()
-            .map(|b| ExplainBuffer {
-                name: b.name.clone(),
-                detail: b.detail.clone(),
-                bytes: b.bytes,
-            })
-            .collect(),
-    };
     Ok(RenderData {
         width: out.width,
         height: out.height,
@@ -259,7 +218,7 @@ pub fn render(scene: &Scene, request: &Request, _cancel: &Cancel) -> Result<Rend
             .collect(),
         vcoef: out.lights.iter().map(|l| l.vcoef().to_vec()).collect(),
         timings,
-        explain_json: serde_json::to_string(&explain).expect("the explain report serializes"),
+        explain_json: serde_json::to_string(&out.explain).expect("the explain report serializes"),
         warnings: out.warnings.iter().map(|w| w.to_string()).collect(),
     })
 }
@@ -267,8 +226,7 @@ pub fn render(scene: &Scene, request: &Request, _cancel: &Cancel) -> Result<Rend
 /// Every registered technique and its capabilities, as JSON text (what
 /// `penumbra techniques --json` prints).
 pub fn techniques_json() -> String {
-    serde_json::to_string(&penumbra::shadow::registry::technique_data())
-        .expect("the registry serializes")
+    serde_json::to_string(&penumbra::techniques()).expect("the registry serializes")
 }
 
 /// Whether [`compare_json`] runs; until the crate's `compare` function is

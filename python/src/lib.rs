@@ -33,6 +33,9 @@ fn to_py_err(e: api::Error) -> PyErr {
         api::ErrorKind::File => SceneError::new_err(message),
         api::ErrorKind::Parameter => PyValueError::new_err(message),
         api::ErrorKind::Io => PyOSError::new_err(message),
+        // Only a raised cancel flag gets here, and the interrupt that
+        // raised it is re-raised instead (run_interruptible).
+        api::ErrorKind::Cancelled => PyKeyboardInterrupt::new_err(message),
     }
 }
 

@@ -40,7 +40,7 @@ def test_interrupt_reaches_the_caller_as_keyboard_interrupt(two_lights):
 )
 def test_interrupt_stops_a_long_render_promptly():
     scene = penumbra.load_scene(SCENES / "spheres.toml")
-    # Tens of seconds uncancelled (reference, 1024 samples, 256x256).
+    # About ten seconds uncancelled (reference, 1024 samples, 256x256).
     timer = interrupt_after(0.3)
     start = time.perf_counter()
     try:

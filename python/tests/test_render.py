@@ -78,7 +78,9 @@ def test_rows_run_top_to_bottom(two_lights):
 
 
 def test_timings_explain_and_warnings_are_data(two_lights):
-    out = two_lights.render(samples=4)
+    out = two_lights.render(samples=4, threads=1)
+    assert out.explain["technique"] == "dcs" and out.explain["samples"] == 4
+    assert out.explain["threads"] == 1
     assert out.timings and all(isinstance(s, float) and s >= 0 for s in out.timings.values())
     assert "gbuffer" in " ".join(out.timings)
     assert isinstance(out.explain["simd"], str)
