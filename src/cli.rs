@@ -527,6 +527,9 @@ fn run_compare(args: CompareArgs) -> Result<Outcome> {
             .iter()
             .map(|p| SamplePattern::parse(p.trim()).map_err(|e| Error::param("--patterns", e)))
             .collect::<Result<Vec<_>>>()?,
+        // The sweep runs in the pool of `threads` below (the references
+        // and shards too).
+        threads: None,
     };
     options.validate()?;
     if let Some(report) = &report {

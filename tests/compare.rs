@@ -38,6 +38,7 @@ fn options(cache: &Path, reference_samples: u32) -> CompareOptions {
         images: true,
         patterns: vec![penumbra::internal::sampling::SamplePattern::Stratified],
         verify: None,
+        threads: None,
     }
 }
 

@@ -483,6 +483,7 @@ fn a_dead_holders_lock_is_taken_over_and_references_only_fills_the_cache() {
         images: false,
         patterns: Vec::new(),
         verify: None,
+        threads: None,
     };
     let key = ReferenceKey {
         scene_hash: h.finish(),

@@ -281,15 +281,17 @@ def compare(
     height: Optional[int] = None,
     threads: Optional[int] = None,
     seed: int = 0,
-    out: PathLike = "compare",
+    out: Optional[PathLike] = None,
     cache_dir: Optional[PathLike] = None,
     images: bool = True,
 ) -> List[Dict[str, Any]]:
     """Runs ``penumbra compare``: every technique at every quality setting
-    against each scene's reference, timed. Returns one dict per run with
-    results.csv's columns (also written, with charts and images, to
-    ``out``). Arguments are the command line's, with the same defaults;
-    ``images=False`` is ``--no-images``."""
+    against each scene's reference, timed. Returns one dict per row of
+    results.csv (its columns as keys; empty cells are ``None``). With
+    ``out`` the files are written too (results.csv/json/md, charts and,
+    unless ``images=False``, images); without it nothing is written but
+    the reference cache. Other arguments are the command line's, with
+    the same defaults."""
     if isinstance(scenes, (str, os.PathLike)):
         scenes = [scenes]
     text = _penumbra.compare_json(
@@ -303,7 +305,7 @@ def compare(
         _unsigned("height", height, optional=True),
         _unsigned("threads", threads, optional=True),
         _unsigned("seed", seed),
-        os.fspath(out),
+        None if out is None else os.fspath(out),
         None if cache_dir is None else os.fspath(cache_dir),
         not images,
     )

@@ -129,9 +129,10 @@ def compare(
     height: Optional[int] = None,
     threads: Optional[int] = None,
     seed: int = 0,
-    out: _Path = "compare",
+    out: Optional[_Path] = None,
     cache_dir: Optional[_Path] = None,
     images: bool = True,
 ) -> List[Dict[str, Any]]:
-    """Runs ``penumbra compare`` and returns one dict per run with
-    results.csv's columns (the files are written to ``out`` too)."""
+    """Runs ``penumbra compare`` and returns one dict per row of
+    results.csv (its columns as keys; empty cells are ``None``); with
+    ``out`` the files are written there too."""

@@ -38,7 +38,7 @@ def compare_json(
     height: Optional[int],
     threads: Optional[int],
     seed: int,
-    out: str,
+    out: Optional[str],
     cache_dir: Optional[str],
     no_images: bool,
 ) -> str: ...

@@ -84,6 +84,9 @@ pub fn describe_error(e: &Error) -> (ErrorKind, String) {
                 format!("parameter `{name}`: {message}"),
             )
         }
+        // A kind added to the crate later: its words, as a parameter
+        // error (ValueError) until it gets its own Python class.
+        _ => (ErrorKind::Parameter, e.to_string()),
     }
 }
 
@@ -229,13 +232,10 @@ pub fn techniques_json() -> String {
     serde_json::to_string(&penumbra::techniques()).expect("the registry serializes")
 }
 
-/// Whether [`compare_json`] runs; until the crate's `compare` function is
-/// in, it returns `None`.
-pub const COMPARE_WIRED: bool = false;
+/// Whether [`compare_json`] runs (the notebook's last cell needs it).
+pub const COMPARE_WIRED: bool = true;
 
 /// A `compare` sweep's settings as Python gives them.
-// Read once `compare_json` calls the crate (see COMPARE_WIRED).
-#[allow(dead_code)]
 pub struct CompareRequest {
     /// Scene files.
     pub scenes: Vec<String>,
@@ -257,17 +257,51 @@ pub struct CompareRequest {
     pub threads: Option<usize>,
     /// The seed.
     pub seed: u64,
-    /// Output directory.
-    pub out: String,
-    /// Reference cache directory.
+    /// Output directory (`None`: no files but the reference cache).
+    pub out: Option<String>,
+    /// Reference cache directory (`None`: the command line's default).
     pub cache_dir: Option<String>,
     /// Skip per-run images and heat maps.
     pub no_images: bool,
 }
 
 /// Runs a `compare` sweep and returns its records (results.csv's rows) as
-/// a JSON array of objects; `None` while the crate has no `compare`
-/// function to call.
-pub fn compare_json(_request: &CompareRequest) -> Option<Result<String>> {
-    None
+/// a JSON array of objects with results.csv's column names.
+pub fn compare_json(request: &CompareRequest) -> Option<Result<String>> {
+    Some(compare_records(request))
+}
+
+fn compare_records(request: &CompareRequest) -> Result<String> {
+    use penumbra::{CompareOptions, SamplePattern, Technique};
+    let scenes = (request.scenes.iter())
+        .map(|p| penumbra::load_scene(Path::new(p)))
+        .collect::<Result<Vec<_>>>()?;
+    let techniques = (request.techniques.iter())
+        .map(|t| Technique::named(t.trim()))
+        .collect::<Result<Vec<_>>>()?;
+    let patterns = (request.patterns.iter())
+        .map(|p| SamplePattern::parse(p.trim()).map_err(|e| Error::param("--patterns", e)))
+        .collect::<Result<Vec<_>>>()?;
+    let out = request.out.as_deref().map(Path::new);
+    let defaults = CompareOptions::default();
+    // The command line's cache unless one is given ($PENUMBRA_CACHE,
+    // then the user's cache folder): references are shared with it.
+    let cache_dir =
+        (request.cache_dir.as_ref()).map_or_else(|| defaults.cache_dir.clone(), Into::into);
+    let options = CompareOptions {
+        techniques,
+        samples: request.samples.clone(),
+        reference_samples: request.reference_samples,
+        patterns,
+        repeat: request.repeat,
+        width: request.width,
+        height: request.height,
+        threads: request.threads,
+        seed: request.seed,
+        cache_dir,
+        images: !request.no_images,
+        ..defaults
+    };
+    let records = penumbra::compare(&scenes, &options, out)?;
+    Ok(serde_json::to_string(&records).expect("the records serialize"))
 }

@@ -217,7 +217,7 @@ fn compare_json(
     height: Option<u32>,
     threads: Option<usize>,
     seed: u64,
-    out: String,
+    out: Option<String>,
     cache_dir: Option<String>,
     no_images: bool,
 ) -> PyResult<String> {
@@ -237,10 +237,12 @@ fn compare_json(
         no_images,
     };
     let cancel = api::Cancel::default();
+    // Ctrl-C is heard, but the sweep itself has no stop point: it ends
+    // its work first.
     match run_interruptible(py, &cancel, || api::compare_json(&request))? {
         Some(result) => result.map_err(to_py_err),
         None => Err(PyNotImplementedError::new_err(
-            "penumbra.compare needs the crate's compare function, which this build does not bind yet",
+            "penumbra.compare is not bound in this build",
         )),
     }
 }

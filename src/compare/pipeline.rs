@@ -103,7 +103,11 @@ pub fn compare(
             report: None,
             command,
         });
-    let results = sweep(scenes, options, files.as_ref(), &Progress::hidden())?;
+    let run = || sweep(scenes, options, files.as_ref(), &Progress::hidden());
+    let results = match options.threads {
+        Some(_) => crate::render::with_threads(options.threads, run)??,
+        None => run()?,
+    };
     verified(&results.iter().collect::<Vec<_>>())?;
     Ok(records(&results))
 }

@@ -38,6 +38,9 @@ pub struct CompareOptions {
     /// `--verify K`: relations re-cast with shadow rays per run of a
     /// technique that exposes its decisions (not timed).
     pub verify: Option<u64>,
+    /// Worker threads of [`crate::compare::compare`] (all cores when
+    /// `None`); the command line runs the sweep in its own pool.
+    pub threads: Option<usize>,
 }
 
 impl Default for CompareOptions {
@@ -63,6 +66,7 @@ impl Default for CompareOptions {
             images: true,
             patterns: vec![SamplePattern::Stratified],
             verify: None,
+            threads: None,
         }
     }
 }
