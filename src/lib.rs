@@ -75,7 +75,7 @@ pub(crate) use internal::{
     sampling, scene, shade, shadow, simd, view,
 };
 
-pub use compare::{compare, CompareOptions, Record, CSV_COLUMNS};
+pub use compare::{compare, compare_with, CompareOptions, Record, CSV_COLUMNS};
 pub use error::{Error, Result};
 pub use observe::{Cancel, Observer, Silent};
 pub use output::Layer;

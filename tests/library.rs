@@ -271,3 +271,30 @@ fn the_techniques_are_data() {
     assert!(exact.contains(&"dcs") && exact.contains(&"reference"));
     assert!(!exact.contains(&"shadow-map"));
 }
+
+#[test]
+fn a_cancelled_compare_returns_cancelled_and_writes_no_tables() {
+    let dir = std::env::temp_dir().join(format!("penumbra-library-cmp-{}", std::process::id()));
+    let options = penumbra::CompareOptions {
+        techniques: vec![Technique::named("dcs").unwrap()],
+        samples: vec![4],
+        reference_samples: 64,
+        repeat: 1,
+        width: Some(16),
+        height: Some(12),
+        cache_dir: dir.join("cache"),
+        images: false,
+        ..penumbra::CompareOptions::default()
+    };
+    let out = dir.join("out");
+    let cancel = Cancel::new();
+    cancel.cancel();
+    let result = penumbra::compare_with(&[scene()], &options, Some(&out), &cancel);
+    assert!(matches!(result, Err(Error::Cancelled)), "{result:?}");
+    assert!(!out.join("results.csv").exists());
+    // Not raised: the same call gives its records.
+    let records = penumbra::compare_with(&[scene()], &options, Some(&out), &Cancel::new())
+        .expect("compare");
+    assert!(!records.is_empty() && out.join("results.csv").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -266,12 +266,13 @@ pub struct CompareRequest {
 }
 
 /// Runs a `compare` sweep and returns its records (results.csv's rows) as
-/// a JSON array of objects with results.csv's column names.
-pub fn compare_json(request: &CompareRequest) -> Option<Result<String>> {
-    Some(compare_records(request))
+/// a JSON array of objects with results.csv's column names; stops with
+/// [`Error::Cancelled`] once `cancel` is raised.
+pub fn compare_json(request: &CompareRequest, cancel: &Cancel) -> Option<Result<String>> {
+    Some(compare_records(request, cancel))
 }
 
-fn compare_records(request: &CompareRequest) -> Result<String> {
+fn compare_records(request: &CompareRequest, cancel: &Cancel) -> Result<String> {
     use penumbra::{CompareOptions, SamplePattern, Technique};
     let scenes = (request.scenes.iter())
         .map(|p| penumbra::load_scene(Path::new(p)))
@@ -302,6 +303,6 @@ fn compare_records(request: &CompareRequest) -> Result<String> {
         images: !request.no_images,
         ..defaults
     };
-    let records = penumbra::compare(&scenes, &options, out)?;
+    let records = penumbra::compare_with(&scenes, &options, out, cancel)?;
     Ok(serde_json::to_string(&records).expect("the records serialize"))
 }

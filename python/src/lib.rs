@@ -237,9 +237,7 @@ fn compare_json(
         no_images,
     };
     let cancel = api::Cancel::default();
-    // Ctrl-C is heard, but the sweep itself has no stop point: it ends
-    // its work first.
-    match run_interruptible(py, &cancel, || api::compare_json(&request))? {
+    match run_interruptible(py, &cancel, || api::compare_json(&request, &cancel))? {
         Some(result) => result.map_err(to_py_err),
         None => Err(PyNotImplementedError::new_err(
             "penumbra.compare is not bound in this build",

@@ -49,3 +49,26 @@ def test_interrupt_stops_a_long_render_promptly():
     finally:
         timer.cancel()
     assert time.perf_counter() - start < 2.0
+
+
+def test_interrupt_stops_a_compare_sweep_promptly(tmp_path):
+    # Uncancelled, the reference alone (8192 samples at 256x256) takes
+    # tens of seconds; nothing is written but what the cache began.
+    timer = interrupt_after(0.3)
+    start = time.perf_counter()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            penumbra.compare(
+                SCENES / "spheres.toml",
+                techniques=["dcs"],
+                samples=[4],
+                reference_samples=8192,
+                width=256,
+                height=256,
+                out=tmp_path / "out",
+                cache_dir=tmp_path / "cache",
+            )
+    finally:
+        timer.cancel()
+    assert time.perf_counter() - start < 2.0
+    assert not (tmp_path / "out" / "results.csv").exists()

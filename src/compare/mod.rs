@@ -52,7 +52,7 @@ pub use merge::merge_partials;
 pub use model::{
     NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
 };
-pub use pipeline::{compare, compare_scene, scene_dir};
+pub use pipeline::{compare, compare_scene, compare_with, scene_dir};
 pub(crate) use pipeline::{sweep, SweepOutput};
 pub use record::{records, Record, CSV_COLUMNS};
 pub use reference::reference_only;

@@ -12,6 +12,7 @@ use super::results::{verified, write_results};
 use super::run::{run_result, time_setting};
 use super::settings::{quality_settings, CompareOptions};
 use crate::error::{Error, Result};
+use crate::observe::Cancel;
 use crate::output::write_png;
 use crate::render::{verify_render, RenderOptions};
 use crate::report::Progress;
@@ -95,6 +96,18 @@ pub fn compare(
     options: &CompareOptions,
     out: Option<&Path>,
 ) -> Result<Vec<Record>> {
+    compare_with(scenes, options, out, &Cancel::new())
+}
+
+/// [`compare`], stopping with [`crate::Error::Cancelled`] (between runs
+/// and inside each render) once `cancel` is raised; a cancelled sweep
+/// writes no result tables (images of runs already done stay).
+pub fn compare_with(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    out: Option<&Path>,
+    cancel: &Cancel,
+) -> Result<Vec<Record>> {
     let command = out.map(|dir| equivalent_command(scenes, options, dir));
     let files = out
         .zip(command.as_deref())
@@ -103,7 +116,8 @@ pub fn compare(
             report: None,
             command,
         });
-    let run = || sweep(scenes, options, files.as_ref(), &Progress::hidden());
+    let progress = Progress::hidden().with_cancel(cancel.clone());
+    let run = || sweep(scenes, options, files.as_ref(), &progress);
     let results = match options.threads {
         Some(_) => crate::render::with_threads(options.threads, run)??,
         None => run()?,

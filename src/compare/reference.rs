@@ -10,7 +10,7 @@ use super::model::{NoiseFloor, RegionMetrics};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
-use crate::render::{render, Aov, Render, RenderOptions, Technique};
+use crate::render::{render, render_with, Aov, Render, RenderOptions, Technique};
 use crate::report::{
     error_metrics, flip_rgb8, interior_mask, ErrorAccumulator, FlipRegions, Progress,
 };
@@ -330,7 +330,7 @@ pub(super) fn reference(
     let mut mask = Vec::new();
     for (i, &seed) in key.seeds.iter().enumerate() {
         progress.stage(&format!("reference half {}/2", i + 1));
-        let out = render(
+        let out = render_with(
             scene,
             &RenderOptions {
                 aovs: vec![Aov::Mask],
@@ -339,6 +339,7 @@ pub(super) fn reference(
                 seed,
                 ..view_options.clone()
             },
+            progress.cancel(),
         )?;
         mask = out
             .layers

@@ -9,7 +9,7 @@ use super::reference::{vcoef_of, ReferenceImages};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
-use crate::render::{render, Render, RenderOptions};
+use crate::render::{render_with, Render, RenderOptions};
 use crate::report::{flip_rgb8, Progress};
 use crate::shadow::technique::QualitySetting;
 use std::path::Path;
@@ -48,7 +48,7 @@ pub(super) fn time_setting(
             repeat
         ));
         let start = Instant::now();
-        let rendered = render(scene, setting_options)?;
+        let rendered = render_with(scene, setting_options, progress.cancel())?;
         totals.push(start.elapsed().as_secs_f64() * 1e3);
         if pass_names.is_empty() {
             pass_names = rendered.passes.iter().map(|p| p.name.clone()).collect();

@@ -4,6 +4,7 @@
 //! probe renders that feed it are `crate::render::estimate`'s: report
 //! does not call render).
 
+use crate::observe::Cancel;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use std::fmt::Write;
 use std::io::IsTerminal;
@@ -25,6 +26,8 @@ pub struct Progress {
     bar: ProgressBar,
     /// Set once the work is done: a bar not yet shown never shows.
     done: Arc<Mutex<bool>>,
+    /// Raised to stop the work (a library caller's [`Cancel`]).
+    cancel: Cancel,
 }
 
 impl Progress {
@@ -86,7 +89,23 @@ impl Progress {
                 }
             });
         }
-        Progress { bar, done }
+        Progress {
+            bar,
+            done,
+            cancel: Cancel::new(),
+        }
+    }
+
+    /// This reporter, its work stopped once `cancel` is raised.
+    pub fn with_cancel(mut self, cancel: Cancel) -> Self {
+        self.cancel = cancel;
+        self
+    }
+
+    /// The work's cancel flag: an observer for the renders inside the
+    /// work, which stops them without counting their stages as steps.
+    pub fn cancel(&self) -> &Cancel {
+        &self.cancel
     }
 
     /// A reporter that never draws.
@@ -113,7 +132,8 @@ impl Progress {
     }
 }
 
-/// The command line's bar hears a render's stages; it never cancels.
+/// The command line's bar hears a render's stages, and stops it when
+/// its cancel flag is raised.
 impl crate::observe::Observer for Progress {
     fn stage(&self, name: &str) {
         Progress::stage(self, name);
@@ -121,6 +141,10 @@ impl crate::observe::Observer for Progress {
 
     fn step(&self) {
         Progress::step(self);
+    }
+
+    fn cancelled(&self) -> bool {
+        self.cancel.is_cancelled()
     }
 }
 
