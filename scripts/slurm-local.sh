@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A one-node Slurm cluster on this machine, for tests/slurm.rs and for
+# A one-node Slurm cluster on this machine, for tests/it/slurm.rs and for
 # trying `penumbra sweep --slurm` (docs/cluster.md).
 #
 #   scripts/slurm-local.sh start    install (Debian packages), configure, start

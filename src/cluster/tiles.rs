@@ -19,7 +19,7 @@
 //!
 //! A technique that looks at *other* pixels needs those to be real:
 //! [`kept_rows`] widens the band to the rows it reads, or refuses the
-//! technique with the reason. `tests/render_tiles.rs` holds every
+//! technique with the reason. `tests/it/render_tiles.rs` holds every
 //! registered technique to this: band by band, the assembled image equals
 //! the single render's bytes, or the technique is refused.
 //!
@@ -104,7 +104,7 @@ pub fn kept_rows(options: &RenderOptions, rows: Range<u32>, height: u32) -> Resu
             ),
         ))
     };
-    // Each technique says in the registry (tests/render_tiles.rs checks
+    // Each technique says in the registry (tests/it/render_tiles.rs checks
     // the claim: a band's pixels equal the whole frame's).
     match technique.info().bands {
         Bands::Rows => Ok(rows),

@@ -8,7 +8,7 @@
 //! Adding a technique is its folder under `src/shadow/` (with a leaf
 //! `options.rs` and one line in [`super::options`] if it brings options of
 //! its own), `pub mod` in `shadow/mod.rs` and one line in [`TECHNIQUES`]
-//! (docs/architecture.md, "How to add a technique"; `tests/registry.rs`
+//! (docs/architecture.md, "How to add a technique"; `tests/it/registry.rs`
 //! fails when the list and the folders disagree).
 
 use super::options::{OptionGroup, TechniqueOptions};

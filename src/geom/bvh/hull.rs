@@ -33,7 +33,7 @@
 //! |x − o|` of `x − o`; the planes' f32 normals tilt by `≤ ε`. The sum is below `16 ε R ≈
 //! 2 × 10⁻⁶ R`; the margin is five times that. So a triangle left out is
 //! one no ray of the bundle can hit, and the rays' answers are those of
-//! their own walks. `tests/reference.rs` holds the two paths against each
+//! their own walks. `tests/it/reference.rs` holds the two paths against each
 //! other over every receiver of the shipped scenes.
 
 use super::packet::Packet;

@@ -29,7 +29,7 @@
 //! depth test. A lane tests a leaf's triangles only if every box above the
 //! leaf passed for that lane (the stack carries lane masks), so each lane
 //! tests the triangles its own walk would test; only the order differs,
-//! which an "any hit" answer does not see. `tests/reference.rs` holds the
+//! which an "any hit" answer does not see. `tests/it/reference.rs` holds the
 //! two against each other ray by ray.
 
 use super::{Bvh, Node, Ray, Rel, FAR_SCALE, STACK};

@@ -30,7 +30,7 @@
 //!   tree's shape. (The scene BVH's f32 slab test is conservative for the
 //!   exact segment, Ize 2013, without a margin for the triangle test's
 //!   own rounding; the two agree unless a triangle is accepted only
-//!   within rounding of its box, which `tests/reference.rs` never meets
+//!   within rounding of its box, which `tests/it/reference.rs` never meets
 //!   on 100k random segments and the same-bits renders never met either.)
 
 use crate::geom::bvh::intersect_triangle;

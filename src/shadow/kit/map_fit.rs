@@ -5,7 +5,7 @@
 //! in depth: a small caster next to the light and a ground far away give
 //! a box whose corner near the light spans a huge angle (up to the
 //! clamp of [`MAX_TAN`]), and the map's texels grow a hundredfold (every
-//! stiff case of `tests/shadow_map_stiff.rs` but contact: acne or lost
+//! stiff case of `tests/it/shadow_map_stiff.rs` but contact: acne or lost
 //! shadows everywhere). A receiver's shadow from the map's eye can only
 //! come from a caster in front of it, so the window needed is
 //!
