@@ -226,6 +226,32 @@ pub fn render(scene: &Scene, request: &Request, cancel: &Cancel) -> Result<Rende
     })
 }
 
+/// The crate's defaults of the arguments Python writes out in its
+/// signatures (`RenderOptions::default()`, `CompareOptions::default()`),
+/// as JSON text: a test holds the signatures to them.
+pub fn defaults_json() -> String {
+    let render = penumbra::RenderOptions::default();
+    let compare = penumbra::CompareOptions::default();
+    serde_json::json!({
+        "render": {
+            "technique": render.technique.name(),
+            "samples": render.samples,
+            "seed": render.seed,
+            "pattern": render.pattern.name(),
+        },
+        "compare": {
+            "techniques": compare.techniques.iter().map(|t| t.name()).collect::<Vec<_>>(),
+            "samples": compare.samples,
+            "reference_samples": compare.reference_samples,
+            "patterns": compare.patterns.iter().map(|p| p.name()).collect::<Vec<_>>(),
+            "repeat": compare.repeat,
+            "seed": compare.seed,
+            "images": compare.images,
+        },
+    })
+    .to_string()
+}
+
 /// Every registered technique and its capabilities, as JSON text (what
 /// `penumbra techniques --json` prints).
 pub fn techniques_json() -> String {

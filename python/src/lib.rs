@@ -195,6 +195,12 @@ fn scene_from_toml(py: Python<'_>, text: String, base_dir: PathBuf) -> PyResult<
     Ok(NativeScene { scene })
 }
 
+/// The crate's defaults of the Python signatures' arguments, as JSON text.
+#[pyfunction]
+fn defaults_json() -> String {
+    api::defaults_json()
+}
+
 /// The technique registry as JSON text.
 #[pyfunction]
 fn techniques_json() -> String {
@@ -252,6 +258,7 @@ fn _penumbra(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_scene, m)?)?;
     m.add_function(wrap_pyfunction!(scene_from_toml, m)?)?;
     m.add_function(wrap_pyfunction!(techniques_json, m)?)?;
+    m.add_function(wrap_pyfunction!(defaults_json, m)?)?;
     m.add_function(wrap_pyfunction!(compare_json, m)?)?;
     m.add("SceneError", m.py().get_type::<SceneError>())?;
     m.add("CANCEL_WIRED", api::CANCEL_WIRED)?;

@@ -117,11 +117,9 @@ pub fn compare_with(
             command,
         });
     let progress = Progress::hidden().with_cancel(cancel.clone());
-    let run = || sweep(scenes, options, files.as_ref(), &progress);
-    let results = match options.threads {
-        Some(_) => crate::render::with_threads(options.threads, run)??,
-        None => run()?,
-    };
+    let results = crate::render::with_threads(options.threads, || {
+        sweep(scenes, options, files.as_ref(), &progress)
+    })??;
     verified(&results.iter().collect::<Vec<_>>())?;
     Ok(records(&results))
 }

@@ -281,12 +281,9 @@ pub fn render_with(
     observer: &dyn Observer,
 ) -> Result<Render> {
     options.validate()?;
-    match options.threads {
-        Some(_) => with_threads(options.threads, || {
-            render_rows(scene, options, observer, None)
-        })?,
-        None => render_rows(scene, options, observer, None),
-    }
+    with_threads(options.threads, || {
+        render_rows(scene, options, observer, None)
+    })?
 }
 
 /// Renders a scene with only the pixels of `rows` as receivers (all when
@@ -517,19 +514,20 @@ pub fn aov_layers(
     layers
 }
 
-/// Runs `f` on a thread pool of `threads` threads (all cores when `None`).
+/// Runs `f` on a thread pool of `threads` threads, or where it is called
+/// (rayon's global pool: all cores) when `None`; the bits are the same.
 pub fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> Result<R> {
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = threads {
-        if !(1..=MAX_THREADS).contains(&n) {
-            return Err(Error::param(
-                "--threads",
-                format!("{n} is outside 1..={MAX_THREADS}"),
-            ));
-        }
-        builder = builder.num_threads(n);
+    let Some(n) = threads else {
+        return Ok(f());
+    };
+    if !(1..=MAX_THREADS).contains(&n) {
+        return Err(Error::param(
+            "--threads",
+            format!("{n} is outside 1..={MAX_THREADS}"),
+        ));
     }
-    let pool = builder
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
         .build()
         .map_err(|e| Error::param("--threads", e.to_string()))?;
     Ok(pool.install(f))

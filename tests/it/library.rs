@@ -1,7 +1,8 @@
 //! The library through its public interface only (the crate root): no
-//! `penumbra::internal` here, so this file fails to build when the
-//! interface loses something a program needs.
+//! `penumbra::internal` here (the shared test helpers aside), so this file
+//! fails to build when the interface loses something a program needs.
 
+use crate::common;
 use penumbra::{
     load_scene, render, render_with, scene_from_toml, techniques, Aov, Cancel, Error, Observer,
     RenderOptions, Technique,
@@ -46,21 +47,6 @@ fn options(technique: &str, threads: Option<usize>) -> RenderOptions {
         threads,
         ..RenderOptions::default()
     }
-}
-
-fn bits(image: &penumbra::Render) -> Vec<u32> {
-    let mut out: Vec<u32> = image
-        .radiance
-        .iter()
-        .flat_map(|c| c.to_array())
-        .map(f32::to_bits)
-        .collect();
-    for layer in &image.layers {
-        for (_, channel) in &layer.channels {
-            out.extend(channel.iter().map(|v| v.to_bits()));
-        }
-    }
-    out
 }
 
 #[test]
@@ -110,7 +96,8 @@ fn the_bits_do_not_depend_on_the_thread_count() {
         assert_eq!(one.explain.threads, 1);
         assert_eq!(two.explain.threads, 2);
         assert!(
-            bits(&one) == bits(&two) && bits(&one) == bits(&all),
+            common::render_bits(&one) == common::render_bits(&two)
+                && common::render_bits(&one) == common::render_bits(&all),
             "{technique}"
         );
     }
@@ -124,7 +111,7 @@ fn a_file_and_its_text_give_the_same_image() {
     std::fs::write(&path, SCENE).unwrap();
     let from_file = render(&load_scene(&path).expect("load"), &options("dcs", None)).unwrap();
     let from_text = render(&scene(), &options("dcs", None)).unwrap();
-    assert!(bits(&from_file) == bits(&from_text));
+    assert!(common::render_bits(&from_file) == common::render_bits(&from_text));
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -167,7 +154,7 @@ fn an_observer_hears_every_stage_and_changes_no_bit() {
     let recorder = Recorder::new(None);
     let heard = render_with(&scene, &options("dcs", Some(2)), &recorder).expect("render");
     let silent = render(&scene, &options("dcs", Some(2))).expect("render");
-    assert!(bits(&heard) == bits(&silent));
+    assert!(common::render_bits(&heard) == common::render_bits(&silent));
     let stages = recorder.stages.lock().unwrap().clone();
     assert_eq!(stages, ["geometry", "g-buffer", "shadows", "shading"]);
     assert_eq!(recorder.steps.load(Ordering::Relaxed), 4);
