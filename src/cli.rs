@@ -897,13 +897,24 @@ fn warn_unread_options(options: &RenderOptions, scene: &Scene, given: &[(String,
     }
 }
 
-/// Entry point for `main`: parses, runs, prints errors, returns the exit
-/// code.
+/// Entry point for `main`: parses the process's arguments, runs, prints
+/// errors, returns the exit code.
 pub fn main_with_args() -> std::process::ExitCode {
+    main_with(std::env::args_os())
+}
+
+/// [`main_with_args`] on given arguments (the first is the program name).
+/// The unit-test harness runs the command through it (CI's renders at
+/// each SIMD level, `tests::command_lines_from_env`).
+pub fn main_with<I, T>(args: I) -> std::process::ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
     use clap::parser::ValueSource;
     use clap::{CommandFactory, FromArgMatches};
     let mut command = short_help_kept_short(Cli::command());
-    let matches = match command.try_get_matches_from_mut(std::env::args_os()) {
+    let matches = match command.try_get_matches_from_mut(args) {
         Ok(m) => m,
         Err(e) => return clap_exit(e),
     };
@@ -1000,6 +1011,30 @@ fn technique_parser() -> impl clap::builder::TypedValueParser<Value = Technique>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Runs the `penumbra` command lines listed in the file that
+    /// `PENUMBRA_COMMAND_LINES` names (one per line, shell words, without
+    /// the program name), each of which must succeed. CI's check of the
+    /// same bits at every SIMD level builds this harness at each level
+    /// instead of the binary too: one build of the crate per level, not
+    /// two, and the check that the harness's images equal the binary's at
+    /// the baseline ties the two together (`.ci/run`).
+    #[test]
+    #[ignore = "run by .ci/run with PENUMBRA_COMMAND_LINES"]
+    fn command_lines_from_env() {
+        let path = std::env::var("PENUMBRA_COMMAND_LINES")
+            .expect("PENUMBRA_COMMAND_LINES names no file of command lines");
+        let text = std::fs::read_to_string(&path).expect("the command lines' file reads");
+        let mut ran = 0;
+        for line in text.lines().filter(|l| !l.trim().is_empty()) {
+            let words = shlex::split(line).expect("the command line is shell words");
+            let args = std::iter::once("penumbra".to_string()).chain(words);
+            let code = main_with(args);
+            assert_eq!(code, std::process::ExitCode::SUCCESS, "{line}");
+            ran += 1;
+        }
+        assert!(ran > 0, "{path} lists no command line");
+    }
 
     /// Fitted to 80 columns, the listing keeps every word in order, starts
     /// each technique's line with its name and indents the rest under the
