@@ -39,12 +39,23 @@ struct MaterialKey {
 
 impl MaterialKey {
     fn of(m: &Material) -> Self {
-        let [a, b, c] = m.albedo.to_array();
-        let [d, e, f] = m.specular.to_array();
+        // Destructured, so that a field added to `Material` cannot be left
+        // out of its identity.
+        let Material {
+            name,
+            albedo,
+            albedo_texture,
+            specular,
+            shininess,
+            opacity,
+            opacity_texture,
+        } = m;
+        let [a, b, c] = albedo.to_array();
+        let [d, e, f] = specular.to_array();
         MaterialKey {
-            name: m.name.clone(),
-            floats: [a, b, c, d, e, f, m.shininess, m.opacity].map(|x| (x + 0.0).to_bits()),
-            textures: [m.albedo_texture, m.opacity_texture],
+            name: name.clone(),
+            floats: [a, b, c, d, e, f, *shininess, *opacity].map(|x| (x + 0.0).to_bits()),
+            textures: [*albedo_texture, *opacity_texture],
         }
     }
 }
