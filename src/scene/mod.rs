@@ -13,6 +13,7 @@ pub mod input;
 pub mod lint;
 mod load;
 mod obj;
+mod ply;
 mod shapes;
 mod texture;
 

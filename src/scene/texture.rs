@@ -39,7 +39,7 @@ pub struct Texture {
 const LUMA: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
 
 /// The exact sRGB decoding curve.
-fn srgb_to_linear(c: f32) -> f32 {
+pub(super) fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
         c / 12.92
     } else {
