@@ -648,6 +648,27 @@ fn place(
     Ok(before - mesh.triangles.len())
 }
 
+/// Reads an object's mesh file, referenced from `from:line`. The reader
+/// is chosen by the file's extension (`.ply`; anything else is read as
+/// OBJ), and each reader checks that the content is its format: the OBJ
+/// reader refuses a PLY, glTF, STL or OFF file by what it holds.
+fn load_mesh_file(
+    path: &Path,
+    from: &Path,
+    line: usize,
+    material: Option<u32>,
+    assets: &mut Assets,
+) -> Result<Mesh> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match extension.as_deref() {
+        Some("ply") => super::ply::load_ply(path, from, line, material, assets),
+        _ => super::obj::load_obj(path, from, line, material, assets),
+    }
+}
+
 /// Builds object `i`; `before` is the triangle count of the objects loaded
 /// before it (for the memory estimate of built-in shapes and in-memory
 /// meshes).
@@ -688,7 +709,7 @@ fn object(
             } else {
                 let path = ctx.resolve(file.get_ref());
                 let line = ctx.line(file.span().start);
-                let mesh = super::obj::load_obj(&path, ctx.path, line, material, assets)?;
+                let mesh = load_mesh_file(&path, ctx.path, line, material, assets)?;
                 let stem = path
                     .file_stem()
                     .map_or("obj".into(), |s| s.to_string_lossy().into_owned());

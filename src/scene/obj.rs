@@ -659,12 +659,16 @@ pub(super) fn load_obj(
 fn read_obj_text(path: &Path, from: &Path, line: usize) -> Result<String> {
     let bytes = read_bytes(path, "OBJ", from, line)?;
     if let Some(format) = other_mesh_format(path, &bytes) {
+        let read_as = match format {
+            "PLY" => "; PLY is read from files named `.ply`",
+            _ => "",
+        };
         return Err(Error::file(
             from,
             Some(line),
             format!(
-                "`{}` is a {format} file; penumbra reads meshes only as Wavefront OBJ \
-                 (`.obj`, with its `.mtl` files)",
+                "`{}` is a {format} file; penumbra reads meshes as Wavefront OBJ \
+                 (`.obj`, with its `.mtl` files) and PLY (`.ply`){read_as}",
                 path.display()
             ),
         ));

@@ -1035,8 +1035,6 @@ fn linear_to_srgb(c: f32) -> f32 {
 /// (unusable ones replaced by the face's geometric normal, as for OBJ);
 /// without them the geometric normal is used. Degenerate triangles are
 /// left for the loader, which drops them after the transform.
-// Until `load.rs` calls it (the dispatch by extension and content).
-#[allow(dead_code)]
 pub(super) fn load_ply(
     path: &Path,
     from: &Path,

@@ -1,6 +1,6 @@
 //! What penumbra reads and what it refuses to read: only regular files
 //! (a FIFO would block, `/dev/zero` never ends), at most the input size
-//! limit, and meshes only as OBJ (other mesh formats would load as
+//! limit, and meshes only as OBJ or PLY (other mesh formats would load as
 //! nothing). Every input file goes through `penumbra::internal::scene::input::read`:
 //! scenes, OBJ and MTL files, textures, `diff` images and tile parts.
 
@@ -194,8 +194,12 @@ fn other_mesh_formats_are_refused_by_extension_and_content() {
         ("glb", &glb, "binary glTF"),
     ];
     for (ext, bytes, format) in cases {
-        // By extension, and by content alone (named `.obj`).
+        // By extension, and by content alone (named `.obj`); a file named
+        // `.ply` goes to the PLY reader (below).
         for name in [format!("mesh.{ext}"), format!("mesh-{ext}.obj")] {
+            if name.ends_with(".ply") {
+                continue;
+            }
             dir.write(&name, bytes);
             let msg = load_error(&name, dir.scene(&format!("obj = \"{name}\"")));
             let by_content = name.ends_with(".obj");
@@ -208,11 +212,25 @@ fn other_mesh_formats_are_refused_by_extension_and_content() {
                 msg.contains(&format!("scene.toml:13: `{}", dir.0.display()))
                     && msg.contains(&format!("{name}` is a"))
                     && msg.contains(want)
-                    && msg.contains("only as Wavefront OBJ"),
+                    && msg.contains("penumbra reads meshes as Wavefront OBJ"),
                 "{name}: {msg}"
             );
+            if format == "PLY" {
+                assert!(msg.contains("PLY is read from files named `.ply`"), "{msg}");
+            }
         }
     }
+    // Named `.ply`, the PLY reader reads it: the well-formed file loads,
+    // the truncated binary one is refused naming the element.
+    dir.write("mesh.ply", ply_ascii.as_bytes());
+    let scene = load_scene(&dir.scene("obj = \"mesh.ply\"")).expect("a PLY named .ply loads");
+    assert_eq!(scene.objects[0].mesh.triangle_count(), 1);
+    dir.write("broken.ply", &ply_binary);
+    let msg = load_error("broken.ply", dir.scene("obj = \"broken.ply\""));
+    assert!(
+        msg.contains("broken.ply") && msg.contains("`vertex`"),
+        "{msg}"
+    );
     // An OBJ is still an OBJ, whatever its extension.
     dir.write("quad.txt", QUAD_OBJ);
     let scene = load_scene(&dir.scene("obj = \"quad.txt\"")).expect("an OBJ named .txt loads");
