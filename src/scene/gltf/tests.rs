@@ -828,3 +828,43 @@ fn truncated_glb_never_panics() {
         }
     }
 }
+
+#[test]
+fn a_mesh_on_two_nodes_is_placed_twice() {
+    let mut d = Doc::new();
+    let p = d.floats(&TRIANGLE, "VEC3");
+    let m = d.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p}}]}),
+    );
+    d.root_node(json!({"mesh": m}));
+    d.root_node(json!({"mesh": m, "translation": [0, 0, 3]}));
+    let mesh = load(&d.write("instances")).unwrap().mesh;
+    assert_eq!(mesh.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+    assert_eq!(
+        mesh.positions[3..],
+        mesh.positions[..3]
+            .iter()
+            .map(|p| *p + Vec3::Z * 3.0)
+            .collect::<Vec<_>>()
+    );
+}
+
+#[test]
+fn quantized_positions_read_when_the_extension_is_required() {
+    let mut d = Doc::new();
+    // Normalized shorts, each element padded to 8 bytes.
+    let shorts: [i16; 12] = [0, 0, 0, 0, 32767, 0, 0, 0, 0, -32767, 0, 0];
+    let bytes: Vec<u8> = shorts.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let v = d.view(&bytes, Some(8));
+    let p = d.push(
+        "accessors",
+        json!({"bufferView": v, "componentType": 5122, "normalized": true, "count": 3, "type": "VEC3"}),
+    );
+    d.mesh_node(json!({"attributes": {"POSITION": p}}));
+    d.json["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    d.json["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    let model = load(&d.write("quantized")).unwrap();
+    assert_eq!(model.mesh.positions, vec![Vec3::ZERO, Vec3::X, Vec3::NEG_Y]);
+    assert!(model.warnings.is_empty(), "{:?}", model.warnings);
+}
