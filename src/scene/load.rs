@@ -649,9 +649,10 @@ fn place(
 }
 
 /// Reads an object's mesh file, referenced from `from:line`. The reader
-/// is chosen by the file's extension (`.ply`; anything else is read as
-/// OBJ), and each reader checks that the content is its format: the OBJ
-/// reader refuses a PLY, glTF, STL or OFF file by what it holds.
+/// is chosen by the file's extension (`.ply`, `.gltf`, `.glb`; anything
+/// else is read as OBJ), and each reader checks that the content is its
+/// format: the OBJ reader refuses a PLY, glTF, STL or OFF file by what it
+/// holds.
 fn load_mesh_file(
     path: &Path,
     from: &Path,
@@ -665,6 +666,13 @@ fn load_mesh_file(
         .map(str::to_ascii_lowercase);
     match extension.as_deref() {
         Some("ply") => super::ply::load_ply(path, from, line, material, assets),
+        Some("gltf" | "glb") => {
+            let model = super::gltf::load_gltf(path, from, line, material, assets)?;
+            for warning in &model.warnings {
+                eprintln!("warning: {warning}");
+            }
+            Ok(model.mesh)
+        }
         _ => super::obj::load_obj(path, from, line, material, assets),
     }
 }

@@ -1,4 +1,5 @@
-//! Scenes: the TOML contract (`shared/spec/scene-format.md`), OBJ/MTL models,
+//! Scenes: the TOML contract (`shared/spec/scene-format.md`), OBJ/MTL, PLY
+//! and glTF models,
 //! built-in shapes, materials, textures, lights and the camera; from a file,
 //! from TOML text or built in code ([`SceneBuilder`]).
 //!
@@ -9,6 +10,7 @@
 mod assets;
 mod builder;
 pub mod frame;
+mod gltf;
 pub mod input;
 pub mod lint;
 mod load;

@@ -661,6 +661,9 @@ fn read_obj_text(path: &Path, from: &Path, line: usize) -> Result<String> {
     if let Some(format) = other_mesh_format(path, &bytes) {
         let read_as = match format {
             "PLY" => "; PLY is read from files named `.ply`",
+            "glTF (JSON)" | "binary glTF (GLB)" => {
+                "; glTF is read from files named `.gltf` or `.glb`"
+            }
             _ => "",
         };
         return Err(Error::file(
@@ -668,7 +671,8 @@ fn read_obj_text(path: &Path, from: &Path, line: usize) -> Result<String> {
             Some(line),
             format!(
                 "`{}` is a {format} file; penumbra reads meshes as Wavefront OBJ \
-                 (`.obj`, with its `.mtl` files) and PLY (`.ply`){read_as}",
+                 (`.obj`, with its `.mtl` files), PLY (`.ply`) and glTF 2.0 \
+                 (`.gltf`, `.glb`){read_as}",
                 path.display()
             ),
         ));

@@ -59,10 +59,29 @@ fn decode(path: &Path, referenced_from: &Path, line: Option<usize>) -> Result<Dy
         )
     };
     let bytes = super::input::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    decode_bytes(&bytes, path, referenced_from, line)
+}
+
+/// Decodes an image already in memory (a file's bytes, or an image
+/// embedded in a glTF file), refusing oversized ones before decoding.
+/// `path` names the image in messages and hints its format by extension.
+pub(super) fn decode_bytes(
+    bytes: &[u8],
+    path: &Path,
+    referenced_from: &Path,
+    line: Option<usize>,
+) -> Result<DynamicImage> {
+    let fail = |why: String| {
+        Error::file(
+            referenced_from,
+            line,
+            format!("texture `{}`: {why}", path.display()),
+        )
+    };
     // TGA has no magic number: the extension is the hint, and content
     // sniffing overrides it for the formats that have one.
     let reader = || -> Result<ImageReader<Cursor<&[u8]>>> {
-        let mut r = ImageReader::new(Cursor::new(bytes.as_slice()));
+        let mut r = ImageReader::new(Cursor::new(bytes));
         if let Ok(format) = ImageFormat::from_path(path) {
             r.set_format(format);
         }
@@ -110,6 +129,12 @@ impl Texture {
     /// Errors are `Error::File` at `referenced_from:line`, naming `path`.
     pub fn load_color(path: &Path, referenced_from: &Path, line: Option<usize>) -> Result<Texture> {
         let img = decode(path, referenced_from, line)?;
+        Ok(Self::color_from_image(path, &img))
+    }
+
+    /// A colour texture from a decoded image (see [`Self::load_color`]);
+    /// `path` is what the texture is called.
+    pub(super) fn color_from_image(path: &Path, img: &DynamicImage) -> Texture {
         let texels: Vec<Vec3> = if img.color().bytes_per_pixel() == img.color().channel_count() {
             let table: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0));
             img.to_rgb8()
@@ -122,12 +147,12 @@ impl Texture {
                 .map(|p| Vec3::from_array(p.0.map(srgb_to_linear)))
                 .collect()
         };
-        Ok(Texture {
+        Texture {
             path: path.to_path_buf(),
             width: img.width(),
             height: img.height(),
             data: TextureData::Rgb(texels),
-        })
+        }
     }
 
     /// Loads an opacity texture (`map_d`): linear, the alpha channel if the

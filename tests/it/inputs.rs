@@ -195,9 +195,9 @@ fn other_mesh_formats_are_refused_by_extension_and_content() {
     ];
     for (ext, bytes, format) in cases {
         // By extension, and by content alone (named `.obj`); a file named
-        // `.ply` goes to the PLY reader (below).
+        // `.ply`, `.gltf` or `.glb` goes to its own reader (below).
         for name in [format!("mesh.{ext}"), format!("mesh-{ext}.obj")] {
-            if name.ends_with(".ply") {
+            if [".ply", ".gltf", ".glb"].iter().any(|e| name.ends_with(e)) {
                 continue;
             }
             dir.write(&name, bytes);
@@ -218,6 +218,12 @@ fn other_mesh_formats_are_refused_by_extension_and_content() {
             if format == "PLY" {
                 assert!(msg.contains("PLY is read from files named `.ply`"), "{msg}");
             }
+            if format.contains("glTF") {
+                assert!(
+                    msg.contains("glTF is read from files named `.gltf` or `.glb`"),
+                    "{msg}"
+                );
+            }
         }
     }
     // Named `.ply`, the PLY reader reads it: the well-formed file loads,
@@ -231,6 +237,14 @@ fn other_mesh_formats_are_refused_by_extension_and_content() {
         msg.contains("broken.ply") && msg.contains("`vertex`"),
         "{msg}"
     );
+    // Named `.gltf` and `.glb`, the glTF reader reads them: a file without
+    // a triangle and a GLB with a bad chunk are refused naming the file.
+    dir.write("mesh.gltf", gltf.as_bytes());
+    let msg = load_error("mesh.gltf", dir.scene("obj = \"mesh.gltf\""));
+    assert!(msg.contains("mesh.gltf"), "{msg}");
+    dir.write("mesh.glb", &glb);
+    let msg = load_error("mesh.glb", dir.scene("obj = \"mesh.glb\""));
+    assert!(msg.contains("mesh.glb") && msg.contains("GLB"), "{msg}");
     // An OBJ is still an OBJ, whatever its extension.
     dir.write("quad.txt", QUAD_OBJ);
     let scene = load_scene(&dir.scene("obj = \"quad.txt\"")).expect("an OBJ named .txt loads");
