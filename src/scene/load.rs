@@ -165,12 +165,17 @@ struct SceneSection {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraSection {
-    eye: Sp<Arr3>,
-    target: Sp<Arr3>,
+    eye: Option<Sp<Arr3>>,
+    target: Option<Sp<Arr3>>,
     up: Option<Sp<Arr3>>,
-    fov_y: Sp<f64>,
+    fov_y: Option<Sp<f64>>,
     width: Option<Sp<i64>>,
     height: Option<Sp<i64>>,
+    /// A glTF file whose camera this is (instead of eye, target, up and
+    /// fov_y).
+    from: Option<Sp<String>>,
+    /// Which of the file's cameras (default: its first perspective one).
+    name: Option<Sp<String>>,
 }
 
 #[derive(Deserialize)]
@@ -178,8 +183,13 @@ struct CameraSection {
 struct LightEntry {
     #[serde(rename = "type")]
     kind: Sp<String>,
-    center: Sp<Arr3>,
-    radiance: Sp<Triple>,
+    center: Option<Sp<Arr3>>,
+    radiance: Option<Sp<Triple>>,
+    /// A glTF file whose point or spot light this sphere light stands for
+    /// (instead of `center` and `radiance`).
+    from: Option<Sp<String>>,
+    /// Which of the file's lights (default: its first point or spot light).
+    name: Option<Sp<String>>,
     u: Option<Sp<Arr3>>,
     v: Option<Sp<Arr3>>,
     radius: Option<Sp<f64>>,
@@ -363,33 +373,151 @@ fn show(x: f64) -> String {
 
 // ------------------------------------------------------------- builders ----
 
-fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
-    let c = c.get_ref();
-    let eye = ctx.vec3(&c.eye, "camera.eye")?;
-    let target = ctx.vec3(&c.target, "camera.target")?;
-    let up =
-        c.up.as_ref()
-            .map_or(Ok(Vec3::Y), |u| ctx.vec3(u, "camera.up"))?;
-    let fov = ctx.number(&c.fov_y, "camera.fov_y")?;
-    if !(fov > 0.0 && fov < 180.0) {
+/// The camera a glTF file places: `camera.from`'s file, the one named
+/// `camera.name` or else its first perspective camera, as (eye, target,
+/// up, vertical field of view in degrees, width / height if given).
+fn camera_from_gltf(
+    ctx: &Ctx,
+    from: &Sp<String>,
+    name: Option<&Sp<String>>,
+) -> Result<(Vec3, Vec3, Vec3, f32, Option<f32>)> {
+    let path = ctx.resolve(from.get_ref());
+    let line = ctx.line(from.span().start);
+    let extension = path.extension().and_then(|e| e.to_str());
+    if !extension.is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb")) {
         return Err(ctx.err(
-            c.fov_y.span(),
-            format!("`camera.fov_y` = {fov} must be in (0, 180) degrees"),
+            from.span(),
+            format!(
+                "`camera.from` = \"{}\": cameras are read from glTF files (`.gltf`, `.glb`)",
+                from.get_ref()
+            ),
         ));
     }
+    // The file's materials and textures are read into a scratch table:
+    // the camera needs none of them.
+    let model = super::gltf::load_gltf(&path, ctx.path, line, None, &mut Assets::new())?;
+    let names = || {
+        let list: Vec<String> = (model.cameras.iter())
+            .map(|c| {
+                c.name
+                    .clone()
+                    .map_or("(unnamed)".into(), |n| format!("\"{n}\""))
+            })
+            .collect();
+        if list.is_empty() {
+            "it has no camera placed by a node".to_string()
+        } else {
+            format!("its cameras: {}", list.join(", "))
+        }
+    };
+    let camera = match name {
+        Some(wanted) => {
+            let found = (model.cameras.iter())
+                .find(|c| c.name.as_deref() == Some(wanted.get_ref().as_str()));
+            let Some(found) = found else {
+                return Err(ctx.err(
+                    wanted.span(),
+                    format!(
+                        "`camera.name` = \"{}\": `{}` has no camera of that name; {}",
+                        wanted.get_ref(),
+                        path.display(),
+                        names()
+                    ),
+                ));
+            };
+            if let Some(why) = &found.unsupported {
+                return Err(ctx.err(wanted.span(), format!("`camera.name`: {why}")));
+            }
+            found
+        }
+        None => match model.cameras.iter().find(|c| c.unsupported.is_none()) {
+            Some(found) => found,
+            None => {
+                return Err(ctx.err(
+                    from.span(),
+                    format!(
+                        "`camera.from`: `{}` has no perspective camera; {}",
+                        path.display(),
+                        names()
+                    ),
+                ))
+            }
+        },
+    };
+    let target = camera.eye + camera.forward;
+    Ok((
+        camera.eye,
+        target,
+        camera.up,
+        camera.yfov_degrees,
+        camera.aspect,
+    ))
+}
+
+fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
+    let section_span = c.span();
+    let c = c.get_ref();
+    let required = |v: &Option<Sp<Arr3>>, key: &str| -> Result<Vec3> {
+        match v {
+            Some(v) => ctx.vec3(v, key),
+            None => Err(ctx.err(
+                section_span.clone(),
+                format!("`{key}` is missing (or give `camera.from`, a glTF file's camera)"),
+            )),
+        }
+    };
+    let (eye, target, up, fov, aspect) = match &c.from {
+        Some(from) => {
+            let given = [
+                ("eye", c.eye.as_ref().map(Sp::span)),
+                ("target", c.target.as_ref().map(Sp::span)),
+                ("up", c.up.as_ref().map(Sp::span)),
+                ("fov_y", c.fov_y.as_ref().map(Sp::span)),
+            ];
+            if let Some((key, Some(span))) = given.into_iter().find(|(_, s)| s.is_some()) {
+                return Err(ctx.err(
+                    span,
+                    format!("`camera.{key}` and `camera.from` exclude each other"),
+                ));
+            }
+            camera_from_gltf(ctx, from, c.name.as_ref())?
+        }
+        None => {
+            if let Some(name) = &c.name {
+                return Err(ctx.err(name.span(), "`camera.name` needs `camera.from`"));
+            }
+            let eye = required(&c.eye, "camera.eye")?;
+            let target = required(&c.target, "camera.target")?;
+            let up =
+                c.up.as_ref()
+                    .map_or(Ok(Vec3::Y), |u| ctx.vec3(u, "camera.up"))?;
+            let Some(fov_y) = &c.fov_y else {
+                return Err(ctx.err(
+                    section_span,
+                    "`camera.fov_y` is missing (or give `camera.from`, a glTF file's camera)",
+                ));
+            };
+            let fov = ctx.number(fov_y, "camera.fov_y")?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(ctx.err(
+                    fov_y.span(),
+                    format!("`camera.fov_y` = {fov} must be in (0, 180) degrees"),
+                ));
+            }
+            (eye, target, up, fov, None)
+        }
+    };
+    let target_span = (c.target.as_ref().or(c.eye.as_ref())).map_or(section_span.clone(), Sp::span);
     // In f64, as the view computes its basis: no overflow or underflow
     // for any values in the supported range.
     let forward = target.as_dvec3() - eye.as_dvec3();
     if forward == DVec3::ZERO {
-        return Err(ctx.err(
-            c.target.span(),
-            "`camera.target` must differ from `camera.eye`",
-        ));
+        return Err(ctx.err(target_span, "`camera.target` must differ from `camera.eye`"));
     }
     // Parallel (or zero) up leaves `right = normalize(forward × up)` undefined.
     let up64 = up.as_dvec3();
     if forward.normalize().cross(up64).length() <= 1e-6 * up64.length() {
-        let span = c.up.as_ref().map_or(c.target.span(), Sp::span);
+        let span = c.up.as_ref().map_or(target_span, Sp::span);
         return Err(ctx.err(
             span,
             "`camera.up` must not be parallel to the view direction",
@@ -398,7 +526,14 @@ fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
     let side = 1..MAX_IMAGE_SIDE + 1;
     let default = i64::from(DEFAULT_IMAGE_SIZE);
     let width = ctx.int(&c.width, "camera.width", side.clone(), default)?;
-    let height = ctx.int(&c.height, "camera.height", side, default)?;
+    // A glTF camera's aspect ratio gives the height the width implies.
+    let default_height = match (aspect, &c.height) {
+        (Some(a), None) if a.is_finite() && a > 0.0 => {
+            ((width as f64 / f64::from(a)).round() as i64).clamp(1, MAX_IMAGE_SIDE)
+        }
+        _ => default,
+    };
+    let height = ctx.int(&c.height, "camera.height", side, default_height)?;
     Ok(Camera {
         eye,
         target,
@@ -407,6 +542,110 @@ fn camera(ctx: &Ctx, c: &Sp<CameraSection>) -> Result<Camera> {
         // In range by the checks above.
         width: width as u32,
         height: height as u32,
+    })
+}
+
+/// A sphere light standing for a glTF file's point or spot light
+/// (`from`, `name`): glTF has no area lights, so the scene gives the
+/// sphere's `radius`; its radiance `colour × intensity / (π r²)` gives it
+/// the file's intensity (candela, taken as the scene's radiance units per
+/// steradian) in every direction. A spot light's cone is not modelled (a
+/// sphere light emits everywhere; a warning says so); a directional light
+/// has no position and is refused.
+fn light_from_gltf(
+    ctx: &Ctx,
+    i: usize,
+    entry: &Sp<LightEntry>,
+    from: &Sp<String>,
+) -> Result<Light> {
+    let l = entry.get_ref();
+    let key = |k: &str| format!("light[{i}].{k}");
+    if l.kind.get_ref() != "sphere" {
+        return Err(ctx.err(
+            l.kind.span(),
+            format!(
+                "`{}`: a glTF light becomes a sphere light (glTF has no area lights): \
+                 `type = \"sphere\"` with a `radius`",
+                key("type")
+            ),
+        ));
+    }
+    let present = [
+        ("center", span(&l.center)),
+        ("radiance", span(&l.radiance)),
+        ("u", span(&l.u)),
+        ("v", span(&l.v)),
+        ("texture", span(&l.texture)),
+        ("two_sided", span(&l.two_sided)),
+    ];
+    only(ctx, "lights read from a glTF file", &[], &present)?;
+    let Some(r) = &l.radius else {
+        return Err(ctx.err(
+            entry.span(),
+            "a light read from a glTF file needs `radius`: glTF lights are points",
+        ));
+    };
+    let radius = ctx.number(r, &key("radius"))?;
+    if radius <= 0.0 {
+        return Err(ctx.err(r.span(), "sphere light `radius` must be positive"));
+    }
+    ctx.not_tiny(r.span(), &key("radius"), "radius", *r.get_ref())?;
+    let path = ctx.resolve(from.get_ref());
+    let line = ctx.line(from.span().start);
+    let model = super::gltf::load_gltf(&path, ctx.path, line, None, &mut Assets::new())?;
+    let usable =
+        |g: &&super::gltf::GltfLight| !matches!(g.kind, super::gltf::GltfLightKind::Directional);
+    let found = match &l.name {
+        Some(name) => model
+            .lights
+            .iter()
+            .find(|g| g.name.as_deref() == Some(name.get_ref().as_str())),
+        None => model.lights.iter().find(usable),
+    };
+    let Some(found) = found else {
+        let at = l.name.as_ref().map_or(from.span(), Sp::span);
+        return Err(ctx.err(
+            at,
+            format!(
+                "`{}` has no {} (KHR_lights_punctual, placed by a node)",
+                path.display(),
+                match &l.name {
+                    Some(n) => format!("light named \"{}\"", n.get_ref()),
+                    None => "point or spot light".to_string(),
+                }
+            ),
+        ));
+    };
+    if !usable(&found) {
+        return Err(ctx.err(
+            l.name.as_ref().map_or(from.span(), Sp::span),
+            "a directional glTF light has no position; only point and spot lights \
+             become sphere lights",
+        ));
+    }
+    if matches!(found.kind, super::gltf::GltfLightKind::Spot { .. }) {
+        eprintln!(
+            "warning: {}:{line}: `{}`'s spot light becomes a sphere light that emits in \
+             every direction (its cone is not modelled)",
+            ctx.path.display(),
+            path.display()
+        );
+    }
+    let center = found.position;
+    let radiance = found.color * found.intensity / (std::f32::consts::PI * radius * radius);
+    if !(center.is_finite() && radiance.is_finite()) {
+        return Err(ctx.err(
+            from.span(),
+            format!(
+                "`{}`'s light gives a non-finite position or radiance",
+                path.display()
+            ),
+        ));
+    }
+    Ok(Light {
+        shape: LightShape::Sphere { center, radius },
+        radiance,
+        texture: None,
     })
 }
 
@@ -435,8 +674,28 @@ fn span<T>(v: &Option<Sp<T>>) -> Option<Range<usize>> {
 fn light(ctx: &Ctx, assets: &mut Assets, i: usize, entry: &Sp<LightEntry>) -> Result<Light> {
     let l = entry.get_ref();
     let key = |k: &str| format!("light[{i}].{k}");
-    let center = ctx.vec3(&l.center, &key("center"))?;
-    let radiance = ctx.color(Some(&l.radiance), &key("radiance"), Vec3::ZERO)?;
+    if let Some(from) = &l.from {
+        return light_from_gltf(ctx, i, entry, from);
+    }
+    if let Some(name) = &l.name {
+        return Err(ctx.err(name.span(), format!("`{}` needs `from`", key("name"))));
+    }
+    let (Some(center), Some(radiance)) = (&l.center, &l.radiance) else {
+        let missing = if l.center.is_none() {
+            "center"
+        } else {
+            "radiance"
+        };
+        return Err(ctx.err(
+            entry.span(),
+            format!(
+                "`{}` is missing (or give `from`, a glTF file's light)",
+                key(missing)
+            ),
+        ));
+    };
+    let center = ctx.vec3(center, &key("center"))?;
+    let radiance = ctx.color(Some(radiance), &key("radiance"), Vec3::ZERO)?;
     let present = [
         ("u", span(&l.u)),
         ("v", span(&l.v)),
