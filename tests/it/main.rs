@@ -26,6 +26,7 @@ mod library;
 mod light_reached;
 mod light_view;
 mod lighting;
+mod mesh_formats;
 mod metrics;
 mod module_graph;
 mod multi_map;
