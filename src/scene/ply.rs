@@ -198,6 +198,8 @@ struct Header {
     elements: Vec<Element>,
     /// Byte offset of the data.
     data_start: usize,
+    /// The `end_header` line's number.
+    end_line: usize,
 }
 
 /// A header line for messages: at most 40 characters.
@@ -222,11 +224,12 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
     loop {
         number += 1;
         if at >= bytes.len() {
+            // Named at the last line there is (the whole file is at fault).
             let msg = match number {
                 1 => "empty file: not a PLY file",
                 _ => "the header has no `end_header` line (is the file truncated?)",
             };
-            return Err(Error::file(path, None, msg));
+            return Err(Error::file(path, Some((number - 1).max(1)), msg));
         }
         let end = (bytes[at..].iter().position(|&b| b == b'\n')).map_or(bytes.len(), |i| at + i);
         let raw = &bytes[at..end];
@@ -297,6 +300,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                     format,
                     elements,
                     data_start: at.min(bytes.len()),
+                    end_line: number,
                 });
             }
             _ => return Err(err(format!("malformed header line `{}`", shown(line)))),
@@ -497,7 +501,11 @@ fn layout(path: &Path, header: &Header) -> Result<Layout> {
         layout.slots.push(slots);
     }
     if !layout.kinds.contains(&Kind::Vertex) {
-        return Err(Error::file(path, None, "no `vertex` element in the header"));
+        return Err(Error::file(
+            path,
+            Some(header.end_line),
+            "no `vertex` element in the header",
+        ));
     }
     Ok(layout)
 }
@@ -1504,14 +1512,14 @@ mod tests {
     fn header_errors_name_the_line() {
         let cases = [
             ("solid cube\n", "t.ply:1: not a PLY file"),
-            ("", "t.ply: empty file"),
+            ("", "t.ply:1: empty file"),
             ("ply\nformat binary_middle_endian 1.0\n", "t.ply:2: unknown PLY format"),
             ("ply\nformat ascii 2.0\n", "t.ply:2: PLY version `2.0`"),
             ("ply\nformat ascii 1.0\nproperty float x\n", "t.ply:3: `property` before any"),
             ("ply\nformat ascii 1.0\nelement v 1\nproperty float3 x\n", "t.ply:4: unknown property type `float3`"),
             ("ply\nformat ascii 1.0\nelement v -1\n", "t.ply:3: malformed element count `-1`"),
             ("ply\nformat ascii 1.0\nelement v 1\nproperty list float int i\n", "t.ply:4: a list's count must have an integer type"),
-            ("ply\nformat ascii 1.0\nelement vertex 1\n", "t.ply: the header has no `end_header`"),
+            ("ply\nformat ascii 1.0\nelement vertex 1\n", "t.ply:3: the header has no `end_header`"),
             ("ply\nelement vertex 0\nend_header\n", "t.ply:3: no `format` line"),
             ("ply\nformat ascii 1.0\nvertices 3\n", "t.ply:3: malformed header line `vertices 3`"),
             ("ply\nformat ascii 1.0\nelement vertex 1\nproperty float a\nend_header\n", "t.ply:3: `vertex` has no `x y z`"),
@@ -1519,7 +1527,7 @@ mod tests {
             ("ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float x\nend_header\n", "t.ply:4: `vertex` `x` must be a scalar"),
             ("ply\nformat ascii 1.0\nelement face 1\nproperty list uchar float vertex_indices\nend_header\n", "t.ply:4: `vertex_indices` must be a list of integers"),
             ("ply\nformat ascii 1.0\nelement face 1\nproperty int flags\nend_header\n", "t.ply:3: `face` has no `vertex_indices` list"),
-            ("ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n", "t.ply: no `vertex` element"),
+            ("ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n", "t.ply:5: no `vertex` element"),
         ];
         for (text, expected) in cases {
             let e = error(text.as_bytes());

@@ -12,7 +12,10 @@
 //!
 //! Case kinds (`PENUMBRA_FUZZ_KIND=<name>` runs only one; a reported
 //! case of such a run is rerun with the same setting): `scene`, `obj`,
-//! `mtl`, `texture` (mutated inputs, loaded and rendered); `render-cli`,
+//! `ply` (ASCII, binary little and big endian), `gltf` (its JSON, its
+//! external buffer, or a GLB), `mtl`, `texture` (mutated inputs, loaded and
+//! rendered; a binary PLY or glTF error names its byte offset or JSON
+//! pointer where a text file's names its line); `render-cli`,
 //! `print-cli` (`render`, `diff`, `info` command lines); `tiles` (two
 //! band parts made once per worker, one mutated at or off its length or
 //! in a header field, reordered, repeated or missing, merged to odd
@@ -613,9 +616,11 @@ impl Case {
 
 /// The case kinds (for `PENUMBRA_FUZZ_KIND`) and the first of their
 /// per-mille slots in [`run_case`]'s mix.
-const KINDS: [(&str, i64); 11] = [
+const KINDS: [(&str, i64); 13] = [
     ("scene", 0),
     ("obj", 400),
+    ("ply", 480),
+    ("gltf", 505),
     ("mtl", 530),
     ("texture", 600),
     ("render-cli", 670),
@@ -655,7 +660,9 @@ fn run_case(seed: u64, dir: &Path) -> Result<Outcome, String> {
     let _ = write!(case.log, "[kind {name}] ");
     let result = match kind {
         0..=399 => scene_case(&mut rng, &mut case),
-        400..=529 => model_case(&mut rng, &mut case, "model.obj", SMALL_OBJ),
+        400..=479 => model_case(&mut rng, &mut case, "model.obj", SMALL_OBJ),
+        480..=504 => ply_case(&mut rng, &mut case),
+        505..=529 => gltf_case(&mut rng, &mut case),
         530..=599 => model_case(&mut rng, &mut case, "model.mtl", SMALL_MTL),
         600..=669 => texture_case(&mut rng, &mut case),
         670..=799 => render_cli_case(&mut rng, &mut case),
@@ -703,6 +710,209 @@ fn model_case(rng: &mut Rng, case: &mut Case, file: &str, base: &str) -> Result<
     load_and_render(rng, case, &path)
 }
 
+/// 1 to 4 byte mutations of a binary file: bytes flipped, a cut, a run
+/// repeated.
+fn mutate_binary(rng: &mut Rng, mut bytes: Vec<u8>, log: &mut String) -> Vec<u8> {
+    for _ in 0..rng.range(1, 4) {
+        let op = rng.range(0, 2);
+        let _ = write!(log, "bin{op} ");
+        bytes = match op {
+            0 => flip_bytes(rng, bytes),
+            1 => truncate(rng, bytes),
+            _ => {
+                let (at, n) = pick_run(rng, bytes.len(), 64);
+                let run = bytes[at..at + n].to_vec();
+                let to = rng.range(0, bytes.len() as i64) as usize;
+                bytes.splice(to..to, run);
+                bytes
+            }
+        };
+    }
+    bytes
+}
+
+/// The small scene with its model as `file` instead of the OBJ.
+fn small_scene_with_model(case: &mut Case, file: &str) -> PathBuf {
+    let scene = SMALL_SCENE.replace("obj = \"model.obj\"", &format!("obj = \"{file}\""));
+    assert_ne!(scene, SMALL_SCENE);
+    case.write("scene.toml", scene.as_bytes())
+}
+
+/// Lines a PLY header or body may gain.
+const PLY_LINES: &[&str] = &[
+    "element vertex 4000000000",
+    "element face -1",
+    "property float x",
+    "property list uchar int vertex_indices",
+    "property list int int vertex_indices",
+    "property double nx",
+    "property uchar red",
+    "format binary_big_endian 1.0",
+    "end_header",
+    "3 0 1 9",
+    "4 0 1 2 3",
+    "255 0 1 2",
+    "nan 0 0",
+    "1e39 0 0",
+];
+
+/// The small tetrahedron as PLY (ASCII, or binary little or big endian)
+/// with normals, colours and texture coordinates, mutated.
+fn ply_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let vertices: [[f32; 11]; 4] = [
+        [0.0, 0.0, 0.0, -0.6, -0.6, -0.6, 255.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 255.0, 0.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 255.0, 0.0, 1.0],
+        [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 9.0, 9.0, 9.0, 1.0, 1.0],
+    ];
+    let faces: [[i32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    let encoding = ["ascii", "binary_little_endian", "binary_big_endian"][rng.range(0, 2) as usize];
+    let header = format!(
+        "ply\nformat {encoding} 1.0\ncomment fuzz\nelement vertex 4\n\
+         property float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\n\
+         property float u\nproperty float v\n\
+         element face 4\nproperty list uchar int vertex_indices\nend_header\n"
+    );
+    let _ = write!(case.log, "model.ply ({encoding}): ");
+    let bytes = if encoding == "ascii" {
+        let mut text = header;
+        for v in &vertices {
+            let words: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+            text += &(words.join(" ") + "\n");
+        }
+        for f in &faces {
+            text += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+        }
+        mutate_text(rng, &text, PLY_LINES, &mut case.log)
+    } else {
+        let big = encoding.ends_with("big_endian");
+        let mut bytes = header.into_bytes();
+        for v in &vertices {
+            for (i, x) in v.iter().enumerate() {
+                match (i, big) {
+                    (6..=8, _) => bytes.push(*x as u8),
+                    (_, true) => bytes.extend(x.to_be_bytes()),
+                    (_, false) => bytes.extend(x.to_le_bytes()),
+                }
+            }
+        }
+        for f in &faces {
+            bytes.push(3);
+            for i in f {
+                bytes.extend(if big {
+                    i.to_be_bytes()
+                } else {
+                    i.to_le_bytes()
+                });
+            }
+        }
+        mutate_binary(rng, bytes, &mut case.log)
+    };
+    case.write("model.ply", &bytes);
+    let path = small_scene_with_model(case, "model.ply");
+    load_and_render(rng, case, &path)
+}
+
+/// The small tetrahedron as glTF: a `.gltf` with an external buffer (its
+/// JSON or its buffer mutated) or a GLB (its bytes mutated), with a node
+/// hierarchy, texture coordinates, a strip and a textured MASK material.
+fn gltf_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
+    let mut bin: Vec<u8> = Vec::new();
+    let positions = [
+        [0.0f32, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    positions
+        .iter()
+        .flatten()
+        .for_each(|x| bin.extend(x.to_le_bytes()));
+    let uvs = [[0.0f32, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
+    uvs.iter()
+        .flatten()
+        .for_each(|x| bin.extend(x.to_le_bytes()));
+    [0u16, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3]
+        .iter()
+        .for_each(|i| bin.extend(i.to_le_bytes()));
+    let glb = rng.range(0, 1) == 1;
+    let buffer = match glb {
+        true => serde_json::json!({"byteLength": bin.len()}),
+        false => serde_json::json!({"byteLength": bin.len(), "uri": "model.bin"}),
+    };
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [
+            {"translation": [0.0, 0.1, 0.0], "children": [1]},
+            {"rotation": [0.0, 0.38268343, 0.0, 0.9238795], "scale": [1.0, 1.0, -1.0], "mesh": 0}
+        ],
+        "meshes": [{"primitives": [
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0},
+            {"attributes": {"POSITION": 0}, "mode": 5}
+        ]}],
+        "materials": [{"alphaMode": "MASK", "alphaCutoff": 0.4,
+                       "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.5, 0.2, 1.0],
+                                                "baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "tex.png"}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 0, "byteOffset": 48, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 1, "componentType": 5123, "count": 12, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 80},
+            {"buffer": 0, "byteOffset": 80, "byteLength": 24}
+        ],
+        "buffers": [buffer]
+    })
+    .to_string();
+    let (file, bytes) = if glb {
+        let _ = write!(case.log, "model.glb: ");
+        let mut json = json.into_bytes();
+        json.resize(json.len().next_multiple_of(4), b' ');
+        let mut glb = b"glTF".to_vec();
+        glb.extend(2u32.to_le_bytes());
+        glb.extend(((12 + 8 + json.len() + 8 + bin.len()) as u32).to_le_bytes());
+        glb.extend((json.len() as u32).to_le_bytes());
+        glb.extend(b"JSON");
+        glb.extend(json);
+        glb.extend((bin.len() as u32).to_le_bytes());
+        glb.extend(b"BIN\0");
+        glb.extend(&bin);
+        ("model.glb", mutate_binary(rng, glb, &mut case.log))
+    } else if rng.range(0, 1) == 0 {
+        let _ = write!(case.log, "model.gltf (JSON): ");
+        case.write("model.bin", &bin);
+        let inserts = [
+            "\"count\": 4000000000,",
+            "\"byteOffset\": -4,",
+            "\"extensionsRequired\": [\"KHR_draco_mesh_compression\"],",
+            "\"uri\": \"data:application/octet-stream;base64,AAAA\",",
+            "\"mode\": 1,",
+            "\"matrix\": [0,0,0,0, 0,0,0,0, 0,0,0,0, 0,0,0,1],",
+        ];
+        // One key per line, so that the line edits move whole members.
+        let pretty = json.replace(",\"", ",\n\"");
+        (
+            "model.gltf",
+            mutate_text(rng, &pretty, &inserts, &mut case.log),
+        )
+    } else {
+        let _ = write!(case.log, "model.gltf (its buffer): ");
+        let mutated = mutate_binary(rng, bin, &mut case.log);
+        case.write("model.bin", &mutated);
+        ("model.gltf", json.into_bytes())
+    };
+    case.write(file, &bytes);
+    let path = small_scene_with_model(case, file);
+    load_and_render(rng, case, &path)
+}
+
 /// The small scene (or fence.toml) with one of its textures mutated.
 fn texture_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
     let files = small_files();
@@ -736,8 +946,27 @@ fn check_load_error(e: &Error) -> Result<Outcome, String> {
         Error::Parameter { name, message } if !name.is_empty() && !message.is_empty() => {
             Ok(Outcome::ParameterError)
         }
+        // Binary and JSON mesh files have no lines to name: the place is a
+        // byte offset (binary PLY), a JSON pointer (glTF) or the GLB header.
+        Error::File {
+            path,
+            line: None,
+            message,
+        } if names_a_place_without_lines(path, message) => Ok(Outcome::FileError),
         other => Err(format!("load error without a file and line: {other:?}")),
     }
+}
+
+/// A PLY, glTF, GLB or glTF buffer error that names its place: a byte
+/// offset, a JSON pointer (`/meshes/0/...`) or the GLB's header.
+fn names_a_place_without_lines(path: &Path, message: &str) -> bool {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let place = message.contains("(byte ")
+        || message.starts_with('/')
+        || message.contains(" /")
+        || message.contains("`/")
+        || message.contains("GLB");
+    ["ply", "gltf", "glb", "bin"].contains(&ext) && place
 }
 
 fn any_nan(values: &[f32]) -> bool {

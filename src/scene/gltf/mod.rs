@@ -140,7 +140,12 @@ fn parse_json(path: &Path, bytes: &[u8]) -> Result<json::Root> {
                 "/asset/version",
                 format!("glTF {v}; penumbra reads glTF 2.0"),
             ),
-            _ => Error::file(path, None, format!("not valid glTF 2.0 JSON: {e}")),
+            // serde_json counts lines from 1; 0 is an error not in the text.
+            _ => Error::file(
+                path,
+                (e.line() > 0).then_some(e.line()),
+                format!("not valid glTF 2.0 JSON: {e}"),
+            ),
         }
     })
 }

@@ -758,7 +758,7 @@ fn file_level_errors_are_named() {
     .unwrap();
     let msg = error(&bad);
     assert!(
-        msg.contains("bad.gltf: not valid glTF 2.0 JSON") && msg.contains("line 3"),
+        msg.contains("bad.gltf:3: not valid glTF 2.0 JSON") && msg.contains("line 3"),
         "{msg}"
     );
     // glTF 1.0.
