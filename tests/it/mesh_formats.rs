@@ -197,7 +197,7 @@ fn a_gltf_scene_renders_as_its_toml_and_obj_twin() {
             .unwrap()
             .channels[0]
             .1;
-        assert!(vcoef.iter().any(|&v| v == 0.0) && vcoef.iter().any(|&v| v == 1.0));
+        assert!(vcoef.contains(&0.0) && vcoef.contains(&1.0));
         assert!(
             common::render_bits(&ra) == common::render_bits(&rb),
             "{technique}: the glTF scene's image differs from its TOML + OBJ twin's"
