@@ -70,6 +70,17 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
     },
+    /// Write a starting scene for a model (OBJ, PLY, glTF/GLB): a camera
+    /// framing it, a rect light above it sized for visible penumbrae and a
+    /// ground quad unless the model has a floor; it renders at once.
+    Import {
+        /// The model file.
+        model: PathBuf,
+        /// The scene file to write (TOML); the model is named relative to
+        /// its folder.
+        #[arg(short, long, value_name = "SCENE.toml")]
+        output: PathBuf,
+    },
 }
 
 /// `penumbra render`: its command line.
@@ -304,7 +315,29 @@ pub fn run(cli: Cli) -> Result<Outcome> {
             json,
         } => run_techniques(markdown, names, json),
         Command::Info { scene } => run_info(&scene),
+        Command::Import { model, output } => run_import(&model, &output),
     }
+}
+
+/// `penumbra import`: the starting scene, written atomically (never over
+/// the model itself).
+fn run_import(model: &Path, output: &Path) -> Result<Outcome> {
+    crate::output::check_not_input(output, &[model.to_path_buf()])?;
+    check_output(output)?;
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let text = crate::scene::starter::starting_scene(model, dir)?;
+    crate::output::write_atomically(output, |tmp| {
+        std::fs::write(tmp, &text).map_err(|e| Error::io(tmp, e))
+    })?;
+    write_stderr(&format!(
+        "penumbra: wrote {}; render it with `penumbra render {} -o image.png`\n",
+        output.display(),
+        output.display()
+    ));
+    Ok(Outcome::Success)
 }
 
 /// `penumbra render`.

@@ -17,6 +17,7 @@ mod load;
 mod obj;
 mod ply;
 mod shapes;
+pub mod starter;
 mod texture;
 
 pub use builder::{CameraDesc, Geometry, LightDesc, MaterialDesc, ObjectDesc, SceneBuilder};

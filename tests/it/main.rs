@@ -21,6 +21,7 @@ mod far_from_origin;
 mod flip;
 mod fuzz;
 mod golden;
+mod import;
 mod inputs;
 mod library;
 mod light_reached;
