@@ -23,8 +23,7 @@ use super::assets::Assets;
 use crate::error::{Error, Result};
 use crate::geom::Mesh;
 use cameras::{cameras, lights};
-// `GltfLightKind` is for load.rs, which does not read lights yet.
-#[allow(unused_imports)]
+// For load.rs: `camera.from` and `[[light]] from`.
 pub(super) use cameras::{GltfCamera, GltfLight, GltfLightKind};
 use data::{check_alloc, err, packed, split_glb, Buffers};
 use glam::{Mat3, Mat4, Quat, Vec2, Vec3};
