@@ -213,6 +213,8 @@ struct ObjectEntry {
     material: Option<Sp<MaterialEntry>>,
     cast_shadows: Option<bool>,
     receive_shadows: Option<bool>,
+    /// glTF objects: emissive quads become rect lights.
+    lights_from_emissive: Option<Sp<bool>>,
 }
 
 #[derive(Deserialize)]
@@ -918,21 +920,27 @@ fn load_mesh_file(
     line: usize,
     material: Option<u32>,
     assets: &mut Assets,
-) -> Result<Mesh> {
+) -> Result<(Mesh, Vec<super::gltf::EmissiveQuad>)> {
     let extension = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match extension.as_deref() {
-        Some("ply") => super::ply::load_ply(path, from, line, material, assets),
+        Some("ply") => Ok((
+            super::ply::load_ply(path, from, line, material, assets)?,
+            Vec::new(),
+        )),
         Some("gltf" | "glb") => {
             let model = super::gltf::load_gltf(path, from, line, material, assets)?;
             for warning in &model.warnings {
                 eprintln!("warning: {warning}");
             }
-            Ok(model.mesh)
+            Ok((model.mesh, model.emissive_quads))
         }
-        _ => super::obj::load_obj(path, from, line, material, assets),
+        _ => Ok((
+            super::obj::load_obj(path, from, line, material, assets)?,
+            Vec::new(),
+        )),
     }
 }
 
@@ -946,8 +954,28 @@ fn object(
     entry: &Sp<ObjectEntry>,
     before: u64,
     origin: glam::DVec3,
-) -> Result<Object> {
+) -> Result<(Object, Vec<Light>)> {
     let o = entry.get_ref();
+    if let Some(flag) = &o.lights_from_emissive {
+        let gltf = (o.obj.as_ref())
+            .and_then(|f| {
+                Path::new(f.get_ref())
+                    .extension()?
+                    .to_str()
+                    .map(str::to_lowercase)
+            })
+            .is_some_and(|e| e == "gltf" || e == "glb");
+        if !gltf || ctx.meshes.contains_key(&i) {
+            return Err(ctx.err(
+                flag.span(),
+                format!(
+                    "`object[{i}].lights_from_emissive` applies to glTF objects (`obj = \"*.gltf\"` \
+                     or `*.glb`), whose emissive quads it turns into rect lights"
+                ),
+            ));
+        }
+    }
+    let mut emissive = Vec::new();
     let material = match &o.material {
         Some(m) => {
             let m = inline_material(ctx, assets, i, m.get_ref())?;
@@ -976,7 +1004,10 @@ fn object(
             } else {
                 let path = ctx.resolve(file.get_ref());
                 let line = ctx.line(file.span().start);
-                let mesh = load_mesh_file(&path, ctx.path, line, material, assets)?;
+                let (mut mesh, quads) = load_mesh_file(&path, ctx.path, line, material, assets)?;
+                if let Some(flag) = o.lights_from_emissive.as_ref().filter(|f| *f.get_ref()) {
+                    emissive = emissive_lights(ctx, flag, &path, &mut mesh, quads)?;
+                }
                 let stem = path
                     .file_stem()
                     .map_or("obj".into(), |s| s.to_string_lossy().into_owned());
@@ -1001,12 +1032,77 @@ fn object(
             "note: {at}object `{name}`: dropped {dropped} degenerate triangle(s)\n"
         ));
     }
-    Ok(Object {
+    // The quads as the object is placed: its transform, in the scene's
+    // local frame (the translation is already shifted into it).
+    let lights = (emissive.into_iter())
+        .map(|q: super::gltf::EmissiveQuad| {
+            let (mut u, v) = (transform.linear * q.u, transform.linear * q.v);
+            // A mirroring transform turns u × v away from the (re-wound)
+            // front face: turn it back.
+            if transform.mirror {
+                u = -u;
+            }
+            Light {
+                shape: LightShape::Rect {
+                    center: transform.linear * q.center + transform.translate,
+                    u,
+                    v,
+                    two_sided: q.two_sided,
+                },
+                radiance: q.radiance,
+                texture: None,
+            }
+        })
+        .collect();
+    let object = Object {
         name,
         mesh,
         cast_shadows: o.cast_shadows.unwrap_or(true),
         receive_shadows: o.receive_shadows.unwrap_or(true),
-    })
+    };
+    Ok((object, lights))
+}
+
+/// `lights_from_emissive = true` (`flag`) on the glTF object read from
+/// `path`: its emissive quads leave the mesh (a light does not block
+/// light) and are returned, to become rect lights once placed.
+fn emissive_lights(
+    ctx: &Ctx,
+    flag: &Sp<bool>,
+    path: &Path,
+    mesh: &mut Mesh,
+    quads: Vec<super::gltf::EmissiveQuad>,
+) -> Result<Vec<super::gltf::EmissiveQuad>> {
+    if quads.is_empty() {
+        eprintln!(
+            "warning: {}:{}: `lights_from_emissive`: `{}` has no emissive quad (a primitive of \
+             two triangles forming a parallelogram, with an emissive material)",
+            ctx.path.display(),
+            ctx.line(flag.span().start),
+            path.display()
+        );
+        return Ok(quads);
+    }
+    let mut gone = vec![false; mesh.triangles.len()];
+    quads
+        .iter()
+        .flat_map(|q| q.triangles)
+        .for_each(|t| gone[t] = true);
+    let mut keep = gone.iter().map(|g| !g);
+    mesh.triangles.retain(|_| keep.next().unwrap_or(true));
+    let mut keep = gone.iter().map(|g| !g);
+    mesh.material_ids.retain(|_| keep.next().unwrap_or(true));
+    if mesh.triangles.is_empty() {
+        return Err(ctx.err(
+            flag.span(),
+            format!(
+                "`lights_from_emissive`: every triangle of `{}` is an emissive quad, so the \
+                 object would have none left (give its lights as `[[light]]` instead)",
+                path.display()
+            ),
+        ));
+    }
+    Ok(quads)
 }
 
 /// The shape keys an object entry gives, where they are (for [`only`]).
@@ -1368,9 +1464,10 @@ pub(super) fn parse_scene(
     let mut objects: Vec<Object> = Vec::with_capacity(file.object.len());
     let mut triangles = 0u64;
     for (i, o) in file.object.iter().enumerate() {
-        let object = object(&ctx, &mut assets, i, o, triangles, origin)?;
+        let (object, emissive) = object(&ctx, &mut assets, i, o, triangles, origin)?;
         triangles += object.mesh.triangle_count() as u64;
         objects.push(object);
+        lights.extend(emissive);
     }
     let mut scene = Scene {
         name,

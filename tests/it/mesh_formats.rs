@@ -205,3 +205,95 @@ fn a_gltf_scene_renders_as_its_toml_and_obj_twin() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `lights_from_emissive`: a glTF's emissive quad (with
+/// `KHR_materials_emissive_strength`) becomes the rect light a TOML scene
+/// would give, and leaves the mesh (a light does not block light); the
+/// object's transform moves it with the rest.
+#[test]
+fn emissive_quads_become_rect_lights() {
+    let dir = common::scratch_dir("gltf-emissive");
+    // Two quads: an occluder at y = 1 and an emitter at y = 3 facing down.
+    let quad = |y: f32, h: f32| [[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, h]];
+    let mut bin: Vec<u8> = Vec::new();
+    for q in [quad(1.0, 0.25), quad(3.0, 0.5)] {
+        q.iter()
+            .flatten()
+            .for_each(|x: &f32| bin.extend(x.to_le_bytes()));
+    }
+    [0u16, 1, 2, 0, 2, 3]
+        .iter()
+        .for_each(|i| bin.extend(i.to_le_bytes()));
+    std::fs::write(dir.join("lamp.bin"), &bin).unwrap();
+    let gltf = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_materials_emissive_strength"],
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [
+            {"attributes": {"POSITION": 0}, "indices": 2},
+            {"attributes": {"POSITION": 1}, "indices": 2, "material": 0}
+        ]}],
+        "materials": [{"emissiveFactor": [1.0, 1.0, 1.0],
+                       "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 8.0}},
+                       "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0]}}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 0, "byteOffset": 48, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 96},
+            {"buffer": 0, "byteOffset": 96, "byteLength": 12}
+        ],
+        "buffers": [{"uri": "lamp.bin", "byteLength": bin.len()}]
+    });
+    std::fs::write(dir.join("lamp.gltf"), gltf.to_string()).unwrap();
+    std::fs::write(
+        dir.join("occluder.obj"),
+        "v -0.25 1 -0.25\nv 0.25 1 -0.25\nv 0.25 1 0.25\nv -0.25 1 0.25\nf 1 2 3\nf 1 3 4\n",
+    )
+    .unwrap();
+    let camera = "[camera]\neye = [0.0, 4.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nfov_y = 45\n\
+                  width = 48\nheight = 40\n";
+    let ground = "[[object]]\nshape = \"quad\"\nsize = [6.0, 6.0]\n";
+    let from_gltf = format!(
+        "{camera}{ground}[[object]]\nobj = \"lamp.gltf\"\ntranslate = [0.25, 0.0, 0.0]\n\
+         lights_from_emissive = true\n"
+    );
+    // The emitter faces down: u × v points down.
+    let from_toml = format!(
+        "{camera}[[light]]\ntype = \"rect\"\ncenter = [0.25, 3.0, 0.0]\nu = [0.0, 0.0, 0.5]\n\
+         v = [-0.5, 0.0, 0.0]\nradiance = 8.0\n{ground}[[object]]\nobj = \"occluder.obj\"\n\
+         translate = [0.25, 0.0, 0.0]\n"
+    );
+    let a = scene_from_toml(&from_gltf, &dir).unwrap_or_else(|e| panic!("glTF: {e}"));
+    let b = scene_from_toml(&from_toml, &dir).unwrap_or_else(|e| panic!("TOML: {e}"));
+    assert_eq!(a.lights.len(), 1);
+    assert_eq!(
+        a.objects[1].mesh.triangle_count(),
+        2,
+        "the emitter left the mesh"
+    );
+    for technique in ["dcs", "reference"] {
+        let mut o = options(technique);
+        (o.width, o.height) = (None, None);
+        let (ra, rb) = (render(&a, &o).unwrap(), render(&b, &o).unwrap());
+        assert!(
+            common::render_bits(&ra) == common::render_bits(&rb),
+            "{technique}: the emissive quad's light differs from the TOML rect light"
+        );
+    }
+    // Only glTF objects take the key.
+    let wrong =
+        format!("{camera}[[object]]\nobj = \"occluder.obj\"\nlights_from_emissive = true\n");
+    let e = scene_from_toml(&wrong, &dir)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("lights_from_emissive") && e.contains("glTF"),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -48,6 +48,29 @@ pub(super) struct GltfModel {
     /// Warnings about the file, each starting with its path; the caller
     /// prints them (as `warning: {text}`).
     pub warnings: Vec<String>,
+    /// Primitives that are one emissive parallelogram (two triangles), as
+    /// rect lights in the file's world space: what `lights_from_emissive`
+    /// turns into lights.
+    pub emissive_quads: Vec<EmissiveQuad>,
+}
+
+/// An emissive quad of a glTF file: a rect light in its world space.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct EmissiveQuad {
+    /// The primitive, as a JSON pointer.
+    pub at: String,
+    /// Its two triangles' indices in [`GltfModel::mesh`].
+    pub triangles: [usize; 2],
+    /// Centre of the parallelogram.
+    pub center: Vec3,
+    /// Half-edges; `u × v` points to the front face's side.
+    pub u: Vec3,
+    /// See `u`.
+    pub v: Vec3,
+    /// `emissiveFactor` × `KHR_materials_emissive_strength`.
+    pub radiance: Vec3,
+    /// The material's `doubleSided`.
+    pub two_sided: bool,
 }
 
 /// Extensions a file may require that penumbra reads.
@@ -102,7 +125,16 @@ pub(super) fn load_gltf(
     }
     let mut materials = Materials::new(material_override);
     let mut warnings = Vec::new();
-    let mesh = build_mesh(&mut bufs, &placed, &mut materials, assets, &mut warnings)?;
+    let mut emissive = Vec::new();
+    let mesh = build_mesh(
+        &mut bufs,
+        &placed,
+        &mut materials,
+        assets,
+        &mut warnings,
+        &mut emissive,
+    )?;
+    let emissive_quads = emissive_quads(&mesh, &emissive);
     if let Some(first) = plan.skipped.first() {
         warnings.push(format!(
             "{}: {} points or lines primitive(s) skipped, the first at {first}/mode \
@@ -119,7 +151,77 @@ pub(super) fn load_gltf(
         cameras: cameras(path, &root, &placed)?,
         lights: lights(path, &root, &placed)?,
         warnings,
+        emissive_quads,
     })
+}
+
+/// An emissive triangle primitive: its pointer, its triangles' range in
+/// the mesh, its radiance and whether it is two-sided.
+type EmissivePrimitive = (String, std::ops::Range<usize>, Vec3, bool);
+
+/// The emission of material `m`: `emissiveFactor` times the
+/// `KHR_materials_emissive_strength` factor, with `doubleSided`; `None`
+/// for a material that does not emit.
+fn emission(root: &json::Root, m: Option<usize>) -> Option<(Vec3, bool)> {
+    let m = root.materials.get(m?)?;
+    let strength = (m.extensions.as_ref())
+        .and_then(|e| e.others.get("KHR_materials_emissive_strength"))
+        .and_then(|e| e.get("emissiveStrength")?.as_f64())
+        .unwrap_or(1.0) as f32;
+    let radiance = Vec3::from(m.emissive_factor.0) * strength;
+    (radiance.is_finite() && radiance.max_element() > 0.0 && radiance.min_element() >= 0.0)
+        .then_some((radiance, m.double_sided))
+}
+
+/// The emissive primitives that are one parallelogram: two triangles over
+/// four corners, opposite corners summing alike (to a part in 10⁵ of the
+/// quad's size).
+fn emissive_quads(mesh: &Mesh, emissive: &[EmissivePrimitive]) -> Vec<EmissiveQuad> {
+    let mut quads = Vec::new();
+    for (at, range, radiance, two_sided) in emissive {
+        if range.len() != 2 {
+            continue;
+        }
+        let (t0, t1) = (range.start, range.start + 1);
+        let [a, b, c] = mesh.corners(t0);
+        // The second triangle's corner that is not the first's.
+        let Some(d) = mesh
+            .corners(t1)
+            .into_iter()
+            .find(|p| ![a, b, c].contains(p))
+        else {
+            continue;
+        };
+        // Opposite corners: the pair whose midpoint equals the other pair's.
+        let pairs = [((a, b), (c, d)), ((a, c), (b, d)), ((b, c), (a, d))];
+        let size = (a - b).length().max((a - c).length()).max((b - c).length());
+        let Some(((p, q), (r, s))) = pairs
+            .into_iter()
+            .find(|((p, q), (r, s))| ((*p + *q) - (*r + *s)).length() <= 1e-5 * size)
+        else {
+            continue;
+        };
+        let center = (p + q + r + s) * 0.25;
+        // Half-edges from the centre to the midpoints of two sides.
+        let (mut u, v) = ((p + r) * 0.5 - center, (p + s) * 0.5 - center);
+        let front = (b - a).cross(c - a);
+        if u.cross(v).dot(front) < 0.0 {
+            u = -u;
+        }
+        if u.cross(v).length() <= 1e-6 * u.length() * v.length() {
+            continue;
+        }
+        quads.push(EmissiveQuad {
+            at: at.clone(),
+            triangles: [t0, t1],
+            center,
+            u,
+            v,
+            radiance: *radiance,
+            two_sided: *two_sided,
+        });
+    }
+    quads
 }
 
 /// Parses the glTF JSON; errors give serde_json's line and column, and a
@@ -441,6 +543,7 @@ fn build_mesh(
     materials: &mut Materials,
     assets: &mut Assets,
     warnings: &mut Vec<String>,
+    emissive: &mut Vec<EmissivePrimitive>,
 ) -> Result<Mesh> {
     let (path, root) = (bufs.path, bufs.root);
     let mut b = Building::default();
@@ -455,7 +558,11 @@ fn build_mesh(
             let at = format!("/meshes/{m}/primitives/{j}");
             let material = prim.material.map(|i| i.value());
             let id = materials.id(bufs, material, &format!("{at}/material"), assets)?;
+            let first = b.mesh.triangles.len();
             add_primitive(bufs, &mut b, prim, &at, p, id)?;
+            if let Some((radiance, two_sided)) = emission(root, material) {
+                emissive.push((at, first..b.mesh.triangles.len(), radiance, two_sided));
+            }
         }
     }
     let Building {
