@@ -287,10 +287,10 @@ fn emissive_quads_become_rect_lights() {
     // Only glTF objects take the key.
     let wrong =
         format!("{camera}[[object]]\nobj = \"occluder.obj\"\nlights_from_emissive = true\n");
-    let e = scene_from_toml(&wrong, &dir)
-        .err()
-        .expect("refused")
-        .to_string();
+    let Err(e) = scene_from_toml(&wrong, &dir) else {
+        panic!("lights_from_emissive on an OBJ object loads");
+    };
+    let e = e.to_string();
     assert!(
         e.contains("lights_from_emissive") && e.contains("glTF"),
         "{e}"
