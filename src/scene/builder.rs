@@ -1,6 +1,6 @@
 //! Scenes built in code: [`SceneBuilder`] describes what a scene file
-//! describes (camera, lights, objects from built-in shapes, OBJ files or
-//! in-memory meshes, materials), and [`SceneBuilder::build`] validates it.
+//! describes (camera, lights, objects from built-in shapes, mesh files
+//! (OBJ, PLY, glTF) or in-memory meshes, materials), and [`SceneBuilder::build`] validates it.
 //!
 //! There is one validator, the scene file's: the builder writes the scene
 //! file it describes and loads it through the loader's own code, so every
@@ -124,8 +124,9 @@ pub enum Geometry {
         /// Extent along x and z.
         size: [f64; 2],
     },
-    /// A Wavefront OBJ file (with its MTL files); relative paths are
-    /// relative to [`SceneBuilder::base_dir`].
+    /// A mesh file, read as a scene's `obj = ...` is (by extension: OBJ
+    /// with its MTL files, PLY, glTF or GLB); relative paths are relative
+    /// to [`SceneBuilder::base_dir`].
     Obj(PathBuf),
     /// A mesh given in memory.
     Mesh(MeshData),
@@ -274,7 +275,7 @@ impl ObjectDesc {
         Self::new(Geometry::Quad { size })
     }
 
-    /// An OBJ file.
+    /// A mesh file: OBJ, PLY, glTF or GLB (by extension).
     pub fn obj(path: impl Into<PathBuf>) -> Self {
         Self::new(Geometry::Obj(path.into()))
     }
