@@ -177,11 +177,13 @@ struct CompareArgs {
     /// missing shard or a mismatch is an error that names it.
     #[arg(long, value_name = "DIR", num_args = 1.., conflicts_with_all = ["shard", "references_only"])]
     merge: Vec<PathBuf>,
-    /// Comma-separated techniques (`penumbra techniques` lists them).
+    /// Comma-separated techniques (`penumbra techniques` lists them);
+    /// by default the exact ones: dcs (render's default), penumbra-casting
+    /// and the reference.
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "shadow-volumes,reference",
+        default_value = "dcs,penumbra-casting,reference",
         value_parser = technique_parser()
     )]
     techniques: Vec<Technique>,

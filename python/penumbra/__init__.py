@@ -272,7 +272,7 @@ def techniques() -> List[Dict[str, Any]]:
 
 def compare(
     scenes: Union[PathLike, Sequence[PathLike]],
-    techniques: Sequence[str] = ("shadow-volumes", "reference"),
+    techniques: Sequence[str] = ("dcs", "penumbra-casting", "reference"),
     samples: Sequence[int] = (4, 16, 64, 256),
     reference_samples: int = 4096,
     patterns: Sequence[str] = ("stratified",),

@@ -120,7 +120,7 @@ def techniques() -> List[Dict[str, Any]]:
 
 def compare(
     scenes: Union[_Path, Sequence[_Path]],
-    techniques: Sequence[str] = ("shadow-volumes", "reference"),
+    techniques: Sequence[str] = ("dcs", "penumbra-casting", "reference"),
     samples: Sequence[int] = (4, 16, 64, 256),
     reference_samples: int = 4096,
     patterns: Sequence[str] = ("stratified",),

@@ -45,13 +45,14 @@ pub struct CompareOptions {
 
 impl Default for CompareOptions {
     /// `penumbra compare`'s defaults, in plain Rust (a test holds them to
-    /// clap's): shadow volumes and the reference technique, 4, 16, 64 and
+    /// clap's): the exact techniques (dcs, the render default; penumbra
+    /// casting; the reference), 4, 16, 64 and
     /// 256 samples, a 4096-sample reference, 3 timed runs, images on, the
     /// reference cache of [`default_cache_dir`] (falling back on
     /// `compare/cache`, as the command's default `--out compare` does).
     fn default() -> Self {
         CompareOptions {
-            techniques: ["shadow-volumes", "reference"]
+            techniques: ["dcs", "penumbra-casting", "reference"]
                 .into_iter()
                 .filter_map(|name| Technique::named(name).ok())
                 .collect(),
