@@ -385,8 +385,7 @@ fn camera_from_gltf(
 ) -> Result<(Vec3, Vec3, Vec3, f32, Option<f32>)> {
     let path = ctx.resolve(from.get_ref());
     let line = ctx.line(from.span().start);
-    let extension = path.extension().and_then(|e| e.to_str());
-    if !extension.is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb")) {
+    if mesh_format(&path) != MeshFormat::Gltf {
         return Err(ctx.err(
             from.span(),
             format!(
@@ -594,6 +593,16 @@ fn light_from_gltf(
     ctx.not_tiny(r.span(), &key("radius"), "radius", *r.get_ref())?;
     let path = ctx.resolve(from.get_ref());
     let line = ctx.line(from.span().start);
+    if mesh_format(&path) != MeshFormat::Gltf {
+        return Err(ctx.err(
+            from.span(),
+            format!(
+                "`{}` = \"{}\": lights are read from glTF files (`.gltf`, `.glb`)",
+                key("from"),
+                from.get_ref()
+            ),
+        ));
+    }
     let model = super::gltf::load_gltf(&path, ctx.path, line, None, &mut Assets::new())?;
     let usable =
         |g: &&super::gltf::GltfLight| !matches!(g.kind, super::gltf::GltfLightKind::Directional);
@@ -909,6 +918,28 @@ fn place(
     Ok(before - mesh.triangles.len())
 }
 
+/// The reader a mesh file's extension picks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum MeshFormat {
+    /// Anything not named below (the OBJ reader refuses other formats by
+    /// their content).
+    Obj,
+    /// `.ply`.
+    Ply,
+    /// `.gltf`, `.glb`.
+    Gltf,
+}
+
+fn mesh_format(path: &Path) -> MeshFormat {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("ply") => MeshFormat::Ply,
+        Some(e) if e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb") => {
+            MeshFormat::Gltf
+        }
+        _ => MeshFormat::Obj,
+    }
+}
+
 /// Reads an object's mesh file, referenced from `from:line`. The reader
 /// is chosen by the file's extension (`.ply`, `.gltf`, `.glb`; anything
 /// else is read as OBJ), and each reader checks that the content is its
@@ -921,23 +952,19 @@ fn load_mesh_file(
     material: Option<u32>,
     assets: &mut Assets,
 ) -> Result<(Mesh, Vec<super::gltf::EmissiveQuad>)> {
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match extension.as_deref() {
-        Some("ply") => Ok((
+    match mesh_format(path) {
+        MeshFormat::Ply => Ok((
             super::ply::load_ply(path, from, line, material, assets)?,
             Vec::new(),
         )),
-        Some("gltf" | "glb") => {
+        MeshFormat::Gltf => {
             let model = super::gltf::load_gltf(path, from, line, material, assets)?;
             for warning in &model.warnings {
                 eprintln!("warning: {warning}");
             }
             Ok((model.mesh, model.emissive_quads))
         }
-        _ => Ok((
+        MeshFormat::Obj => Ok((
             super::obj::load_obj(path, from, line, material, assets)?,
             Vec::new(),
         )),
@@ -958,13 +985,7 @@ fn object(
     let o = entry.get_ref();
     if let Some(flag) = &o.lights_from_emissive {
         let gltf = (o.obj.as_ref())
-            .and_then(|f| {
-                Path::new(f.get_ref())
-                    .extension()?
-                    .to_str()
-                    .map(str::to_lowercase)
-            })
-            .is_some_and(|e| e == "gltf" || e == "glb");
+            .is_some_and(|f| mesh_format(Path::new(f.get_ref())) == MeshFormat::Gltf);
         if !gltf || ctx.meshes.contains_key(&i) {
             return Err(ctx.err(
                 flag.span(),

