@@ -7,7 +7,9 @@ use crate::compare::{
     write_results, CompareOptions, SweepOutput,
 };
 use crate::error::{Error, Result};
-use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
+use crate::output::{
+    check_output, image_format, image_outputs, write_stderr, write_stdout, Format, OutputSet,
+};
 use crate::render::{
     progress_for_render, render_with, verify_render, with_threads, Aov, Render, RenderOptions,
 };
@@ -98,7 +100,9 @@ struct RenderArgs {
     #[arg(long, help_heading = "Output")]
     exr: Option<PathBuf>,
     /// Comma-separated AOV layers for the EXR: depth, position, normal,
-    /// albedo, mask, vcoef.
+    /// albedo, mask, vcoef; error (a progressive render's estimated
+    /// standard error per pixel: error.Y of the radiance, error.V of the
+    /// Vcoef).
     #[arg(long, value_delimiter = ',', help_heading = "Output")]
     aov: Vec<String>,
     /// Image width (overrides the scene's camera).
@@ -147,8 +151,52 @@ struct RenderArgs {
     verify: Option<u64>,
     /// Render only band I of N (whole rows of 64-pixel tiles) into the
     /// part file -o; `merge-tiles` assembles the image.
-    #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify"], help_heading = "Output")]
+    #[arg(long, value_name = "I/N", conflicts_with_all = ["exr", "verify", "target_error", "max_samples", "max_time"], help_heading = "Output")]
     tiles: Option<String>,
+    /// Progressive: render independent sets of --samples (each with its
+    /// own seed) and stop once the image's estimated radiance RMSE (from
+    /// the sets' spread) is at most E. reference, dcs, penumbra-casting
+    /// and multi-map.
+    #[arg(long, value_name = "E", help_heading = "Progressive")]
+    target_error: Option<f64>,
+    /// Progressive: at most this many light samples per pixel and light
+    /// in all (whole sets of --samples).
+    #[arg(long, value_name = "N", help_heading = "Progressive")]
+    max_samples: Option<u64>,
+    /// Progressive: start no set that would end after this time (`90`,
+    /// `90s`, `2m`, `1h`); the image then depends on the machine's speed.
+    #[arg(long, value_name = "TIME", value_parser = parse_time, help_heading = "Progressive")]
+    max_time: Option<std::time::Duration>,
+    /// Progressive: rewrite this PNG every few seconds with the current
+    /// mean image and, beside it, its estimated error (heat map scaled to
+    /// the target error).
+    #[arg(long, value_name = "PATH", help_heading = "Progressive")]
+    preview: Option<PathBuf>,
+}
+
+/// A time as seconds, or with a unit: `90`, `90s`, `2m`, `1h`, `500ms`.
+fn parse_time(s: &str) -> std::result::Result<std::time::Duration, String> {
+    let t = s.trim();
+    let (number, scale) = if let Some(n) = t.strip_suffix("ms") {
+        (n, 1e-3)
+    } else if let Some(n) = t.strip_suffix('s') {
+        (n, 1.0)
+    } else if let Some(n) = t.strip_suffix('m') {
+        (n, 60.0)
+    } else if let Some(n) = t.strip_suffix('h') {
+        (n, 3600.0)
+    } else {
+        (t, 1.0)
+    };
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a time (e.g. 90, 90s, 2m, 1h)"))?;
+    let seconds = value * scale;
+    if !(seconds.is_finite() && seconds > 0.0 && seconds < 1e9) {
+        return Err(format!("`{s}` is not a time between 0 and 1e9 seconds"));
+    }
+    Ok(std::time::Duration::from_secs_f64(seconds))
 }
 
 /// `penumbra compare`: its command line.
@@ -348,6 +396,9 @@ fn run_render(args: RenderArgs, given: &[(String, String)]) -> Result<Outcome> {
     let (threads, options) = (plan.threads, &plan.options);
     let scene = load_scene(&plan.scene)?;
     warn_unread_options(options, &scene, given);
+    if options.progressive.is_some() {
+        return run_progressive(&plan, &scene);
+    }
     let progress = with_threads(threads, || progress_for_render(&scene, options))??;
     if let Some((i, n)) = plan.band {
         with_threads(threads, || {
@@ -382,6 +433,47 @@ fn run_render(args: RenderArgs, given: &[(String, String)]) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
+/// A progressive render (`--target-error`, `--max-samples`,
+/// `--max-time`): its live line and preview, then its outputs with how it
+/// stopped in the EXR header.
+fn run_progressive(plan: &RenderPlan, scene: &Scene) -> Result<Outcome> {
+    let options = &plan.options;
+    let progress = crate::report::convergence::ConvergenceProgress::new(true, plan.preview.clone());
+    let out = with_threads(plan.threads, || render_with(scene, options, &progress))??;
+    progress.finish();
+    print_render_notes(&out, plan.timings, plan.explain);
+    let convergence = out.explain.convergence.as_ref();
+    if let Some(c) = convergence {
+        write_stderr(&format!("penumbra: {}\n", c.summary()));
+    }
+    if let Some(k) = plan.verify {
+        // The first set is the ordinary render at --seed: its decisions
+        // are the ones certified.
+        let first = RenderOptions {
+            progressive: None,
+            aovs: Vec::new(),
+            ..options.clone()
+        };
+        let report = with_threads(plan.threads, || verify_render(scene, &first, k))??;
+        write_stderr(&format!("penumbra: {report} (the first set)\n"));
+        report.check()?;
+    }
+    let mut outputs = OutputSet::new();
+    outputs.set_exr_metadata(convergence.map(|c| c.metadata()).unwrap_or_default());
+    for (path, format) in &plan.images {
+        outputs.image(
+            path,
+            *format,
+            out.width,
+            out.height,
+            &out.radiance,
+            &out.layers,
+        )?;
+    }
+    outputs.commit()?;
+    Ok(Outcome::Success)
+}
+
 /// A `render` command line checked before the scene is loaded.
 struct RenderPlan {
     /// The scene file.
@@ -397,6 +489,8 @@ struct RenderPlan {
     timings: bool,
     explain: bool,
     verify: Option<u64>,
+    /// `--preview`: the PNG a progressive render rewrites as it goes.
+    preview: Option<PathBuf>,
 }
 
 impl RenderPlan {
@@ -420,6 +514,10 @@ impl RenderPlan {
             explain,
             verify,
             tiles,
+            target_error,
+            max_samples,
+            max_time,
+            preview,
         } = args;
         let aovs = aov
             .iter()
@@ -454,8 +552,29 @@ impl RenderPlan {
             pattern,
             options: technique_options,
             threads,
+            progressive: (target_error.is_some() || max_samples.is_some() || max_time.is_some())
+                .then_some(crate::render::StopRule {
+                    target_error,
+                    max_samples,
+                    max_time,
+                }),
         };
         options.validate()?;
+        if let Some(p) = &preview {
+            if options.progressive.is_none() {
+                return Err(Error::param(
+                    "--preview",
+                    "a preview is of a progressive render: add --target-error, --max-samples \
+                     or --max-time",
+                ));
+            }
+            if image_format("--preview", p)? != Format::Png {
+                return Err(Error::param("--preview", "the preview is a PNG (.png)"));
+            }
+            if images.iter().any(|(path, _)| path == p) {
+                return Err(Error::param("--preview", "must not be the output image"));
+            }
+        }
         if let Some(k) = verify {
             // Refused before the render, not after it.
             check_verifiable(options.technique, &options.build_params(), k)?;
@@ -470,6 +589,7 @@ impl RenderPlan {
             timings,
             explain,
             verify,
+            preview,
         })
     }
 }
@@ -499,6 +619,23 @@ fn print_render_notes(out: &Render, timings: bool, explain: bool) {
         }
         for warning in &out.warnings {
             write_stderr(&format!("{:>12}  note: {warning}\n", "-"));
+        }
+        if let Some(c) = &out.explain.convergence {
+            write_stderr(&format!(
+                "progressive: {} (estimator: batch means over the sets; Vcoef RMSE {})\n",
+                c.summary(),
+                c.vcoef_error.map_or("none".into(), |v| format!("{v:.3e}"))
+            ));
+            for (k, p) in c.curve.iter().enumerate() {
+                let e = p.error.map_or("-".into(), |e| format!("{e:.3e}"));
+                write_stderr(&format!(
+                    "{:>12}  set {}: {} spp, {:.3} s, est. RMSE {e}\n",
+                    "-",
+                    k + 1,
+                    p.samples,
+                    p.seconds
+                ));
+            }
         }
     }
 }

@@ -79,7 +79,10 @@ pub use compare::{compare, compare_with, CompareOptions, Record, CSV_COLUMNS};
 pub use error::{Error, Result};
 pub use observe::{Cancel, Observer, Silent};
 pub use output::Layer;
-pub use render::{render, render_with, Aov, Explain, Render, RenderOptions, Technique};
+pub use render::{
+    render, render_with, Aov, Convergence, Explain, Render, RenderOptions, SetPoint, SetStatus,
+    StopReason, StopRule, Technique,
+};
 pub use sampling::SamplePattern;
 pub use scene::{
     load_scene, scene_from_toml, CameraDesc, Geometry, LightDesc, MaterialDesc, MeshData,

@@ -18,6 +18,9 @@ pub trait Observer: Sync {
     fn cancelled(&self) -> bool {
         false
     }
+    /// A progressive render finished a sample set: its running error
+    /// estimate, time left and (on request) its mean image.
+    fn set_done(&self, _status: &crate::render::SetStatus<'_>) {}
 }
 
 /// The observer that hears nothing and never cancels.

@@ -296,12 +296,21 @@ struct Staged {
 #[derive(Debug, Default)]
 pub struct OutputSet {
     staged: Vec<Staged>,
+    /// `(name, text)` attributes every EXR staged after they are set
+    /// carries in its header.
+    pub(super) exr_metadata: Vec<(String, String)>,
 }
 
 impl OutputSet {
     /// An empty set.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Text attributes (`name`, `value`) for the header of every EXR
+    /// staged from now on, e.g. how a progressive render stopped.
+    pub fn set_exr_metadata(&mut self, metadata: Vec<(String, String)>) {
+        self.exr_metadata = metadata;
     }
 
     /// Writes one output: `write` is called with a temporary path (beside

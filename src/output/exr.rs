@@ -80,9 +80,22 @@ pub(super) fn stage_exr(
         })?;
         list.push(AnyChannel::new(text, samples));
     }
+    let mut attributes = LayerAttributes::default();
+    for (name, value) in &set.exr_metadata {
+        let (Some(name), Some(value)) = (Text::new_or_none(name), Text::new_or_none(value)) else {
+            return Err(Error::file(
+                path,
+                None,
+                format!("metadata {name:?} has characters EXR cannot store"),
+            ));
+        };
+        attributes
+            .other
+            .insert(name, exr::meta::attribute::AttributeValue::Text(value));
+    }
     let layer = exr::image::Layer::new(
         (width as usize, height as usize),
-        LayerAttributes::default(),
+        attributes,
         // ZIP over 16 scan lines, increasing y: lossless and compact.
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(SmallVec::from_vec(list)),

@@ -1,9 +1,11 @@
 //! One render from start to end: G-buffer, shadow technique, shading, AOVs.
 
 mod estimate;
+mod progressive;
 mod shading;
 
 pub use estimate::{estimate_render, progress_for_render};
+pub use progressive::{set_seed, Convergence, SetPoint, SetStatus, StopReason, StopRule};
 pub use shading::shade;
 
 use crate::error::{Error, Result};
@@ -41,10 +43,14 @@ pub enum Aov {
     Mask,
     /// `vcoef.<k>`: visibility coefficient per light.
     Vcoef,
+    /// `error.Y` and `error.V`: a progressive render's estimated standard
+    /// error per pixel, of the radiance (RMS over R, G, B) and of the
+    /// Vcoef (RMS over the lights).
+    Error,
 }
 
 impl Aov {
-    /// Every AOV, in output order.
+    /// Every AOV any render produces, in output order.
     pub const ALL: [Aov; 6] = [
         Aov::Depth,
         Aov::Position,
@@ -53,6 +59,9 @@ impl Aov {
         Aov::Mask,
         Aov::Vcoef,
     ];
+
+    /// The AOVs only a progressive render produces, after [`Aov::ALL`].
+    pub const PROGRESSIVE: [Aov; 1] = [Aov::Error];
 
     /// The layer name.
     pub fn name(self) -> &'static str {
@@ -63,6 +72,7 @@ impl Aov {
             Aov::Albedo => "albedo",
             Aov::Mask => "mask",
             Aov::Vcoef => "vcoef",
+            Aov::Error => "error",
         }
     }
 }
@@ -70,8 +80,9 @@ impl Aov {
 impl FromStr for Aov {
     type Err = Error;
     fn from_str(s: &str) -> Result<Aov> {
-        Aov::ALL.into_iter().find(|a| a.name() == s).ok_or_else(|| {
-            let names: Vec<_> = Aov::ALL.iter().map(|a| a.name()).collect();
+        let all = || Aov::ALL.into_iter().chain(Aov::PROGRESSIVE);
+        all().find(|a| a.name() == s).ok_or_else(|| {
+            let names: Vec<_> = all().map(|a| a.name()).collect();
             Error::param(
                 "--aov",
                 format!("unknown layer `{s}` (known: {})", names.join(", ")),
@@ -104,6 +115,9 @@ pub struct RenderOptions {
     /// Worker threads of [`render_with`] (all cores when `None`); the
     /// image is the same for any count.
     pub threads: Option<usize>,
+    /// Render independent sets of `samples` until this rule stops
+    /// (progressive rendering to a target error); one set when `None`.
+    pub progressive: Option<StopRule>,
 }
 
 /// Most worker threads a render takes.
@@ -141,6 +155,15 @@ impl RenderOptions {
                 format!("{n} is outside 1..={MAX_THREADS}"),
             ));
         }
+        if let Some(rule) = &self.progressive {
+            rule.validate(self.technique, self.samples)?;
+        } else if self.aovs.contains(&Aov::Error) {
+            return Err(Error::param(
+                "--aov",
+                "the error layer needs two or more sample sets: add --target-error, \
+                 --max-samples or --max-time",
+            ));
+        }
         self.options.validate(self.technique.info().reads)
     }
 
@@ -168,6 +191,7 @@ impl Default for RenderOptions {
             pattern: SamplePattern::Stratified,
             options: TechniqueOptions::default(),
             threads: None,
+            progressive: None,
         }
     }
 }
@@ -212,6 +236,8 @@ pub struct Explain {
     pub buffers: Vec<BufferNote>,
     /// The warnings, in words.
     pub notes: Vec<String>,
+    /// How a progressive render converged and why it stopped.
+    pub convergence: Option<Convergence>,
 }
 
 impl Render {
@@ -239,7 +265,11 @@ pub fn view_for(scene: &Scene, options: &RenderOptions) -> Result<View> {
 fn bytes_per_pixel(scene: &Scene, options: &RenderOptions) -> u64 {
     let gbuffer = GBuffer::bytes_per_pixel(scene) as u64;
     let lights = scene.lights.len() as u64;
-    gbuffer + 8 + 12 + 12 + lights * 8 + 16 * 4 + options.aovs.len() as u64 * 12
+    let sets = match options.progressive {
+        Some(_) => progressive::accumulator_bytes_per_pixel(scene.lights.len()) + 12 + 8,
+        None => 0,
+    };
+    gbuffer + 8 + 12 + 12 + lights * 8 + 16 * 4 + options.aovs.len() as u64 * 12 + sets
 }
 
 /// Refuses a render that cannot fit in memory, before allocating it:
@@ -335,23 +365,48 @@ pub fn render_rows(
         cache: &cache,
         observer: progress,
     };
-    let mut shadows = run_technique(options.technique, &options.build_params(), &ctx)?;
-    unshadow_non_receivers(scene, &gbuffer, &mut shadows.lights);
-    passes.extend(shadows.passes.iter().cloned());
-    progress.step();
-    // The long passes stop early when cancelled, leaving their buffers
-    // unfinished: nothing of them may be used.
-    if progress.cancelled() {
-        return Err(Error::Cancelled);
-    }
-
-    progress.stage("shading");
-    let t = PassTimer::start("shading");
-    let radiance = shade(scene, &view, &gbuffer, &shadows.lights);
-    timed(t, &mut passes)?;
+    let (mut shadows, radiance, error_layer, convergence) = match &options.progressive {
+        None => {
+            let mut shadows = run_technique(options.technique, &options.build_params(), &ctx)?;
+            unshadow_non_receivers(scene, &gbuffer, &mut shadows.lights);
+            passes.extend(shadows.passes.iter().cloned());
+            progress.step();
+            // The long passes stop early when cancelled, leaving their
+            // buffers unfinished: nothing of them may be used.
+            if progress.cancelled() {
+                return Err(Error::Cancelled);
+            }
+            progress.stage("shading");
+            let t = PassTimer::start("shading");
+            let radiance = shade(scene, &view, &gbuffer, &shadows.lights);
+            timed(t, &mut passes)?;
+            (shadows, radiance, None, None)
+        }
+        Some(rule) => {
+            let c = progressive::converge(
+                options.technique,
+                &options.build_params(),
+                rule,
+                &ctx,
+                progress,
+            )?;
+            passes.extend(c.output.passes.iter().cloned());
+            progress.step();
+            progress.step();
+            (
+                c.output,
+                c.radiance,
+                Some(c.error_layer),
+                Some(c.convergence),
+            )
+        }
+    };
 
     let mut layers = aov_layers(&gbuffer, &shadows.lights, &options.aovs, scene.origin);
-    layers.extend(shadows.layers);
+    if options.aovs.contains(&Aov::Error) {
+        layers.extend(error_layer);
+    }
+    layers.extend(std::mem::take(&mut shadows.layers));
     let pixels = u64::from(view.width) * u64::from(view.height);
     let mut buffers = vec![
         BufferNote {
@@ -377,6 +432,7 @@ pub fn render_rows(
         threads: rayon::current_num_threads(),
         buffers,
         notes: warnings.iter().map(|w| w.to_string()).collect(),
+        convergence,
     };
     Ok(Render {
         lights: shadows.lights,
@@ -396,7 +452,7 @@ pub fn render_rows(
 /// the technique computed there: shading already ignores it, but the
 /// `vcoef` AOV and `compare`'s Vcoef errors read it. One place for every
 /// technique (the reference and penumbra casting write 1 themselves).
-fn unshadow_non_receivers(scene: &Scene, gbuffer: &GBuffer, lights: &mut [LightTerm]) {
+pub(crate) fn unshadow_non_receivers(scene: &Scene, gbuffer: &GBuffer, lights: &mut [LightTerm]) {
     if scene.objects.iter().all(|o| o.receive_shadows) {
         return;
     }
@@ -491,6 +547,8 @@ pub fn aov_layers(
                 channel("B", &|g| g.albedo.z),
             ],
             Aov::Mask => vec![channel("Y", &|_| 1.0)],
+            // A progressive render's own layer, added after these.
+            Aov::Error => continue,
             Aov::Vcoef => terms
                 .iter()
                 .enumerate()

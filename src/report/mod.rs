@@ -2,6 +2,7 @@
 //! mask), `diff` between images, error heat maps and error-vs-time charts.
 
 pub mod chart;
+pub mod convergence;
 pub mod diff;
 pub mod flip;
 pub mod heatmap;

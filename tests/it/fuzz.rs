@@ -1062,6 +1062,7 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
         pattern,
         options: technique_options,
         threads: None,
+        progressive: None,
     };
     let _ = write!(case.log, "| render {options:?}");
     match render(&scene, &options) {
@@ -2452,6 +2453,7 @@ fn agreement_case(rng: &mut Rng, case: &mut Case) -> Result<Outcome, String> {
             options,
             aovs: vec![Aov::Vcoef],
             threads: None,
+            progressive: None,
         };
         let out = render(&scene, &options)?;
         let layer = out.layers.iter().find(|l| l.name == "vcoef");

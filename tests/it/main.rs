@@ -40,6 +40,7 @@ mod pcss;
 mod penumbra_casting;
 mod penumbra_casting_translucent;
 mod progress;
+mod progressive;
 mod raster;
 mod receive_shadows;
 mod reference;

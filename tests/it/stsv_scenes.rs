@@ -194,6 +194,7 @@ fn scenes_without_s_triangles_ignore_the_stsv_options() {
                 },
                 aovs: vec![penumbra::internal::render::Aov::Vcoef],
                 threads: None,
+                progressive: None,
             };
             render(&scene, &options).expect("render")
         };
