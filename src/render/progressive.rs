@@ -468,7 +468,12 @@ fn time_left(rule: &StopRule, curve: &[SetPoint], samples_per_set: u32) -> Optio
         let slope = convergence_slope(curve);
         // error(s) = err · (s / s_now)^slope  ⇒  s = s_now · (target/err)^(1/slope)
         let samples = last.samples as f64 * (target / err).powf(1.0 / slope);
-        need = need.min((samples / f64::from(samples_per_set)).ceil().max(sets));
+        // Less a hair, so an exact whole number of sets is not rounded up.
+        need = need.min(
+            (samples / f64::from(samples_per_set) - 1e-9)
+                .ceil()
+                .max(sets),
+        );
     } else if rule.target_error.is_some() {
         return None;
     }
