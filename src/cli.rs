@@ -13,6 +13,7 @@ use crate::output::{
 use crate::render::{
     progress_for_render, render_with, verify_render, with_threads, Aov, Render, RenderOptions,
 };
+use crate::report::convergence::{convergence_csv, write_convergence_chart};
 use crate::report::Progress;
 use crate::report::{diff_images, DiffOptions};
 use crate::sampling::SamplePattern;
@@ -172,6 +173,10 @@ struct RenderArgs {
     /// the target error).
     #[arg(long, value_name = "PATH", help_heading = "Progressive")]
     preview: Option<PathBuf>,
+    /// Progressive: write the estimated error after each set, as a
+    /// log-log chart against time (.png) or a table (.csv).
+    #[arg(long, value_name = "PATH", help_heading = "Progressive")]
+    convergence: Option<PathBuf>,
 }
 
 /// A time as seconds, or with a unit: `90`, `90s`, `2m`, `1h`, `500ms`.
@@ -460,6 +465,25 @@ fn run_progressive(plan: &RenderPlan, scene: &Scene) -> Result<Outcome> {
     }
     let mut outputs = OutputSet::new();
     outputs.set_exr_metadata(convergence.map(|c| c.metadata()).unwrap_or_default());
+    if let (Some(path), Some(c)) = (&plan.convergence, convergence) {
+        let csv = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        outputs.stage(path, |tmp| match csv {
+            true => std::fs::write(tmp, convergence_csv(&c.curve)).map_err(|e| Error::io(tmp, e)),
+            false => {
+                let scene_name = plan.scene.file_stem().unwrap_or_default().to_string_lossy();
+                let title = format!(
+                    "{} on {scene_name}: {} sets of {} spp, stopped by {}",
+                    options.technique.name(),
+                    c.sets,
+                    c.samples_per_set,
+                    c.stop.name()
+                );
+                write_convergence_chart(tmp, &title, &c.curve, c.target_error)
+            }
+        })?;
+    }
     for (path, format) in &plan.images {
         outputs.image(
             path,
@@ -491,6 +515,8 @@ struct RenderPlan {
     verify: Option<u64>,
     /// `--preview`: the PNG a progressive render rewrites as it goes.
     preview: Option<PathBuf>,
+    /// `--convergence`: the error curve's chart (.png) or table (.csv).
+    convergence: Option<PathBuf>,
 }
 
 impl RenderPlan {
@@ -518,6 +544,7 @@ impl RenderPlan {
             max_samples,
             max_time,
             preview,
+            convergence,
         } = args;
         let aovs = aov
             .iter()
@@ -560,6 +587,28 @@ impl RenderPlan {
                 }),
         };
         options.validate()?;
+        if let Some(p) = &convergence {
+            if options.progressive.is_none() {
+                return Err(Error::param(
+                    "--convergence",
+                    "a convergence curve is of a progressive render: add --target-error, \
+                     --max-samples or --max-time",
+                ));
+            }
+            check_output(p)?;
+            let ext = p
+                .extension()
+                .map(|e| e.to_string_lossy().to_ascii_lowercase());
+            if !matches!(ext.as_deref(), Some("png" | "csv")) {
+                return Err(Error::param(
+                    "--convergence",
+                    format!(
+                        "{}: the extension decides: .png (chart) or .csv",
+                        p.display()
+                    ),
+                ));
+            }
+        }
         if let Some(p) = &preview {
             if options.progressive.is_none() {
                 return Err(Error::param(
@@ -590,6 +639,7 @@ impl RenderPlan {
             explain,
             verify,
             preview,
+            convergence,
         })
     }
 }

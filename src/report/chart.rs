@@ -108,7 +108,7 @@ pub fn write_error_vs_time_sized(
 /// The font every chart's text is drawn with, registered once as plotters'
 /// sans-serif family. It comes compiled into the binary, so charts look
 /// (and are) the same with or without system fonts.
-fn register_embedded_font() -> std::result::Result<(), String> {
+pub(crate) fn register_embedded_font() -> std::result::Result<(), String> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         register_font(

@@ -263,9 +263,16 @@ fn command_line_records_the_stop_in_the_exr_and_writes_the_preview() {
         .args(["--samples", "4", "--max-time", "300ms", "--explain"])
         .arg("-o")
         .arg(dir.join("t.png"))
+        .arg("--convergence")
+        .arg(dir.join("curve.csv"))
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("stopped by max-time"), "{stderr}");
+    let csv = std::fs::read_to_string(dir.join("curve.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows[0], "set,samples,seconds,estimated_rmse");
+    assert!(rows.len() >= 2, "{csv}");
+    assert!(rows[1].starts_with("1,4,"), "{csv}");
 }
