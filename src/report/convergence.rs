@@ -151,21 +151,6 @@ impl Drop for ConvergenceProgress {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn preview_puts_the_heat_map_beside_the_image() {
-        let image = [10u8, 20, 30, 40, 50, 60];
-        let bytes = preview_bytes(2, &image, &[0.0, 1.0], &[true, false]);
-        assert_eq!(bytes.len(), 12);
-        assert_eq!(&bytes[..6], &image);
-        assert_eq!(&bytes[6..9], &heatmap_colour(0.0, 0.0));
-        assert_eq!(&bytes[9..], &HEATMAP_BACKGROUND);
-    }
-}
-
 /// The convergence curve as CSV: one row per set.
 pub fn convergence_csv(curve: &[SetPoint]) -> String {
     let mut out = String::from("set,samples,seconds,estimated_rmse\n");
@@ -294,4 +279,19 @@ fn draw_convergence(
         .map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn preview_puts_the_heat_map_beside_the_image() {
+        let image = [10u8, 20, 30, 40, 50, 60];
+        let bytes = preview_bytes(2, &image, &[0.0, 1.0], &[true, false]);
+        assert_eq!(bytes.len(), 12);
+        assert_eq!(&bytes[..6], &image);
+        assert_eq!(&bytes[6..9], &heatmap_colour(0.0, 0.0));
+        assert_eq!(&bytes[9..], &HEATMAP_BACKGROUND);
+    }
 }
