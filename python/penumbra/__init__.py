@@ -37,6 +37,8 @@ __version__ = "0.1.0"
 
 #: Every AOV layer a render can return besides radiance, in output order.
 AOVS: Tuple[str, ...] = ("depth", "position", "normal", "albedo", "mask", "vcoef")
+"""The layers every render can return; a progressive render can also
+return ``"error"`` (``error.Y``, ``error.V``: docs/progressive.md)."""
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -210,6 +212,9 @@ class Scene:
         aovs: Union[str, Sequence[str], None] = (),
         threads: Optional[int] = None,
         pattern: Optional[str] = None,
+        target_error: Optional[float] = None,
+        max_samples: Optional[int] = None,
+        max_time: Optional[float] = None,
         **options: Any,
     ) -> Render:
         """Renders the scene; see :class:`Render` for what comes back.
@@ -226,6 +231,13 @@ class Scene:
                 same for every count.
             pattern: light sample placement (``"stratified"`` by default;
                 ``"sobol"``, ``"interleaved:4"``, ... as ``--pattern``).
+            target_error, max_samples, max_time: progressive rendering
+                (docs/progressive.md): independent sets of ``samples``
+                until the estimated radiance RMSE is at most
+                ``target_error``, within ``max_samples`` samples in all and
+                ``max_time`` seconds; ``explain["convergence"]`` says how
+                it stopped, and ``aovs=["error"]`` returns the per-pixel
+                estimate.
             **options: the techniques' own options, named as the command
                 line's without the dashes: ``map_size=1024`` for
                 ``--map-size 1024``, ``True`` for a bare flag.
@@ -244,6 +256,9 @@ class Scene:
             _unsigned("threads", threads, optional=True),
             None if pattern is None else str(pattern),
             _option_words(options),
+            None if target_error is None else float(target_error),
+            _unsigned("max_samples", max_samples, optional=True),
+            None if max_time is None else float(max_time),
         )
         return Render(data)
 

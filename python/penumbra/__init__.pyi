@@ -87,6 +87,9 @@ class Scene:
         aovs: Union[str, Sequence[str], None] = (),
         threads: Optional[int] = None,
         pattern: Optional[str] = None,
+        target_error: Optional[float] = None,
+        max_samples: Optional[int] = None,
+        max_time: Optional[float] = None,
         **options: Any,
     ) -> Render:
         """Renders the scene. The GIL is released meanwhile; Ctrl-C raises

@@ -22,6 +22,9 @@ class NativeScene:
         threads: Optional[int],
         pattern: Optional[str],
         option_args: List[str],
+        target_error: Optional[float],
+        max_samples: Optional[int],
+        max_time: Optional[float],
     ) -> Dict[str, Any]: ...
 
 def load_scene(path: str) -> NativeScene: ...

@@ -124,6 +124,12 @@ pub struct Request {
     /// The techniques' own options as command-line words
     /// (`["--map-size", "1024"]`), parsed by the CLI's parser.
     pub option_args: Vec<String>,
+    /// Progressive rendering: the target radiance RMSE.
+    pub target_error: Option<f64>,
+    /// Progressive rendering: at most this many samples in all.
+    pub max_samples: Option<u64>,
+    /// Progressive rendering: at most this many seconds.
+    pub max_time: Option<f64>,
 }
 
 /// One output layer: its name and `(channel, values)` pairs, row-major.
@@ -188,9 +194,32 @@ fn render_options(request: &Request) -> Result<penumbra::RenderOptions> {
         pattern,
         options,
         threads: request.threads,
+        progressive: progressive_rule(request)?,
     };
     options.validate()?;
     Ok(options)
+}
+
+/// The stop rule of a progressive render, if the request asks for one.
+fn progressive_rule(request: &Request) -> Result<Option<penumbra::StopRule>> {
+    let max_time = match request.max_time {
+        None => None,
+        Some(t) if t.is_finite() && t > 0.0 && t < 1e9 => {
+            Some(std::time::Duration::from_secs_f64(t))
+        }
+        Some(t) => {
+            return Err(Error::param(
+                "max_time",
+                format!("{t} is not a number of seconds in (0, 1e9)"),
+            ))
+        }
+    };
+    let rule = penumbra::StopRule {
+        target_error: request.target_error,
+        max_samples: request.max_samples,
+        max_time,
+    };
+    Ok((rule != penumbra::StopRule::default()).then_some(rule))
 }
 
 /// Renders `scene` with `request` on `request.threads` threads, stopping

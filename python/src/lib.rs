@@ -54,7 +54,7 @@ impl NativeScene {
     }
 
     /// Renders; returns a dict of the pieces `penumbra.Render` is made of.
-    #[pyo3(signature = (technique, samples, width, height, seed, aovs, threads, pattern, option_args))]
+    #[pyo3(signature = (technique, samples, width, height, seed, aovs, threads, pattern, option_args, target_error, max_samples, max_time))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -68,6 +68,9 @@ impl NativeScene {
         threads: Option<usize>,
         pattern: Option<String>,
         option_args: Vec<String>,
+        target_error: Option<f64>,
+        max_samples: Option<u64>,
+        max_time: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let request = api::Request {
             technique,
@@ -79,6 +82,9 @@ impl NativeScene {
             threads,
             pattern,
             option_args,
+            target_error,
+            max_samples,
+            max_time,
         };
         let cancel = api::Cancel::default();
         let data = run_interruptible(py, &cancel, || api::render(&self.scene, &request, &cancel))?
