@@ -61,25 +61,56 @@ def setup(dest):
 
 def penumbra_bin(args):
     if args.penumbra:
+        if not os.access(args.penumbra, os.X_OK):
+            sys.exit(f"--penumbra {args.penumbra}: no such executable (build it with `cargo build --release`)")
         return args.penumbra
     subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
     return os.path.join(ROOT, "target", "release", "penumbra")
 
 
+def machine():
+    """The CPU model (and whether it has AVX-512) and the core count."""
+    with open("/proc/cpuinfo") as f:
+        info = f.read()
+    cpu = next((l.split(":", 1)[1].strip() for l in info.splitlines() if l.startswith("model name")),
+               platform.processor())
+    return {"cpu": cpu, "avx512": "avx512f" in info, "cores": os.cpu_count()}
+
+
 def light_count(scene):
-    with open(scene) as f:
-        return len(re.findall(r"^\s*\[\[lights?\]\]", f.read(), re.M))
+    try:
+        with open(scene) as f:
+            return len(re.findall(r"^\s*\[\[lights?\]\]", f.read(), re.M))
+    except OSError as e:
+        sys.exit(f"{scene}: {e.strerror}")
 
 
-def run_penumbra(exe, scene, technique, w, h, samples, threads, work):
-    cmd = [exe, "render", scene, "--technique", *shlex.split(technique),
-           "--width", str(w), "--height", str(h), "--samples", str(samples),
-           "--threads", str(threads), "--timings", "-o", os.path.join(work, "t.png")]
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode != 0:
-        sys.exit(f"penumbra failed: {shlex.join(cmd)}\n{p.stderr}")
+def prepare_peer_input(exe, peer, scene, w, h, work, info=None):
+    """penumbra's G-buffer of SCENE at w×h, turned into the peer's input
+    (the same receivers); returns its path. Not timed. Raises RuntimeError
+    with the failing command's stderr."""
+    g = os.path.join(work, "g.exr")
+    binary = os.path.join(work, "in.bin")
+    for cmd in ([exe, "render", scene, "--technique", "none", "--width", str(w), "--height", str(h),
+                 "--exr", g, "--aov", "position,normal,mask", "-o", os.path.join(work, "g.png")],
+                [sys.executable, os.path.join(peer, "prep.py"), scene, g, binary, "--light", "0",
+                 *(["--info", info] if info else [])]):
+        p = subprocess.run(cmd, capture_output=True, text=True)
+        if p.returncode != 0:
+            raise RuntimeError(f"failed ({p.returncode}): {shlex.join(cmd)}\n{p.stderr.strip()}")
+    return binary
+
+
+def penumbra_command(exe, scene, technique, w, h, samples, threads, work):
+    return [exe, "render", scene, "--technique", *shlex.split(technique),
+            "--width", str(w), "--height", str(h), "--samples", str(samples),
+            "--threads", str(threads), "--timings", "-o", os.path.join(work, "t.png")]
+
+
+def penumbra_times(output):
+    """The shadow-work time (s) and every pass's time from `--timings` output."""
     passes = {}
-    for line in (p.stdout + p.stderr).splitlines():
+    for line in output.splitlines():
         m = TIMING.match(line)
         if m:
             passes[m.group(2)] = float(m.group(1)) / 1000.0
@@ -87,14 +118,31 @@ def run_penumbra(exe, scene, technique, w, h, samples, threads, work):
     return shadow, passes
 
 
+def run_penumbra(exe, scene, technique, w, h, samples, threads, work):
+    cmd = penumbra_command(exe, scene, technique, w, h, samples, threads, work)
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    if p.returncode != 0:
+        sys.exit(f"penumbra failed: {shlex.join(cmd)}\n{p.stderr}")
+    return penumbra_times(p.stdout + p.stderr)
+
+
+def embree_command(peer, binary, samples, threads):
+    return [os.path.join(peer, "embree_rays"), binary, "--samples", str(samples),
+            "--threads", str(threads), "--mode", "stream"]
+
+
+def embree_times(stdout):
+    """The shadow-work time (s: BVH build + trace) and the peer's JSON line."""
+    j = json.loads(stdout.strip().splitlines()[-1])
+    return j["build_s"] + j["trace_s"], j
+
+
 def run_embree(peer, binary, samples, threads):
-    cmd = [os.path.join(peer, "embree_rays"), binary, "--samples", str(samples),
-           "--threads", str(threads), "--mode", "stream"]
+    cmd = embree_command(peer, binary, samples, threads)
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"embree_rays failed: {shlex.join(cmd)}\n{p.stderr}")
-    j = json.loads(p.stdout.strip().splitlines()[-1])
-    return j["build_s"] + j["trace_s"], j
+    return embree_times(p.stdout)
 
 
 def main():
@@ -117,10 +165,9 @@ def main():
     if not args.peer or not os.access(os.path.join(args.peer, "embree_rays"), os.X_OK):
         sys.exit("--peer DIR must hold a built embree_rays (see --setup)")
     exe = penumbra_bin(args)
-    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")),
-               platform.processor())
-    avx512 = "avx512f" in open("/proc/cpuinfo").read()
-    print(f"# {cpu}{' (AVX-512)' if avx512 else ''}, {os.cpu_count()} cores; "
+    m = machine()
+    cpu = m["cpu"]
+    print(f"# {cpu}{' (AVX-512)' if m['avx512'] else ''}, {m['cores']} cores; "
           f"load before: {open('/proc/loadavg').read().split()[:3]}; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     print(f"# {shlex.join(sys.argv)}")
     records = []
@@ -131,13 +178,10 @@ def main():
                 sys.exit(f"{scene}: the peer traces one light; this scene has {light_count(scene)}")
             for size in args.size:
                 w, h = (int(x) for x in (size.split("x") if "x" in size else (size, size)))
-                g = os.path.join(work, "g.exr")
-                subprocess.run([exe, "render", scene, "--technique", "none", "--width", str(w),
-                                "--height", str(h), "--exr", g, "--aov", "position,normal,mask",
-                                "-o", os.path.join(work, "g.png")], check=True, capture_output=True)
-                binary = os.path.join(work, "in.bin")
-                subprocess.run([sys.executable, os.path.join(args.peer, "prep.py"), scene, g, binary,
-                                "--light", "0"], check=True, capture_output=True)
+                try:
+                    binary = prepare_peer_input(exe, args.peer, scene, w, h, work)
+                except RuntimeError as e:
+                    sys.exit(f"the peer's input: {e}")
                 for n in args.samples:
                     times = {"embree": []}
                     for t in args.techniques:
