@@ -7,10 +7,13 @@ use super::reference::ReferenceImages;
 use crate::error::{Error, Result};
 use crate::output::write_png;
 use crate::render::Render;
-use crate::report::{pareto_front, write_error_heatmap, write_error_vs_time, ChartPoint};
+use crate::report::{
+    pareto_front, write_error_heatmap, write_error_vs_time, ChartPoint, HeatmapScale,
+};
 use std::path::Path;
 
-/// Errors at or above this show brightest in the Vcoef heat maps.
+/// Errors at or above this show brightest in the Vcoef heat maps (their
+/// colour bars say so).
 pub const HEATMAP_SCALE: f32 = 0.25;
 
 /// A file-name-safe form of `s`.
@@ -51,13 +54,19 @@ pub(super) fn write_run_images(
             .map(|(a, b)| (a - b).abs())
             .collect();
         let rel = format!("heatmaps/{stem}.vcoef{k}.png");
+        let quantity = format!("|ΔVcoef|, light {k}");
+        let scale = HeatmapScale {
+            quantity: &quantity,
+            unit: "unitless",
+            max: HEATMAP_SCALE,
+        };
         write_error_heatmap(
             &out.join(&rel),
             width,
             height,
             &err,
             &reference.surface,
-            HEATMAP_SCALE,
+            &scale,
         )?;
         heatmaps.push(rel);
     }

@@ -108,7 +108,7 @@ pub fn write_error_vs_time_sized(
 /// The font every chart's text is drawn with, registered once as plotters'
 /// sans-serif family. It comes compiled into the binary, so charts look
 /// (and are) the same with or without system fonts.
-fn register_embedded_font() -> std::result::Result<(), String> {
+pub(crate) fn register_embedded_font() -> std::result::Result<(), String> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         register_font(
@@ -179,7 +179,7 @@ fn log_range(lo: f64, hi: f64) -> Range<f64> {
 
 /// A tick label: few digits, plain for ordinary magnitudes, `1e-5` style
 /// beyond them.
-fn tick_label(v: f64) -> String {
+pub(crate) fn tick_label(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
         return "0".into();
