@@ -46,7 +46,7 @@ pub mod shard;
 pub mod share;
 
 pub use crate::shadow::technique::{has_semi_opaque_casters, QualitySetting};
-pub use charts::HEATMAP_SCALE;
+pub use charts::{scene_charts, ChartSpec, HEATMAP_SCALE};
 pub use host::host_name;
 pub use merge::merge_partials;
 pub use model::{

@@ -10,7 +10,8 @@ pub mod metrics;
 mod progress;
 
 pub use chart::{
-    pareto_front, write_error_vs_time, write_error_vs_time_sized, ChartPoint, CHART_SIZE,
+    error_vs_time_labels, pareto_front, place_labels, write_error_vs_time,
+    write_error_vs_time_sized, ChartLabels, ChartPoint, LabelBox, LabelRequest, CHART_SIZE,
     MIN_CHART_SIZE,
 };
 pub use diff::{diff_images, ChannelDiff, DiffOptions, DiffReport};
