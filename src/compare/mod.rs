@@ -52,9 +52,9 @@ pub use merge::merge_partials;
 pub use model::{
     NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
 };
-pub use pipeline::{compare, compare_scene, compare_with, scene_dir};
-pub(crate) use pipeline::{sweep, SweepOutput};
+pub use pipeline::{compare, compare_scene, compare_with, progress_steps, scene_dir};
+pub(crate) use pipeline::{sweep, sweep_listing, SweepOutput};
 pub use record::{records, Record, CSV_COLUMNS};
 pub use reference::reference_only;
 pub use results::{check_verified, write_csv, write_json, write_markdown, write_results};
-pub use settings::{progress_steps, quality_settings, CompareOptions};
+pub use settings::{quality_settings, CompareOptions, SettingRun, SWEEP_SETTINGS};

@@ -7,7 +7,9 @@
 use super::charts;
 use super::model::{ReferenceSummary, RunResult, SceneComparison};
 use super::record::{records, Record};
-use super::reference::{interior_of, reference, NoiseFloors, ReferenceImages};
+use super::reference::{
+    cached_reference_seconds, interior_of, reference, reference_key, NoiseFloors, ReferenceImages,
+};
 use super::results::{verified, write_results};
 use super::run::{run_result, time_setting};
 use super::settings::{quality_settings, CompareOptions};
@@ -53,6 +55,81 @@ fn measure_scene(
         runs.push(run_planned(scene, &prepared, run, options, out, progress)?);
     }
     finish_scene(prepared.header, runs, out)
+}
+
+/// Progress steps a sweep over `scenes` takes with `options`: two for
+/// each scene's reference, one per timed render of each run
+/// ([`scene_runs`], the list the shards plan and the listing shows).
+pub fn progress_steps(scenes: &[Scene], options: &CompareOptions) -> Result<u64> {
+    let mut steps = 0;
+    for scene in scenes {
+        let runs = scene_runs(scene, options)?.len() as u64;
+        steps += 2 + runs * u64::from(options.repeat);
+    }
+    Ok(steps)
+}
+
+/// What `compare` prints before any run starts: per scene, `prefix`, the
+/// runs of `runs` (an index into the scene's runs, the run) and the
+/// reference, each as technique and setting; whether the reference is in
+/// the cache; for a run the user did not name, the option that added it.
+/// Lines are wrapped at 100 columns, never inside a run's name.
+pub(crate) fn run_listing<'a>(
+    prefix: &str,
+    scene: &Scene,
+    options: &CompareOptions,
+    runs: impl IntoIterator<Item = &'a PlannedRun>,
+) -> Result<String> {
+    let cached = cached_reference_seconds(scene, options)?.is_some();
+    let mut items = vec![format!(
+        "reference {} spp ({})",
+        options.reference_samples,
+        if cached { "cached" } else { "to compute" }
+    )];
+    let mut count = 0;
+    for run in runs {
+        count += 1;
+        let mut item = format!("{} {}", run.setting.curve, run.setting.label);
+        if let Some(option) = run.added_by {
+            item += &format!(" [{option}]");
+        }
+        items.push(item);
+    }
+    let key = reference_key(scene, options)?;
+    let head = format!(
+        "{prefix}: {count} run{} and the reference on {} ({}×{}, {} timed render{} each):",
+        if count == 1 { "" } else { "s" },
+        scene.name,
+        key.width,
+        key.height,
+        options.repeat,
+        if options.repeat == 1 { "" } else { "s" },
+    );
+    let mut text = head;
+    let mut line = text.chars().count();
+    for (i, item) in items.iter().enumerate() {
+        let piece = match i + 1 == items.len() {
+            true => item.clone(),
+            false => format!("{item};"),
+        };
+        let width = piece.chars().count();
+        if line + 1 + width > 100 && line > 2 {
+            text += "\n ";
+            line = 1;
+        }
+        text += " ";
+        text += &piece;
+        line += 1 + width;
+    }
+    Ok(text)
+}
+
+/// [`run_listing`] of every scene of a whole sweep.
+pub(crate) fn sweep_listing(scenes: &[Scene], options: &CompareOptions) -> Result<Vec<String>> {
+    scenes
+        .iter()
+        .map(|scene| run_listing("compare", scene, options, &scene_runs(scene, options)?))
+        .collect()
 }
 
 /// Compares every technique at every quality setting on each of `scenes`
@@ -181,6 +258,9 @@ fn equivalent_command(scenes: &[Scene], options: &CompareOptions, out: &Path) ->
     if !options.images {
         words.push("--no-images".to_string());
     }
+    if options.sweep_settings {
+        words.push("--sweep-settings".to_string());
+    }
     if options.technique_options != TechniqueOptions::default() {
         words.push("# and the technique options given in code".to_string());
     }
@@ -226,10 +306,16 @@ pub(crate) struct PlannedRun {
     pub setting: QualitySetting,
     /// Its render options.
     pub options: RenderOptions,
+    /// For a run the user did not name, the option that added it.
+    pub added_by: Option<&'static str>,
 }
 
 /// The runs `compare` makes on `scene`, in order: every technique's
-/// quality settings. Cheap (no rendering): shards plan with it.
+/// default configuration at each sample count and pattern asked for and,
+/// with `--sweep-settings`, its other quality settings
+/// ([`quality_settings`]). Cheap (no rendering): the listing printed
+/// before a sweep, the progress steps and the shards' plan all come from
+/// it.
 pub(crate) fn scene_runs(scene: &Scene, options: &CompareOptions) -> Result<Vec<PlannedRun>> {
     let view = crate::render::view_for(
         scene,
@@ -249,16 +335,18 @@ pub(crate) fn scene_runs(scene: &Scene, options: &CompareOptions) -> Result<Vec<
     let semi_opaque = has_semi_opaque_casters(scene);
     let mut runs = Vec::new();
     for &technique in &options.techniques {
-        for (setting, setting_options) in quality_settings(
+        for run in quality_settings(
             technique,
             &options.samples,
             &options.patterns,
             semi_opaque,
             &base,
+            options.sweep_settings,
         ) {
             runs.push(PlannedRun {
-                setting,
-                options: setting_options,
+                setting: run.setting,
+                options: run.options,
+                added_by: run.added_by,
             });
         }
     }

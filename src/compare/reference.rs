@@ -285,6 +285,38 @@ pub(super) fn interior_of(scene: &Scene, options: &CompareOptions) -> Result<Vec
     })
 }
 
+/// The cache key of `scene`'s reference under `options`.
+pub(super) fn reference_key(scene: &Scene, options: &CompareOptions) -> Result<ReferenceKey> {
+    let view = crate::render::view_for(
+        scene,
+        &RenderOptions {
+            width: options.width,
+            height: options.height,
+            ..RenderOptions::default()
+        },
+    )?;
+    let mut h = StableHasher::default();
+    cache::hash_scene(&mut h, scene);
+    Ok(ReferenceKey {
+        scene_hash: h.finish(),
+        width: view.width,
+        height: view.height,
+        samples: options.reference_samples,
+        seeds: options.reference_seeds(),
+        version: REFERENCE_VERSION,
+    })
+}
+
+/// How long `scene`'s cached reference took when computed, if the cache
+/// holds it ([`cache::peek`]: its sidecar only).
+pub(super) fn cached_reference_seconds(
+    scene: &Scene,
+    options: &CompareOptions,
+) -> Result<Option<f64>> {
+    let key = reference_key(scene, options)?;
+    Ok(cache::peek(&options.cache_dir, &key, scene.lights.len()))
+}
+
 /// Computes (or reads from the cache) the reference for `scene`.
 pub(super) fn reference(
     scene: &Scene,
@@ -296,17 +328,7 @@ pub(super) fn reference(
         height: options.height,
         ..RenderOptions::default()
     };
-    let view = crate::render::view_for(scene, &view_options)?;
-    let mut h = StableHasher::default();
-    cache::hash_scene(&mut h, scene);
-    let key = ReferenceKey {
-        scene_hash: h.finish(),
-        width: view.width,
-        height: view.height,
-        samples: options.reference_samples,
-        seeds: options.reference_seeds(),
-        version: REFERENCE_VERSION,
-    };
+    let key = reference_key(scene, options)?;
     // Shards of a sweep on a shared filesystem compute each reference
     // once: the first to need it holds the cache's lock while the others
     // wait and then read the cache (cache.rs explains the lock).

@@ -27,7 +27,7 @@ use super::host::host_name;
 use super::model::{
     NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
 };
-use super::pipeline::{prepare_scene, run_planned, scene_dir, scene_runs, PlannedRun};
+use super::pipeline::{prepare_scene, run_listing, run_planned, scene_dir, scene_runs, PlannedRun};
 use super::settings::CompareOptions;
 use super::share::{parse_share, ShareError};
 use crate::error::{Error, Result};
@@ -726,6 +726,10 @@ fn option_entries(options: &CompareOptions) -> Vec<(String, String)> {
         ("--seed".into(), options.seed.to_string()),
         ("--verify".into(), format!("{:?}", options.verify)),
         (
+            "--sweep-settings".into(),
+            options.sweep_settings.to_string(),
+        ),
+        (
             "technique options".into(),
             format!("{:?}", options.technique_options),
         ),
@@ -896,6 +900,37 @@ pub fn run_shard(
     })
 }
 
+/// What shard `shard` of the sweep over `scenes` prints before any run
+/// starts: per scene it prepares, its runs and the reference
+/// ([`run_listing`]), out of the sweep's.
+pub fn shard_listing(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    shard: ShardSpec,
+) -> Result<Vec<String>> {
+    let Plan {
+        entries, planned, ..
+    } = plan(scenes, options, shard.count)?;
+    let mut lines = Vec::new();
+    for (s, scene) in scenes.iter().enumerate() {
+        let mine: Vec<&PlannedRun> = (entries.iter())
+            .filter(|e| e.scene == s && e.shard == shard.index)
+            .map(|e| &planned[s][e.index])
+            .collect();
+        let empty = !entries.iter().any(|e| e.scene == s);
+        if mine.is_empty() && !(empty && shard.index == 1) {
+            continue;
+        }
+        let prefix = format!(
+            "compare shard {shard} ({} of the sweep's {} runs)",
+            entries.iter().filter(|e| e.shard == shard.index).count(),
+            entries.len()
+        );
+        lines.push(run_listing(&prefix, scene, options, mine)?);
+    }
+    Ok(lines)
+}
+
 /// The equivalent unsharded command of a command line: `args` (without
 /// the program) minus `--shard I/N`, shell-quoted.
 pub fn unsharded_command(args: &[String]) -> String {
@@ -997,5 +1032,60 @@ mod tests {
             unsharded_command(&args),
             "penumbra compare 'a b.toml' --out d"
         );
+    }
+}
+
+#[cfg(test)]
+mod plan_tests {
+    use super::*;
+    use crate::compare::pipeline::progress_steps;
+    use crate::render::Technique;
+
+    /// The shards' plan, the progress steps and the listing are of one
+    /// list of runs, with and without `--sweep-settings`.
+    #[test]
+    fn the_plan_the_steps_and_the_estimate_share_one_list() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/quad.toml");
+        let scene = crate::scene::load_scene(&path).expect("quad loads");
+        let scenes = [scene.clone(), scene];
+        for sweep_settings in [false, true] {
+            let options = CompareOptions {
+                techniques: ["dcs", "shadow-map", "reference"]
+                    .map(|t| Technique::named(t).expect("registered"))
+                    .to_vec(),
+                samples: vec![4, 16],
+                width: Some(32),
+                height: Some(24),
+                repeat: 2,
+                sweep_settings,
+                ..CompareOptions::default()
+            };
+            let Plan { entries, .. } = plan(&scenes, &options, 3).expect("plans");
+            let runs = scene_runs(&scenes[0], &options).expect("runs");
+            assert_eq!(entries.len(), 2 * runs.len());
+            assert_eq!(runs.len(), if sweep_settings { 10 } else { 5 });
+            assert_eq!(
+                progress_steps(&scenes, &options).expect("steps"),
+                2 * 2 + entries.len() as u64 * 2
+            );
+            // Every shard's listing names its runs, and together they
+            // are the sweep's.
+            let (mut listed, mut marked) = (0, false);
+            for index in 1..=3 {
+                let shard = ShardSpec { index, count: 3 };
+                for line in shard_listing(&scenes, &options, shard).expect("lists") {
+                    let n: usize = line
+                        .split(": ")
+                        .nth(1)
+                        .and_then(|l| l.split(' ').next())
+                        .and_then(|n| n.parse().ok())
+                        .expect("a count");
+                    listed += n;
+                    marked |= line.contains("[--sweep-settings]");
+                }
+            }
+            assert_eq!(listed, entries.len());
+            assert_eq!(marked, sweep_settings);
+        }
     }
 }

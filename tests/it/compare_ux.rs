@@ -1,5 +1,6 @@
-//! `compare`'s charts: point labels that never overlap, on the results
-//! of shipped scenes.
+//! `compare` without surprises: only the runs asked for (the others
+//! under `--sweep-settings`), listed before any starts; chart labels that
+//! never overlap, on the results of shipped scenes.
 
 use crate::common;
 
@@ -8,6 +9,143 @@ use penumbra::internal::render::Technique;
 use penumbra::internal::report::{
     error_vs_time_labels, ChartLabels, LabelBox, Progress, CHART_SIZE,
 };
+use std::process::Command;
+
+fn penumbra(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run penumbra");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The (technique, setting) pairs of a results.csv's runs, in order.
+fn runs_in(path: &std::path::Path) -> Vec<(String, String)> {
+    let mut reader = csv::Reader::from_path(path).expect("results.csv reads");
+    let mut runs: Vec<(String, String)> = reader
+        .records()
+        .map(|row| row.expect("a row"))
+        .filter(|row| !row[1].starts_with("reference-"))
+        .map(|row| (row[1].to_string(), row[2].to_string()))
+        .collect();
+    runs.dedup();
+    runs
+}
+
+/// By default each technique runs its default configuration at each
+/// sample count asked for, and the list of runs is the first thing on
+/// stderr; `--sweep-settings` adds the registry's other settings, marked
+/// in the list as added by it.
+#[test]
+fn only_the_runs_asked_for_listed_before_they_start() {
+    let dir = common::ScratchDir::new("compare-ux-runs");
+    let cache = dir.0.join("cache");
+    let out = dir.0.join("plain");
+    let args = |out: &std::path::Path, extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = [
+            "compare",
+            "scenes/quad.toml",
+            "--techniques",
+            "dcs,shadow-map",
+            "--samples",
+            "4",
+            "--reference-samples",
+            "16",
+            "--repeat",
+            "1",
+            "--width",
+            "24",
+            "--height",
+            "24",
+            "--threads",
+            "1",
+            "--no-images",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        a.extend(["--cache-dir".into(), cache.display().to_string()]);
+        a.extend(["--out".into(), out.display().to_string()]);
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let run = |a: Vec<String>| {
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        penumbra(&a)
+    };
+    let (code, _, err) = run(args(&out, &[]));
+    assert_eq!(code, Some(0), "{err}");
+    let first = err.lines().next().unwrap_or_default();
+    assert!(
+        first
+            .starts_with("compare: 2 runs and the reference on quad (24×24, 1 timed render each):"),
+        "{err}"
+    );
+    assert!(err.contains("reference 16 spp (to compute)"), "{err}");
+    assert!(err.contains("dcs 4 spp;"), "{err}");
+    assert!(err.contains("shadow-map 1024² map, pcf 1"), "{err}");
+    assert!(!err.contains("--sweep-settings"), "{err}");
+    assert_eq!(
+        runs_in(&out.join("results.csv")),
+        [
+            ("dcs".to_string(), "4 spp".to_string()),
+            ("shadow-map".to_string(), "1024² map, pcf 1".to_string())
+        ]
+    );
+
+    // With the option: the other settings too, each marked in the list;
+    // the reference now comes from the cache.
+    let swept = dir.0.join("swept");
+    let (code, _, err) = run(args(&swept, &["--sweep-settings"]));
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("reference 16 spp (cached)"), "{err}");
+    assert!(
+        err.contains("dcs centre 4 spp, centre silhouettes [--sweep-settings]"),
+        "{err}"
+    );
+    assert!(
+        err.contains("shadow-map 256² map, pcf 1 [--sweep-settings]"),
+        "{err}"
+    );
+    assert!(!err.contains("dcs 4 spp [--sweep-settings]"), "{err}");
+    let runs = runs_in(&swept.join("results.csv"));
+    let listed = err
+        .lines()
+        .next()
+        .and_then(|l| l.split(':').nth(1))
+        .unwrap_or_default();
+    assert!(
+        listed.starts_with(&format!(" {} runs and the reference", runs.len())),
+        "{listed} vs {runs:?}"
+    );
+    for (technique, setting) in &runs {
+        assert!(
+            err.replace("\n  ", " ")
+                .contains(&format!("{technique} {setting}")),
+            "{technique} {setting} listed: {err}"
+        );
+    }
+    assert!(runs.iter().any(|r| r.0 == "dcs centre"), "{runs:?}");
+    assert!(runs.len() > 5, "{runs:?}");
+    // The report's command reruns the same sweep.
+    let md = std::fs::read_to_string(swept.join("results.md")).expect("results.md");
+    assert!(md.contains("--sweep-settings"), "{md}");
+
+    // A shard lists its own share of the same plan.
+    let shards = dir.0.join("shards");
+    let (code, _, err) = run(args(&shards, &["--sweep-settings", "--shard", "2/2"]));
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.starts_with("compare shard 2/2 (")
+            && err.contains(&format!("of the sweep's {} runs)", runs.len())),
+        "{err}"
+    );
+}
 
 /// Every box pairwise disjoint, in the plotting area (so in the image),
 /// out of the legend.
@@ -55,6 +193,7 @@ fn chart_labels_never_overlap_on_shipped_scenes() {
             width: Some(64),
             height: Some(48),
             images: false,
+            sweep_settings: true,
             cache_dir: dir.0.join("cache"),
             ..CompareOptions::default()
         };
