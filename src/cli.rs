@@ -3,8 +3,8 @@
 use crate::compare::cache::default_cache_dir;
 use crate::compare::shard::{run_shard, shard_listing, unsharded_command, ShardSpec};
 use crate::compare::{
-    check_verified, merge_partials, progress_steps, reference_only, scene_dir, sweep,
-    sweep_listing, write_results, CompareOptions, SweepOutput,
+    check_verified, merge_partials, reference_only, scene_dir, sweep, sweep_listing, sweep_work,
+    write_results, CompareOptions, SweepOutput,
 };
 use crate::error::{Error, Result};
 use crate::output::{check_output, image_outputs, write_stderr, write_stdout, Format, OutputSet};
@@ -683,7 +683,7 @@ fn compare_scenes(
     for line in sweep_listing(scenes, options)? {
         write_stderr(&format!("{line}\n"));
     }
-    let progress = Progress::new(progress_steps(scenes, options)?, true);
+    let progress = Progress::sweep(sweep_work(scenes, options)?, true);
     let command = command_line();
     let files = SweepOutput {
         dir: out,

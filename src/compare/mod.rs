@@ -53,7 +53,7 @@ pub use model::{
     NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
 };
 pub use pipeline::{compare, compare_scene, compare_with, progress_steps, scene_dir};
-pub(crate) use pipeline::{sweep, sweep_listing, SweepOutput};
+pub(crate) use pipeline::{sweep, sweep_listing, sweep_work, SweepOutput};
 pub use record::{records, Record, CSV_COLUMNS};
 pub use reference::reference_only;
 pub use results::{check_verified, write_csv, write_json, write_markdown, write_results};

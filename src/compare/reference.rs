@@ -10,7 +10,7 @@ use super::model::{NoiseFloor, RegionMetrics};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
-use crate::render::{render, render_with, Aov, Render, RenderOptions, Technique};
+use crate::render::{estimate_render, render, render_with, Aov, Render, RenderOptions, Technique};
 use crate::report::{
     error_metrics, flip_rgb8, interior_mask, ErrorAccumulator, FlipRegions, Progress,
 };
@@ -347,6 +347,20 @@ pub(super) fn reference(
             }
         }
     };
+    if progress.estimate_shown() {
+        // The reference is a sweep's dearest piece: a time estimate that
+        // waited for its first half would be blind for a long while.
+        // Render's probes (about a sixteenth of one half) time it first.
+        let half = RenderOptions {
+            technique: Technique::named("reference")?,
+            samples: options.reference_samples / 2,
+            ..view_options.clone()
+        };
+        let probes = Instant::now();
+        if let Ok(one) = estimate_render(scene, &half) {
+            progress.work_expected(2.0 * one.as_secs_f64() + probes.elapsed().as_secs_f64());
+        }
+    }
     let start = Instant::now();
     let mut halves = Vec::new();
     let mut mask = Vec::new();
@@ -377,6 +391,10 @@ pub(super) fn reference(
             radiance: out.radiance,
             vcoef,
         });
+        if i == 0 {
+            // Half the reference: the time estimate's first measure.
+            progress.work_part(0.5);
+        }
         progress.step();
     }
     let [a, b]: [ReferenceHalf; 2] = halves

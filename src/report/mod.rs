@@ -3,6 +3,7 @@
 
 pub mod chart;
 pub mod diff;
+pub mod estimate;
 pub mod flip;
 pub mod heatmap;
 pub mod interior;
@@ -15,6 +16,7 @@ pub use chart::{
     MIN_CHART_SIZE,
 };
 pub use diff::{diff_images, ChannelDiff, DiffOptions, DiffReport};
+pub use estimate::{SweepEstimate, Work};
 pub use flip::{flip_radiance, flip_rgb8, FlipMap, FlipMetrics, FlipRegions, FLIP_PPD, FLIP_SCALE};
 pub use heatmap::{
     colour_bar_rect, heatmap_canvas, heatmap_colour, write_error_heatmap, write_with_colour_bar,
