@@ -1,9 +1,9 @@
 //! The command line: argument parsing and the commands' top level.
 
 use crate::compare::cache::default_cache_dir;
-use crate::compare::shard::{run_shard, unsharded_command, ShardSpec};
+use crate::compare::shard::{run_shard, shard_listing, unsharded_command, ShardSpec};
 use crate::compare::{
-    check_verified, merge_partials, progress_steps, reference_only, scene_dir, sweep,
+    check_verified, merge_partials, reference_only, scene_dir, sweep, sweep_listing, sweep_work,
     write_results, CompareOptions, SweepOutput,
 };
 use crate::error::{Error, Result};
@@ -232,7 +232,10 @@ struct CompareArgs {
     merge: Vec<PathBuf>,
     /// Comma-separated techniques (`penumbra techniques` lists them);
     /// by default the exact ones: dcs (render's default), penumbra-casting
-    /// and the reference.
+    /// and the reference. Each runs in its default configuration (what
+    /// `penumbra render --technique T --samples N` renders, with the
+    /// technique options given here) at every --samples count and
+    /// --patterns pattern it takes; see --sweep-settings.
     #[arg(
         long,
         value_delimiter = ',',
@@ -246,10 +249,17 @@ struct CompareArgs {
     /// Samples per light of the reference (even: it is two halves).
     #[arg(long, default_value_t = 4096)]
     reference_samples: u32,
-    /// Comma-separated sample patterns DCS is measured with (one curve
-    /// each; the first is the reference's and whole-light silhouettes').
+    /// Comma-separated sample patterns the sampling techniques are
+    /// measured with (one curve each; the first is the reference's).
     #[arg(long, value_delimiter = ',', default_value = "stratified")]
     patterns: Vec<String>,
+    /// Also run every other quality setting each technique sweeps: map
+    /// sizes of the shadow-map techniques, DCS with centre silhouettes
+    /// (per pattern) and summed opacity, PCSS's taps, adaptive maps'
+    /// depths, soft shadow maps' passes. The list printed before the runs
+    /// marks them [--sweep-settings].
+    #[arg(long)]
+    sweep_settings: bool,
     /// Timed runs per setting; the median is reported.
     #[arg(long, default_value_t = 3)]
     repeat: u32,
@@ -712,6 +722,7 @@ fn run_compare(args: CompareArgs) -> Result<Outcome> {
         report,
         no_images,
         verify,
+        sweep_settings,
         options: technique_options,
     } = args;
     if !merge.is_empty() {
@@ -752,6 +763,7 @@ fn run_compare(args: CompareArgs) -> Result<Outcome> {
         // The sweep runs in the pool of `threads` below (the references
         // and shards too).
         threads: None,
+        sweep_settings,
     };
     options.validate()?;
     if let Some(report) = &report {
@@ -830,6 +842,9 @@ fn compare_shard(
     threads: Option<usize>,
 ) -> Result<Outcome> {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    for line in shard_listing(scenes, options, shard)? {
+        write_stderr(&format!("{line}\n"));
+    }
     let summary = with_threads(threads, || {
         run_shard(scenes, options, shard, out, &unsharded_command(&args), true)
     })??;
@@ -850,7 +865,12 @@ fn compare_scenes(
     report: Option<&Path>,
     threads: Option<usize>,
 ) -> Result<Outcome> {
-    let progress = Progress::new(progress_steps(options) * scenes.len() as u64, true);
+    // The list of runs before any starts: nothing runs that the user
+    // cannot see coming.
+    for line in sweep_listing(scenes, options)? {
+        write_stderr(&format!("{line}\n"));
+    }
+    let progress = Progress::sweep(sweep_work(scenes, options)?, true);
     let command = command_line();
     let files = SweepOutput {
         dir: out,

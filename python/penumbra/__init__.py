@@ -299,14 +299,19 @@ def compare(
     out: Optional[PathLike] = None,
     cache_dir: Optional[PathLike] = None,
     images: bool = True,
+    sweep_settings: bool = False,
 ) -> List[Dict[str, Any]]:
-    """Runs ``penumbra compare``: every technique at every quality setting
-    against each scene's reference, timed. Returns one dict per row of
-    results.csv (its columns as keys; empty cells are ``None``). With
-    ``out`` the files are written too (results.csv/json/md, charts and,
-    unless ``images=False``, images); without it nothing is written but
-    the reference cache. Other arguments are the command line's, with
-    the same defaults."""
+    """Runs ``penumbra compare``: each technique in its default
+    configuration (what ``Scene.render`` renders) at every sample count
+    and pattern, against each scene's reference, timed; with
+    ``sweep_settings=True`` (``--sweep-settings``) also every other
+    quality setting the technique sweeps (map sizes, DCS's centre
+    silhouettes, ...). Returns one dict per row of results.csv (its
+    columns as keys; empty cells are ``None``). With ``out`` the files
+    are written too (results.csv/json/md, charts and, unless
+    ``images=False``, images); without it nothing is written but the
+    reference cache. Other arguments are the command line's, with the
+    same defaults."""
     if isinstance(scenes, (str, os.PathLike)):
         scenes = [scenes]
     text = _penumbra.compare_json(
@@ -323,5 +328,6 @@ def compare(
         None if out is None else os.fspath(out),
         None if cache_dir is None else os.fspath(cache_dir),
         not images,
+        bool(sweep_settings),
     )
     return json.loads(text)

@@ -135,7 +135,11 @@ def compare(
     out: Optional[_Path] = None,
     cache_dir: Optional[_Path] = None,
     images: bool = True,
+    sweep_settings: bool = False,
 ) -> List[Dict[str, Any]]:
     """Runs ``penumbra compare`` and returns one dict per row of
     results.csv (its columns as keys; empty cells are ``None``); with
-    ``out`` the files are written there too."""
+    ``out`` the files are written there too. Each technique runs in its
+    default configuration at every sample count and pattern; with
+    ``sweep_settings=True`` also every other quality setting it sweeps
+    (``--sweep-settings``)."""

@@ -46,4 +46,5 @@ def compare_json(
     out: Optional[str],
     cache_dir: Optional[str],
     no_images: bool,
+    sweep_settings: bool,
 ) -> str: ...

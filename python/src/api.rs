@@ -276,6 +276,7 @@ pub fn defaults_json() -> String {
             "repeat": compare.repeat,
             "seed": compare.seed,
             "images": compare.images,
+            "sweep_settings": compare.sweep_settings,
         },
     })
     .to_string()
@@ -318,6 +319,9 @@ pub struct CompareRequest {
     pub cache_dir: Option<String>,
     /// Skip per-run images and heat maps.
     pub no_images: bool,
+    /// Also every other quality setting each technique sweeps
+    /// (`--sweep-settings`).
+    pub sweep_settings: bool,
 }
 
 /// Runs a `compare` sweep and returns its records (results.csv's rows) as
@@ -356,6 +360,7 @@ fn compare_records(request: &CompareRequest, cancel: &Cancel) -> Result<String> 
         seed: request.seed,
         cache_dir,
         images: !request.no_images,
+        sweep_settings: request.sweep_settings,
         ..defaults
     };
     let records = penumbra::compare_with(&scenes, &options, out, cancel)?;

@@ -215,7 +215,7 @@ fn techniques_json() -> String {
 
 /// Runs a `compare` sweep; its records as JSON text.
 #[pyfunction]
-#[pyo3(signature = (scenes, techniques, samples, reference_samples, patterns, repeat, width, height, threads, seed, out, cache_dir, no_images))]
+#[pyo3(signature = (scenes, techniques, samples, reference_samples, patterns, repeat, width, height, threads, seed, out, cache_dir, no_images, sweep_settings))]
 #[allow(clippy::too_many_arguments)]
 fn compare_json(
     py: Python<'_>,
@@ -232,6 +232,7 @@ fn compare_json(
     out: Option<String>,
     cache_dir: Option<String>,
     no_images: bool,
+    sweep_settings: bool,
 ) -> PyResult<String> {
     let request = api::CompareRequest {
         scenes,
@@ -247,6 +248,7 @@ fn compare_json(
         out,
         cache_dir,
         no_images,
+        sweep_settings,
     };
     let cancel = api::Cancel::default();
     match run_interruptible(py, &cancel, || api::compare_json(&request, &cancel))? {

@@ -64,6 +64,24 @@ def test_without_out_nothing_is_written_but_the_cache(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["cache"]
 
 
+def test_extra_settings_only_when_asked(tmp_path):
+    """Each technique's default configuration only, unless
+    ``sweep_settings=True`` (``--sweep-settings``) adds the others."""
+    args = dict(
+        techniques=["dcs"],
+        samples=[4],
+        reference_samples=16,
+        width=16,
+        height=12,
+        repeat=1,
+        cache_dir=tmp_path / "cache",
+    )
+    plain = penumbra.compare(SCENES / "quad.toml", **args)
+    swept = penumbra.compare(SCENES / "quad.toml", sweep_settings=True, **args)
+    assert {r["technique"] for r in plain if r["median_ms"] is not None} == {"dcs"}
+    assert "dcs centre" in {r["technique"] for r in swept}
+
+
 def test_bad_options_name_the_parameter():
     import pytest
 

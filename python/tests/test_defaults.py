@@ -39,3 +39,4 @@ def test_compare_defaults_are_the_crates():
     assert got["repeat"] == want["repeat"]
     assert got["seed"] == want["seed"]
     assert got["images"] == want["images"]
+    assert got["sweep_settings"] == want["sweep_settings"]

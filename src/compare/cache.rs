@@ -251,6 +251,16 @@ fn paths(dir: &Path, key: &ReferenceKey) -> (PathBuf, PathBuf) {
     )
 }
 
+/// How long the cached reference for `key` took when it was computed,
+/// from its sidecar alone (the image is not read): `None` when the cache
+/// has no entry for `key` with `lights` lights. A look before the work,
+/// for the listing and the time estimate; [`load`] still decides.
+pub fn peek(dir: &Path, key: &ReferenceKey, lights: usize) -> Option<f64> {
+    let (exr, json) = paths(dir, key);
+    let sidecar: Sidecar = serde_json::from_str(&std::fs::read_to_string(json).ok()?).ok()?;
+    (sidecar.key == *key && sidecar.lights == lights && exr.is_file()).then_some(sidecar.seconds)
+}
+
 /// Reads the cached reference for `key`, if there is a complete and
 /// matching one. A missing, stale or corrupt entry is a miss, never an
 /// error: the caller recomputes it.

@@ -7,10 +7,13 @@ use super::reference::ReferenceImages;
 use crate::error::{Error, Result};
 use crate::output::write_png;
 use crate::render::Render;
-use crate::report::{pareto_front, write_error_heatmap, write_error_vs_time, ChartPoint};
+use crate::report::{
+    pareto_front, write_error_heatmap, write_error_vs_time, ChartPoint, HeatmapScale,
+};
 use std::path::Path;
 
-/// Errors at or above this show brightest in the Vcoef heat maps.
+/// Errors at or above this show brightest in the Vcoef heat maps (their
+/// colour bars say so).
 pub const HEATMAP_SCALE: f32 = 0.25;
 
 /// A file-name-safe form of `s`.
@@ -51,17 +54,133 @@ pub(super) fn write_run_images(
             .map(|(a, b)| (a - b).abs())
             .collect();
         let rel = format!("heatmaps/{stem}.vcoef{k}.png");
+        let quantity = format!("|ΔVcoef|, light {k}");
+        let scale = HeatmapScale {
+            quantity: &quantity,
+            unit: "unitless",
+            max: HEATMAP_SCALE,
+        };
         write_error_heatmap(
             &out.join(&rel),
             width,
             height,
             &err,
             &reference.surface,
-            HEATMAP_SCALE,
+            &scale,
         )?;
         heatmaps.push(rel);
     }
     Ok((image, heatmaps))
+}
+
+/// One error-vs-time chart of a scene, as `compare` draws it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChartSpec {
+    /// Its file name in the scene's directory.
+    pub file: &'static str,
+    /// Its title.
+    pub title: String,
+    /// The y axis's label.
+    pub y_label: &'static str,
+    /// One point per charted run.
+    pub points: Vec<ChartPoint>,
+    /// The reference's noise floor drawn, if any.
+    pub floor: Option<f64>,
+}
+
+/// The image's charts of `runs`: FLIP mean over the whole frame and over
+/// the interior, radiance RMSE over all shading points (with the
+/// reference's noise floor `floor_radiance`). Every run has an image, so
+/// every run is charted.
+fn image_chart_specs(scene_name: &str, runs: &[RunResult], floor_radiance: f64) -> [ChartSpec; 3] {
+    let points = |error: &dyn Fn(&RunResult) -> f64| -> Vec<ChartPoint> {
+        runs.iter()
+            .map(|r| ChartPoint {
+                technique: r.technique.clone(),
+                label: r.setting.clone(),
+                seconds: r.median_ms / 1e3,
+                error: error(r),
+            })
+            .collect()
+    };
+    [
+        ChartSpec {
+            file: "flip_vs_time.png",
+            title: format!("{scene_name}: FLIP (whole image) vs time"),
+            y_label: "FLIP mean (whole image)",
+            points: points(&|r| r.flip.all.mean),
+            floor: None,
+        },
+        ChartSpec {
+            file: "flip_vs_time_interior.png",
+            title: format!("{scene_name}: FLIP away from geometric edges vs time"),
+            y_label: "FLIP mean (interior)",
+            points: points(&|r| r.flip.interior.mean),
+            floor: None,
+        },
+        ChartSpec {
+            file: "radiance_vs_time.png",
+            title: format!("{scene_name}: radiance error vs time"),
+            y_label: "radiance RMSE (all shading points)",
+            points: points(&|r| r.radiance.all.rmse),
+            floor: Some(floor_radiance),
+        },
+    ]
+}
+
+/// The Vcoef charts of `runs` (those with a Vcoef for every light):
+/// penumbra RMSE and RMSE over all shading points, with the reference's
+/// noise floors `(penumbra, all)`.
+fn vcoef_chart_specs(
+    scene_name: &str,
+    runs: &[RunResult],
+    (floor_penumbra, floor_all): (f64, f64),
+) -> [ChartSpec; 2] {
+    let points = |all: bool| {
+        chart_points(runs, all)
+            .into_iter()
+            .map(|(_, p)| p)
+            .collect()
+    };
+    [
+        ChartSpec {
+            file: "error_vs_time.png",
+            title: format!("{scene_name}: Vcoef error in the penumbra vs time"),
+            y_label: "Vcoef RMSE (penumbra)",
+            points: points(false),
+            floor: Some(floor_penumbra),
+        },
+        ChartSpec {
+            file: "error_vs_time_all.png",
+            title: format!("{scene_name}: Vcoef error over all shading points vs time"),
+            y_label: "Vcoef RMSE (all shading points)",
+            points: points(true),
+            floor: Some(floor_all),
+        },
+    ]
+}
+
+/// Every chart `compare` writes for `comparison` (a scene's results), in
+/// the order it writes them: the image's three, then the Vcoef two where
+/// some run has a Vcoef for every light. The charts the files hold, for
+/// a program (or a test) that looks at what they draw.
+pub fn scene_charts(comparison: &super::SceneComparison) -> Vec<ChartSpec> {
+    let (name, runs) = (&comparison.scene, &comparison.runs);
+    let floors = &comparison.reference;
+    let mut specs = Vec::new();
+    if !runs.is_empty() {
+        specs.extend(image_chart_specs(
+            name,
+            runs,
+            floors.floor_radiance.rmse_all,
+        ));
+    }
+    let floor = floors.floor_vcoef_all_lights;
+    let vcoef = vcoef_chart_specs(name, runs, (floor.rmse_penumbra, floor.rmse_all));
+    if !vcoef[0].points.is_empty() {
+        specs.extend(vcoef);
+    }
+    specs
 }
 
 /// The image's error-vs-time charts, relative to the output directory
@@ -76,32 +195,16 @@ pub(super) struct ImageCharts {
 }
 
 /// Marks the runs on the Pareto front of (time, FLIP mean) and, given an
-/// `out` directory, writes the image's error-vs-time charts there: FLIP
-/// mean over the whole frame
-/// (`flip_vs_time.png`) and over the interior (`flip_vs_time_interior.png`),
-/// and radiance RMSE over all shading points (`radiance_vs_time.png`,
-/// with the reference's noise floor `floor_radiance`). Every run has an
-/// image, so every run is charted.
+/// `out` directory, writes the image's error-vs-time charts there
+/// ([`image_chart_specs`]).
 pub(super) fn image_charts(
     out: Option<&Path>,
     scene_name: &str,
     runs: &mut [RunResult],
     floor_radiance: f64,
 ) -> Result<ImageCharts> {
-    let points = |error: &dyn Fn(&RunResult) -> f64| -> Vec<ChartPoint> {
-        runs.iter()
-            .map(|r| ChartPoint {
-                technique: r.technique.clone(),
-                label: r.setting.clone(),
-                seconds: r.median_ms / 1e3,
-                error: error(r),
-            })
-            .collect()
-    };
-    let flip = points(&|r| r.flip.all.mean);
-    let flip_interior = points(&|r| r.flip.interior.mean);
-    let radiance = points(&|r| r.radiance.all.rmse);
-    for (r, front) in runs.iter_mut().zip(pareto_front(&flip)) {
+    let specs = image_chart_specs(scene_name, runs, floor_radiance);
+    for (r, front) in runs.iter_mut().zip(pareto_front(&specs[0].points)) {
         r.pareto_flip = front;
     }
     let Some(out) = out.filter(|_| !runs.is_empty()) else {
@@ -111,37 +214,24 @@ pub(super) fn image_charts(
             radiance: None,
         });
     };
-    let charts = [
-        (
-            "flip_vs_time.png",
-            format!("{scene_name}: FLIP (whole image) vs time"),
-            "FLIP mean (whole image)",
-            &flip,
-            None,
-        ),
-        (
-            "flip_vs_time_interior.png",
-            format!("{scene_name}: FLIP away from geometric edges vs time"),
-            "FLIP mean (interior)",
-            &flip_interior,
-            None,
-        ),
-        (
-            "radiance_vs_time.png",
-            format!("{scene_name}: radiance error vs time"),
-            "radiance RMSE (all shading points)",
-            &radiance,
-            Some(floor_radiance),
-        ),
-    ];
-    for (file, title, y_label, points, floor) in &charts {
-        write_error_vs_time(&out.join(file), title, y_label, points, *floor)?;
+    for spec in &specs {
+        write_chart(out, spec)?;
     }
     Ok(ImageCharts {
-        flip: Some(charts[0].0.to_string()),
-        flip_interior: Some(charts[1].0.to_string()),
-        radiance: Some(charts[2].0.to_string()),
+        flip: Some(specs[0].file.to_string()),
+        flip_interior: Some(specs[1].file.to_string()),
+        radiance: Some(specs[2].file.to_string()),
     })
+}
+
+fn write_chart(out: &Path, spec: &ChartSpec) -> Result<()> {
+    write_error_vs_time(
+        &out.join(spec.file),
+        &spec.title,
+        spec.y_label,
+        &spec.points,
+        spec.floor,
+    )
 }
 
 /// The error-vs-time points of the runs with a Vcoef for every light, with
@@ -174,7 +264,7 @@ pub(super) fn pareto_and_charts(
     out: Option<&Path>,
     scene_name: &str,
     runs: &mut [RunResult],
-    (floor_penumbra, floor_all): (f64, f64),
+    floor: (f64, f64),
 ) -> Result<(Option<String>, Option<String>)> {
     let penumbra_points = chart_points(runs, false);
     let only: Vec<ChartPoint> = penumbra_points.iter().map(|(_, p)| p.clone()).collect();
@@ -184,26 +274,12 @@ pub(super) fn pareto_and_charts(
     let Some(out) = out.filter(|_| !only.is_empty()) else {
         return Ok((None, None));
     };
-    write_error_vs_time(
-        &out.join("error_vs_time.png"),
-        &format!("{scene_name}: Vcoef error in the penumbra vs time"),
-        "Vcoef RMSE (penumbra)",
-        &only,
-        Some(floor_penumbra),
-    )?;
-    let all: Vec<ChartPoint> = chart_points(runs, true)
-        .into_iter()
-        .map(|(_, p)| p)
-        .collect();
-    write_error_vs_time(
-        &out.join("error_vs_time_all.png"),
-        &format!("{scene_name}: Vcoef error over all shading points vs time"),
-        "Vcoef RMSE (all shading points)",
-        &all,
-        Some(floor_all),
-    )?;
+    let specs = vcoef_chart_specs(scene_name, runs, floor);
+    for spec in &specs {
+        write_chart(out, spec)?;
+    }
     Ok((
-        Some("error_vs_time.png".to_string()),
-        Some("error_vs_time_all.png".to_string()),
+        Some(specs[0].file.to_string()),
+        Some(specs[1].file.to_string()),
     ))
 }

@@ -46,15 +46,15 @@ pub mod shard;
 pub mod share;
 
 pub use crate::shadow::technique::{has_semi_opaque_casters, QualitySetting};
-pub use charts::HEATMAP_SCALE;
+pub use charts::{scene_charts, ChartSpec, HEATMAP_SCALE};
 pub use host::host_name;
 pub use merge::merge_partials;
 pub use model::{
     NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
 };
-pub use pipeline::{compare, compare_scene, compare_with, scene_dir};
-pub(crate) use pipeline::{sweep, SweepOutput};
+pub use pipeline::{compare, compare_scene, compare_with, progress_steps, scene_dir};
+pub(crate) use pipeline::{sweep, sweep_listing, sweep_work, SweepOutput};
 pub use record::{records, Record, CSV_COLUMNS};
 pub use reference::reference_only;
 pub use results::{check_verified, write_csv, write_json, write_markdown, write_results};
-pub use settings::{progress_steps, quality_settings, CompareOptions};
+pub use settings::{quality_settings, CompareOptions, SettingRun, SWEEP_SETTINGS};

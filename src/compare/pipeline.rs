@@ -7,20 +7,23 @@
 use super::charts;
 use super::model::{ReferenceSummary, RunResult, SceneComparison};
 use super::record::{records, Record};
-use super::reference::{interior_of, reference, NoiseFloors, ReferenceImages};
+use super::reference::{
+    cached_reference_seconds, interior_of, reference, reference_key, NoiseFloors, ReferenceImages,
+};
 use super::results::{verified, write_results};
-use super::run::{run_result, time_setting};
+use super::run::{run_result, time_setting, TimedRuns};
 use super::settings::{quality_settings, CompareOptions};
 use crate::error::{Error, Result};
 use crate::observe::Cancel;
 use crate::output::write_png;
 use crate::render::{verify_render, RenderOptions};
-use crate::report::Progress;
+use crate::report::{Progress, Work};
 use crate::scene::Scene;
-use crate::shadow::technique::{has_semi_opaque_casters, QualitySetting};
+use crate::shadow::technique::{has_semi_opaque_casters, CostClass, QualitySetting};
 use crate::shadow::verify::check_verifiable;
 use crate::shadow::TechniqueOptions;
 use std::path::Path;
+use std::time::Instant;
 
 /// Runs every technique and setting on `scene`, writes images, heat maps
 /// and charts into `out` (created if missing) and returns the measurements.
@@ -35,24 +38,257 @@ pub fn compare_scene(
     progress: &Progress,
 ) -> Result<SceneComparison> {
     options.validate()?;
-    measure_scene(scene, options, Some(out), progress)
+    measure_scene(0, scene, options, Some(out), progress)
 }
 
 /// [`compare_scene`] with its files optional: without `out` nothing is
 /// written (but the reference cache) and the results name no files.
 fn measure_scene(
+    index: usize,
     scene: &Scene,
     options: &CompareOptions,
     out: Option<&Path>,
     progress: &Progress,
 ) -> Result<SceneComparison> {
     let planned = scene_runs(scene, options)?;
-    let prepared = prepare_scene(scene, options, out, progress)?;
-    let mut runs = Vec::new();
-    for run in &planned {
-        runs.push(run_planned(scene, &prepared, run, options, out, progress)?);
+    let all: Vec<usize> = (0..planned.len()).collect();
+    let mut runs: Vec<Option<RunResult>> = vec![None; planned.len()];
+    let prepared = run_scene(
+        index,
+        scene,
+        &planned,
+        &all,
+        options,
+        out,
+        progress,
+        |_, i, result, _| {
+            runs[i] = Some(result);
+            Ok(())
+        },
+    )?;
+    finish_scene(prepared.header, runs.into_iter().flatten().collect(), out)
+}
+
+/// Renders held in memory before the reference is ready: at most this
+/// many bytes of them (the first run of each curve, timed before the
+/// reference so that the time estimate knows every technique's cost
+/// early; measured once the reference is there).
+const EARLY_BYTES: u64 = 256 << 20;
+
+/// Makes the runs `which` (indices into `planned`, scene `index`'s runs)
+/// and its reference, handing each finished run to `done` with its index
+/// and its start and end (Unix seconds); returns the prepared scene.
+///
+/// The runs are made in [`execution_order`]. Where the time estimate is
+/// shown ([`Progress::estimate_shown`]), the first run of each curve is
+/// timed before the reference is computed, as far as the renders held
+/// fit in [`EARLY_BYTES`], and measured once the reference is ready.
+/// Every render is timed as it would be otherwise; only the order
+/// changes, and the results do not depend on it.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run_scene(
+    index: usize,
+    scene: &Scene,
+    planned: &[PlannedRun],
+    which: &[usize],
+    options: &CompareOptions,
+    out: Option<&Path>,
+    progress: &Progress,
+    mut done: impl FnMut(&PreparedScene, usize, RunResult, (f64, f64)) -> Result<()>,
+) -> Result<PreparedScene> {
+    let chosen: Vec<&PlannedRun> = which.iter().map(|&i| &planned[i]).collect();
+    let order: Vec<usize> = execution_order(&chosen)
+        .into_iter()
+        .map(|k| which[k])
+        .collect();
+    let curves = {
+        let mut c: Vec<&str> = chosen.iter().map(|r| r.setting.curve.as_str()).collect();
+        c.sort_unstable();
+        c.dedup();
+        c.len()
+    };
+    let key = reference_key(scene, options)?;
+    let pixels = u64::from(key.width) * u64::from(key.height);
+    let per_render = pixels * (12 + 16 * (scene.lights.len() as u64 + 1));
+    let mut early = 0;
+    if progress.estimate_shown() {
+        early = curves.min((EARLY_BYTES / per_render.max(1)) as usize);
+        if let Some(seconds) = cached_reference_seconds(scene, options)? {
+            progress.reference_cached(index, seconds);
+        }
     }
-    finish_scene(prepared.header, runs, out)
+    let mut held = Vec::new();
+    for &i in &order[..early] {
+        let started = unix_now();
+        progress.work_started(index, Some(i));
+        held.push((i, started, time_run(scene, &planned[i], options, progress)?));
+        progress.work_finished(index, Some(i), None);
+    }
+    let prepared = prepare_scene(index, scene, options, out, progress)?;
+    for (i, started, timed) in held {
+        let result = measure_run(scene, &prepared, &planned[i], timed, options, out, progress)?;
+        done(&prepared, i, result, (started, unix_now()))?;
+    }
+    for &i in &order[early..] {
+        let started = unix_now();
+        progress.work_started(index, Some(i));
+        let timed = time_run(scene, &planned[i], options, progress)?;
+        let result = measure_run(scene, &prepared, &planned[i], timed, options, out, progress)?;
+        progress.work_finished(index, Some(i), None);
+        done(&prepared, i, result, (started, unix_now()))?;
+    }
+    Ok(prepared)
+}
+
+/// Now, in seconds since the Unix epoch.
+pub(crate) fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// The order `runs` (one scene's, in plan order) are made in, as indices
+/// into `runs`: round robin over the technique curves, each curve's runs
+/// in their order (its cheapest first: the lowest sample count, the
+/// smallest map). Early on every curve is timed, so the time estimate
+/// knows each technique's cost before its dearest runs; the results keep
+/// the plan's order.
+pub(crate) fn execution_order(runs: &[&PlannedRun]) -> Vec<usize> {
+    let mut rank = Vec::with_capacity(runs.len());
+    for (i, run) in runs.iter().enumerate() {
+        let before = runs[..i]
+            .iter()
+            .filter(|r| r.setting.curve == run.setting.curve)
+            .count();
+        rank.push((before, i));
+    }
+    rank.sort_unstable();
+    rank.into_iter().map(|(_, i)| i).collect()
+}
+
+/// The pieces of work of scene `index` of a sweep, for the time estimate:
+/// its reference, then the runs of `runs` (index into the scene's runs,
+/// the run) in order.
+pub(crate) fn scene_work<'a>(
+    index: usize,
+    scene: &Scene,
+    options: &CompareOptions,
+    runs: impl IntoIterator<Item = (usize, &'a PlannedRun)>,
+) -> Result<Vec<Work>> {
+    let key = reference_key(scene, options)?;
+    let pixels = u64::from(key.width) * u64::from(key.height);
+    // Two independent halves, each at half the samples.
+    let half = options.reference_samples / 2;
+    let mut work = vec![Work {
+        scene: index,
+        run: None,
+        curve: "reference".into(),
+        samples: Some(half),
+        renders: 2,
+        pixels,
+        per_sample: CostClass::Rays.per_sample(),
+    }];
+    for (i, run) in runs {
+        let info = run.options.technique.info();
+        work.push(Work {
+            scene: index,
+            run: Some(i),
+            curve: run.setting.curve.clone(),
+            samples: run.setting.samples,
+            renders: options.repeat,
+            pixels: run.options.width.unwrap_or(1) as u64 * run.options.height.unwrap_or(1) as u64,
+            per_sample: match run.setting.samples {
+                Some(_) => info.cost.per_sample(),
+                None => 0,
+            },
+        });
+    }
+    Ok(work)
+}
+
+/// Every piece of work of a sweep over `scenes`, in the order it runs.
+pub(crate) fn sweep_work(scenes: &[Scene], options: &CompareOptions) -> Result<Vec<Work>> {
+    let mut work = Vec::new();
+    for (index, scene) in scenes.iter().enumerate() {
+        let runs = scene_runs(scene, options)?;
+        work.extend(scene_work(index, scene, options, runs.iter().enumerate())?);
+    }
+    Ok(work)
+}
+
+/// Progress steps a sweep over `scenes` takes with `options`: two for
+/// each scene's reference, one per timed render of each run
+/// ([`scene_runs`], the list the shards plan and the listing shows).
+pub fn progress_steps(scenes: &[Scene], options: &CompareOptions) -> Result<u64> {
+    let mut steps = 0;
+    for scene in scenes {
+        let runs = scene_runs(scene, options)?.len() as u64;
+        steps += 2 + runs * u64::from(options.repeat);
+    }
+    Ok(steps)
+}
+
+/// What `compare` prints before any run starts: per scene, `prefix`, the
+/// runs of `runs` (an index into the scene's runs, the run) and the
+/// reference, each as technique and setting; whether the reference is in
+/// the cache; for a run the user did not name, the option that added it.
+/// Lines are wrapped at 100 columns, never inside a run's name.
+pub(crate) fn run_listing<'a>(
+    prefix: &str,
+    scene: &Scene,
+    options: &CompareOptions,
+    runs: impl IntoIterator<Item = &'a PlannedRun>,
+) -> Result<String> {
+    let cached = cached_reference_seconds(scene, options)?.is_some();
+    let mut items = vec![format!(
+        "reference {} spp ({})",
+        options.reference_samples,
+        if cached { "cached" } else { "to compute" }
+    )];
+    let mut count = 0;
+    for run in runs {
+        count += 1;
+        let mut item = format!("{} {}", run.setting.curve, run.setting.label);
+        if let Some(option) = run.added_by {
+            item += &format!(" [{option}]");
+        }
+        items.push(item);
+    }
+    let key = reference_key(scene, options)?;
+    let head = format!(
+        "{prefix}: {count} run{} and the reference on {} ({}×{}, {} timed render{} each):",
+        if count == 1 { "" } else { "s" },
+        scene.name,
+        key.width,
+        key.height,
+        options.repeat,
+        if options.repeat == 1 { "" } else { "s" },
+    );
+    let mut text = head;
+    let mut line = text.chars().count();
+    for (i, item) in items.iter().enumerate() {
+        let piece = match i + 1 == items.len() {
+            true => item.clone(),
+            false => format!("{item};"),
+        };
+        let width = piece.chars().count();
+        if line + 1 + width > 100 && line > 2 {
+            text += "\n ";
+            line = 1;
+        }
+        text += " ";
+        text += &piece;
+        line += 1 + width;
+    }
+    Ok(text)
+}
+
+/// [`run_listing`] of every scene of a whole sweep.
+pub(crate) fn sweep_listing(scenes: &[Scene], options: &CompareOptions) -> Result<Vec<String>> {
+    scenes
+        .iter()
+        .map(|scene| run_listing("compare", scene, options, &scene_runs(scene, options)?))
+        .collect()
 }
 
 /// Compares every technique at every quality setting on each of `scenes`
@@ -181,6 +417,9 @@ fn equivalent_command(scenes: &[Scene], options: &CompareOptions, out: &Path) ->
     if !options.images {
         words.push("--no-images".to_string());
     }
+    if options.sweep_settings {
+        words.push("--sweep-settings".to_string());
+    }
     if options.technique_options != TechniqueOptions::default() {
         words.push("# and the technique options given in code".to_string());
     }
@@ -209,9 +448,9 @@ pub(crate) fn sweep(
 ) -> Result<Vec<SceneComparison>> {
     options.validate()?;
     let mut results = Vec::new();
-    for scene in scenes {
+    for (index, scene) in scenes.iter().enumerate() {
         let dir = out.map(|out| scene_dir(out.dir, &scene.name, scenes.len()));
-        let result = measure_scene(scene, options, dir.as_deref(), progress)?;
+        let result = measure_scene(index, scene, options, dir.as_deref(), progress)?;
         results.push((result, dir.unwrap_or_default()));
     }
     if let Some(out) = out {
@@ -226,10 +465,16 @@ pub(crate) struct PlannedRun {
     pub setting: QualitySetting,
     /// Its render options.
     pub options: RenderOptions,
+    /// For a run the user did not name, the option that added it.
+    pub added_by: Option<&'static str>,
 }
 
 /// The runs `compare` makes on `scene`, in order: every technique's
-/// quality settings. Cheap (no rendering): shards plan with it.
+/// default configuration at each sample count and pattern asked for and,
+/// with `--sweep-settings`, its other quality settings
+/// ([`quality_settings`]). Cheap (no rendering): the listing printed
+/// before a sweep, the progress estimate and the shards' plan all come
+/// from it.
 pub(crate) fn scene_runs(scene: &Scene, options: &CompareOptions) -> Result<Vec<PlannedRun>> {
     let view = crate::render::view_for(
         scene,
@@ -249,16 +494,18 @@ pub(crate) fn scene_runs(scene: &Scene, options: &CompareOptions) -> Result<Vec<
     let semi_opaque = has_semi_opaque_casters(scene);
     let mut runs = Vec::new();
     for &technique in &options.techniques {
-        for (setting, setting_options) in quality_settings(
+        for run in quality_settings(
             technique,
             &options.samples,
             &options.patterns,
             semi_opaque,
             &base,
+            options.sweep_settings,
         ) {
             runs.push(PlannedRun {
-                setting,
-                options: setting_options,
+                setting: run.setting,
+                options: run.options,
+                added_by: run.added_by,
             });
         }
     }
@@ -275,18 +522,26 @@ pub(crate) struct PreparedScene {
 
 /// Computes (or reads from the cache) `scene`'s reference and, with
 /// `options.images` and an `out` directory, writes
-/// `out/images/reference.png`.
+/// `out/images/reference.png`: piece `(index, None)` of a sweep's work
+/// for the time estimate, which also learns the time of a render without
+/// shadows (the interior's G-buffer, made first) and, from a reference
+/// read from the cache, the time its computation took.
 pub(crate) fn prepare_scene(
+    index: usize,
     scene: &Scene,
     options: &CompareOptions,
     out: Option<&Path>,
     progress: &Progress,
 ) -> Result<PreparedScene> {
+    progress.work_started(index, None);
     if let Some(out) = out {
         std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     }
+    let clock = Instant::now();
+    let interior = interior_of(scene, options)?;
+    progress.work_baseline(index, clock.elapsed().as_secs_f64());
     let (cached, key, from_cache) = reference(scene, options, progress)?;
-    let reference = ReferenceImages::new(&cached, &interior_of(scene, options)?);
+    let reference = ReferenceImages::new(&cached, &interior);
     let (width, height) = (key.width, key.height);
     let floors = NoiseFloors::new(&cached, &reference, (width, height));
     if let Some(out) = out.filter(|_| options.images) {
@@ -333,23 +588,34 @@ pub(crate) fn prepare_scene(
         chart: None,
         chart_all: None,
     };
+    progress.work_finished(index, None, from_cache.then_some(cached.seconds));
     Ok(PreparedScene { reference, header })
 }
 
-/// Times and measures one planned run of `scene` (images into `out`, if
-/// given).
-pub(crate) fn run_planned(
+/// Times one planned run of `scene`: its `--repeat` renders.
+pub(crate) fn time_run(
+    scene: &Scene,
+    run: &PlannedRun,
+    options: &CompareOptions,
+    progress: &Progress,
+) -> Result<TimedRuns> {
+    time_setting(scene, &run.setting, &run.options, options.repeat, progress)?
+        .ok_or_else(|| Error::param("--repeat", "no timed run"))
+}
+
+/// Measures a timed run against the prepared reference (images into
+/// `out`, if given) and, with `--verify`, checks it.
+pub(crate) fn measure_run(
     scene: &Scene,
     prepared: &PreparedScene,
     run: &PlannedRun,
+    timed: TimedRuns,
     options: &CompareOptions,
     out: Option<&Path>,
     progress: &Progress,
 ) -> Result<RunResult> {
     let setting = &run.setting;
     let size = (prepared.header.width, prepared.header.height);
-    let timed = time_setting(scene, setting, &run.options, options.repeat, progress)?
-        .ok_or_else(|| Error::param("--repeat", "no timed run"))?;
     let mut result = run_result(setting, timed, &prepared.reference, options, out, size)?;
     if let Some(k) = options.verify {
         let params = run.options.build_params();

@@ -10,7 +10,7 @@ use super::model::{NoiseFloor, RegionMetrics};
 use super::settings::CompareOptions;
 use crate::error::{Error, Result};
 use crate::output::srgb8;
-use crate::render::{render, render_with, Aov, Render, RenderOptions, Technique};
+use crate::render::{estimate_render, render, render_with, Aov, Render, RenderOptions, Technique};
 use crate::report::{
     error_metrics, flip_rgb8, interior_mask, ErrorAccumulator, FlipRegions, Progress,
 };
@@ -285,6 +285,38 @@ pub(super) fn interior_of(scene: &Scene, options: &CompareOptions) -> Result<Vec
     })
 }
 
+/// The cache key of `scene`'s reference under `options`.
+pub(super) fn reference_key(scene: &Scene, options: &CompareOptions) -> Result<ReferenceKey> {
+    let view = crate::render::view_for(
+        scene,
+        &RenderOptions {
+            width: options.width,
+            height: options.height,
+            ..RenderOptions::default()
+        },
+    )?;
+    let mut h = StableHasher::default();
+    cache::hash_scene(&mut h, scene);
+    Ok(ReferenceKey {
+        scene_hash: h.finish(),
+        width: view.width,
+        height: view.height,
+        samples: options.reference_samples,
+        seeds: options.reference_seeds(),
+        version: REFERENCE_VERSION,
+    })
+}
+
+/// How long `scene`'s cached reference took when computed, if the cache
+/// holds it ([`cache::peek`]: its sidecar only).
+pub(super) fn cached_reference_seconds(
+    scene: &Scene,
+    options: &CompareOptions,
+) -> Result<Option<f64>> {
+    let key = reference_key(scene, options)?;
+    Ok(cache::peek(&options.cache_dir, &key, scene.lights.len()))
+}
+
 /// Computes (or reads from the cache) the reference for `scene`.
 pub(super) fn reference(
     scene: &Scene,
@@ -296,17 +328,7 @@ pub(super) fn reference(
         height: options.height,
         ..RenderOptions::default()
     };
-    let view = crate::render::view_for(scene, &view_options)?;
-    let mut h = StableHasher::default();
-    cache::hash_scene(&mut h, scene);
-    let key = ReferenceKey {
-        scene_hash: h.finish(),
-        width: view.width,
-        height: view.height,
-        samples: options.reference_samples,
-        seeds: options.reference_seeds(),
-        version: REFERENCE_VERSION,
-    };
+    let key = reference_key(scene, options)?;
     // Shards of a sweep on a shared filesystem compute each reference
     // once: the first to need it holds the cache's lock while the others
     // wait and then read the cache (cache.rs explains the lock).
@@ -325,6 +347,20 @@ pub(super) fn reference(
             }
         }
     };
+    if progress.estimate_shown() {
+        // The reference is a sweep's dearest piece: a time estimate that
+        // waited for its first half would be blind for a long while.
+        // Render's probes (about a sixteenth of one half) time it first.
+        let half = RenderOptions {
+            technique: Technique::named("reference")?,
+            samples: options.reference_samples / 2,
+            ..view_options.clone()
+        };
+        let probes = Instant::now();
+        if let Ok(one) = estimate_render(scene, &half) {
+            progress.work_expected(2.0 * one.as_secs_f64() + probes.elapsed().as_secs_f64());
+        }
+    }
     let start = Instant::now();
     let mut halves = Vec::new();
     let mut mask = Vec::new();
@@ -355,6 +391,10 @@ pub(super) fn reference(
             radiance: out.radiance,
             vcoef,
         });
+        if i == 0 {
+            // Half the reference: the time estimate's first measure.
+            progress.work_part(0.5);
+        }
         progress.step();
     }
     let [a, b]: [ReferenceHalf; 2] = halves

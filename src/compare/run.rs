@@ -16,7 +16,7 @@ use std::path::Path;
 use std::time::Instant;
 
 /// One setting's timed renders.
-pub(super) struct TimedRuns {
+pub(crate) struct TimedRuns {
     /// The first run's output (every run's is the same).
     pub rendered: Render,
     /// Each run's wall-clock milliseconds.

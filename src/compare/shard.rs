@@ -27,7 +27,7 @@ use super::host::host_name;
 use super::model::{
     NoiseFloor, PassMedian, ReferenceSummary, RegionMetrics, RunResult, SceneComparison,
 };
-use super::pipeline::{prepare_scene, run_planned, scene_dir, scene_runs, PlannedRun};
+use super::pipeline::{run_listing, run_scene, scene_dir, scene_runs, scene_work, PlannedRun};
 use super::settings::CompareOptions;
 use super::share::{parse_share, ShareError};
 use crate::error::{Error, Result};
@@ -38,7 +38,6 @@ use crate::shadow::kit::verify::{Disagreement, VerifyReport};
 use crate::shadow::technique::CostClass;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 /// Bumped whenever the partial format changes. 2: FLIP per run (whole
 /// frame and interior), the interior region of every error, the interior
@@ -93,6 +92,18 @@ pub fn estimated_cost(cost: CostClass, samples: Option<u32>, pixels: u64, repeat
     pixels
         .saturating_mul(per_pixel)
         .saturating_mul(repeat as u64)
+}
+
+/// The static cost estimate of `run` ([`estimated_cost`]): what shards
+/// balance by (never a timing, so every shard plans alike).
+fn run_cost(run: &PlannedRun, repeat: u32) -> u64 {
+    let pixels = run.options.width.unwrap_or(1) as u64 * run.options.height.unwrap_or(1) as u64;
+    estimated_cost(
+        run.options.technique.info().cost,
+        run.setting.samples,
+        pixels,
+        repeat,
+    )
 }
 
 /// Assigns `costs` to `shards` shards: longest processing time first
@@ -681,7 +692,7 @@ pub(crate) struct Partial {
     pub plan: Vec<PlanEntry>,
     /// Per scene: its results header, if this shard ran any of its runs.
     pub headers: Vec<Option<PartialScene>>,
-    /// The runs this shard finished, in plan order.
+    /// The runs this shard finished, in the order they finished.
     pub runs: Vec<PartialRun>,
     /// Run images and heat maps were written.
     pub images: bool,
@@ -726,6 +737,10 @@ fn option_entries(options: &CompareOptions) -> Vec<(String, String)> {
         ("--seed".into(), options.seed.to_string()),
         ("--verify".into(), format!("{:?}", options.verify)),
         (
+            "--sweep-settings".into(),
+            options.sweep_settings.to_string(),
+        ),
+        (
             "technique options".into(),
             format!("{:?}", options.technique_options),
         ),
@@ -760,19 +775,12 @@ pub(crate) fn plan(scenes: &[Scene], options: &CompareOptions, shards: u32) -> R
         });
         let runs = scene_runs(scene, options)?;
         for (index, run) in runs.iter().enumerate() {
-            let pixels =
-                run.options.width.unwrap_or(1) as u64 * run.options.height.unwrap_or(1) as u64;
             entries.push(PlanEntry {
                 scene: i,
                 index,
                 technique: run.setting.curve.clone(),
                 setting: run.setting.label.clone(),
-                cost: estimated_cost(
-                    run.options.technique.info().cost,
-                    run.setting.samples,
-                    pixels,
-                    options.repeat,
-                ),
+                cost: run_cost(run, options.repeat),
                 shard: 0,
             });
         }
@@ -787,12 +795,6 @@ pub(crate) fn plan(scenes: &[Scene], options: &CompareOptions, shards: u32) -> R
         entries,
         planned,
     })
-}
-
-fn unix_now() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 fn write_partial(path: &Path, partial: &Partial) -> Result<()> {
@@ -868,23 +870,39 @@ pub fn run_shard(
             (0..scenes.len()).filter(|&s| shard.index == 1 && !plan.iter().any(|e| e.scene == s)),
         )
         .collect();
-    let steps = 2 * needed.len() as u64 + mine.len() as u64 * options.repeat as u64;
-    let progress = Progress::new(steps, progress_bar);
+    let mut work = Vec::new();
+    for &s in &needed {
+        let runs = mine
+            .iter()
+            .filter(|e| e.scene == s)
+            .map(|e| (e.index, &planned[s][e.index]));
+        work.extend(scene_work(s, &scenes[s], options, runs)?);
+    }
+    let progress = Progress::sweep(work, progress_bar);
     for &s in &needed {
         let scene = &scenes[s];
         let dir = out.join(&partial.scenes[s].dir);
-        let prepared = prepare_scene(scene, options, Some(&dir), &progress)?;
+        let here: Vec<usize> = (mine.iter())
+            .filter(|e| e.scene == s)
+            .map(|e| e.index)
+            .collect();
+        // Recorded in the partial as they finish (the merge finds runs by
+        // their index).
+        let prepared = run_scene(
+            s,
+            scene,
+            &planned[s],
+            &here,
+            options,
+            Some(&dir),
+            &progress,
+            |prepared, index, result, (started, finished)| {
+                partial.headers[s] = Some(PartialScene::new(&prepared.header));
+                (partial.runs).push(PartialRun::new(s, index, &result, started, finished));
+                write_partial(&path, &partial)
+            },
+        )?;
         partial.headers[s] = Some(PartialScene::new(&prepared.header));
-        for e in mine.iter().filter(|e| e.scene == s) {
-            let run = &planned[s][e.index];
-            let (started, clock) = (unix_now(), Instant::now());
-            let result = run_planned(scene, &prepared, run, options, Some(&dir), &progress)?;
-            let finished = started + clock.elapsed().as_secs_f64();
-            partial
-                .runs
-                .push(PartialRun::new(s, e.index, &result, started, finished));
-            write_partial(&path, &partial)?;
-        }
     }
     partial.complete = true;
     write_partial(&path, &partial)?;
@@ -894,6 +912,37 @@ pub fn run_shard(
         runs: mine.len(),
         sweep_runs: plan.len(),
     })
+}
+
+/// What shard `shard` of the sweep over `scenes` prints before any run
+/// starts: per scene it prepares, its runs and the reference
+/// ([`run_listing`]), out of the sweep's.
+pub fn shard_listing(
+    scenes: &[Scene],
+    options: &CompareOptions,
+    shard: ShardSpec,
+) -> Result<Vec<String>> {
+    let Plan {
+        entries, planned, ..
+    } = plan(scenes, options, shard.count)?;
+    let mut lines = Vec::new();
+    for (s, scene) in scenes.iter().enumerate() {
+        let mine: Vec<&PlannedRun> = (entries.iter())
+            .filter(|e| e.scene == s && e.shard == shard.index)
+            .map(|e| &planned[s][e.index])
+            .collect();
+        let empty = !entries.iter().any(|e| e.scene == s);
+        if mine.is_empty() && !(empty && shard.index == 1) {
+            continue;
+        }
+        let prefix = format!(
+            "compare shard {shard} ({} of the sweep's {} runs)",
+            entries.iter().filter(|e| e.shard == shard.index).count(),
+            entries.len()
+        );
+        lines.push(run_listing(&prefix, scene, options, mine)?);
+    }
+    Ok(lines)
 }
 
 /// The equivalent unsharded command of a command line: `args` (without
@@ -997,5 +1046,71 @@ mod tests {
             unsharded_command(&args),
             "penumbra compare 'a b.toml' --out d"
         );
+    }
+}
+
+#[cfg(test)]
+mod plan_tests {
+    use super::*;
+    use crate::compare::pipeline::{progress_steps, sweep_work};
+    use crate::render::Technique;
+
+    /// The shards' plan, the progress steps, the time estimate's work and
+    /// the listing are of one list of runs, with and without
+    /// `--sweep-settings`.
+    #[test]
+    fn the_plan_the_steps_and_the_estimate_share_one_list() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/quad.toml");
+        let scene = crate::scene::load_scene(&path).expect("quad loads");
+        let scenes = [scene.clone(), scene];
+        for sweep_settings in [false, true] {
+            let options = CompareOptions {
+                techniques: ["dcs", "shadow-map", "reference"]
+                    .map(|t| Technique::named(t).expect("registered"))
+                    .to_vec(),
+                samples: vec![4, 16],
+                width: Some(32),
+                height: Some(24),
+                repeat: 2,
+                sweep_settings,
+                ..CompareOptions::default()
+            };
+            let Plan { entries, .. } = plan(&scenes, &options, 3).expect("plans");
+            let runs = scene_runs(&scenes[0], &options).expect("runs");
+            assert_eq!(entries.len(), 2 * runs.len());
+            assert_eq!(runs.len(), if sweep_settings { 10 } else { 5 });
+            assert_eq!(
+                progress_steps(&scenes, &options).expect("steps"),
+                2 * 2 + entries.len() as u64 * 2
+            );
+            let work = sweep_work(&scenes, &options).expect("work");
+            let timed: Vec<_> = work.iter().filter(|w| w.run.is_some()).collect();
+            assert_eq!(timed.len(), entries.len());
+            for (w, e) in timed.iter().zip(&entries) {
+                assert_eq!(
+                    (w.scene, w.run, &w.curve),
+                    (e.scene, Some(e.index), &e.technique)
+                );
+            }
+            assert_eq!(work.iter().filter(|w| w.run.is_none()).count(), 2);
+            // Every shard's listing names its runs, and together they
+            // are the sweep's.
+            let (mut listed, mut marked) = (0, false);
+            for index in 1..=3 {
+                let shard = ShardSpec { index, count: 3 };
+                for line in shard_listing(&scenes, &options, shard).expect("lists") {
+                    let n: usize = line
+                        .split(": ")
+                        .nth(1)
+                        .and_then(|l| l.split(' ').next())
+                        .and_then(|n| n.parse().ok())
+                        .expect("a count");
+                    listed += n;
+                    marked |= line.contains("[--sweep-settings]");
+                }
+            }
+            assert_eq!(listed, entries.len());
+            assert_eq!(marked, sweep_settings);
+        }
     }
 }

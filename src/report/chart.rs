@@ -98,11 +98,215 @@ pub fn write_error_vs_time_sized(
             ),
         ));
     }
-    register_embedded_font().map_err(|why| Error::file(path, None, why))?;
-    let mut rgb = vec![255u8; width as usize * height as usize * 3];
-    draw(&mut rgb, size, title, y_label, points, error_floor)
-        .map_err(|why| Error::file(path, None, format!("cannot draw the chart: {why}")))?;
+    let (rgb, _) = render_chart(title, y_label, points, error_floor, size)
+        .map_err(|why| Error::file(path, None, why))?;
     write_rgb8(path, width, height, &rgb)
+}
+
+/// Where the chart of [`write_error_vs_time_sized`] with these arguments
+/// puts its point labels, and what bounds them: the chart is drawn in
+/// memory (nothing is written) and its layout returned. An error for a
+/// chart below [`MIN_CHART_SIZE`].
+pub fn error_vs_time_labels(
+    title: &str,
+    y_label: &str,
+    points: &[ChartPoint],
+    error_floor: Option<f64>,
+    size: (u32, u32),
+) -> Result<ChartLabels> {
+    if size.0 < MIN_CHART_SIZE.0 || size.1 < MIN_CHART_SIZE.1 {
+        return Err(Error::param(
+            "chart size",
+            format!(
+                "{}×{} is below {}×{}",
+                size.0, size.1, MIN_CHART_SIZE.0, MIN_CHART_SIZE.1
+            ),
+        ));
+    }
+    let (_, labels) = render_chart(title, y_label, points, error_floor, size)
+        .map_err(|why| Error::param("chart", why))?;
+    Ok(labels)
+}
+
+/// The chart's pixels (8-bit RGB) and its label layout.
+fn render_chart(
+    title: &str,
+    y_label: &str,
+    points: &[ChartPoint],
+    error_floor: Option<f64>,
+    size: (u32, u32),
+) -> std::result::Result<(Vec<u8>, ChartLabels), String> {
+    register_embedded_font()?;
+    let mut rgb = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    let labels = draw(&mut rgb, size, title, y_label, points, error_floor)
+        .map_err(|why| format!("cannot draw the chart: {why}"))?;
+    Ok((rgb, labels))
+}
+
+/// A rectangle of chart pixels: columns `x0..x1`, rows `y0..y1`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LabelBox {
+    /// First column.
+    pub x0: i32,
+    /// First row.
+    pub y0: i32,
+    /// One past the last column.
+    pub x1: i32,
+    /// One past the last row.
+    pub y1: i32,
+}
+
+impl LabelBox {
+    /// The box of `size` whose top left is `(x, y)`.
+    pub fn at((x, y): (i32, i32), (w, h): (u32, u32)) -> Self {
+        LabelBox {
+            x0: x,
+            y0: y,
+            x1: x + w as i32,
+            y1: y + h as i32,
+        }
+    }
+
+    /// Whether the two share a pixel.
+    pub fn intersects(&self, other: &LabelBox) -> bool {
+        self.x0 < other.x1 && other.x0 < self.x1 && self.y0 < other.y1 && other.y0 < self.y1
+    }
+
+    /// Whether every pixel of `self` is in `bounds`.
+    pub fn inside(&self, bounds: &LabelBox) -> bool {
+        self.x0 >= bounds.x0 && self.y0 >= bounds.y0 && self.x1 <= bounds.x1 && self.y1 <= bounds.y1
+    }
+
+    /// The box grown by `d` pixels on every side.
+    fn grown(&self, d: i32) -> Self {
+        LabelBox {
+            x0: self.x0 - d,
+            y0: self.y0 - d,
+            x1: self.x1 + d,
+            y1: self.y1 + d,
+        }
+    }
+
+    /// The point of the box nearest to `p`.
+    fn nearest(&self, (x, y): (i32, i32)) -> (i32, i32) {
+        (x.clamp(self.x0, self.x1 - 1), y.clamp(self.y0, self.y1 - 1))
+    }
+}
+
+/// A label to place next to its marker.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LabelRequest {
+    /// The marker's centre, in pixels.
+    pub anchor: (i32, i32),
+    /// The label's box size (its text and a pixel of padding), in pixels.
+    pub size: (u32, u32),
+}
+
+/// Where a chart's labels went.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChartLabels {
+    /// The chart's size, in pixels.
+    pub image: (u32, u32),
+    /// The plotting area: every label lies in it.
+    pub plot: LabelBox,
+    /// The legend's box (labels keep out of it), if there is a legend.
+    pub legend: Option<LabelBox>,
+    /// The box of each drawn label, in drawing order.
+    pub boxes: Vec<LabelBox>,
+    /// Labels left out: no place in the plotting area was free of the
+    /// others, the legend and the chart's edges (a note under the chart
+    /// says how many).
+    pub left_out: usize,
+}
+
+/// Radius of a point's marker (its Pareto ring), in pixels.
+const MARKER_RADIUS: i32 = 8;
+
+/// Places `labels` (in priority order: earlier labels get the better
+/// places) inside `bounds`, never overlapping each other or any of
+/// `obstacles`: each takes the candidate position, from right of its
+/// marker outwards in rings, that covers the fewest markers (`markers`,
+/// centres; a marker is a disc of [`MARKER_RADIUS`]) and lies nearest its
+/// own; a label with no free position is left out (`None`). Pure and
+/// deterministic: the same input gives the same boxes.
+pub fn place_labels(
+    labels: &[LabelRequest],
+    bounds: LabelBox,
+    obstacles: &[LabelBox],
+    markers: &[(i32, i32)],
+) -> Vec<Option<LabelBox>> {
+    let marker_boxes: Vec<LabelBox> = markers
+        .iter()
+        .map(|&(x, y)| LabelBox {
+            x0: x - MARKER_RADIUS,
+            y0: y - MARKER_RADIUS,
+            x1: x + MARKER_RADIUS + 1,
+            y1: y + MARKER_RADIUS + 1,
+        })
+        .collect();
+    let mut placed: Vec<LabelBox> = Vec::new();
+    let mut out = Vec::with_capacity(labels.len());
+    for label in labels {
+        let mut best: Option<(u64, LabelBox)> = None;
+        for (order, (ring, candidate)) in candidates(label).into_iter().enumerate() {
+            if !candidate.inside(&bounds)
+                || placed.iter().any(|p| p.intersects(&candidate))
+                || obstacles.iter().any(|o| o.intersects(&candidate))
+            {
+                continue;
+            }
+            let covered = marker_boxes
+                .iter()
+                .filter(|m| m.intersects(&candidate))
+                .count() as u64;
+            // A covered marker costs more than moving a ring out.
+            let cost = (covered * 3 + ring as u64 * 2) * 1000 + order as u64;
+            if best.is_none_or(|(c, _)| cost < c) {
+                best = Some((cost, candidate));
+            }
+        }
+        if let Some((_, b)) = best {
+            placed.push(b);
+        }
+        out.push(best.map(|(_, b)| b));
+    }
+    out
+}
+
+/// The positions `label` may take, with their ring: ring 0 right, left,
+/// above and below its marker; rings 1 to 16 ever farther out in sixteen
+/// directions (drawn with a leader line to the marker).
+fn candidates(label: &LabelRequest) -> Vec<(u32, LabelBox)> {
+    let (ax, ay) = label.anchor;
+    let (w, h) = (label.size.0 as i32, label.size.1 as i32);
+    let gap = MARKER_RADIUS + 2;
+    let at = |x: i32, y: i32| LabelBox::at((x, y), label.size);
+    let mut out = vec![
+        (0, at(ax + gap, ay - h - 1)),
+        (0, at(ax + gap, ay - h / 2)),
+        (0, at(ax + gap, ay + 2)),
+        (0, at(ax - gap - w, ay - h - 1)),
+        (0, at(ax - gap - w, ay - h / 2)),
+        (0, at(ax - gap - w, ay + 2)),
+        (0, at(ax - w / 2, ay - gap - h)),
+        (0, at(ax - w / 2, ay + gap)),
+    ];
+    let step = f64::from(h.max(8) + 2);
+    for ring in 1..=16u32 {
+        let d = f64::from(gap) + f64::from(ring) * step;
+        for k in 0..16 {
+            let angle = f64::from(k) * std::f64::consts::PI / 8.0;
+            let (c, s) = (angle.cos(), -angle.sin());
+            // The box's centre, pushed out until the box clears the
+            // distance `d` from the marker along the direction.
+            let cx = f64::from(ax) + c * (d + f64::from(w) / 2.0);
+            let cy = f64::from(ay) + s * (d + f64::from(h) / 2.0);
+            let x = (cx - f64::from(w) / 2.0).round() as i32;
+            let y = (cy - f64::from(h) / 2.0).round() as i32;
+            out.push((ring, at(x, y)));
+        }
+    }
+    out
 }
 
 /// The font every chart's text is drawn with, registered once as plotters'
@@ -179,7 +383,7 @@ fn log_range(lo: f64, hi: f64) -> Range<f64> {
 
 /// A tick label: few digits, plain for ordinary magnitudes, `1e-5` style
 /// beyond them.
-fn tick_label(v: f64) -> String {
+pub(crate) fn tick_label(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
         return "0".into();
@@ -242,34 +446,6 @@ impl Ranged for LogAxis {
     fn range(&self) -> Range<f64> {
         self.0.clone()
     }
-}
-
-/// The legend corner with the fewest points under it, so the legend hides
-/// as little data as possible (ties: upper right, upper left, lower right,
-/// lower left). `points` are in axis fractions, (0, 0) at the lower left.
-fn legend_corner(points: &[(f64, f64)]) -> SeriesLabelPosition {
-    let corners = [
-        (SeriesLabelPosition::UpperRight, 0.6..1.01, 0.65..1.01),
-        (SeriesLabelPosition::UpperLeft, -0.01..0.4, 0.65..1.01),
-        (SeriesLabelPosition::LowerRight, 0.6..1.01, -0.01..0.35),
-        (SeriesLabelPosition::LowerLeft, -0.01..0.4, -0.01..0.35),
-    ];
-    let mut best = (usize::MAX, SeriesLabelPosition::UpperRight);
-    for (corner, us, vs) in corners {
-        let n = points
-            .iter()
-            .filter(|(u, v)| us.contains(u) && vs.contains(v))
-            .count();
-        if n < best.0 {
-            best = (n, corner);
-        }
-    }
-    best.1
-}
-
-/// Where `v` lies on the log range `r`, as a fraction.
-fn fraction(r: &Range<f64>, v: f64) -> f64 {
-    (v.ln() - r.start.ln()) / (r.end.ln() - r.start.ln())
 }
 
 /// Where everything goes: the finite points placed on log axes (zero and
@@ -381,7 +557,42 @@ fn front_staircase(placed: &[&Placed]) -> Option<Vec<(f64, f64)>> {
     Some(path)
 }
 
-/// Draws the chart into `rgb` (`size`, 3 bytes per pixel).
+/// The legend's box for `lines` (its entries' texts) in `font` at
+/// `corner` of the plotting area `plot`: plotters' own layout (entries
+/// 1.25 lines apart, a 30-pixel sample area, a 10-pixel margin, 5 pixels
+/// from the corner's edges), so that a box drawn at its top left is
+/// exactly this one.
+fn legend_box(
+    lines: &[String],
+    font: &FontDesc,
+    plot: &LabelBox,
+    corner: usize,
+) -> Option<LabelBox> {
+    const AREA: i32 = 30;
+    const MARGIN: i32 = 10;
+    let (mut w, mut h) = (0, 0);
+    for (i, line) in lines.iter().enumerate() {
+        let y = (f64::from(i as u32) * font.get_size() * 1.25).round() as i32;
+        let (dx, dy) = font.box_size(line).ok()?;
+        w = w.max(dx as i32);
+        h = h.max(y + dy as i32);
+    }
+    let (w, h) = (w + AREA + 2 * MARGIN, h + 2 * MARGIN);
+    let (pw, ph) = (plot.x1 - plot.x0, plot.y1 - plot.y0);
+    let (x, y) = match corner {
+        0 => (pw - w - 5, 5),
+        1 => (5, 5),
+        2 => (pw - w - 5, ph - h - 5),
+        _ => (5, ph - h - 5),
+    };
+    Some(LabelBox::at(
+        (plot.x0 + x, plot.y0 + y),
+        (w.max(0) as u32, h.max(0) as u32),
+    ))
+}
+
+/// Draws the chart into `rgb` (`size`, 3 bytes per pixel); returns where
+/// its labels went.
 fn draw(
     rgb: &mut [u8],
     size: (u32, u32),
@@ -389,7 +600,7 @@ fn draw(
     y_label: &str,
     points: &[ChartPoint],
     error_floor: Option<f64>,
-) -> std::result::Result<(), String> {
+) -> std::result::Result<ChartLabels, String> {
     let err = |e: &dyn std::fmt::Display| e.to_string();
     let ChartLayout {
         curves,
@@ -405,7 +616,8 @@ fn draw(
     let small = size.0 < 600 || size.1 < 400;
     let (caption, text, tick) = if small { (16, 12, 11) } else { (26, 18, 15) };
     let margin = if small { 8 } else { 18 };
-    let note_height = if note.is_some() { tick + 6 } else { 0 };
+    // Room for one line of notes (log-axis floors, labels left out).
+    let note_height = tick + 6;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", caption))
         .margin(margin)
@@ -426,6 +638,13 @@ fn draw(
         .bold_line_style(RGBColor(225, 225, 225))
         .draw()
         .map_err(|e| err(&e))?;
+    let (xs, ys) = chart.plotting_area().get_pixel_range();
+    let plot = LabelBox {
+        x0: xs.start,
+        y0: ys.start,
+        x1: xs.end,
+        y1: ys.end,
+    };
 
     if let Some(f) = floor_line {
         let grey = RGBColor(90, 90, 90);
@@ -445,7 +664,8 @@ fn draw(
 
     // The Pareto front as a dashed staircase: from each front point, across
     // at its error to the next one's time, then down.
-    if let Some(path) = front_staircase(&placed) {
+    let staircase = front_staircase(&placed);
+    if let Some(path) = staircase.clone() {
         chart
             .draw_series(DashedLineSeries::new(path, 5, 5, BLACK.stroke_width(1)))
             .map_err(|e| err(&e))?
@@ -455,9 +675,6 @@ fn draw(
             });
     }
 
-    let label_font = ("sans-serif", tick)
-        .into_font()
-        .color(&RGBColor(40, 40, 40));
     for (k, (technique, curve)) in curves.iter().enumerate() {
         let colour = PALETTE[k % PALETTE.len()];
         chart
@@ -472,7 +689,6 @@ fn draw(
                     + PathElement::new(vec![(0, 0), (24, 0)], colour.stroke_width(2))
                     + Circle::new((12, 0), 4, colour.filled())
             });
-        let (font, x_range) = (label_font.clone(), &x_range);
         chart
             .draw_series(curve.iter().map(move |p| {
                 let ring = if p.front {
@@ -480,41 +696,59 @@ fn draw(
                 } else {
                     TRANSPARENT
                 };
-                // Labels go right of the marker, or left of it near the
-                // right edge, where they would be cut off.
-                let (anchor, dx) = if fraction(x_range, p.x) > 0.85 {
-                    (HPos::Right, -9)
-                } else {
-                    (HPos::Left, 9)
-                };
-                let font = font.pos(Pos::new(anchor, VPos::Bottom));
                 EmptyElement::at((p.x, p.y))
-                    + Circle::new((0, 0), 8, ring.stroke_width(2))
+                    + Circle::new((0, 0), MARKER_RADIUS as u32, ring.stroke_width(2))
                     + Circle::new((0, 0), 4, colour.filled())
-                    + Text::new(p.label.clone(), (dx, -5), font)
             }))
             .map_err(|e| err(&e))?;
     }
 
+    let label_font = ("sans-serif", tick)
+        .into_font()
+        .color(&RGBColor(40, 40, 40));
     if placed.is_empty() {
         let centre = (
             (x_range.start * x_range.end).sqrt(),
             (y_range.start * y_range.end).sqrt(),
         );
-        let font = label_font.pos(Pos::new(HPos::Center, VPos::Center));
+        let font = label_font.clone().pos(Pos::new(HPos::Center, VPos::Center));
         chart
             .draw_series([Text::new("no finite points to plot", centre, font)])
             .map_err(|e| err(&e))?;
     }
-    // An empty legend would be an empty box.
-    if !placed.is_empty() || floor_line.is_some() {
-        let in_axes: Vec<(f64, f64)> = placed
-            .iter()
-            .map(|p| (fraction(&x_range, p.x), fraction(&y_range, p.y)))
-            .collect();
+
+    // The legend (an empty one would be an empty box) in the corner whose
+    // box covers the fewest markers (ties: upper right, upper left, lower
+    // right, lower left), at the box computed for it.
+    let markers: Vec<(i32, i32)> = placed
+        .iter()
+        .map(|p| chart.backend_coord(&(p.x, p.y)))
+        .collect();
+    let entries: Vec<String> = (floor_line.map(|_| "reference noise floor".to_string()))
+        .into_iter()
+        .chain(staircase.as_ref().map(|_| "Pareto front".to_string()))
+        .chain(curves.iter().map(|(t, _)| t.to_string()))
+        .collect();
+    let legend_font = FontDesc::new(FontFamily::SansSerif, f64::from(tick), FontStyle::Normal);
+    let legend = match entries.is_empty() {
+        true => None,
+        false => (0..4)
+            .filter_map(|corner| legend_box(&entries, &legend_font, &plot, corner))
+            .min_by_key(|b| {
+                let near = b.grown(MARKER_RADIUS);
+                markers
+                    .iter()
+                    .filter(|&&(x, y)| near.intersects(&LabelBox::at((x, y), (1, 1))))
+                    .count()
+            }),
+    };
+    if let Some(b) = legend {
         chart
             .configure_series_labels()
-            .position(legend_corner(&in_axes))
+            .position(SeriesLabelPosition::Coordinate(
+                b.x0 - plot.x0,
+                b.y0 - plot.y0,
+            ))
             .label_font(("sans-serif", tick))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(160, 160, 160))
@@ -522,11 +756,196 @@ fn draw(
             .map_err(|e| err(&e))?;
     }
 
-    if let Some(note) = note {
-        let y = size.1 as i32 - margin / 2 - note_height;
-        root.draw(&Text::new(note, (margin, y), label_font.clone()))
+    // The labels: the Pareto front's first, then by curve; each in a
+    // place no other label, the legend or the plot's edges take.
+    let order: Vec<usize> = (0..placed.len())
+        .filter(|&i| placed[i].front)
+        .chain((0..placed.len()).filter(|&i| !placed[i].front))
+        .collect();
+    let pad = 1;
+    let requests: Vec<LabelRequest> = order
+        .iter()
+        .map(|&i| {
+            let (w, h) = label_font.font.box_size(&placed[i].label).unwrap_or((0, 0));
+            LabelRequest {
+                anchor: markers[i],
+                size: (w + 2 * pad, h + 2 * pad),
+            }
+        })
+        .collect();
+    let obstacles: Vec<LabelBox> = legend.iter().map(|b| b.grown(2)).collect();
+    let boxes = place_labels(&requests, plot, &obstacles, &markers);
+    let font = label_font.pos(Pos::new(HPos::Left, VPos::Top));
+    let mut drawn = Vec::new();
+    for ((&i, request), b) in order.iter().zip(&requests).zip(&boxes) {
+        let Some(b) = b else { continue };
+        let (ax, ay) = request.anchor;
+        let (nx, ny) = b.nearest((ax, ay));
+        let (dx, dy) = (nx - ax, ny - ay);
+        if dx * dx + dy * dy > (MARKER_RADIUS + 6).pow(2) {
+            // A label moved away from its marker: a leader line to it,
+            // from the marker's ring.
+            let len = f64::from(dx * dx + dy * dy).sqrt();
+            let r = f64::from(MARKER_RADIUS) / len;
+            let from = (
+                ax + (f64::from(dx) * r).round() as i32,
+                ay + (f64::from(dy) * r).round() as i32,
+            );
+            root.draw(&PathElement::new(
+                vec![from, (nx, ny)],
+                RGBColor(150, 150, 150).stroke_width(1),
+            ))
             .map_err(|e| err(&e))?;
+        }
+        root.draw(&Text::new(
+            placed[i].label.clone(),
+            (b.x0 + pad as i32, b.y0 + pad as i32),
+            font.clone(),
+        ))
+        .map_err(|e| err(&e))?;
+        drawn.push(*b);
+    }
+    let left_out = boxes.iter().filter(|b| b.is_none()).count();
+
+    let notes: Vec<String> = note
+        .into_iter()
+        .chain((left_out > 0).then(|| {
+            format!(
+                "{left_out} point label{} left out for want of room (results.md lists every run)",
+                if left_out == 1 { "" } else { "s" }
+            )
+        }))
+        .collect();
+    if !notes.is_empty() {
+        let y = size.1 as i32 - margin / 2 - note_height;
+        root.draw(&Text::new(
+            notes.join("; "),
+            (margin, y),
+            label_font.clone(),
+        ))
+        .map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))?;
-    Ok(())
+    Ok(ChartLabels {
+        image: size,
+        plot,
+        legend,
+        boxes: drawn,
+        left_out,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn disjoint_inside(boxes: &[LabelBox], bounds: &LabelBox, obstacles: &[LabelBox]) {
+        for (i, a) in boxes.iter().enumerate() {
+            assert!(a.inside(bounds), "{a:?} outside {bounds:?}");
+            assert!(
+                !obstacles.iter().any(|o| o.intersects(a)),
+                "{a:?} on an obstacle"
+            );
+            for b in &boxes[i + 1..] {
+                assert!(!a.intersects(b), "{a:?} and {b:?} overlap");
+            }
+        }
+    }
+
+    #[test]
+    fn boxes_intersect_only_when_they_share_a_pixel() {
+        let a = LabelBox::at((0, 0), (10, 5));
+        assert!(a.intersects(&LabelBox::at((9, 4), (3, 3))));
+        assert!(
+            !a.intersects(&LabelBox::at((10, 0), (3, 3))),
+            "edge to edge"
+        );
+        assert!(!a.intersects(&LabelBox::at((0, 5), (3, 3))));
+        assert!(a.inside(&LabelBox::at((0, 0), (10, 5))));
+        assert!(!a.inside(&LabelBox::at((1, 0), (10, 5))));
+    }
+
+    /// Deliberately clustered points: thirty labels on markers a few
+    /// pixels apart, a legend beside them and the plot's edge near: every
+    /// label placed is clear of the others, the legend and the edges; most
+    /// find a place, and the same input places them the same way.
+    #[test]
+    fn clustered_labels_never_overlap() {
+        let bounds = LabelBox::at((100, 50), (600, 400));
+        let legend = LabelBox::at((460, 60), (230, 150));
+        let markers: Vec<(i32, i32)> = (0..30)
+            .map(|i| (440 + (i % 6) * 3, 120 + (i / 6) * 2))
+            .collect();
+        let labels: Vec<LabelRequest> = (0..30)
+            .map(|i| LabelRequest {
+                anchor: markers[i],
+                size: (40 + (i as u32 % 4) * 15, 17),
+            })
+            .collect();
+        let placed = place_labels(&labels, bounds, &[legend], &markers);
+        assert_eq!(placed.len(), labels.len());
+        let boxes: Vec<LabelBox> = placed.iter().flatten().copied().collect();
+        disjoint_inside(&boxes, &bounds, &[legend]);
+        assert!(boxes.len() >= 25, "{} of 30 placed", boxes.len());
+        assert_eq!(placed, place_labels(&labels, bounds, &[legend], &markers));
+        // A lone label takes the place right of its marker.
+        let one = place_labels(&labels[..1], bounds, &[], &markers[..1]);
+        let b = one[0].expect("placed");
+        assert!(b.x0 > markers[0].0 && b.y1 <= markers[0].1, "{b:?}");
+        // Against the right edge, it goes left of its marker.
+        let edge = LabelRequest {
+            anchor: (bounds.x1 - 5, 200),
+            size: (60, 17),
+        };
+        let b = place_labels(&[edge], bounds, &[], &[edge.anchor])[0].expect("placed");
+        assert!(b.x1 <= edge.anchor.0 && b.inside(&bounds), "{b:?}");
+        // No room at all: left out, never forced over another.
+        let tiny = LabelBox::at((0, 0), (50, 20));
+        let crowd = [LabelRequest {
+            anchor: (25, 10),
+            size: (45, 15),
+        }; 3];
+        let placed = place_labels(&crowd, tiny, &[], &[(25, 10)]);
+        let boxes: Vec<LabelBox> = placed.iter().flatten().copied().collect();
+        disjoint_inside(&boxes, &tiny, &[]);
+        assert!(boxes.len() < 3);
+    }
+
+    /// The same on a drawn chart: points of several techniques bunched at
+    /// one spot (the labels as drawn, with the real font and legend).
+    #[test]
+    fn a_chart_of_clustered_points_has_disjoint_labels() {
+        let mut points = Vec::new();
+        for (t, technique) in ["dcs", "dcs centre", "reference", "shadow-map"]
+            .iter()
+            .enumerate()
+        {
+            for k in 0..8 {
+                points.push(ChartPoint {
+                    technique: technique.to_string(),
+                    label: format!("{} spp, setting {t}", 4 << k),
+                    seconds: 0.1 * (1.0 + 0.01 * f64::from(k) + 0.003 * t as f64),
+                    error: 0.02 * (1.0 - 0.01 * f64::from(k) + 0.002 * t as f64),
+                });
+            }
+        }
+        // One far point, so the cluster is small on the axes.
+        points.push(ChartPoint {
+            technique: "reference".into(),
+            label: "4096 spp".into(),
+            seconds: 30.0,
+            error: 1e-4,
+        });
+        for size in [CHART_SIZE, MIN_CHART_SIZE] {
+            let labels = error_vs_time_labels("t", "error", &points, Some(1e-3), size).unwrap();
+            let image = LabelBox::at((0, 0), size);
+            assert!(labels.plot.inside(&image));
+            let legend: Vec<LabelBox> = labels.legend.into_iter().collect();
+            disjoint_inside(&labels.boxes, &labels.plot, &legend);
+            assert_eq!(labels.boxes.len() + labels.left_out, points.len());
+            if size == CHART_SIZE {
+                assert!(labels.boxes.len() >= 20, "{labels:?}");
+            }
+        }
+    }
 }

@@ -11,8 +11,9 @@
 //! over the whole frame or any subset of its pixels (e.g. the interior,
 //! [`super::interior`]).
 
+use super::heatmap::{write_with_colour_bar, HeatmapScale};
 use crate::error::{Error, Result};
-use crate::output::{srgb8, write_rgb8};
+use crate::output::srgb8;
 use glam::Vec3;
 use serde::Serialize;
 use std::path::Path;
@@ -20,6 +21,14 @@ use std::path::Path;
 /// Pixels per degree of visual angle FLIP is computed at:
 /// `nv_flip::DEFAULT_PIXELS_PER_DEGREE` (67).
 pub const FLIP_PPD: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+
+/// The colour scale of FLIP error maps: FLIP's own range, 0 (no visible
+/// difference) to 1, unitless.
+pub const FLIP_SCALE: HeatmapScale<'static> = HeatmapScale {
+    quantity: "FLIP error",
+    unit: "unitless, 0 to 1",
+    max: 1.0,
+};
 
 /// The percentiles [`FlipMetrics`] reports.
 pub const FLIP_PERCENTILES: [f64; 3] = [0.5, 0.9, 0.99];
@@ -129,12 +138,30 @@ impl FlipMap {
     }
 
     /// Writes the map through the magma colour map as an 8-bit RGB PNG at
-    /// `path`, atomically (as every PNG here).
+    /// `path`, atomically (as every PNG here), with its colour bar under
+    /// it ([`FLIP_SCALE`], [`super::heatmap::write_with_colour_bar`]):
+    /// the PNG is [`super::heatmap::heatmap_canvas`] of the map's size.
     pub fn write_png(&self, path: &Path) -> Result<()> {
         if self.values.len() != self.width as usize * self.height as usize {
             return Err(Error::file(path, None, "the FLIP map has the wrong size"));
         }
-        write_rgb8(path, self.width, self.height, &self.magma_rgb8())
+        let lut = nv_flip::magma_lut().to_vec();
+        let magma = |t: f64| -> [u8; 3] {
+            let i = (t.clamp(0.0, 1.0) * 255.0).round() as usize * 3;
+            match lut.get(i..i + 3) {
+                Some(c) => [c[0], c[1], c[2]],
+                None => [0, 0, 0],
+            }
+        };
+        write_with_colour_bar(
+            path,
+            self.width,
+            self.height,
+            &self.magma_rgb8(),
+            &magma,
+            &FLIP_SCALE,
+            &[],
+        )
     }
 }
 

@@ -2,14 +2,16 @@
 //! seconds and only when stderr is a terminal, with an estimate of the
 //! time left; and the cost model a render's time is estimated by (the
 //! probe renders that feed it are `crate::render::estimate`'s: report
-//! does not call render).
+//! does not call render). A `compare` sweep's bar and time left follow
+//! the costs measured so far ([`super::estimate`]).
 
+use super::estimate::{SweepEstimate, Work};
 use crate::observe::Cancel;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use std::fmt::Write;
 use std::io::IsTerminal;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Delay before the bar shows: short work stays silent.
 const SHOW_AFTER: Duration = Duration::from_secs(2);
@@ -28,6 +30,12 @@ pub struct Progress {
     done: Arc<Mutex<bool>>,
     /// Raised to stop the work (a library caller's [`Cancel`]).
     cancel: Cancel,
+    /// A sweep's pieces of work and their measured times.
+    sweep: Option<Arc<Mutex<SweepEstimate>>>,
+    /// When the work started.
+    clock: Instant,
+    /// The bar may show (enabled, stderr a terminal).
+    shown: bool,
 }
 
 impl Progress {
@@ -73,9 +81,137 @@ impl Progress {
         Progress::with_bar(bar, enabled)
     }
 
+    /// A reporter over a sweep's pieces of `work` (references and runs):
+    /// its bar fills by time, the time done over that plus the time left
+    /// that [`SweepEstimate`] predicts from the pieces already measured
+    /// ([`Progress::work_started`], [`Progress::work_finished`]).
+    pub fn sweep(work: Vec<Work>, enabled: bool) -> Self {
+        let pieces = work.len();
+        let estimate = Arc::new(Mutex::new(SweepEstimate::new(work)));
+        let clock = Instant::now();
+        let bar = ProgressBar::with_draw_target(Some(pieces as u64), ProgressDrawTarget::hidden());
+        let (for_bar, for_count, for_left) = (
+            Arc::clone(&estimate),
+            Arc::clone(&estimate),
+            Arc::clone(&estimate),
+        );
+        let style = ProgressStyle::with_template("{elapsed:>4} [{sweepbar}] {done} {msg}, {left}")
+            .map(|style| {
+                style
+                    .with_key("sweepbar", move |_: &ProgressState, w: &mut dyn Write| {
+                        let at = clock.elapsed().as_secs_f64();
+                        let fraction = for_bar.lock().map_or(0.0, |e| {
+                            e.fraction(at)
+                                .unwrap_or(e.done() as f64 / pieces.max(1) as f64)
+                        });
+                        // Never full before the work is: at most BAR - 1.
+                        let done = ((fraction * BAR as f64) as usize).min(BAR - 1);
+                        let _ = write!(w, "{}>{}", "=".repeat(done), " ".repeat(BAR - 1 - done));
+                    })
+                    .with_key("done", move |_: &ProgressState, w: &mut dyn Write| {
+                        let done = for_count.lock().map_or(0, |e| e.done());
+                        let _ = write!(w, "{done}/{pieces}");
+                    })
+                    .with_key("left", move |_: &ProgressState, w: &mut dyn Write| {
+                        let at = clock.elapsed().as_secs_f64();
+                        let _ = match for_left.lock().ok().and_then(|e| e.left(at)) {
+                            None => write!(w, "estimating the time left"),
+                            Some(left) => write!(
+                                w,
+                                "~{} left",
+                                format_duration(Duration::from_secs_f64(left.min(1e9)))
+                            ),
+                        };
+                    })
+            });
+        if let Ok(style) = style {
+            bar.set_style(style.progress_chars("=> "));
+        }
+        let mut progress = Progress::with_bar(bar, enabled);
+        progress.sweep = Some(estimate);
+        progress.clock = clock;
+        progress
+    }
+
+    /// A sweep's piece of work starts: `scene`'s reference (`run`
+    /// `None`) or run `run`. Nothing for a reporter of no sweep, or a
+    /// piece not in its work.
+    pub fn work_started(&self, scene: usize, run: Option<usize>) {
+        let at = self.clock.elapsed().as_secs_f64();
+        if let Some(mut e) = self.sweep.as_ref().and_then(|e| e.lock().ok()) {
+            if let Some(i) = e.index_of(scene, run) {
+                e.start(i, at);
+            }
+        }
+    }
+
+    /// `scene`'s reference will be read from the cache, and its
+    /// computation took `seconds`: the time estimate learns the ray
+    /// tracer's cost before the read.
+    pub fn reference_cached(&self, scene: usize, seconds: f64) {
+        if let Some(mut e) = self.sweep.as_ref().and_then(|e| e.lock().ok()) {
+            if let Some(i) = e.index_of(scene, None) {
+                e.cached(i, seconds);
+            }
+        }
+    }
+
+    /// A render of `scene` without shadows took `seconds`: every render
+    /// of the scene costs at least that (the time estimate's first guess
+    /// of a technique not timed yet).
+    pub fn work_baseline(&self, scene: usize, seconds: f64) {
+        if let Some(mut e) = self.sweep.as_ref().and_then(|e| e.lock().ok()) {
+            e.baseline(scene, seconds);
+        }
+    }
+
+    /// Whether a sweep's time estimate is shown (a sweep's reporter,
+    /// enabled, on a terminal): worth probe renders for.
+    pub fn estimate_shown(&self) -> bool {
+        self.sweep.is_some() && self.shown
+    }
+
+    /// The sweep's piece of work under way is expected to take `seconds`
+    /// (from probe renders), until it reports a share of its own.
+    pub fn work_expected(&self, seconds: f64) {
+        if let Some(mut e) = self.sweep.as_ref().and_then(|e| e.lock().ok()) {
+            e.expect(seconds);
+        }
+    }
+
+    /// The sweep's piece of work under way is `share` (in (0, 1)) done:
+    /// it is then predicted by its own pace (a reference's first half).
+    pub fn work_part(&self, share: f64) {
+        let at = self.clock.elapsed().as_secs_f64();
+        if let Some(mut e) = self.sweep.as_ref().and_then(|e| e.lock().ok()) {
+            e.part(at, share);
+        }
+    }
+
+    /// A sweep's piece of work is done; with `model`, other pieces are
+    /// predicted from that many seconds instead of the time it took (a
+    /// reference read from the cache: the time its computation took).
+    pub fn work_finished(&self, scene: usize, run: Option<usize>, model: Option<f64>) {
+        let at = self.clock.elapsed().as_secs_f64();
+        if let Some(mut e) = self.sweep.as_ref().and_then(|e| e.lock().ok()) {
+            if let Some(i) = e.index_of(scene, run) {
+                e.finish(i, at, model);
+            }
+        }
+    }
+
+    /// The sweep's estimated time left now (`None` for a reporter of no
+    /// sweep, or before anything usable is measured).
+    pub fn sweep_left(&self) -> Option<Duration> {
+        let at = self.clock.elapsed().as_secs_f64();
+        let e = self.sweep.as_ref()?.lock().ok()?;
+        e.left(at).map(|s| Duration::from_secs_f64(s.min(1e9)))
+    }
+
     fn with_bar(bar: ProgressBar, enabled: bool) -> Self {
         let done = Arc::new(Mutex::new(false));
-        if enabled && std::io::stderr().is_terminal() {
+        let shown = enabled && std::io::stderr().is_terminal();
+        if shown {
             // Shown by the clock, not by the next stage: one stage (a
             // render's shadows) can be most of the work.
             let (bar, done) = (bar.clone(), Arc::clone(&done));
@@ -93,6 +229,9 @@ impl Progress {
             bar,
             done,
             cancel: Cancel::new(),
+            sweep: None,
+            clock: Instant::now(),
+            shown,
         }
     }
 

@@ -39,6 +39,7 @@ fn options(cache: &Path, reference_samples: u32) -> CompareOptions {
         patterns: vec![penumbra::internal::sampling::SamplePattern::Stratified],
         verify: None,
         threads: None,
+        sweep_settings: false,
     }
 }
 

@@ -18,7 +18,8 @@ fn quad_path() -> PathBuf {
 /// The small sweep of the command line
 /// `compare scenes/quad.toml --width 32 --height 24 --techniques
 /// shadow-volumes,dcs,reference --samples 4,16 --reference-samples 64
-/// --no-images`, with its cache in `cache`.
+/// --no-images --sweep-settings`, with its cache in `cache` (the swept
+/// settings too: the option goes through both routes alike).
 fn small(cache: &Path) -> CompareOptions {
     CompareOptions {
         techniques: ["shadow-volumes", "dcs", "reference"]
@@ -30,12 +31,14 @@ fn small(cache: &Path) -> CompareOptions {
         height: Some(24),
         images: false,
         cache_dir: cache.to_path_buf(),
+        sweep_settings: true,
         ..CompareOptions::default()
     }
 }
 
 /// Its arguments after `compare`.
-const SMALL_ARGS: [&str; 13] = [
+const SMALL_ARGS: [&str; 14] = [
+    "--sweep-settings",
     "--width",
     "32",
     "--height",
@@ -134,7 +137,12 @@ fn the_records_are_the_rows_of_results_csv() {
     let dir = common::ScratchDir::new("compare-api-rows");
     let scene = load_scene(&quad_path()).expect("quad loads");
     let out = dir.0.join("out");
-    let records = compare(&[scene], &small(&dir.0.join("cache")), Some(&out)).expect("compare");
+    let records = compare(
+        std::slice::from_ref(&scene),
+        &small(&dir.0.join("cache")),
+        Some(&out),
+    )
+    .expect("compare");
     let (header, rows) = read_csv(&out.join("results.csv"));
     assert_eq!(header, CSV_COLUMNS);
     assert_eq!(rows, records);
@@ -143,8 +151,8 @@ fn the_records_are_the_rows_of_results_csv() {
     }
     assert!(!out.join("images").exists(), "no images without images");
 
-    // 7 runs (shadow volumes; DCS and DCS with whole-light silhouettes
-    // from the centre, and the reference, at 4 and 16 samples), each
+    // 7 runs (shadow volumes; DCS, DCS with silhouettes from the light's
+    // centre (--sweep-settings), and the reference, at 4 and 16 samples), each
     // with 3 radiance, 2 FLIP and 3 + 3 Vcoef rows (one light and all
     // lights); then the reference's 3 + 3 + 3 floor rows and 2 FLIP rows
     // between its halves.
@@ -159,6 +167,18 @@ fn the_records_are_the_rows_of_results_csv() {
         assert_eq!(r.p50.is_some(), flip, "{r:?}");
         assert!(r.verify_checked.is_none(), "no --verify: {r:?}");
     }
+    assert!(records.iter().any(|r| r.technique == "dcs centre"));
+
+    // Without --sweep-settings, each technique's default configuration
+    // only: 5 runs (shadow volumes; DCS and the reference at 4 and 16).
+    let plain = CompareOptions {
+        sweep_settings: false,
+        repeat: 1,
+        ..small(&dir.0.join("cache"))
+    };
+    let few = compare(&[scene], &plain, None).expect("compare");
+    assert_eq!(few.len(), 5 * 11 + 11);
+    assert!(few.iter().all(|r| r.technique != "dcs centre"), "{few:?}");
     let floors: Vec<&Record> = records
         .iter()
         .filter(|r| r.technique == "reference-floor")

@@ -484,6 +484,7 @@ fn a_dead_holders_lock_is_taken_over_and_references_only_fills_the_cache() {
         patterns: Vec::new(),
         verify: None,
         threads: None,
+        sweep_settings: false,
     };
     let key = ReferenceKey {
         scene_hash: h.finish(),

@@ -6,7 +6,10 @@ use crate::common;
 use glam::Vec3;
 use penumbra::internal::output::{read_image, srgb8, write_exr, write_png};
 use penumbra::internal::render::{render, Aov, RenderOptions, Technique};
-use penumbra::internal::report::{diff_images, flip_radiance, interior_mask, DiffOptions};
+use penumbra::internal::report::{
+    colour_bar_rect, diff_images, flip_radiance, heatmap_canvas, interior_mask, DiffOptions,
+    COLOUR_BAR_BAND,
+};
 use std::path::Path;
 use std::process::Command;
 
@@ -167,13 +170,28 @@ fn diff_flip_threshold_sets_the_exit_code_and_the_map_is_written() {
     assert_eq!(code, Some(2));
     assert!(err.contains("--flip-threshold"), "{err}");
 
-    // The error map: a PNG of the images' size, magma colours (not grey).
+    // The error map: a PNG of the images' size and its colour bar's band
+    // below, magma colours (not grey), the bar from FLIP 0 to 1 rising in
+    // brightness.
     let map = dir.0.join("map.png");
     let (code, out, err) = penumbra(&["diff", s(&test), s(&reference), "--flip-map", s(&map)]);
     assert_eq!(code, Some(0), "{out}{err}");
     let img = image::open(&map).expect("the map is a PNG").into_rgb8();
-    assert_eq!(img.dimensions(), (W, H));
+    assert_eq!(img.dimensions(), heatmap_canvas(W, H));
+    assert_eq!(img.height(), H + COLOUR_BAR_BAND);
     assert!(img.pixels().any(|p| p[0] != p[2]), "coloured");
+    let (x0, y0, x1, y1) = colour_bar_rect(W, H);
+    let luma = |x: u32| {
+        let c = img.get_pixel(x, (y0 + y1) / 2).0;
+        0.2126 * f64::from(c[0]) + 0.7152 * f64::from(c[1]) + 0.0722 * f64::from(c[2])
+    };
+    assert!(luma(x0) < 20.0 && luma(x1 - 1) > 200.0, "black to light");
+    for x in x0 + 1..x1 {
+        assert!(luma(x) >= luma(x - 1) - 0.75, "monotone at column {x}");
+    }
+    for x in x0 + 8..x1 {
+        assert!(luma(x) > luma(x - 8), "rising at column {x}");
+    }
     // Never over an input, never another format; nothing written then.
     let before = std::fs::read(&test).unwrap();
     let (code, _, err) = penumbra(&["diff", s(&test), s(&reference), "--flip-map", s(&test)]);

@@ -12,6 +12,7 @@ mod cli_messages;
 mod compare;
 mod compare_api;
 mod compare_shard;
+mod compare_ux;
 mod dabrovic;
 mod dcs;
 mod determinism;

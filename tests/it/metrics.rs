@@ -4,9 +4,10 @@
 use crate::common;
 
 use penumbra::internal::report::{
-    error_metrics, heatmap_colour, pareto_front, write_error_heatmap, write_error_vs_time,
-    write_error_vs_time_sized, ChartPoint, ErrorAccumulator, ErrorMetrics, CHART_SIZE,
-    HEATMAP_BACKGROUND, HEATMAP_NON_FINITE, VISIBLE_ERROR,
+    colour_bar_rect, error_metrics, heatmap_canvas, heatmap_colour, pareto_front,
+    write_error_heatmap, write_error_vs_time, write_error_vs_time_sized, ChartPoint,
+    ErrorAccumulator, ErrorMetrics, HeatmapScale, CHART_SIZE, COLOUR_BAR_BAND, HEATMAP_BACKGROUND,
+    HEATMAP_NON_FINITE, VISIBLE_ERROR,
 };
 use penumbra::Error;
 use std::path::Path;
@@ -315,9 +316,13 @@ fn heatmap_colours() {
     // Pixels: 0, scale, 2·scale, −scale, background, NaN, +inf, scale/2.
     let error = [0.0, 0.5, 1.0, -0.5, 0.0, f32::NAN, f32::INFINITY, 0.25];
     let valid = [true, true, true, true, false, true, true, true];
-    write_error_heatmap(&path, 4, 2, &error, &valid, 0.5).unwrap();
+    write_error_heatmap(&path, 4, 2, &error, &valid, &scale(0.5)).unwrap();
     let img = read_rgb(&path);
-    assert_eq!(img.dimensions(), (4, 2));
+    // The image, then its colour bar's band below it (and at least
+    // MIN_HEATMAP_WIDTH wide): the map's pixels are 1:1 in the top left.
+    assert_eq!(img.dimensions(), heatmap_canvas(4, 2));
+    assert_eq!(img.height(), 2 + COLOUR_BAR_BAND);
+    assert!(img.width() > 4);
     let px = |i: u32| img.get_pixel(i % 4, i / 4).0;
     let dark = [68, 1, 84]; // viridis at 0
     let bright = [254, 232, 37]; // viridis at 1
@@ -334,7 +339,6 @@ fn heatmap_colours() {
     // rises monotonically).
     let mid = px(7);
     assert_eq!(mid, heatmap_colour(0.25, 0.5));
-    let luma = |c: [u8; 3]| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64;
     assert!(luma(dark) < luma(mid) && luma(mid) < luma(bright));
     let ramp: Vec<f64> = (0..=100)
         .map(|k| luma(heatmap_colour(k as f32 / 100.0, 1.0)))
@@ -346,13 +350,89 @@ fn heatmap_colours() {
     assert_eq!(heatmap_colour(1e-9, f32::NAN), bright);
 }
 
+fn scale(max: f32) -> HeatmapScale<'static> {
+    HeatmapScale {
+        quantity: "|ΔVcoef|",
+        unit: "unitless",
+        max,
+    }
+}
+
+fn luma(c: [u8; 3]) -> f64 {
+    0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64
+}
+
+/// Every heat map carries its colour scale: a bar under the image, as
+/// the colours of the map from 0 at its left to the scale's top at its
+/// right, monotone in brightness; white around it; the ticks and
+/// caption drawn in the band, never over the image.
+#[test]
+fn heatmaps_carry_their_colour_bar() {
+    let dir = common::scratch_dir("heatmap-bar");
+    for (w, h) in [(8u32, 6u32), (600, 40)] {
+        let path = dir.join(format!("heat-{w}.png"));
+        let error: Vec<f32> = (0..w * h).map(|i| (i % w) as f32 / w as f32).collect();
+        let valid = vec![true; error.len()];
+        write_error_heatmap(&path, w, h, &error, &valid, &scale(0.5)).unwrap();
+        let img = read_rgb(&path);
+        assert_eq!(img.dimensions(), heatmap_canvas(w, h));
+        assert_eq!(img.dimensions().1, h + COLOUR_BAR_BAND);
+        for y in 0..h {
+            for x in 0..w {
+                let e = error[(y * w + x) as usize];
+                assert_eq!(img.get_pixel(x, y).0, heatmap_colour(e, 0.5), "{x},{y}");
+            }
+        }
+        let (x0, y0, x1, y1) = colour_bar_rect(w, h);
+        assert!(y0 >= h && y1 <= img.height() && x1 <= img.width());
+        assert!(x1 - x0 >= 200, "a bar long enough to read");
+        let row: Vec<[u8; 3]> = (x0..x1)
+            .map(|x| img.get_pixel(x, (y0 + y1) / 2).0)
+            .collect();
+        // Every column of the bar is one colour, top to bottom.
+        for x in x0..x1 {
+            for y in y0..y1 {
+                assert_eq!(img.get_pixel(x, y).0, row[(x - x0) as usize]);
+            }
+        }
+        assert_eq!(row[0], heatmap_colour(0.0, 0.5), "0 at the left");
+        assert_eq!(
+            *row.last().unwrap(),
+            heatmap_colour(0.5, 0.5),
+            "the top at the right"
+        );
+        // Monotone along the scale: brighter every few columns, and
+        // never darker from one column to the next by more than the
+        // rounding of one 8-bit channel (viridis' luminance rises
+        // monotonically; its 8-bit codes step one channel at a time).
+        let brightness: Vec<f64> = row.iter().map(|&c| luma(c)).collect();
+        assert!(
+            brightness.windows(2).all(|p| p[1] >= p[0] - 0.75),
+            "monotone along the scale: {brightness:?}"
+        );
+        assert!(
+            brightness.windows(8).all(|p| p[7] > p[0]),
+            "rising along the scale: {brightness:?}"
+        );
+        assert!(brightness[0] + 100.0 < *brightness.last().unwrap());
+        // Text (the ticks and caption) is drawn in the band: some pixels
+        // of the band outside the bar are neither white nor the bar's.
+        let inked = (h..img.height())
+            .flat_map(|y| (0..img.width()).map(move |x| (x, y)))
+            .filter(|&(x, y)| !(x0..x1).contains(&x) || !(y0..y1).contains(&y))
+            .filter(|&(x, y)| img.get_pixel(x, y).0 != [255, 255, 255])
+            .count();
+        assert!(inked > 200, "ticks and caption drawn: {inked} pixels");
+    }
+}
+
 #[test]
 fn heatmap_checks_sizes() {
     let dir = common::scratch_dir("heatmap-sizes");
     let path = dir.join("heat.png");
-    let e = write_error_heatmap(&path, 2, 2, &[0.0; 3], &[true; 3], 1.0).unwrap_err();
+    let e = write_error_heatmap(&path, 2, 2, &[0.0; 3], &[true; 3], &scale(1.0)).unwrap_err();
     assert!(e.to_string().contains("heat.png"), "{e}");
-    let e = write_error_heatmap(&path, 2, 2, &[0.0; 4], &[true; 3], 1.0).unwrap_err();
+    let e = write_error_heatmap(&path, 2, 2, &[0.0; 4], &[true; 3], &scale(1.0)).unwrap_err();
     assert!(e.to_string().contains("heat.png"), "{e}");
     assert!(!path.exists());
 }

@@ -211,6 +211,8 @@ fn compare_reports_it_per_run() {
     let status = penumbra()
         .args(["compare", &scene_path("spheres.toml")])
         .args(["--techniques", "shadow-volumes,dcs", "--samples", "8"])
+        // DCS with the light's centre's silhouettes too.
+        .arg("--sweep-settings")
         .args(["--reference-samples", "64", "--repeat", "1", "--no-images"])
         .args(["--width", "48", "--height", "36", "--verify", "2000"])
         .arg("--out")

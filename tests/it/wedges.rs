@@ -74,6 +74,7 @@ fn check_exact_case(name: &str, toml: &str) {
         patterns: vec![penumbra::internal::sampling::SamplePattern::Stratified],
         verify: None,
         threads: None,
+        sweep_settings: false,
     };
     let c = compare_scene(&scene, &options, &dir, &Progress::hidden()).expect("compare");
     let wedges = c.runs.iter().find(|r| r.technique == "wedges").unwrap();
