@@ -260,6 +260,13 @@ struct CompareArgs {
     /// marks them [--sweep-settings].
     #[arg(long)]
     sweep_settings: bool,
+    /// Also run each technique that renders progressively (reference,
+    /// dcs, penumbra-casting, multi-map) in sets of 16 samples until its
+    /// estimated radiance RMSE is at most E (at most --reference-samples
+    /// in all): the techniques compared at equal estimated error, by the
+    /// time each takes to reach it.
+    #[arg(long, value_name = "E")]
+    target_error: Option<f64>,
     /// Timed runs per setting; the median is reported.
     #[arg(long, default_value_t = 3)]
     repeat: u32,
@@ -723,6 +730,7 @@ fn run_compare(args: CompareArgs) -> Result<Outcome> {
         no_images,
         verify,
         sweep_settings,
+        target_error,
         options: technique_options,
     } = args;
     if !merge.is_empty() {
@@ -764,6 +772,7 @@ fn run_compare(args: CompareArgs) -> Result<Outcome> {
         // and shards too).
         threads: None,
         sweep_settings,
+        target_error,
     };
     options.validate()?;
     if let Some(report) = &report {

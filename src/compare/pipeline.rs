@@ -12,7 +12,7 @@ use super::reference::{
 };
 use super::results::{verified, write_results};
 use super::run::{run_result, time_setting, TimedRuns};
-use super::settings::{quality_settings, CompareOptions};
+use super::settings::{quality_settings, CompareOptions, TARGET_SET_SAMPLES};
 use crate::error::{Error, Result};
 use crate::observe::Cancel;
 use crate::output::write_png;
@@ -508,8 +508,46 @@ pub(crate) fn scene_runs(scene: &Scene, options: &CompareOptions) -> Result<Vec<
                 added_by: run.added_by,
             });
         }
+        if let Some(run) = target_error_run(technique, options, &base) {
+            runs.push(run);
+        }
     }
     Ok(runs)
+}
+
+/// `--target-error E`'s run of `technique`, if it renders progressively:
+/// sets of [`TARGET_SET_SAMPLES`] at the first pattern until the
+/// estimated radiance RMSE is at most E, within the reference's samples.
+fn target_error_run(
+    technique: crate::render::Technique,
+    options: &CompareOptions,
+    base: &RenderOptions,
+) -> Option<PlannedRun> {
+    let target = options.target_error?;
+    let rule = crate::render::StopRule {
+        target_error: Some(target),
+        max_samples: Some(u64::from(options.reference_samples.max(TARGET_SET_SAMPLES))),
+        max_time: None,
+    };
+    rule.validate(technique, TARGET_SET_SAMPLES).ok()?;
+    let pattern = options.patterns.first().copied().unwrap_or_default();
+    Some(PlannedRun {
+        setting: QualitySetting {
+            curve: format!("{} to RMSE {target:.1e}", technique.name()),
+            label: format!("in sets of {TARGET_SET_SAMPLES} spp"),
+            samples: Some(TARGET_SET_SAMPLES),
+            pattern,
+            options: base.options.clone(),
+        },
+        options: RenderOptions {
+            technique,
+            samples: TARGET_SET_SAMPLES,
+            pattern,
+            progressive: Some(rule),
+            ..base.clone()
+        },
+        added_by: Some("--target-error"),
+    })
 }
 
 /// A scene ready for its runs: the reference images and the scene's part

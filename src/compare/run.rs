@@ -130,10 +130,25 @@ pub(super) fn run_result(
         }
         None => (None, Vec::new()),
     };
+    // A progressive run (`--target-error`) says where it stopped: the
+    // samples it took and its own estimate, beside the measured error.
+    let (label, samples) = match &rendered.explain.convergence {
+        Some(c) => (
+            format!(
+                "to RMSE {}: {}×{} spp, est. {}",
+                c.target_error.map_or("-".into(), |e| format!("{e:.1e}")),
+                c.sets,
+                c.samples_per_set,
+                c.error.map_or("-".into(), |e| format!("{e:.2e}"))
+            ),
+            Some(u32::try_from(c.samples()).unwrap_or(u32::MAX)),
+        ),
+        None => (setting.label.clone(), setting.samples),
+    };
     Ok(RunResult {
         technique: name.to_string(),
-        setting: setting.label.clone(),
-        samples: setting.samples,
+        setting: label,
+        samples,
         median_ms: median(totals.clone()),
         min_ms: totals.iter().copied().fold(f64::INFINITY, f64::min),
         max_ms: totals.iter().copied().fold(0.0, f64::max),

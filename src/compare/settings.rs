@@ -48,7 +48,15 @@ pub struct CompareOptions {
     /// silhouettes and summed opacity, ...). Off by default: only the
     /// runs asked for.
     pub sweep_settings: bool,
+    /// `--target-error E`: also each technique that renders
+    /// progressively, in sets of [`TARGET_SET_SAMPLES`] until its
+    /// estimated radiance RMSE is at most E (at most the reference's
+    /// samples in all): equal estimated error, compared by time.
+    pub target_error: Option<f64>,
 }
+
+/// The set size of `compare --target-error`'s progressive runs.
+pub const TARGET_SET_SAMPLES: u32 = 16;
 
 impl Default for CompareOptions {
     /// `penumbra compare`'s defaults, in plain Rust (a test holds them to
@@ -78,6 +86,7 @@ impl Default for CompareOptions {
             verify: None,
             threads: None,
             sweep_settings: false,
+            target_error: None,
         }
     }
 }
@@ -98,6 +107,12 @@ impl CompareOptions {
         }
         if self.samples.is_empty() {
             return Err(Error::param("--samples", "give at least one sample count"));
+        }
+        if let Some(e) = self.target_error.filter(|e| !(e.is_finite() && *e > 0.0)) {
+            return Err(Error::param(
+                "--target-error",
+                format!("{e} is not a positive finite RMSE"),
+            ));
         }
         if self.patterns.is_empty() {
             return Err(Error::param(

@@ -40,6 +40,7 @@ fn options(cache: &Path, reference_samples: u32) -> CompareOptions {
         verify: None,
         threads: None,
         sweep_settings: false,
+        target_error: None,
     }
 }
 

@@ -485,6 +485,7 @@ fn a_dead_holders_lock_is_taken_over_and_references_only_fills_the_cache() {
         verify: None,
         threads: None,
         sweep_settings: false,
+        target_error: None,
     };
     let key = ReferenceKey {
         scene_hash: h.finish(),

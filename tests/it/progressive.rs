@@ -276,3 +276,50 @@ fn command_line_records_the_stop_in_the_exr_and_writes_the_preview() {
     assert!(rows.len() >= 2, "{csv}");
     assert!(rows[1].starts_with("1,4,"), "{csv}");
 }
+
+/// `compare --target-error E` adds one progressive run per technique that
+/// renders progressively (none for the others), each stopped at E by its
+/// own estimate, whose measured radiance RMSE against compare's reference
+/// agrees with that estimate (the reference's own noise included, so a
+/// wide band: the estimate's calibration is the test above).
+#[test]
+fn compare_target_error_runs_each_progressive_technique_to_the_target() {
+    let dir = common::scratch_dir("progressive-compare");
+    let scene = common::shipped("spheres.toml");
+    let target = 5e-3;
+    let options = penumbra::CompareOptions {
+        techniques: ["dcs", "reference", "shadow-map"]
+            .map(|n| n.parse::<Technique>().expect("registered"))
+            .to_vec(),
+        samples: vec![4],
+        reference_samples: 1024,
+        width: Some(64),
+        height: Some(48),
+        images: false,
+        repeat: 1,
+        cache_dir: dir.join("cache"),
+        target_error: Some(target),
+        ..penumbra::CompareOptions::default()
+    };
+    let records = penumbra::compare(&[scene], &options, None).expect("compare runs");
+    let progressive: Vec<_> = (records.iter())
+        .filter(|r| {
+            r.setting.starts_with("to RMSE") && r.quantity == "radiance" && r.region == "all"
+        })
+        .collect();
+    // The technique column holds the curve: the name and the target.
+    let names: Vec<&str> = progressive.iter().map(|r| r.technique.as_str()).collect();
+    assert_eq!(names, ["dcs to RMSE 5.0e-3", "reference to RMSE 5.0e-3"]);
+    for r in progressive {
+        let samples = r.samples.expect("the samples it took");
+        assert_eq!(samples % 16, 0, "{}", r.setting);
+        assert!(samples >= 32 && samples <= 1024, "{}", r.setting);
+        let measured = r.rmse.expect("radiance RMSE");
+        assert!(
+            measured < 1.6 * target,
+            "{} {}: measured RMSE {measured:.3e} against a target of {target:.1e}",
+            r.technique,
+            r.setting
+        );
+    }
+}

@@ -75,6 +75,7 @@ fn check_exact_case(name: &str, toml: &str) {
         verify: None,
         threads: None,
         sweep_settings: false,
+        target_error: None,
     };
     let c = compare_scene(&scene, &options, &dir, &Progress::hidden()).expect("compare");
     let wedges = c.runs.iter().find(|r| r.technique == "wedges").unwrap();
