@@ -109,7 +109,9 @@ pub(crate) fn run_scene(
     };
     let key = reference_key(scene, options)?;
     let pixels = u64::from(key.width) * u64::from(key.height);
-    let per_render = pixels * (12 + 16 * (scene.lights.len() as u64 + 1));
+    // Radiance and a term per light (at most 16 bytes a pixel), and
+    // room for a technique's layers.
+    let per_render = pixels.saturating_mul(12 + 16 * (scene.lights.len() as u64 + 1));
     let mut early = 0;
     if progress.estimate_shown() {
         early = curves.min((EARLY_BYTES / per_render.max(1)) as usize);

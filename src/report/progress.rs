@@ -116,11 +116,7 @@ impl Progress {
                         let at = clock.elapsed().as_secs_f64();
                         let _ = match for_left.lock().ok().and_then(|e| e.left(at)) {
                             None => write!(w, "estimating the time left"),
-                            Some(left) => write!(
-                                w,
-                                "~{} left",
-                                format_duration(Duration::from_secs_f64(left.min(1e9)))
-                            ),
+                            Some(left) => write!(w, "~{} left", format_duration(seconds(left))),
                         };
                     })
             });
@@ -205,7 +201,7 @@ impl Progress {
     pub fn sweep_left(&self) -> Option<Duration> {
         let at = self.clock.elapsed().as_secs_f64();
         let e = self.sweep.as_ref()?.lock().ok()?;
-        e.left(at).map(|s| Duration::from_secs_f64(s.min(1e9)))
+        e.left(at).map(seconds)
     }
 
     fn with_bar(bar: ProgressBar, enabled: bool) -> Self {
@@ -291,6 +287,15 @@ impl Drop for Progress {
     /// A reporter dropped on an error path must not draw afterwards.
     fn drop(&mut self) {
         self.finish();
+    }
+}
+
+/// `seconds` as a duration, capped at 10⁹ s; zero for a value that is
+/// not a non-negative number.
+fn seconds(seconds: f64) -> Duration {
+    match seconds >= 0.0 {
+        true => Duration::try_from_secs_f64(seconds.min(1e9)).unwrap_or_default(),
+        false => Duration::ZERO,
     }
 }
 
@@ -381,6 +386,15 @@ mod tests {
             fit.per_sample == 0.0 && fit.per_pixel == 0.0 && fit.fixed == 1.0,
             "{fit:?}"
         );
+    }
+
+    #[test]
+    fn any_number_of_seconds_is_a_duration() {
+        assert_eq!(seconds(1.5), Duration::from_millis(1500));
+        assert_eq!(seconds(f64::INFINITY), Duration::from_secs(1_000_000_000));
+        for odd in [f64::NAN, -1.0, f64::NEG_INFINITY] {
+            assert_eq!(seconds(odd), Duration::ZERO, "{odd}");
+        }
     }
 
     #[test]
