@@ -460,7 +460,7 @@ fn run_render(args: RenderArgs, given: &[(String, String)]) -> Result<Outcome> {
 /// stopped in the EXR header.
 fn run_progressive(plan: &RenderPlan, scene: &Scene) -> Result<Outcome> {
     let options = &plan.options;
-    let progress = crate::report::convergence::ConvergenceProgress::new(true, plan.preview.clone());
+    let progress = crate::render::ConvergenceProgress::new(true, plan.preview.clone());
     let out = with_threads(plan.threads, || render_with(scene, options, &progress))??;
     progress.finish();
     print_render_notes(&out, plan.timings, plan.explain);

@@ -1,10 +1,12 @@
 //! One render from start to end: G-buffer, shadow technique, shading, AOVs.
 
 mod estimate;
+mod live;
 mod progressive;
 mod shading;
 
 pub use estimate::{estimate_render, progress_for_render};
+pub use live::ConvergenceProgress;
 pub use progressive::{set_seed, Convergence, SetPoint, SetStatus, StopReason, StopRule};
 pub use shading::shade;
 

@@ -42,6 +42,8 @@ use crate::shadow::kit::PassTimer;
 use crate::shadow::technique::BuildParams;
 use crate::shadow::{run_technique, LightTerm, PassTiming, ShadowContext, ShadowOutput};
 use crate::view::View;
+
+pub use crate::report::convergence::SetPoint;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -144,17 +146,6 @@ impl StopReason {
             StopReason::SampleLimit => "sample-limit",
         }
     }
-}
-
-/// One set's point on the convergence curve.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct SetPoint {
-    /// Light samples per pixel and light so far.
-    pub samples: u64,
-    /// Seconds since the first set started.
-    pub seconds: f64,
-    /// The estimated radiance RMSE of the mean so far (none after one set).
-    pub error: Option<f64>,
 }
 
 /// How a progressive render converged: what `--explain` prints and the

@@ -1,85 +1,24 @@
-//! Live progress of a progressive render: one line with the sets done,
-//! the current error estimate and the time left (on a terminal), and on
-//! request a preview PNG rewritten every few seconds: the current mean
-//! image beside its error heat map.
+//! A progressive render's pictures from plain data: the convergence
+//! curve (chart and CSV) and the preview's pixels (the mean image beside
+//! its error heat map). The live observer that calls them is
+//! `crate::render`'s (report does not depend on render).
 
 use super::heatmap::{heatmap_colour, HEATMAP_BACKGROUND};
-use super::progress::format_duration;
 use crate::error::{Error, Result};
-use crate::observe::{Cancel, Observer};
-use crate::output::{srgb8, write_rgb8, write_stderr};
-use crate::render::{SetPoint, SetStatus};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use crate::output::write_rgb8;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
-use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::path::Path;
 
-/// Least time between two preview writes.
-pub const PREVIEW_EVERY: Duration = Duration::from_secs(2);
-
-/// The observer of a progressive render on the command line.
-pub struct ConvergenceProgress {
-    bar: ProgressBar,
-    preview: Option<PathBuf>,
-    /// When the preview was last written (none yet).
-    last_preview: Mutex<Option<Instant>>,
-    cancel: Cancel,
-}
-
-impl ConvergenceProgress {
-    /// A reporter that draws on stderr when it is a terminal and
-    /// `enabled`, and writes `preview` (if any) as the sets finish.
-    pub fn new(enabled: bool, preview: Option<PathBuf>) -> Self {
-        let target = if enabled && std::io::stderr().is_terminal() {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
-        };
-        let bar = ProgressBar::with_draw_target(None, target);
-        if let Ok(style) = ProgressStyle::with_template("{elapsed:>4} {spinner} {msg}") {
-            bar.set_style(style);
-        }
-        bar.enable_steady_tick(Duration::from_millis(250));
-        bar.set_message("first sample set");
-        ConvergenceProgress {
-            bar,
-            preview,
-            last_preview: Mutex::new(None),
-            cancel: Cancel::new(),
-        }
-    }
-
-    /// Clears the line.
-    pub fn finish(&self) {
-        self.bar.finish_and_clear();
-    }
-
-    fn write_preview(&self, status: &SetStatus<'_>, last: bool) {
-        let Some(path) = &self.preview else {
-            return;
-        };
-        let Ok(mut when) = self.last_preview.lock() else {
-            return;
-        };
-        if !last && when.is_some_and(|t| t.elapsed() < PREVIEW_EVERY) {
-            return;
-        }
-        *when = Some(Instant::now());
-        let (w, h) = status.size;
-        let bytes = preview_bytes(
-            w,
-            &srgb8(&status.mean_radiance()),
-            &status.error_map(),
-            status.surface(),
-        );
-        // A preview that cannot be written does not stop the render.
-        if let Err(e) = write_rgb8(path, 2 * w, h, &bytes) {
-            write_stderr(&format!("penumbra: warning: preview: {e}\n"));
-        }
-    }
+/// One set's point on the convergence curve.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SetPoint {
+    /// Light samples per pixel and light so far.
+    pub samples: u64,
+    /// Seconds since the first set started.
+    pub seconds: f64,
+    /// The estimated radiance RMSE of the mean so far (none after one set).
+    pub error: Option<f64>,
 }
 
 /// The preview's pixels: the mean image (8-bit sRGB) on the left and the
@@ -115,40 +54,6 @@ pub fn error_scale(error: &[f32], surface: &[bool]) -> f32 {
     }
     let k = (e.len() * 99 / 100).min(e.len() - 1);
     *e.select_nth_unstable_by(k, f32::total_cmp).1
-}
-
-impl Observer for ConvergenceProgress {
-    fn stage(&self, name: &str) {
-        if name != "shadows" {
-            self.bar.set_message(name.to_string());
-        }
-    }
-
-    fn cancelled(&self) -> bool {
-        self.cancel.is_cancelled()
-    }
-
-    fn set_done(&self, status: &SetStatus<'_>) {
-        let error = match (status.error, status.target_error) {
-            (Some(e), Some(t)) => format!("est. RMSE {e:.2e} (target {t:.2e})"),
-            (Some(e), None) => format!("est. RMSE {e:.2e}"),
-            (None, _) => "est. RMSE after the second set".to_string(),
-        };
-        let left = status
-            .time_left
-            .map_or(String::new(), |t| format!(", ~{} left", format_duration(t)));
-        self.bar.set_message(format!(
-            "{} sets, {} spp, {error}{left}",
-            status.sets, status.samples
-        ));
-        self.write_preview(status, status.last);
-    }
-}
-
-impl Drop for ConvergenceProgress {
-    fn drop(&mut self) {
-        self.bar.finish_and_clear();
-    }
 }
 
 /// The convergence curve as CSV: one row per set.

@@ -313,7 +313,7 @@ fn compare_target_error_runs_each_progressive_technique_to_the_target() {
     for r in progressive {
         let samples = r.samples.expect("the samples it took");
         assert_eq!(samples % 16, 0, "{}", r.setting);
-        assert!(samples >= 32 && samples <= 1024, "{}", r.setting);
+        assert!((32..=1024).contains(&samples), "{}", r.setting);
         let measured = r.rmse.expect("radiance RMSE");
         assert!(
             measured < 1.6 * target,
