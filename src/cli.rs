@@ -441,16 +441,7 @@ fn run_render(args: RenderArgs, given: &[(String, String)]) -> Result<Outcome> {
     }
     // All outputs or none: all are staged, then moved into place.
     let mut outputs = OutputSet::new();
-    for (path, format) in &plan.images {
-        outputs.image(
-            path,
-            *format,
-            out.width,
-            out.height,
-            &out.radiance,
-            &out.layers,
-        )?;
-    }
+    stage_images(&mut outputs, &plan, &out)?;
     outputs.commit()?;
     Ok(Outcome::Success)
 }
@@ -501,6 +492,13 @@ fn run_progressive(plan: &RenderPlan, scene: &Scene) -> Result<Outcome> {
             }
         })?;
     }
+    stage_images(&mut outputs, plan, &out)?;
+    outputs.commit()?;
+    Ok(Outcome::Success)
+}
+
+/// Stages the plan's images (`-o`, `--exr`) of `out` into `outputs`.
+fn stage_images(outputs: &mut OutputSet, plan: &RenderPlan, out: &Render) -> Result<()> {
     for (path, format) in &plan.images {
         outputs.image(
             path,
@@ -511,8 +509,7 @@ fn run_progressive(plan: &RenderPlan, scene: &Scene) -> Result<Outcome> {
             &out.layers,
         )?;
     }
-    outputs.commit()?;
-    Ok(Outcome::Success)
+    Ok(())
 }
 
 /// A `render` command line checked before the scene is loaded.
