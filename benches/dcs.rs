@@ -44,6 +44,7 @@ fn dcs(c: &mut Criterion) {
         transmittance: Default::default(),
         coverage: Default::default(),
         opacity_filter: Default::default(),
+        rays: penumbra::internal::shadow::dcs::RayChoice::Never,
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)

@@ -54,6 +54,7 @@ fn dcs_image(c: &mut Criterion) {
                     transmittance: Default::default(),
                     coverage: Default::default(),
                     opacity_filter: Default::default(),
+                    rays: penumbra::internal::shadow::dcs::RayChoice::Never,
                 };
                 group.bench_function(format!("{}_{samples}spp", mode.name()), |b| {
                     b.iter(|| {

@@ -37,6 +37,7 @@ fn exact_dcs(n: u32, seed: u64) -> DepthComplexitySampling {
         transmittance: Default::default(),
         coverage: Default::default(),
         opacity_filter: Filter::Nearest,
+        rays: penumbra::internal::shadow::dcs::RayChoice::Never,
     }
 }
 

@@ -44,6 +44,7 @@ fn exact_dcs(samples: u32, seed: u64) -> DepthComplexitySampling {
         transmittance: TransmittanceMode::Exact,
         coverage: Default::default(),
         opacity_filter: Default::default(),
+        rays: penumbra::internal::shadow::dcs::RayChoice::Never,
     }
 }
 
@@ -235,6 +236,7 @@ fn bitfield_coverage_is_close_to_exact_and_refused_where_invalid() {
             transmittance: TransmittanceMode::Exact,
             coverage,
             opacity_filter: Default::default(),
+            rays: penumbra::internal::shadow::dcs::RayChoice::Never,
         }
         .compute(&ctx)
     };

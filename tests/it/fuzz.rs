@@ -61,7 +61,9 @@ use penumbra::internal::output::{read_image, write_exr, write_png, Layer};
 use penumbra::internal::render::{render, Aov, RenderOptions};
 use penumbra::internal::sampling::SamplePattern;
 use penumbra::internal::scene::load_scene;
-use penumbra::internal::shadow::dcs::{CoverageTest, DcsMode, SilhouetteMode, TransmittanceMode};
+use penumbra::internal::shadow::dcs::{
+    CoverageTest, DcsMode, RayChoice, SilhouetteMode, TransmittanceMode,
+};
 use penumbra::internal::shadow::kit::stsv::Filter;
 use penumbra::internal::shadow::soft_shadow_map::{Accumulate, Lookup};
 use penumbra::Error;
@@ -1008,6 +1010,7 @@ fn load_and_render(rng: &mut Rng, case: &mut Case, path: &Path) -> Result<Outcom
         transmittance: [TransmittanceMode::Exact, TransmittanceMode::Summed]
             [rng.range(0, 1) as usize],
         coverage: [CoverageTest::Exact, CoverageTest::BitField][rng.range(0, 1) as usize],
+        rays: [RayChoice::Auto, RayChoice::Never][rng.range(0, 1) as usize],
     };
     technique_options.stsv = penumbra::internal::shadow::kit::stsv::StsvOptions {
         opacity_filter: [Filter::Nearest, Filter::Bilinear][rng.range(0, 1) as usize],

@@ -15,6 +15,7 @@ mod compare_shard;
 mod compare_ux;
 mod dabrovic;
 mod dcs;
+mod dcs_rays;
 mod determinism;
 mod diff;
 mod exact_image;

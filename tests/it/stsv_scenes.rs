@@ -292,6 +292,7 @@ fn dcs_relations(scene: &Scene, w: u32, h: u32, n: u32, seed: u64) -> Relations 
         transmittance: Default::default(),
         coverage: Default::default(),
         opacity_filter: Filter::Nearest,
+        rays: penumbra::internal::shadow::dcs::RayChoice::Never,
     };
     let counts: [AtomicUsize; 5] = Default::default();
     dcs.inspect_light(&ctx, 0, &|i, px| {

@@ -130,6 +130,7 @@ fn agreement(scene: &Scene, n: u32, mode: TransmittanceMode, summed_alpha: f64) 
         transmittance: mode,
         coverage: Default::default(),
         opacity_filter: Default::default(),
+        rays: penumbra::internal::shadow::dcs::RayChoice::Never,
     };
     let seen: Mutex<Vec<Inspected>> = Mutex::new(Vec::new());
     dcs.inspect_light(&ctx, 0, &|i, px| {

@@ -131,6 +131,7 @@ fn a_corrupted_answer_is_caught() {
         transmittance: Default::default(),
         coverage: Default::default(),
         opacity_filter: Default::default(),
+        rays: penumbra::internal::shadow::dcs::RayChoice::Never,
     };
     let honest = verify_with(&dcs, "dcs", true, &ctx, 8_000, 9).unwrap();
     assert_eq!(honest.disagreements, 0, "{honest:?}");

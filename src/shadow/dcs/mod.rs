@@ -46,6 +46,7 @@ pub mod faces;
 #[forbid(unsafe_code)]
 pub mod options;
 mod passes;
+pub mod rays;
 mod receiver;
 pub mod region;
 #[forbid(unsafe_code)]
@@ -67,11 +68,14 @@ use crate::output::Layer;
 use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::shade::{LightSample, PreparedLight};
 use blocks::BlockGrid;
-pub use options::{CoverageTest, DcsMode, DcsOptions, SilhouetteMode};
+use glam::Vec3;
+pub use options::{CoverageTest, DcsMode, DcsOptions, RayChoice, SilhouetteMode};
 use passes::{
     assemble, build_wedges, candidate_edges, count_tiles, coverage_tables, gather, group_starts,
     recount_ties, s_triangle_membership, wedge_membership,
 };
+use rayon::prelude::*;
+use rays::{LightPlan, RayPixels, RayScratch};
 use receiver::LightPass;
 pub use receiver::{CounterInspector, InspectedPixel};
 pub use settings::{DcsLightReport, DepthComplexitySampling};
@@ -145,6 +149,7 @@ pub static TECHNIQUE: TechniqueInfo = TechniqueInfo {
             transmittance: p.options.dcs.transmittance,
             coverage: p.options.dcs.coverage,
             opacity_filter: p.options.stsv.opacity_filter,
+            rays: p.options.dcs.rays,
         })
     },
     // Per-pixel results from the pixel's own sample, the full-frame depth
@@ -186,6 +191,10 @@ impl DepthComplexitySampling {
         inspect: Option<(&CounterInspector, Option<&[usize]>)>,
     ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
         let light = &ctx.scene.lights[k];
+        let plan = self.plan(ctx, k, casters, inspect.is_some());
+        if let LightPlan::AllRays { .. } = plan {
+            return self.light_by_rays(ctx, k, plan, passes);
+        }
         // The exact mode's tie test needs the counts under two depth
         // shifts: made with the stencil pass, from one setup of the volume.
         let (start, changes) = match self.silhouettes {
@@ -209,7 +218,6 @@ impl DepthComplexitySampling {
         let tables = coverage_tables(self, ctx, k, &bound)?;
         let s_triangles = casters.s_triangles;
         let stsv = s_triangle_membership(ctx, k, s_triangles, passes)?;
-
         let t = PassTimer::start(format!("counters light {k}"));
         let pass = LightPass {
             ctx,
@@ -251,6 +259,7 @@ impl DepthComplexitySampling {
             unbounded_edges: wedges.unbounded.len(),
             wedge_triangles: wedges.wedges.zfail.triangles.len()
                 + wedges.wedges.zpass.triangles.len(),
+            plan: Some(plan),
             ..DcsLightReport::default()
         };
         let (mut vcoef, mut radiance, aovs) = assemble(grid, results, with_radiance, &mut report);
@@ -265,6 +274,92 @@ impl DepthComplexitySampling {
             LightTerm::Vcoef(vcoef)
         };
         Ok((term, aovs, report))
+    }
+
+    /// Light `k`'s plan ([`rays::plan_light`]): rays may replace counting
+    /// only for the exact configuration, whose image they reproduce (whole-
+    /// light silhouettes, the exact coverage test, the direct mode), an
+    /// untextured light, opaque casters only, samples keyed per pixel
+    /// (not interleaved) and no inspector of the counters.
+    fn plan(
+        &self,
+        ctx: &ShadowContext,
+        k: usize,
+        casters: &SceneCasters,
+        inspected: bool,
+    ) -> LightPlan {
+        let light = &ctx.scene.lights[k];
+        let eligible = self.rays == RayChoice::Auto
+            && self.silhouettes == SilhouetteMode::WholeLight
+            && self.coverage == CoverageTest::Exact
+            && self.mode == DcsMode::Direct
+            && light.texture.is_none()
+            && casters.partial.is_empty()
+            && casters.s_triangles.is_empty()
+            && !matches!(self.pattern, SamplePattern::Interleaved { .. })
+            && !inspected;
+        let receivers = (0..ctx.gbuffer.len())
+            .filter(|&i| ctx.gbuffer.is_surface(i))
+            .count();
+        rays::plan_light(
+            eligible,
+            ctx.geometry.triangles.len(),
+            receivers,
+            self.samples,
+        )
+    }
+
+    /// Light `k` with every receiver traced by rays (the plan's
+    /// [`LightPlan::AllRays`]): no stencil, wedge or counter is built.
+    fn light_by_rays(
+        &self,
+        ctx: &ShadowContext,
+        k: usize,
+        plan: LightPlan,
+        passes: &mut Vec<PassTiming>,
+    ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
+        let light = &ctx.scene.lights[k];
+        let tracer = timed(passes, "shadow-ray bvh", || ctx.cache.tracer());
+        let t = PassTimer::start(format!("rays light {k}"));
+        let prepared = PreparedLight::new(light, &ctx.scene.textures);
+        let pattern = PatternSampler::new(self.pattern, self.samples, self.seed, k);
+        let rays = RayPixels::new(ctx, tracer, k, pattern, &prepared);
+        let width = (ctx.gbuffer.width as usize).max(1);
+        let n = ctx.gbuffer.len();
+        let rows: Vec<Vec<receiver::PixelResult>> = (0..n.div_ceil(width))
+            .into_par_iter()
+            .map_init(RayScratch::default, |scratch, y| {
+                if ctx.observer.cancelled() {
+                    // The render discards a cancelled pass.
+                    return Vec::new();
+                }
+                (y * width..((y + 1) * width).min(n))
+                    .map(|i| rays.pixel(i, scratch))
+                    .collect()
+            })
+            .collect();
+        t.finish(passes);
+        let mut vcoef = vec![0.0f32; n];
+        let mut radiance = vec![Vec3::ZERO; n];
+        let mut aovs = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+        let mut traced = 0;
+        for (y, row) in rows.iter().enumerate() {
+            for (x, r) in row.iter().enumerate() {
+                let i = y * width + x;
+                traced += usize::from(ctx.gbuffer.is_surface(i));
+                vcoef[i] = r.vcoef;
+                radiance[i] = r.radiance;
+                aovs[0][i] = r.max_dc;
+                aovs[1][i] = r.mean_dc;
+                aovs[2][i] = r.edges;
+            }
+        }
+        let report = DcsLightReport {
+            traced_pixels: traced,
+            plan: Some(plan),
+            ..DcsLightReport::default()
+        };
+        Ok((LightTerm::Radiance { radiance, vcoef }, aovs, report))
     }
 
     /// Runs every light, with each light's buffer report.
@@ -286,103 +381,142 @@ impl DepthComplexitySampling {
         let workers = rayon::current_num_threads() as u64;
         let n = u64::from(self.samples);
         let padded = n.div_ceil(counters::LANES as u64) * counters::LANES as u64;
-        out.buffers.push(BufferNote {
-            name: "stencil".into(),
-            detail: "i32 per pixel: D(O), exact (no 8-bit wrap)".into(),
-            bytes: pixels * 4,
-        });
-        out.buffers.push(BufferNote {
-            name: "depth-complexity counters".into(),
-            detail: format!(
-                "i32 × {n} samples per receiver, one receiver at a time per worker ({workers}): \
-                 never width × height × samples"
-            ),
-            bytes: workers * padded * 4,
-        });
-        out.buffers.push(BufferNote {
-            name: "light samples".into(),
-            detail: format!("{n} points + f32 chart coordinates per worker"),
-            bytes: workers * (n * std::mem::size_of::<LightSample>() as u64 + padded * 8 + n * 4),
-        });
         let casters = SceneCasters::new(ctx);
-        let partial = casters.partial;
-        let s_triangles_present = !casters.s_triangles.is_empty();
-        let opacities: Vec<String> = partial
-            .iter()
-            .filter_map(|(a, _)| match a {
-                Attenuation::Partial { opacity, .. } => Some(format!("{}", *opacity as f32)),
-                Attenuation::Opaque => None,
-            })
-            .collect();
-        out.buffers.push(BufferNote {
-            name: "transmittance".into(),
-            detail: if partial.is_empty() && s_triangles_present {
-                "per sample f64 accumulated optical depth and transmittance per worker, for \
-                 S-triangles' partial texels only"
-                    .into()
-            } else if partial.is_empty() {
-                "not allocated: every caster is opaque".into()
-            } else {
-                format!(
-                    "{} semi-opaque group(s) (opacity {}), {}: i32 start count per pixel \
-                     per group; per sample i32 layer count (reused by the groups), f64 \
-                     accumulated {} and f64 transmittance, per worker",
-                    partial.len(),
-                    opacities.join(", "),
-                    self.transmittance.name(),
-                    match self.transmittance {
-                        TransmittanceMode::Exact => "optical depth",
-                        TransmittanceMode::Summed => "opacity",
-                    }
-                )
-            },
-            bytes: if partial.is_empty() {
-                0
-            } else {
-                partial.len() as u64 * pixels * 4 + workers * (padded * 4 + n * 16)
-            },
-        });
-        let s_triangles = casters.s_triangles;
-        out.buffers.push(BufferNote {
-            name: "soft textured shadow volumes".into(),
-            detail: if s_triangles.is_empty() {
-                "not used: no opacity-textured caster (S-triangle)".into()
-            } else {
-                format!(
-                    "{} S-triangles: one volume each per light, (pixel, S-triangle) pairs as \
-                     u64 per tile; per sample f32 position and opacity per worker; {} \
-                     texel look-up; opaque texels add to D, partial ones to the \
-                     transmittance",
-                    s_triangles.len(),
-                    match self.opacity_filter {
-                        Filter::Nearest => "nearest",
-                        Filter::Bilinear => "bilinear",
-                    }
-                )
-            },
-            bytes: if s_triangles.is_empty() {
-                0
-            } else {
-                workers * (padded * 16 + n * 16)
-            },
-        });
-        let textured = ctx.scene.lights.iter().any(|l| l.texture.is_some());
-        out.buffers.push(BufferNote {
-            name: "per-sample luminance".into(),
-            detail: if textured && self.mode == DcsMode::Direct {
-                "evaluated per sample inside the direct-light estimator".into()
-            } else if textured {
-                "looked up per sample and summed per receiver (eq. 4.2: luminance-weighted \
-                 visibility modulating the unshadowed light), no buffer; the vcoef AOV stays \
-                 plain visibility"
-                    .into()
-            } else {
-                "not allocated: no textured light".into()
-            },
-            bytes: 0,
-        });
+        let counted = (0..ctx.scene.lights.len())
+            .any(|k| matches!(self.plan(ctx, k, &casters, false), LightPlan::Count { .. }));
+        if !counted {
+            // Every light traced by rays (the cost choice): none of the
+            // counting path's buffers exists.
+            out.buffers.push(BufferNote {
+                name: "stencil, counters, wedges".into(),
+                detail: "not allocated: every light's receivers are traced by shadow rays".into(),
+                bytes: 0,
+            });
+        }
+        if counted {
+            out.buffers.push(BufferNote {
+                name: "stencil".into(),
+                detail: "i32 per pixel: D(O), exact (no 8-bit wrap)".into(),
+                bytes: pixels * 4,
+            });
+            out.buffers.push(BufferNote {
+                name: "depth-complexity counters".into(),
+                detail: format!(
+                    "i32 × {n} samples per receiver, one receiver at a time per worker ({workers}): \
+                     never width × height × samples"
+                ),
+                bytes: workers * padded * 4,
+            });
+            out.buffers.push(BufferNote {
+                name: "light samples".into(),
+                detail: format!("{n} points + f32 chart coordinates per worker"),
+                bytes: workers
+                    * (n * std::mem::size_of::<LightSample>() as u64 + padded * 8 + n * 4),
+            });
+            let partial = casters.partial;
+            let s_triangles_present = !casters.s_triangles.is_empty();
+            let opacities: Vec<String> = partial
+                .iter()
+                .filter_map(|(a, _)| match a {
+                    Attenuation::Partial { opacity, .. } => Some(format!("{}", *opacity as f32)),
+                    Attenuation::Opaque => None,
+                })
+                .collect();
+            out.buffers.push(BufferNote {
+                name: "transmittance".into(),
+                detail: if partial.is_empty() && s_triangles_present {
+                    "per sample f64 accumulated optical depth and transmittance per worker, for \
+                     S-triangles' partial texels only"
+                        .into()
+                } else if partial.is_empty() {
+                    "not allocated: every caster is opaque".into()
+                } else {
+                    format!(
+                        "{} semi-opaque group(s) (opacity {}), {}: i32 start count per pixel \
+                         per group; per sample i32 layer count (reused by the groups), f64 \
+                         accumulated {} and f64 transmittance, per worker",
+                        partial.len(),
+                        opacities.join(", "),
+                        self.transmittance.name(),
+                        match self.transmittance {
+                            TransmittanceMode::Exact => "optical depth",
+                            TransmittanceMode::Summed => "opacity",
+                        }
+                    )
+                },
+                bytes: if partial.is_empty() {
+                    0
+                } else {
+                    partial.len() as u64 * pixels * 4 + workers * (padded * 4 + n * 16)
+                },
+            });
+            let s_triangles = casters.s_triangles;
+            out.buffers.push(BufferNote {
+                name: "soft textured shadow volumes".into(),
+                detail: if s_triangles.is_empty() {
+                    "not used: no opacity-textured caster (S-triangle)".into()
+                } else {
+                    format!(
+                        "{} S-triangles: one volume each per light, (pixel, S-triangle) pairs as \
+                         u64 per tile; per sample f32 position and opacity per worker; {} \
+                         texel look-up; opaque texels add to D, partial ones to the \
+                         transmittance",
+                        s_triangles.len(),
+                        match self.opacity_filter {
+                            Filter::Nearest => "nearest",
+                            Filter::Bilinear => "bilinear",
+                        }
+                    )
+                },
+                bytes: if s_triangles.is_empty() {
+                    0
+                } else {
+                    workers * (padded * 16 + n * 16)
+                },
+            });
+            let textured = ctx.scene.lights.iter().any(|l| l.texture.is_some());
+            out.buffers.push(BufferNote {
+                name: "per-sample luminance".into(),
+                detail: if textured && self.mode == DcsMode::Direct {
+                    "evaluated per sample inside the direct-light estimator".into()
+                } else if textured {
+                    "looked up per sample and summed per receiver (eq. 4.2: luminance-weighted \
+                     visibility modulating the unshadowed light), no buffer; the vcoef AOV stays \
+                     plain visibility"
+                        .into()
+                } else {
+                    "not allocated: no textured light".into()
+                },
+                bytes: 0,
+            });
+        }
         for k in 0..ctx.scene.lights.len() {
             let (term, aovs, report) = self.light(ctx, k, &casters, &mut out.passes, None)?;
+            out.buffers.push(BufferNote {
+                name: format!("cost choice light {k}"),
+                detail: report
+                    .plan
+                    .map_or_else(|| "counted".to_string(), |p| p.describe()),
+                bytes: 0,
+            });
+            if report.traced_pixels > 0 {
+                out.buffers.push(BufferNote {
+                    name: format!("shadow rays light {k}"),
+                    detail: format!(
+                        "{} receivers × {n} samples traced through the shared BVH (the \
+                         reference's rays); dc_max and dc_mean there are 1 and the hidden \
+                         fraction where a sample is hidden (rays stop at the first occluder)",
+                        report.traced_pixels
+                    ),
+                    bytes: 0,
+                });
+                out.lights.push(term);
+                for (layer, aov) in layers.iter_mut().zip(aovs) {
+                    layer.channels.push((k.to_string(), aov));
+                }
+                reports.push(report);
+                continue;
+            }
             out.buffers.push(BufferNote {
                 name: format!("wedge membership light {k}"),
                 detail: format!(

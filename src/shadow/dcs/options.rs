@@ -50,6 +50,34 @@ pub struct DcsOptions {
     /// approximate; correlated or interleaved patterns on rect lights).
     #[arg(long, value_enum, default_value_t = CoverageTest::Exact)]
     pub coverage: CoverageTest,
+    /// Depth complexity sampling: where counting edges would cost more
+    /// than tracing the same samples' shadow rays, trace them (`auto`, the
+    /// default: both are exact, the choice follows a cost estimate made
+    /// from counts alone, so it is the same for any thread count), or
+    /// always count (`never`: the algorithm alone, for studying it).
+    #[arg(long = "dcs-rays", value_enum, default_value_t = RayChoice::Auto)]
+    pub rays: RayChoice,
+}
+
+/// Whether DCS may trace shadow rays where they cost less than counting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum RayChoice {
+    /// Per light and per 4² block of receivers, whichever the cost
+    /// estimate says is cheaper.
+    #[default]
+    Auto,
+    /// Always count edges.
+    Never,
+}
+
+impl RayChoice {
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            RayChoice::Auto => "auto",
+            RayChoice::Never => "never",
+        }
+    }
 }
 
 impl Default for DcsOptions {
@@ -61,6 +89,7 @@ impl Default for DcsOptions {
             mode: DcsMode::Direct,
             transmittance: TransmittanceMode::Exact,
             coverage: CoverageTest::Exact,
+            rays: RayChoice::Auto,
         }
     }
 }

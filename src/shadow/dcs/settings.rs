@@ -2,7 +2,7 @@
 //! read and fill, in a leaf so that the passes need not import the module
 //! that runs them.
 
-use super::options::{CoverageTest, DcsMode, SilhouetteMode};
+use super::options::{CoverageTest, DcsMode, RayChoice, SilhouetteMode};
 use crate::sampling::SamplePattern;
 use crate::shadow::kit::groups::TransmittanceMode;
 use crate::shadow::kit::stsv::options::Filter;
@@ -26,6 +26,8 @@ pub struct DepthComplexitySampling {
     pub coverage: CoverageTest,
     /// Look-up of S-triangles' opacity textures.
     pub opacity_filter: Filter,
+    /// Whether shadow rays may replace counting where they cost less.
+    pub rays: RayChoice,
 }
 
 /// Per-light buffers for `--explain`.
@@ -49,4 +51,9 @@ pub struct DcsLightReport {
     /// quad's plane passes between the raster's receiver and the
     /// shadow-ray origin.
     pub quad_recounts: usize,
+    /// Receivers traced by shadow rays instead of counted (the cost
+    /// choice).
+    pub traced_pixels: usize,
+    /// The light's plan: counted, or every receiver traced.
+    pub plan: Option<super::rays::LightPlan>,
 }

@@ -125,9 +125,10 @@ pub struct ShadowTracer<'a> {
 /// 16, 24, 64, 256; see docs/performance.md).
 pub const HULL_LIMIT: usize = 4;
 
-/// Reusable per-thread buffers for transmittance walks.
+/// Reusable per-thread buffers of the tracer's queries (directions,
+/// answers, candidate leaves, transmittance walks): one per worker.
 #[derive(Debug, Default)]
-struct Scratch {
+pub struct Scratch {
     hits: Vec<Hit>,
     /// One receiver's sample directions and their opaque occlusion.
     dirs: Vec<Vec3>,
@@ -323,6 +324,22 @@ impl<'a> ShadowTracer<'a> {
         for (o, v) in out.iter_mut().zip(vt) {
             *o = v as f32;
         }
+    }
+
+    /// [`ShadowTracer::sample_visibility`] with the caller's buffers, for
+    /// callers that trace many receivers: `V·T` per sample of `samples`
+    /// into `out` (cleared first), and the BVH traversals it took. `rect`
+    /// is the light's parallelogram `(center, u, v)` for a rect light's
+    /// samples (a faster cull, same bits), `None` otherwise.
+    pub fn visibility_with(
+        &self,
+        g: &GSample,
+        samples: &[LightSample],
+        rect: Option<(Vec3, Vec3, Vec3)>,
+        out: &mut Vec<f64>,
+        scratch: &mut Scratch,
+    ) -> u64 {
+        self.gsample_bundle(g, samples, rect, out, scratch)
     }
 
     /// `V·T` from shading point `g` to each sample (into `out`, cleared

@@ -1,0 +1,107 @@
+//! DCS's cost choice (`--dcs-rays`): a light whose counting path would
+//! cost more than every receiver's shadow rays is traced instead. Both
+//! are exact, so the image must stay the exact one, and the choice comes
+//! from counts alone, so the bits must not depend on the thread count.
+
+use crate::common;
+use penumbra::internal::render::{render, with_threads, Render, RenderOptions};
+use penumbra::internal::shadow::dcs::RayChoice;
+use penumbra::internal::shadow::{LightTerm, TechniqueOptions};
+use penumbra::Technique;
+
+fn options(technique: &str, side: u32, rays: RayChoice) -> RenderOptions {
+    let mut techniques = TechniqueOptions::default();
+    techniques.dcs.rays = rays;
+    RenderOptions {
+        width: Some(side),
+        height: Some(side),
+        technique: technique.parse::<Technique>().expect("a technique"),
+        samples: 16,
+        options: techniques,
+        ..RenderOptions::default()
+    }
+}
+
+fn traced(r: &Render) -> bool {
+    r.passes.iter().any(|p| p.name == "rays light 0")
+}
+
+fn vcoef(r: &Render) -> &[f32] {
+    match &r.lights[0] {
+        LightTerm::Vcoef(v) | LightTerm::Radiance { vcoef: v, .. } => v,
+    }
+}
+
+/// The bunny (69k triangles) at 40²: 1,600 receivers' rays cost less than
+/// counting's setup, so the light is traced; at 256² it is counted. The
+/// explanation says which, with both estimates.
+#[test]
+fn the_plan_follows_the_estimated_costs() {
+    let scene = common::shipped("bunny.toml");
+    let small = render(&scene, &options("dcs", 40, RayChoice::Auto)).unwrap();
+    assert!(traced(&small));
+    let note = |r: &Render| {
+        r.explain
+            .buffers
+            .iter()
+            .find(|b| b.name == "cost choice light 0")
+            .map(|b| b.detail.clone())
+            .expect("a cost-choice note")
+    };
+    assert!(note(&small).starts_with("every receiver traced"), "{}", note(&small));
+    assert!(!small.passes.iter().any(|p| p.name.starts_with("counters")));
+    let large = render(&scene, &options("dcs", 256, RayChoice::Auto)).unwrap();
+    assert!(!traced(&large));
+    assert!(note(&large).starts_with("counted: estimated"), "{}", note(&large));
+    let never = render(&scene, &options("dcs", 40, RayChoice::Never)).unwrap();
+    assert!(!traced(&never));
+    assert!(note(&never).starts_with("counted (rays not an option"));
+}
+
+/// A traced light's Vcoef is the reference's bit for bit (the same keyed
+/// samples, origins and rays, and a count of 0/1 visibilities is exact
+/// in f32), and the counted light's agrees with it but at ties: both are
+/// the exact answer.
+#[test]
+fn a_traced_light_is_the_reference_and_agrees_with_counting() {
+    let scene = common::shipped("bunny.toml");
+    let auto = render(&scene, &options("dcs", 40, RayChoice::Auto)).unwrap();
+    let reference = render(&scene, &options("reference", 40, RayChoice::Auto)).unwrap();
+    let never = render(&scene, &options("dcs", 40, RayChoice::Never)).unwrap();
+    assert!(traced(&auto));
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(vcoef(&auto)), bits(vcoef(&reference)));
+    // Counting against rays: a sample differs only at a tie (an edge
+    // through the sample's ray within rounding), at most one sample of
+    // 16 per differing pixel, and few pixels.
+    let (a, n) = (vcoef(&auto), vcoef(&never));
+    let differing: Vec<f32> = a
+        .iter()
+        .zip(n)
+        .map(|(x, y)| (x - y).abs())
+        .filter(|&d| d > 0.0)
+        .collect();
+    assert!(differing.len() <= a.len() / 100, "{} pixels differ", differing.len());
+    assert!(differing.iter().all(|&d| d <= 1.0 / 16.0 + 1e-6), "{differing:?}");
+    // The radiance: the same estimator on the same visibilities (the
+    // counted path evaluates it in f32 lanes), so close everywhere.
+    for (i, (x, y)) in auto.radiance.iter().zip(&never.radiance).enumerate() {
+        if (vcoef(&auto)[i] - vcoef(&never)[i]).abs() > 0.0 {
+            continue;
+        }
+        let tolerance = 1e-5 * x.max_element().max(1e-3);
+        assert!((*x - *y).abs().max_element() <= tolerance, "pixel {i}: {x} against {y}");
+        assert!(x.is_finite());
+    }
+}
+
+/// The plan and the traced image are the same bits on 1 and 3 threads.
+#[test]
+fn the_choice_is_the_same_bits_on_any_thread_count() {
+    let scene = common::shipped("bunny.toml");
+    let o = options("dcs", 40, RayChoice::Auto);
+    let run = |threads| with_threads(Some(threads), || render(&scene, &o).unwrap()).unwrap();
+    let (one, three) = (run(1), run(3));
+    assert!(traced(&one) && traced(&three));
+    assert_eq!(common::render_bits(&one), common::render_bits(&three));
+}
