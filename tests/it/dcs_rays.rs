@@ -48,11 +48,19 @@ fn the_plan_follows_the_estimated_costs() {
             .map(|b| b.detail.clone())
             .expect("a cost-choice note")
     };
-    assert!(note(&small).starts_with("every receiver traced"), "{}", note(&small));
+    assert!(
+        note(&small).starts_with("every receiver traced"),
+        "{}",
+        note(&small)
+    );
     assert!(!small.passes.iter().any(|p| p.name.starts_with("counters")));
     let large = render(&scene, &options("dcs", 256, RayChoice::Auto)).unwrap();
     assert!(!traced(&large));
-    assert!(note(&large).starts_with("counted: estimated"), "{}", note(&large));
+    assert!(
+        note(&large).starts_with("counted: estimated"),
+        "{}",
+        note(&large)
+    );
     let never = render(&scene, &options("dcs", 40, RayChoice::Never)).unwrap();
     assert!(!traced(&never));
     assert!(note(&never).starts_with("counted (rays not an option"));
@@ -81,8 +89,15 @@ fn a_traced_light_is_the_reference_and_agrees_with_counting() {
         .map(|(x, y)| (x - y).abs())
         .filter(|&d| d > 0.0)
         .collect();
-    assert!(differing.len() <= a.len() / 100, "{} pixels differ", differing.len());
-    assert!(differing.iter().all(|&d| d <= 1.0 / 16.0 + 1e-6), "{differing:?}");
+    assert!(
+        differing.len() <= a.len() / 100,
+        "{} pixels differ",
+        differing.len()
+    );
+    assert!(
+        differing.iter().all(|&d| d <= 1.0 / 16.0 + 1e-6),
+        "{differing:?}"
+    );
     // The radiance: the same estimator on the same visibilities (the
     // counted path evaluates it in f32 lanes), so close everywhere.
     for (i, (x, y)) in auto.radiance.iter().zip(&never.radiance).enumerate() {
@@ -90,7 +105,10 @@ fn a_traced_light_is_the_reference_and_agrees_with_counting() {
             continue;
         }
         let tolerance = 1e-5 * x.max_element().max(1e-3);
-        assert!((*x - *y).abs().max_element() <= tolerance, "pixel {i}: {x} against {y}");
+        assert!(
+            (*x - *y).abs().max_element() <= tolerance,
+            "pixel {i}: {x} against {y}"
+        );
         assert!(x.is_finite());
     }
 }

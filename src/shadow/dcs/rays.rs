@@ -70,7 +70,7 @@ impl LightPlan {
     /// What `--explain` says of it.
     pub fn describe(&self) -> String {
         match *self {
-            LightPlan::Count { rays_ms, .. } if rays_ms == 0.0 => {
+            LightPlan::Count { rays_ms: 0.0, .. } => {
                 "counted (rays not an option here: --dcs-rays never, or a light, caster or setting \
                  the ray path does not serve)"
                     .into()
