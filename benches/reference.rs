@@ -10,6 +10,11 @@
 //! Embree comparison; 256² keeps the whole bench under about 2 minutes on
 //! 2 cores (the reference's time is linear in pixels × samples).
 //!
+//! A third group times the opaque BVH's build alone over a million
+//! triangles (a 160 × 160 UV sphere tessellated 40 times over a grid, as
+//! the `spheres81` scaling scenes are, without loading a scene) on 2
+//! threads.
+//!
 //! Run: `cargo bench --bench reference`. Criterion reports the throughput
 //! in elements/s = shadow rays (BVH traversals) per second.
 
@@ -19,6 +24,9 @@
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use glam::Vec3;
+use penumbra::internal::geom::bvh::Bvh;
+use penumbra::internal::geom::SceneGeometry;
 use penumbra::internal::shadow::kit::rays::ShadowTracer;
 use penumbra::internal::shadow::reference::Reference;
 use penumbra::internal::shadow::ShadowTechnique;
@@ -71,5 +79,52 @@ fn reference(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, reference);
+/// `count` UV spheres of `seg` × `seg` quads (two triangles each) on a
+/// grid, radius 0.35, one unit apart.
+fn spheres(count: u32, seg: u32) -> SceneGeometry {
+    let mut g = SceneGeometry::default();
+    let side = (count as f32).sqrt().ceil() as u32;
+    for k in 0..count {
+        let centre = Vec3::new((k % side) as f32, 1.5, (k / side) as f32);
+        let base = g.positions.len() as u32;
+        for r in 0..=seg {
+            let theta = std::f32::consts::PI * r as f32 / seg as f32;
+            for s in 0..seg {
+                let phi = std::f32::consts::TAU * s as f32 / seg as f32;
+                let dir = Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                );
+                g.positions.push(centre + dir * 0.35);
+            }
+        }
+        for r in 0..seg {
+            for s in 0..seg {
+                let a = base + r * seg + s;
+                let b = base + r * seg + (s + 1) % seg;
+                g.triangles.push([a, a + seg, b]);
+                g.triangles.push([b, a + seg, b + seg]);
+            }
+        }
+    }
+    g
+}
+
+fn bvh_build_large(c: &mut Criterion) {
+    let geometry = spheres(20, 160);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("thread pool");
+    let mut group = c.benchmark_group("bvh_build_spheres_1m_2t");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(geometry.triangles.len() as u64));
+    group.bench_function("bvh_build", |b| {
+        b.iter(|| pool.install(|| Bvh::build(&geometry, |_| true)))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, reference, bvh_build_large);
 criterion_main!(benches);

@@ -1,12 +1,27 @@
 //! Bounding volume hierarchy for shadow rays.
 //!
 //! - **Build**: binned SAH (16 bins per axis over the centroid bounds,
-//!   leaves of at most [`MAX_LEAF`] triangles) into a binary tree, then
-//!   collapsed into a 4-wide tree (each node holds the boxes of up to four
-//!   children, opened largest-surface-area first). Subtrees build in
-//!   parallel with `rayon::join`, but every decision (bins, costs,
-//!   partition) is made by one thread from the same data in the same
-//!   order, so the tree is identical for any thread count.
+//!   leaves of at most [`MAX_LEAF`] triangles) collapsed into a 4-wide
+//!   tree (each node holds the boxes of up to four children, opened
+//!   largest-surface-area first) without building the binary tree: a
+//!   node's slots start as one range, and the inner slot of largest area
+//!   is split (binned, partitioned) until there are four. Each triangle is
+//!   32 bytes of build input (bounds and index in `f32x4` lanes); binning
+//!   does the three axes in one pass, and a partition also bounds both
+//!   sides, so a range is read twice per split. Ranges of at least
+//!   [`PARALLEL_SPLIT`] triangles bin, bound and partition (stably) over
+//!   fixed chunks in parallel; subtrees of at least [`PARALLEL_BUILD`]
+//!   build in parallel with `rayon::join`, each into a chunk of nodes of
+//!   its own (laid out one after another at the end).
+//! - **Same tree for any thread count**: the chunks are fixed
+//!   ([`CHUNK`] triangles) and their partial bins and bounds are merged in
+//!   chunk order, so every value is computed by the same operations in
+//!   the same order whatever the threads; the parallel partition is
+//!   stable. Bin counts are integers and bounds min / max, so the
+//!   decisions (bins, costs, median splits ordered by centroid then index)
+//!   even depend only on the set of triangles in a range, not on its
+//!   order; leaves are sorted by triangle index; and the node numbering
+//!   follows the chunks of nodes, which depend only on range sizes.
 //! - **Boxes**: f32, tested four at a time with `simd::f32x4` slabs. The
 //!   test is conservative (Ize 2013: the far distance is scaled by
 //!   `1 + 2γ₃`). An axis along which the direction is exactly 0 is tested
@@ -31,7 +46,7 @@ pub use hull::SegmentHull;
 pub use packet::PACKET;
 
 use crate::geom::SceneGeometry;
-use crate::simd::f32x4;
+use crate::simd::{f32x4, i32x4};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -45,6 +60,13 @@ const BINS: usize = 16;
 /// Subtrees with at least this many triangles build their children in
 /// parallel; below it the `rayon::join` overhead outweighs the work.
 const PARALLEL_BUILD: usize = 4096;
+
+/// Ranges with at least this many triangles bin, partition and bound
+/// their triangles over [`CHUNK`]-sized chunks in parallel.
+const PARALLEL_SPLIT: usize = 1 << 16;
+
+/// Chunk size of the parallel binning, partition and bounds.
+const CHUNK: usize = 1 << 14;
 
 /// Binary depth from which splits become object-median splits: bounds the
 /// tree depth (hence the traversal stack) for any input, including
@@ -142,32 +164,184 @@ pub struct Bvh {
     ids: Vec<u32>,
 }
 
-/// The binary build tree, before collapsing.
-enum Build {
-    Leaf {
-        bounds: Aabb,
-        range: Range<usize>,
-    },
-    Inner {
-        bounds: Aabb,
-        children: Box<[Build; 2]>,
-    },
+/// Per-triangle build input: the triangle's bounds in lanes x, y, z of
+/// two `f32x4`; lane 3 of `lo_id` holds the bits of the triangle's index
+/// (32 bytes, two aligned loads). [`Prim::lo`] clears that lane: small
+/// indices are subnormal floats, which arithmetic would slow to a crawl.
+#[derive(Debug, Clone, Copy)]
+struct Prim {
+    lo_id: f32x4,
+    hi: f32x4,
 }
 
-impl Build {
-    fn bounds(&self) -> &Aabb {
-        match self {
-            Build::Leaf { bounds, .. } | Build::Inner { bounds, .. } => bounds,
+impl Prim {
+    #[inline]
+    fn new(bounds: &Aabb, id: u32) -> Prim {
+        let lo = f32x4::new([bounds.lo.x, bounds.lo.y, bounds.lo.z, 0.0]).cast_i32();
+        let id = i32x4::new([0, 0, 0, id as i32]);
+        Prim {
+            lo_id: (lo | id).cast_f32(),
+            hi: f32x4::new([bounds.hi.x, bounds.hi.y, bounds.hi.z, 0.0]),
+        }
+    }
+
+    #[inline(always)]
+    fn id(&self) -> u32 {
+        self.lo_id.cast_i32().to_array()[3] as u32
+    }
+
+    /// The lower bounds (lane 3: 0).
+    #[inline(always)]
+    fn lo(&self) -> f32x4 {
+        self.lo_id & i32x4::new([-1, -1, -1, 0]).cast_f32()
+    }
+
+    /// `(lo + hi) · 0.5` per axis (lane 3: 0).
+    #[inline(always)]
+    fn centroid(&self) -> f32x4 {
+        (self.lo() + self.hi) * f32x4::splat(0.5)
+    }
+}
+
+/// A box in lanes x, y, z (lane 3: unused), grown by SIMD min / max.
+#[derive(Debug, Clone, Copy)]
+struct Box4 {
+    lo: f32x4,
+    hi: f32x4,
+}
+
+impl Box4 {
+    const EMPTY: Box4 = Box4 {
+        lo: f32x4::new([f32::INFINITY; 4]),
+        hi: f32x4::new([f32::NEG_INFINITY; 4]),
+    };
+
+    /// Grows the box by `[lo, hi]`. The new bounds are the left operands
+    /// of `min` / `max` (`minps` rule: NaN gives the right one), so a NaN
+    /// (a centroid of a triangle with NaN corners) leaves the box as is,
+    /// as `f32::min` / `f32::max` did. Triangle bounds hold no NaN: they
+    /// grow from ±∞ by `f32::min` / `f32::max`.
+    #[inline(always)]
+    fn grow(&mut self, lo: f32x4, hi: f32x4) {
+        self.lo = lo.min(self.lo);
+        self.hi = hi.max(self.hi);
+    }
+
+    #[inline(always)]
+    fn merge(&mut self, other: &Box4) {
+        self.grow(other.lo, other.hi);
+    }
+
+    #[inline]
+    fn aabb(&self) -> Aabb {
+        let (lo, hi) = (self.lo.to_array(), self.hi.to_array());
+        Aabb {
+            lo: Vec3::new(lo[0], lo[1], lo[2]),
+            hi: Vec3::new(hi[0], hi[1], hi[2]),
         }
     }
 }
 
-/// Per-triangle build input.
-#[derive(Clone, Copy)]
-struct Prim {
+/// The bounds of a set of triangles and of their centroids.
+#[derive(Debug, Clone, Copy)]
+struct Extent {
+    bounds: Box4,
+    cbounds: Box4,
+}
+
+impl Extent {
+    const EMPTY: Extent = Extent {
+        bounds: Box4::EMPTY,
+        cbounds: Box4::EMPTY,
+    };
+
+    #[inline(always)]
+    fn add(&mut self, p: &Prim) {
+        self.bounds.grow(p.lo(), p.hi);
+        let c = p.centroid();
+        self.cbounds.grow(c, c);
+    }
+
+    #[inline]
+    fn merge(mut self, other: Extent) -> Extent {
+        self.bounds.merge(&other.bounds);
+        self.cbounds.merge(&other.cbounds);
+        self
+    }
+
+    /// The extent of `prims`, over chunks in parallel when there are many
+    /// (merged in chunk order: min / max are exact, but which zero a tie
+    /// of −0 and +0 keeps depends on the order).
+    fn of(prims: &[Prim]) -> Extent {
+        let seq = |ps: &[Prim]| {
+            let mut e = Extent::EMPTY;
+            for p in ps {
+                e.add(p);
+            }
+            e
+        };
+        if prims.len() >= PARALLEL_SPLIT {
+            let parts: Vec<Extent> = prims.par_chunks(CHUNK).map(seq).collect();
+            parts.into_iter().fold(Extent::EMPTY, Extent::merge)
+        } else {
+            seq(prims)
+        }
+    }
+}
+
+/// A range of triangles waiting for a slot of a 4-wide node: a leaf, or an
+/// inner range already partitioned at `cut.mid` (its two halves not yet
+/// looked at).
+#[derive(Debug, Clone, Copy)]
+struct Item {
     bounds: Aabb,
-    centroid: Vec3,
-    id: u32,
+    len: usize,
+    depth: u32,
+    cut: Option<Cut>,
+}
+
+/// Where an inner range is split, and the extents of its two halves.
+#[derive(Debug, Clone, Copy)]
+struct Cut {
+    mid: usize,
+    left: Extent,
+    right: Extent,
+}
+
+/// Nodes built by one task: numbered depth-first from 0 within the chunk;
+/// the inner children built by other tasks (`subs`: node, slot, chunk) are
+/// linked when the chunks are laid out one after another
+/// ([`Chunk::flatten`]).
+#[derive(Default)]
+struct Chunk {
+    nodes: Vec<Node>,
+    subs: Vec<(u32, usize, Chunk)>,
+}
+
+impl Chunk {
+    fn count(&self) -> usize {
+        self.nodes.len() + self.subs.iter().map(|(_, _, c)| c.count()).sum::<usize>()
+    }
+
+    /// Appends this chunk's nodes to `out`, then its sub-chunks in order
+    /// (each right after the previous one), linking the slots that lead to
+    /// them. Returns the index of the chunk's first node.
+    fn flatten(self, out: &mut Vec<Node>) -> u32 {
+        let base = out.len() as u32;
+        out.extend(self.nodes.into_iter().map(|mut node| {
+            for slot in 0..4 {
+                if node.count[slot] == 0 && node.child[slot] != u32::MAX {
+                    node.child[slot] += base;
+                }
+            }
+            node
+        }));
+        for (index, slot, sub) in self.subs {
+            let root = sub.flatten(out);
+            out[(base + index) as usize].child[slot] = root;
+        }
+        base
+    }
 }
 
 impl Bvh {
@@ -182,24 +356,24 @@ impl Bvh {
                 for p in corners(geometry, t) {
                     bounds.grow_point(p);
                 }
-                Prim {
-                    bounds,
-                    centroid: (bounds.lo + bounds.hi) * 0.5,
-                    id: t,
-                }
+                Prim::new(&bounds, t)
             })
             .collect();
         if prims.is_empty() {
             return Bvh::default();
         }
-        let root = build_node(&mut prims, 0, 0);
-        let mut bvh = Bvh {
-            nodes: Vec::new(),
-            tris: prims.iter().map(|p| corners(geometry, p.id)).collect(),
-            ids: prims.iter().map(|p| p.id).collect(),
-        };
-        bvh.collapse(&[&root]);
-        bvh
+        let extent = Extent::of(&prims);
+        let root = classify(&mut prims, extent, 0);
+        let mut chunk = Chunk::default();
+        build_node(&mut prims, 0, root, &mut chunk);
+        let mut nodes = Vec::with_capacity(chunk.count());
+        chunk.flatten(&mut nodes);
+        // The build input goes before the corners are copied: the peak
+        // holds one of the two.
+        let ids: Vec<u32> = prims.par_iter().map(Prim::id).collect();
+        drop(prims);
+        let tris = ids.par_iter().map(|&t| corners(geometry, t)).collect();
+        Bvh { nodes, tris, ids }
     }
 
     /// Number of triangles in the tree.
@@ -210,52 +384,6 @@ impl Bvh {
     /// Number of 4-wide nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
-    }
-
-    /// Appends the 4-wide node whose children are `items` opened up to
-    /// four wide (largest surface area first), then its inner children;
-    /// returns its index. Nodes are numbered in depth-first order.
-    fn collapse(&mut self, items: &[&Build]) -> u32 {
-        let mut kids: Vec<&Build> = items.to_vec();
-        while kids.len() < 4 {
-            // The inner child with the largest area; ties: the first.
-            let mut best: Option<(usize, f32)> = None;
-            for (i, k) in kids.iter().enumerate() {
-                if let Build::Inner { bounds, .. } = k {
-                    let a = bounds.half_area();
-                    if best.is_none_or(|(_, b)| a > b) {
-                        best = Some((i, a));
-                    }
-                }
-            }
-            let Some((i, _)) = best else { break };
-            if let Build::Inner { children, .. } = kids[i] {
-                let [l, r] = &**children;
-                kids.splice(i..=i, [l, r]);
-            }
-        }
-        let index = self.nodes.len();
-        self.nodes.push(Node::EMPTY);
-        let mut node = Node::EMPTY;
-        for (slot, kid) in kids.iter().enumerate() {
-            let b = kid.bounds();
-            for axis in 0..3 {
-                node.lo[axis][slot] = b.lo[axis];
-                node.hi[axis][slot] = b.hi[axis];
-            }
-            match kid {
-                Build::Leaf { range, .. } => {
-                    node.child[slot] = range.start as u32;
-                    node.count[slot] = range.len() as u32;
-                }
-                Build::Inner { children, .. } => {
-                    let [l, r] = &**children;
-                    node.child[slot] = self.collapse(&[l, r]);
-                }
-            }
-        }
-        self.nodes[index] = node;
-        index as u32
     }
 
     /// Whether any triangle is hit at `t ∈ (0, t_max)` on the ray
@@ -363,38 +491,125 @@ fn corners(geometry: &SceneGeometry, t: u32) -> [Vec3; 3] {
     geometry.triangles[t as usize].map(|i| geometry.positions[i as usize])
 }
 
-/// Builds the binary subtree over `prims` (whose first element has index
-/// `offset` in the whole array).
-fn build_node(prims: &mut [Prim], offset: usize, depth: u32) -> Build {
-    let mut bounds = Aabb::EMPTY;
-    let mut cbounds = Aabb::EMPTY;
-    for p in prims.iter() {
-        bounds.grow(&p.bounds);
-        cbounds.grow_point(p.centroid);
+/// Builds into `chunk` the 4-wide node for `item` (over all of `prims`,
+/// whose first element has index `offset` in leaf order) and, depth
+/// first, the nodes below it; returns its index in `chunk`.
+///
+/// The node's slots start as `[item]`; while fewer than four, the inner
+/// one with the largest area (ties: the first) is replaced by its two
+/// halves, each classified in turn: the 4-wide collapse of the binary SAH
+/// tree, without building that tree. Inner slots of at least
+/// [`PARALLEL_BUILD`] triangles become chunks of their own, built in
+/// parallel; the others are built into `chunk`.
+fn build_node(prims: &mut [Prim], offset: usize, item: Item, chunk: &mut Chunk) -> u32 {
+    // (start in `prims`, item), in order: the slots tile `prims`.
+    let mut kids = [(0usize, item); 4];
+    let mut len = 1;
+    while len < 4 {
+        let mut best: Option<(usize, f32)> = None;
+        for (i, (_, k)) in kids[..len].iter().enumerate() {
+            if k.cut.is_some() {
+                let a = k.bounds.half_area();
+                if best.is_none_or(|(_, b)| a > b) {
+                    best = Some((i, a));
+                }
+            }
+        }
+        let Some((i, _)) = best else { break };
+        let (start, open) = kids[i];
+        let Some(cut) = open.cut else { break };
+        let (l, r) = prims[start..start + open.len].split_at_mut(cut.mid);
+        let depth = open.depth + 1;
+        let (left, right) = if open.len >= PARALLEL_BUILD {
+            rayon::join(
+                || classify(l, cut.left, depth),
+                || classify(r, cut.right, depth),
+            )
+        } else {
+            (classify(l, cut.left, depth), classify(r, cut.right, depth))
+        };
+        kids.copy_within(i + 1..len, i + 2);
+        kids[i] = (start, left);
+        kids[i + 1] = (start + cut.mid, right);
+        len += 1;
     }
+    let index = chunk.nodes.len();
+    chunk.nodes.push(Node::EMPTY);
+    let mut node = Node::EMPTY;
+    let mut big = Vec::new();
+    let mut small = Vec::new();
+    let mut rest = prims;
+    for (slot, &(start, kid)) in kids[..len].iter().enumerate() {
+        for axis in 0..3 {
+            node.lo[axis][slot] = kid.bounds.lo[axis];
+            node.hi[axis][slot] = kid.bounds.hi[axis];
+        }
+        let (mine, tail) = std::mem::take(&mut rest).split_at_mut(kid.len);
+        rest = tail;
+        if kid.cut.is_none() {
+            // Leaf order: by triangle index, whatever the partitions did.
+            mine.sort_unstable_by_key(Prim::id);
+            node.child[slot] = (offset + start) as u32;
+            node.count[slot] = kid.len as u32;
+        } else if kid.len >= PARALLEL_BUILD {
+            big.push((slot, mine, offset + start, kid));
+        } else {
+            small.push((slot, mine, offset + start, kid));
+        }
+    }
+    let (subs, ()) = rayon::join(
+        || {
+            big.into_par_iter()
+                .map(|(slot, mine, start, kid)| {
+                    let mut sub = Chunk::default();
+                    build_node(mine, start, kid, &mut sub);
+                    (slot, sub)
+                })
+                .collect::<Vec<_>>()
+        },
+        || {
+            for (slot, mine, start, kid) in small {
+                node.child[slot] = build_node(mine, start, kid, chunk);
+            }
+        },
+    );
+    chunk.nodes[index] = node;
+    for (slot, sub) in subs {
+        chunk.subs.push((index as u32, slot, sub));
+    }
+    index as u32
+}
+
+/// Decides whether `prims` (of extent `extent`, at binary depth `depth`)
+/// is a leaf or splits, and if it splits, partitions it.
+fn classify(prims: &mut [Prim], extent: Extent, depth: u32) -> Item {
     let n = prims.len();
-    let leaf = |bounds| Build::Leaf {
+    let bounds = extent.bounds.aabb();
+    let leaf = Item {
         bounds,
-        range: offset..offset + n,
+        len: n,
+        depth,
+        cut: None,
     };
     if n == 1 {
-        return leaf(bounds);
+        return leaf;
     }
     let split = if depth < SAH_MAX_DEPTH {
-        sah_split(prims, &bounds, &cbounds)
+        sah_split(prims, &extent)
     } else {
         None
     };
-    let mid = match split {
+    let (mid, left, right) = match split {
         Some(Split::Bins { axis, bin }) => {
-            let (lo, scale) = bin_mapping(&cbounds, axis);
-            partition(prims, |p| bin_of(p.centroid[axis], lo, scale) <= bin)
+            let map = BinMap::new(&extent.cbounds);
+            partition(prims, |p| map.bins(p)[axis] as usize <= bin)
         }
-        Some(Split::Leaf) if n <= MAX_LEAF => return leaf(bounds),
+        Some(Split::Leaf) if n <= MAX_LEAF => return leaf,
         // No useful SAH split (all centroids in one bin, or too deep):
         // object median along the widest centroid axis, ties by id.
         _ => {
-            let e = cbounds.hi - cbounds.lo;
+            let cb = extent.cbounds.aabb();
+            let e = cb.hi - cb.lo;
             let axis = if e.x >= e.y && e.x >= e.z {
                 0
             } else if e.y >= e.z {
@@ -402,29 +617,22 @@ fn build_node(prims: &mut [Prim], offset: usize, depth: u32) -> Build {
             } else {
                 2
             };
-            prims.sort_unstable_by(|a, b| {
-                a.centroid[axis]
-                    .total_cmp(&b.centroid[axis])
-                    .then(a.id.cmp(&b.id))
-            });
-            n / 2
+            let key = |p: &Prim| p.centroid().to_array()[axis];
+            let order = |a: &Prim, b: &Prim| key(a).total_cmp(&key(b)).then(a.id().cmp(&b.id()));
+            if n >= PARALLEL_SPLIT {
+                prims.par_sort_unstable_by(order);
+            } else {
+                prims.sort_unstable_by(order);
+            }
+            let mid = n / 2;
+            (mid, Extent::of(&prims[..mid]), Extent::of(&prims[mid..]))
         }
     };
-    let (left, right) = prims.split_at_mut(mid);
-    let (l, r) = if n >= PARALLEL_BUILD {
-        rayon::join(
-            || build_node(left, offset, depth + 1),
-            || build_node(right, offset + mid, depth + 1),
-        )
-    } else {
-        (
-            build_node(left, offset, depth + 1),
-            build_node(right, offset + mid, depth + 1),
-        )
-    };
-    Build::Inner {
+    Item {
         bounds,
-        children: Box::new([l, r]),
+        len: n,
+        depth,
+        cut: Some(Cut { mid, left, right }),
     }
 }
 
@@ -436,57 +644,129 @@ enum Split {
     Leaf,
 }
 
-/// Bin mapping along `axis`: `(lower bound, bins per unit)`.
-#[inline]
-fn bin_mapping(cbounds: &Aabb, axis: usize) -> (f32, f32) {
-    let extent = cbounds.hi[axis] - cbounds.lo[axis];
-    (cbounds.lo[axis], BINS as f32 / extent)
+/// The bin mapping of a range, all three axes at once: bin
+/// `trunc((c − lo) · BINS / (hi − lo))` of centroid `c`, clamped to
+/// `[0, BINS − 1]` (NaN: 0; an axis of zero extent bins garbage that
+/// [`sah_split`] skips). Binning and partition both use it, so they agree.
+#[derive(Clone, Copy)]
+struct BinMap {
+    lo: f32x4,
+    scale: f32x4,
 }
 
-#[inline]
-fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
-    (((c - lo) * scale) as usize).min(BINS - 1)
+impl BinMap {
+    #[inline]
+    fn new(cbounds: &Box4) -> BinMap {
+        BinMap {
+            lo: cbounds.lo,
+            scale: f32x4::splat(BINS as f32) / (cbounds.hi - cbounds.lo),
+        }
+    }
+
+    /// The bins of `p`'s centroid along x, y, z (lane 3: unused).
+    #[inline(always)]
+    fn bins(&self, p: &Prim) -> [i32; 4] {
+        ((p.centroid() - self.lo) * self.scale)
+            .trunc_int()
+            .max(i32x4::ZERO)
+            .min(i32x4::splat(BINS as i32 - 1))
+            .to_array()
+    }
+}
+
+/// The triangles' bounds and counts per bin, for the three axes.
+#[derive(Clone, Copy)]
+struct Bins {
+    boxes: [[Box4; BINS]; 3],
+    counts: [[u32; BINS]; 3],
+}
+
+impl Bins {
+    const EMPTY: Bins = Bins {
+        boxes: [[Box4::EMPTY; BINS]; 3],
+        counts: [[0; BINS]; 3],
+    };
+
+    /// Bins `prims` along the three axes at once.
+    fn of(prims: &[Prim], cbounds: &Box4) -> Bins {
+        let map = BinMap::new(cbounds);
+        let seq = |ps: &[Prim]| {
+            let mut bins = Bins::EMPTY;
+            for p in ps {
+                let k = map.bins(p);
+                for axis in 0..3 {
+                    let k = k[axis] as usize & (BINS - 1);
+                    bins.boxes[axis][k].grow(p.lo(), p.hi);
+                    bins.counts[axis][k] += 1;
+                }
+            }
+            bins
+        };
+        if prims.len() >= PARALLEL_SPLIT {
+            // Merged in chunk order, as `Extent::of`.
+            let parts: Vec<Bins> = prims.par_chunks(CHUNK).map(seq).collect();
+            parts.iter().fold(Bins::EMPTY, |mut a, b| {
+                for axis in 0..3 {
+                    for k in 0..BINS {
+                        a.boxes[axis][k].merge(&b.boxes[axis][k]);
+                        a.counts[axis][k] += b.counts[axis][k];
+                    }
+                }
+                a
+            })
+        } else {
+            seq(prims)
+        }
+    }
 }
 
 /// Best binned-SAH split, `None` when the centroids cannot be separated.
 /// Costs: traversal 1, triangle 1 (relative to the parent's area).
-fn sah_split(prims: &[Prim], bounds: &Aabb, cbounds: &Aabb) -> Option<Split> {
+fn sah_split(prims: &[Prim], extent: &Extent) -> Option<Split> {
+    let bins = Bins::of(prims, &extent.cbounds);
+    let cbounds = &extent.cbounds.aabb();
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
         if !(cbounds.hi[axis] > cbounds.lo[axis]) {
             continue;
         }
-        let (lo, scale) = bin_mapping(cbounds, axis);
-        let mut boxes = [Aabb::EMPTY; BINS];
-        let mut counts = [0usize; BINS];
-        for p in prims {
-            let b = bin_of(p.centroid[axis], lo, scale);
-            boxes[b].grow(&p.bounds);
-            counts[b] += 1;
+        // Only the non-empty bins: a split after an empty bin has the
+        // same sides, hence the same cost bit for bit, as the split after
+        // the last non-empty bin before it, which comes first and so wins
+        // the strict `<` below: the same choice as sweeping all bins.
+        let counts = &bins.counts[axis];
+        let mut full = [0usize; BINS];
+        let mut m = 0;
+        for (b, &c) in counts.iter().enumerate() {
+            if c != 0 {
+                full[m] = b;
+                m += 1;
+            }
         }
-        // Right-to-left sweep: area × count of bins b+1.. for each split.
+        if m < 2 {
+            continue;
+        }
+        let boxes = &bins.boxes[axis];
+        // Right-to-left sweep: area × count of the bins after each split.
         let mut right_cost = [0.0f32; BINS];
         let (mut acc, mut count) = (Aabb::EMPTY, 0usize);
-        for b in (1..BINS).rev() {
-            acc.grow(&boxes[b]);
-            count += counts[b];
-            right_cost[b - 1] = acc.half_area() * count as f32;
+        for j in (1..m).rev() {
+            acc.grow(&boxes[full[j]].aabb());
+            count += counts[full[j]] as usize;
+            right_cost[j - 1] = acc.half_area() * count as f32;
         }
         let (mut acc, mut count) = (Aabb::EMPTY, 0usize);
-        for b in 0..BINS - 1 {
-            acc.grow(&boxes[b]);
-            count += counts[b];
-            if count == 0 || count == prims.len() {
-                continue;
-            }
-            let cost = acc.half_area() * count as f32 + right_cost[b];
+        for j in 0..m - 1 {
+            acc.grow(&boxes[full[j]].aabb());
+            count += counts[full[j]] as usize;
+            let cost = acc.half_area() * count as f32 + right_cost[j];
             if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, b));
+                best = Some((cost, axis, full[j]));
             }
         }
     }
     let (cost, axis, bin) = best?;
-    let area = bounds.half_area();
+    let area = extent.bounds.aabb().half_area();
     // Leaf cost n vs split cost 1 + (A_l n_l + A_r n_r) / A.
     let leaf_cost = prims.len() as f32;
     if area > 0.0 && 1.0 + cost / area >= leaf_cost {
@@ -495,17 +775,67 @@ fn sah_split(prims: &[Prim], bounds: &Aabb, cbounds: &Aabb) -> Option<Split> {
     Some(Split::Bins { axis, bin })
 }
 
-/// Stable-order-independent in-place partition: elements satisfying
-/// `left` first. Returns their count. Sequential, hence deterministic.
-fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
-    let mut i = 0;
-    for j in 0..prims.len() {
-        if left(&prims[j]) {
-            prims.swap(i, j);
-            i += 1;
+/// Partitions `prims`, those satisfying `left` first; returns their count
+/// and the extents of both sides. Which order each side ends in does not
+/// matter: binning and bounds do not see it, median splits sort, and
+/// leaves are sorted by triangle index. Large ranges partition stably
+/// over fixed chunks in parallel; others in place by swaps.
+fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool + Sync) -> (usize, Extent, Extent) {
+    if prims.len() < PARALLEL_SPLIT {
+        let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
+        let mut i = 0;
+        for j in 0..prims.len() {
+            let p = prims[j];
+            if left(&p) {
+                l.add(&p);
+                prims.swap(i, j);
+                i += 1;
+            } else {
+                r.add(&p);
+            }
         }
+        return (i, l, r);
     }
-    i
+    let parts: Vec<(Vec<Prim>, Vec<Prim>, Extent, Extent)> = prims
+        .par_chunks(CHUNK)
+        .map(|ps| {
+            let (mut lv, mut rv) = (Vec::new(), Vec::new());
+            let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
+            for p in ps {
+                if left(p) {
+                    l.add(p);
+                    lv.push(*p);
+                } else {
+                    r.add(p);
+                    rv.push(*p);
+                }
+            }
+            (lv, rv, l, r)
+        })
+        .collect();
+    let mid: usize = parts.iter().map(|p| p.0.len()).sum();
+    let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
+    for p in &parts {
+        l = l.merge(p.2);
+        r = r.merge(p.3);
+    }
+    // The destination of each chunk's two sides.
+    let (mut dl, mut dr) = prims.split_at_mut(mid);
+    let mut dests = Vec::with_capacity(parts.len());
+    for p in &parts {
+        let (a, rest_l) = std::mem::take(&mut dl).split_at_mut(p.0.len());
+        let (b, rest_r) = std::mem::take(&mut dr).split_at_mut(p.1.len());
+        (dl, dr) = (rest_l, rest_r);
+        dests.push((a, b));
+    }
+    dests
+        .into_par_iter()
+        .zip(parts.par_iter())
+        .for_each(|((a, b), p)| {
+            a.copy_from_slice(&p.0);
+            b.copy_from_slice(&p.1);
+        });
+    (mid, l, r)
 }
 
 /// A node's child bounds minus a ray origin, per axis: the first step of
@@ -762,4 +1092,116 @@ pub fn intersect_triangle(
         return None;
     }
     Ray::new(origin, dir, t_max)?.intersect(tri)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random numbers in [0, 1).
+    fn rng(state: &mut u64) -> f32 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*state >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// `n` small random triangles in a unit cube (every 97th one with
+    /// NaN corners, every 89th one degenerate) and a few huge ones.
+    fn soup(n: usize) -> SceneGeometry {
+        let mut g = SceneGeometry::default();
+        let mut s = 11u64;
+        for i in 0..n {
+            let base = g.positions.len() as u32;
+            let c = Vec3::new(rng(&mut s), rng(&mut s), rng(&mut s));
+            let size = if i % 1000 == 0 { 2.0 } else { 0.01 };
+            for k in 0..3 {
+                let mut p = c + (Vec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) - 0.5) * size;
+                if i % 97 == 0 && k > 0 {
+                    p = Vec3::NAN;
+                }
+                if i % 89 == 0 {
+                    p = c;
+                }
+                g.positions.push(p);
+            }
+            g.triangles.push([base, base + 1, base + 2]);
+        }
+        g
+    }
+
+    /// The same tree for 1, 2 and 3 threads, large enough that the
+    /// parallel binning and partition run; the same hit sets as a
+    /// brute-force loop; leaves hold at most `MAX_LEAF` triangles, sorted
+    /// by index, and every kept triangle exactly once.
+    #[test]
+    fn parallel_build_is_deterministic_and_exact() {
+        let g = soup(3 * PARALLEL_SPLIT);
+        let keep = |t: u32| t % 5 != 2;
+        let build = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool")
+                .install(|| Bvh::build(&g, keep))
+        };
+        // Bit patterns: the NaN corners would make `==` fail.
+        let bits = |b: &Bvh| {
+            let mut v: Vec<u32> = b.ids.clone();
+            for n in &b.nodes {
+                v.extend(n.lo.iter().chain(&n.hi).flatten().map(|x| x.to_bits()));
+                v.extend(n.child.iter().chain(&n.count));
+            }
+            v.extend(
+                b.tris
+                    .iter()
+                    .flatten()
+                    .flat_map(|p| p.to_array().map(f32::to_bits)),
+            );
+            v
+        };
+        let one = build(1);
+        assert!(bits(&build(2)) == bits(&one), "2 threads differ from 1");
+        assert!(bits(&build(3)) == bits(&one), "3 threads differ from 1");
+        let mut ids = one.ids.clone();
+        ids.sort_unstable();
+        let kept: Vec<u32> = (0..g.triangles.len() as u32).filter(|&t| keep(t)).collect();
+        assert_eq!(ids, kept);
+        for node in &one.nodes {
+            for slot in 0..4 {
+                let n = node.count[slot] as usize;
+                assert!(n <= MAX_LEAF);
+                let first = node.child[slot] as usize;
+                if n > 0 {
+                    let leaf = &one.ids[first..first + n];
+                    assert!(leaf.windows(2).all(|w| w[0] < w[1]), "{leaf:?}");
+                } else if node.child[slot] != u32::MAX {
+                    assert!((node.child[slot] as usize) < one.nodes.len());
+                }
+            }
+        }
+        let mut s = 3u64;
+        let mut hits = 0;
+        for i in 0..300 {
+            let o = Vec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) * 1.4 - 0.2;
+            let mut d = Vec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) - 0.5;
+            if i % 10 == 0 {
+                d = Vec3::new(0.0, d.y, 0.0);
+            }
+            let t_max = 0.5 + rng(&mut s);
+            let mut brute: Vec<u32> = kept
+                .iter()
+                .copied()
+                .filter(|&t| intersect_triangle(o, d, t_max, &corners(&g, t)).is_some())
+                .collect();
+            let mut walked = Vec::new();
+            one.for_each_hit(o, d, t_max, |h| walked.push(h.triangle));
+            brute.sort_unstable();
+            walked.sort_unstable();
+            assert_eq!(walked, brute, "ray {i}");
+            assert_eq!(one.occluded(o, d, t_max), !brute.is_empty());
+            hits += brute.len();
+        }
+        assert!(hits > 100, "{hits}");
+    }
 }
