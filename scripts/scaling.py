@@ -69,9 +69,9 @@ _spec = importlib.util.spec_from_file_location("embree_peer", os.path.join(HERE,
 peer_lib = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(peer_lib)
 
-TECHNIQUES = ["dcs", "penumbra-casting", "reference"]
+TECHNIQUES = ["dcs", "dcs --dcs-rays never", "penumbra-casting", "reference"]
 EMBREE = "embree"
-COLOURS = {"dcs": "tab:blue", "penumbra-casting": "tab:green", "reference": "tab:orange", EMBREE: "black"}
+COLOURS = {"dcs": "tab:blue", "dcs --dcs-rays never": "tab:purple", "penumbra-casting": "tab:green", "reference": "tab:orange", EMBREE: "black"}
 SERIES_STYLE = {"tessellation": "-", "many spheres": "--", "models": ":"}
 
 

@@ -46,6 +46,7 @@ pub mod faces;
 #[forbid(unsafe_code)]
 pub mod options;
 mod passes;
+pub mod plan;
 pub mod rays;
 mod receiver;
 pub mod region;
@@ -74,8 +75,9 @@ use passes::{
     assemble, build_wedges, candidate_edges, count_tiles, coverage_tables, gather, group_starts,
     recount_ties, s_triangle_membership, wedge_membership,
 };
+use plan::LightPlan;
 use rayon::prelude::*;
-use rays::{LightPlan, RayPixels, RayScratch};
+use rays::{RayPixels, RayScratch};
 use receiver::LightPass;
 pub use receiver::{CounterInspector, InspectedPixel};
 pub use settings::{DcsLightReport, DepthComplexitySampling};
@@ -301,7 +303,7 @@ impl DepthComplexitySampling {
         let receivers = (0..ctx.gbuffer.len())
             .filter(|&i| ctx.gbuffer.is_surface(i))
             .count();
-        rays::plan_light(
+        plan::plan_light(
             eligible,
             ctx.geometry.triangles.len(),
             receivers,

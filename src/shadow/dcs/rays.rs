@@ -1,24 +1,7 @@
-//! Where counting edges would cost more than tracing the samples' shadow
-//! rays, DCS traces them: the cost choice (`--dcs-rays auto`, the
-//! default).
-//!
-//! Both answers are exact: a sample's visibility is the same whether its
-//! occluders are counted (`D = 0`) or its shadow ray finds none, up to
-//! ties, and both weigh each sample's light by it (the direct mode), so
-//! the image stays the exact one either way. The choice is made per light
-//! from counts alone (casting triangles, receivers, samples), never from
-//! clocks or scheduling, so it is the same for any thread count and SIMD
-//! level.
-//!
-//! Why per light and not per block of receivers: the counting path's
-//! setup (stencil, start-count ties, candidate edges, wedge regions) and
-//! its per-tile culling of the candidate edges grow with the triangles,
-//! while inside a block whose edges are already culled counting is 3 to
-//! 10 times cheaper than the same receivers' rays (measured per 4² block
-//! on the tessellation series, 512², 64 samples: 130–700 ns per ray in a
-//! penumbra against 150–500 ns per (receiver, edge) pair). So the choice
-//! that pays is whether to build the counting path at all
-//! (`docs/algorithms/dcs.md`, "Cost choice").
+//! Every receiver of a light by its samples' shadow rays, resolved as
+//! the counting path resolves opaque counts: the traced side of DCS's
+//! cost choice ([`super::plan`]).
+
 use super::receiver::PixelResult;
 use crate::gbuffer::GSample;
 use crate::sampling::{LightSampler, PatternSampler};
@@ -27,86 +10,6 @@ use crate::shade::{surface_point, LightSample, PreparedLight};
 use crate::shadow::kit::rays::{Scratch as TracerScratch, ShadowTracer};
 use crate::shadow::ShadowContext;
 use glam::Vec3;
-
-/// The cost model's calibration: 512² receivers at 64 samples.
-const CALIBRATION_RECEIVERS: f64 = 512.0 * 512.0;
-/// Samples per receiver of the calibration.
-const CALIBRATION_SAMPLES: f64 = 64.0;
-/// The counting path's setup per casting triangle, ns (stencil, ties,
-/// candidate edges, wedge regions: 0.9–2.2 µs on the tessellation series
-/// at 512², 2 threads; the lowest is taken, so that counting is kept
-/// unless rays are surely cheaper).
-const SETUP_NS: f64 = 900.0;
-/// The counter pass per casting triangle at the calibration, ns (1.2–5.5
-/// µs on the series; the lowest is taken); it grows with the receivers
-/// and, for its per-sample half, with the samples.
-const COUNT_NS: f64 = 1200.0;
-/// BVH build per casting triangle, ns.
-const BVH_NS: f64 = 300.0;
-/// One shadow ray on average over a frame's receivers, ns (0.09–0.11 µs
-/// on the series at 512², 64 samples, 2 threads).
-const RAY_NS: f64 = 100.0;
-
-/// Per light: count edges, or trace every receiver's rays.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum LightPlan {
-    /// The counting path.
-    Count {
-        /// Its estimated time, ms (0 when rays were not an option).
-        count_ms: f64,
-        /// The rays' estimated time, ms (0 when they were not an option).
-        rays_ms: f64,
-    },
-    /// Every receiver by rays: no stencil, wedge or counter is built.
-    AllRays {
-        /// The counting path's estimated time, ms.
-        count_ms: f64,
-        /// The BVH build and rays' estimated time, ms.
-        rays_ms: f64,
-    },
-}
-
-impl LightPlan {
-    /// What `--explain` says of it.
-    pub fn describe(&self) -> String {
-        match *self {
-            LightPlan::Count { rays_ms: 0.0, .. } => {
-                "counted (rays not an option here: --dcs-rays never, or a light, caster or setting \
-                 the ray path does not serve)"
-                    .into()
-            }
-            LightPlan::Count { count_ms, rays_ms } => format!(
-                "counted: estimated {count_ms:.0} ms against {rays_ms:.0} ms for every receiver's \
-                 shadow rays"
-            ),
-            LightPlan::AllRays { count_ms, rays_ms } => format!(
-                "every receiver traced by shadow rays: estimated {rays_ms:.0} ms against \
-                 {count_ms:.0} ms for counting; no stencil, wedge or counter built"
-            ),
-        }
-    }
-}
-
-/// The per-light choice from the casting triangles, the receivers and
-/// the samples per receiver; `eligible` says whether rays may be used at
-/// all.
-pub fn plan_light(eligible: bool, casters: usize, receivers: usize, samples: u32) -> LightPlan {
-    if !eligible {
-        return LightPlan::Count {
-            count_ms: 0.0,
-            rays_ms: 0.0,
-        };
-    }
-    let (t, r, n) = (casters as f64, receivers as f64, f64::from(samples));
-    let per_sample = 0.5 + 0.5 * n / CALIBRATION_SAMPLES;
-    let count_ms = t * (SETUP_NS + COUNT_NS * r / CALIBRATION_RECEIVERS * per_sample) * 1e-6;
-    let rays_ms = (t * BVH_NS + r * n * RAY_NS) * 1e-6;
-    if count_ms > rays_ms {
-        LightPlan::AllRays { count_ms, rays_ms }
-    } else {
-        LightPlan::Count { count_ms, rays_ms }
-    }
-}
 
 /// One light's receivers by shadow rays: the tracer and what the shading
 /// reads, shared by the workers.
@@ -214,34 +117,5 @@ impl<'a, 'c> RayPixels<'a, 'c> {
             edges: 0.0,
             recounted: false,
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn plan_counts_small_scenes_and_traces_large_ones() {
-        let receivers = 512 * 512;
-        let counted = |p: LightPlan| matches!(p, LightPlan::Count { .. });
-        // 512², 64 samples: the tessellation series' 61k and 253k count,
-        // 1.0M and 4.1M trace.
-        assert!(counted(plan_light(true, 61_562, receivers, 64)));
-        assert!(counted(plan_light(true, 252_722, receivers, 64)));
-        assert!(!counted(plan_light(true, 1_023_842, receivers, 64)));
-        assert!(!counted(plan_light(true, 4_121_282, receivers, 64)));
-        // Not eligible: always counted.
-        assert_eq!(
-            plan_light(false, 4_121_282, receivers, 64),
-            LightPlan::Count {
-                count_ms: 0.0,
-                rays_ms: 0.0
-            }
-        );
-        // Many samples make every receiver's rays dearer than counting.
-        assert!(counted(plan_light(true, 1_023_842, receivers, 4096)));
-        // No receiver: nothing to trace, nothing to count per receiver.
-        assert!(!counted(plan_light(true, 1_000, 0, 64)));
     }
 }

@@ -55,5 +55,5 @@ pub struct DcsLightReport {
     /// choice).
     pub traced_pixels: usize,
     /// The light's plan: counted, or every receiver traced.
-    pub plan: Option<super::rays::LightPlan>,
+    pub plan: Option<super::plan::LightPlan>,
 }
