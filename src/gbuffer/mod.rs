@@ -342,7 +342,7 @@ impl<const ALPHA: bool> VisibilityStage<'_, ALPHA> {
     fn opacity_at(&self, triangle: u32, x: u32, y: u32) -> f32 {
         let m = &self.scene.materials[self.geometry.triangle_material[triangle as usize] as usize];
         let dir = self.view.primary_ray_unnormalized(x, y);
-        let hit = self.geometry.frames[triangle as usize].hit(self.view.eye, dir);
+        let hit = self.geometry.frame(triangle).hit(self.view.eye, dir);
         let (b1, b2) = hit.map_or((1.0 / 3.0, 1.0 / 3.0), |h| (h.1, h.2));
         let uv = interpolate_uv(self.scene, self.geometry, triangle, b1, b2);
         let tex = m

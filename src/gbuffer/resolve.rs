@@ -209,8 +209,7 @@ impl<'a> Ctx<'a> {
                         };
                         let out = &mut out[x..lanes_end];
                         if textured {
-                            let f = &self.geometry.frames[tri as usize];
-                            lanes.textured(t, f, out, &mut albedo[x..end]);
+                            lanes.textured(t, &t.frame, out, &mut albedo[x..end]);
                         } else if t.smooth {
                             lanes.smooth(t, out);
                         } else {
@@ -231,7 +230,7 @@ impl<'a> Ctx<'a> {
     #[inline]
     fn single(&self, r: &RunTriangle, row: DVec3, x: usize, out: &mut GPoint) {
         let view = self.view;
-        let f = &self.geometry.frames[r.id as usize];
+        let f = &r.frame;
         let c = self.columns;
         let dir = DVec3::new(row.x + c.x[x], row.y + c.y[x], row.z + c.z[x]);
         let numerator = r.numerator.to_array()[0];
@@ -575,6 +574,8 @@ impl Albedo<'_> {
 /// A triangle's data for the lanes, prepared once per band that sees it.
 struct RunTriangle<'a> {
     id: u32,
+    /// The triangle's f64 frame ([`SceneGeometry::frame`]).
+    frame: TriangleFrame,
     /// Winding normal (unnormalised) and first corner.
     normal: V4,
     a: V4,
@@ -616,6 +617,7 @@ impl<'a> RunTriangle<'a> {
     /// An empty cache slot.
     const EMPTY: RunTriangle<'a> = RunTriangle {
         id: NO_TRIANGLE,
+        frame: TriangleFrame::ZERO,
         normal: V4::ZERO,
         a: V4::ZERO,
         dual1f: V4f::ZERO,
@@ -642,12 +644,13 @@ impl<'a> RunTriangle<'a> {
     fn load(&mut self, ctx: &Ctx<'a>, id: u32, textured: bool) {
         let (scene, geometry, view) = (ctx.scene, ctx.geometry, ctx.view);
         let t = id as usize;
-        let f = &geometry.frames[t];
+        let f = &geometry.frame(id);
         let numerator = f.normal.dot(f.a - view.eye);
         let (back, front) = (numerator > 0.0, numerator < 0.0);
         let unit = geometry.unit_normals[t];
         let mask = |b: bool| f32x4::splat(if b { f32::from_bits(u32::MAX) } else { 0.0 });
         self.id = id;
+        self.frame = *f;
         self.normal = V4::splat(f.normal);
         self.a = V4::splat(f.a);
         self.duals = [f.dual1.as_vec3(), f.dual2.as_vec3()];

@@ -29,11 +29,9 @@ pub struct SceneGeometry {
     pub object_closed: Vec<bool>,
     /// Welded edge adjacency of all triangles, built once per scene.
     pub adjacency: super::EdgeAdjacency,
-    /// Per triangle, its plane and barycentric frame in f64: view
-    /// independent, so computed once per scene rather than per frame.
-    pub frames: Vec<TriangleFrame>,
     /// Per triangle, its unit geometric normal from the winding (the f64
-    /// frame normal normalised, then rounded to f32); zero for a sliver.
+    /// frame normal normalised, then rounded to f32; [`Self::frame`]); zero
+    /// for a sliver.
     /// Shared like `triangle_object`: G-buffers store only whether it is
     /// flipped.
     pub unit_normals: Arc<[Vec3]>,
@@ -56,6 +54,15 @@ pub struct TriangleFrame {
 }
 
 impl TriangleFrame {
+    /// All zero (an empty cache slot).
+    pub const ZERO: TriangleFrame = TriangleFrame {
+        a: DVec3::ZERO,
+        normal: DVec3::ZERO,
+        dual1: DVec3::ZERO,
+        dual2: DVec3::ZERO,
+        centroid: DVec3::ZERO,
+    };
+
     /// The frame of triangle `(a, b, c)`.
     pub fn new([a, b, c]: [DVec3; 3]) -> Self {
         let (e1, e2) = (b - a, c - a);
@@ -92,8 +99,12 @@ impl SceneGeometry {
     /// Concatenates the scene's meshes in object order.
     pub fn new(scene: &Scene) -> Self {
         let mut g = SceneGeometry::default();
-        let mut triangle_material = Vec::new();
-        let mut triangle_object = Vec::new();
+        let n_triangles: usize = scene.objects.iter().map(|o| o.mesh.triangles.len()).sum();
+        let n_vertices: usize = scene.objects.iter().map(|o| o.mesh.positions.len()).sum();
+        g.positions.reserve_exact(n_vertices);
+        g.triangles.reserve_exact(n_triangles);
+        let mut triangle_material = Vec::with_capacity(n_triangles);
+        let mut triangle_object = Vec::with_capacity(n_triangles);
         for (oi, obj) in scene.objects.iter().enumerate() {
             let base = g.positions.len() as u32;
             g.object_first_vertex.push(base);
@@ -120,18 +131,27 @@ impl SceneGeometry {
             .map(|(c, h)| *c && *h)
             .collect();
         g.adjacency = adjacency;
-        g.frames = g
+        let unit_normals: Vec<Vec3> = g
             .triangles
             .par_iter()
             .with_min_len(4096)
-            .map(|t| TriangleFrame::new(t.map(|i| g.positions[i as usize].as_dvec3())))
+            .map(|t| {
+                let [a, b, c] = t.map(|i| g.positions[i as usize].as_dvec3());
+                // TriangleFrame::new's normal, operation for operation.
+                (b - a).cross(c - a).normalize_or_zero().as_vec3()
+            })
             .collect();
-        g.unit_normals = g
-            .frames
-            .iter()
-            .map(|f| f.normal.normalize_or_zero().as_vec3())
-            .collect();
+        g.unit_normals = unit_normals.into();
         g
+    }
+
+    /// Triangle `triangle`'s plane and barycentric frame in f64, from its
+    /// corners (a few dozen flops: computed where needed rather than
+    /// stored for every triangle).
+    #[inline]
+    pub fn frame(&self, triangle: u32) -> TriangleFrame {
+        let t = self.triangles[triangle as usize];
+        TriangleFrame::new(t.map(|i| self.positions[i as usize].as_dvec3()))
     }
 
     /// (object index, triangle index inside that object's mesh).

@@ -89,15 +89,16 @@ pub fn sphere_silhouettes(adj: &EdgeAdjacency, center: DVec3, radius: f64) -> Ve
 /// side, given each face's class (+1 / −1: the light wholly in front /
 /// behind, 0: split). Boundary edges always qualify.
 fn silhouettes_from_classes(adj: &EdgeAdjacency, class: &[i8]) -> Vec<bool> {
-    adj.edges
-        .par_iter()
+    (0..adj.edges.len())
+        .into_par_iter()
         .with_min_len(PAR_CHUNK)
         .map(|e| {
-            if e.uses.len() < 2 {
+            let uses = adj.uses(e);
+            if uses.len() < 2 {
                 return true;
             }
-            let first = class[e.uses[0].slot as usize];
-            first == 0 || e.uses.iter().any(|u| class[u.slot as usize] != first)
+            let first = class[uses[0].slot as usize];
+            first == 0 || uses.iter().any(|u| class[u.slot as usize] != first)
         })
         .collect()
 }

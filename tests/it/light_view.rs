@@ -126,7 +126,7 @@ fn check(geometry: &SceneGeometry, keep: &(dyn Fn(u32) -> bool + Sync), view: &V
                 // The BVH decides hit or miss (f32, watertight); the
                 // distance is the f64 solve on the hit triangle's plane, so
                 // the comparison measures the rasterizer's depth only.
-                let frame = &geometry.frames[h.triangle as usize];
+                let frame = &geometry.frame(h.triangle);
                 let t = frame.hit(view.eye, dir).map_or(h.t as f64, |f| f.0);
                 let depth = t * along;
                 if depth >= view.near && depth < reference {
@@ -140,7 +140,7 @@ fn check(geometry: &SceneGeometry, keep: &(dyn Fn(u32) -> bool + Sync), view: &V
                 got == reference
             } else {
                 // Reversed Z of the hit triangle's plane at a screen point.
-                let frame = &geometry.frames[hit_triangle as usize];
+                let frame = &geometry.frame(hit_triangle);
                 let win = view.window;
                 let (w, h) = (view.width as f64, view.height as f64);
                 let rz = |sx: f64, sy: f64| {

@@ -116,7 +116,7 @@ impl CandidateEdges {
                 let mut out = CandidateEdges::default();
                 for (k, e) in edges.iter().enumerate() {
                     let i = chunk * CANDIDATE_CHUNK + k;
-                    let quad = side_quad(adj, lit, e);
+                    let quad = side_quad(adj, lit, i);
                     if quad.is_none() && !whole.as_ref().is_some_and(|w| w[i]) {
                         continue;
                     }
@@ -126,7 +126,7 @@ impl CandidateEdges {
                         None => (0, 1),
                     };
                     let first = out.faces.len() as u32;
-                    for u in &e.uses {
+                    for u in adj.uses(i) {
                         let [a, b, c] = adj.face_vertices[u.slot as usize]
                             .map(|v| adj.positions[v as usize].as_dvec3());
                         out.faces.push(EdgeFace {

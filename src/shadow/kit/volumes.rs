@@ -165,17 +165,22 @@ pub fn build_volume(adj: &EdgeAdjacency, view: &View, light: Vec3) -> ShadowVolu
             }
             out
         });
-    let sides = adj.edges.par_chunks(BUILD_CHUNK).map(|edges| {
-        let mut out = Vec::new();
-        for [a, b, m] in edges.iter().filter_map(|e| side_quad(adj, &lit, e)) {
-            let quad = [a, b, inf(b), inf(a)];
-            for _ in 0..m {
-                out.push([quad[0], quad[1], quad[2]]);
-                out.push([quad[0], quad[2], quad[3]]);
+    let sides = adj
+        .edges
+        .par_chunks(BUILD_CHUNK)
+        .enumerate()
+        .map(|(chunk, edges)| {
+            let mut out = Vec::new();
+            let first = chunk * BUILD_CHUNK;
+            for [a, b, m] in (first..first + edges.len()).filter_map(|e| side_quad(adj, &lit, e)) {
+                let quad = [a, b, inf(b), inf(a)];
+                for _ in 0..m {
+                    out.push([quad[0], quad[1], quad[2]]);
+                    out.push([quad[0], quad[2], quad[3]]);
+                }
             }
-        }
-        out
-    });
+            out
+        });
     let pieces: Vec<Vec<[u32; 3]>> = caps.chain(sides).collect();
     let mut triangles = Vec::with_capacity(pieces.iter().map(Vec::len).sum());
     for piece in pieces {
@@ -220,9 +225,10 @@ pub fn cap_triangles(
 /// its welded vertices `[a, b]` ordered so that the quad
 /// `[a, b, b at infinity, a at infinity]` faces out of the volume, and
 /// `|m|`, the copies to draw. `lit[f]`: face `f` faces the light point.
-pub fn side_quad(adj: &EdgeAdjacency, lit: &[bool], e: &crate::geom::Edge) -> Option<[u32; 3]> {
-    let m: i32 = e
-        .uses
+/// `e` indexes `adj.edges`.
+pub fn side_quad(adj: &EdgeAdjacency, lit: &[bool], e: usize) -> Option<[u32; 3]> {
+    let m: i32 = adj
+        .uses(e)
         .iter()
         .map(|u| {
             let s = u.slot as usize;
@@ -235,7 +241,7 @@ pub fn side_quad(adj: &EdgeAdjacency, lit: &[bool], e: &crate::geom::Edge) -> Op
             weight * u.direction as i32
         })
         .sum();
-    let [lo, hi] = e.v;
+    let [lo, hi] = adj.edges[e].v;
     match m.signum() {
         1 => Some([hi, lo, m as u32]),
         -1 => Some([lo, hi, m.unsigned_abs()]),
@@ -246,8 +252,7 @@ pub fn side_quad(adj: &EdgeAdjacency, lit: &[bool], e: &crate::geom::Edge) -> Op
 /// Every side quad of a volume ([`side_quad`]), in edge order: penumbra
 /// wedges reuse exactly these quads.
 pub fn silhouette_quads(adj: &EdgeAdjacency, lit: &[bool]) -> Vec<[u32; 3]> {
-    adj.edges
-        .iter()
+    (0..adj.edges.len())
         .filter_map(|e| side_quad(adj, lit, e))
         .collect()
 }

@@ -98,8 +98,8 @@ fn components(adj: &crate::geom::EdgeAdjacency) -> (Vec<u32>, usize) {
         }
         x
     }
-    for e in &adj.edges {
-        let mut uses = e.uses.iter();
+    for e in 0..adj.edges.len() {
+        let mut uses = adj.uses(e).iter();
         if let Some(first) = uses.next() {
             for u in uses {
                 let (a, b) = (find(&mut parent, first.slot), find(&mut parent, u.slot));
@@ -158,9 +158,9 @@ impl ShadowTechnique for WedgeBlending {
                 cap_triangles(adj, &lit, slot, n, &mut tris[component[slot] as usize]);
             }
             let mut quads: Vec<Vec<[u32; 3]>> = vec![Vec::new(); count];
-            for e in &adj.edges {
+            for e in 0..adj.edges.len() {
                 if let Some(q) = side_quad(adj, &lit, e) {
-                    let c = component[e.uses[0].slot as usize] as usize;
+                    let c = component[adj.uses(e)[0].slot as usize] as usize;
                     let [a, b, m] = q;
                     for _ in 0..m {
                         tris[c].push([a, b, b + n]);

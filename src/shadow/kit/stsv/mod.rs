@@ -144,11 +144,7 @@ impl STriangles {
                     .map_or(DVec3::ZERO, |p| p.as_dvec3())
             };
             let corners = tri.map(corner);
-            let frame = geometry
-                .frames
-                .get(t)
-                .copied()
-                .unwrap_or_else(|| TriangleFrame::new(corners));
+            let frame = TriangleFrame::new(corners);
             list.push(STriangle {
                 triangle: t32,
                 corners,
