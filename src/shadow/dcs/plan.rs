@@ -30,9 +30,13 @@ const CALIBRATION_SAMPLES: f64 = 64.0;
 /// unless rays are surely cheaper).
 const SETUP_NS: f64 = 900.0;
 /// The counter pass per casting triangle at the calibration, ns (1.2–5.5
-/// µs on the series; the lowest is taken); it grows with the receivers
-/// and, for its per-sample half, with the samples.
+/// µs on the series; the lowest is taken). It grows with the receivers,
+/// and only a little with the samples: the per-tile culling of the
+/// candidate edges, which does not depend on them, dominates (`dcs
+/// --dcs-rays never` on the series, 64 → 256 samples: 1.0–1.3×).
 const COUNT_NS: f64 = 1200.0;
+/// The counter pass's growth per calibration's worth of samples.
+const COUNT_PER_SAMPLES: f64 = 0.1;
 /// BVH build per casting triangle, ns (0.45 µs at 4.1M triangles, 2
 /// threads).
 const BVH_NS: f64 = 450.0;
@@ -40,8 +44,12 @@ const BVH_NS: f64 = 450.0;
 /// user asked for, ms: smaller differences are within the estimate's
 /// error, and below it every scene keeps the algorithm it names.
 const MIN_SAVING_MS: f64 = 50.0;
-/// One shadow ray on average over a frame's receivers, ns (0.09–0.11 µs
-/// on the series at 512², 64 samples, 2 threads).
+/// One shadow ray on average over a frame's receivers at the
+/// calibration's 64 samples, ns (0.09–0.11 µs on the series at 512², 2
+/// threads). More samples per receiver make each ray cheaper (the
+/// receiver's segments share their cull): the reference's trace per ray
+/// at 256 samples is about 0.7× its cost at 64, so rays scale as
+/// `(64 / N)^¼`.
 const RAY_NS: f64 = 100.0;
 
 /// Per light: count edges, or trace every receiver's rays.
@@ -95,9 +103,10 @@ pub fn plan_light(eligible: bool, casters: usize, receivers: usize, samples: u32
         };
     }
     let (t, r, n) = (casters as f64, receivers as f64, f64::from(samples));
-    let per_sample = 0.5 + 0.5 * n / CALIBRATION_SAMPLES;
-    let count_ms = t * (SETUP_NS + COUNT_NS * r / CALIBRATION_RECEIVERS * per_sample) * 1e-6;
-    let rays_ms = (t * BVH_NS + r * n * RAY_NS) * 1e-6;
+    let per_samples = (1.0 - COUNT_PER_SAMPLES) + COUNT_PER_SAMPLES * n / CALIBRATION_SAMPLES;
+    let count_ms = t * (SETUP_NS + COUNT_NS * r / CALIBRATION_RECEIVERS * per_samples) * 1e-6;
+    let per_ray = RAY_NS * (CALIBRATION_SAMPLES / n).powf(0.25);
+    let rays_ms = (t * BVH_NS + r * n * per_ray) * 1e-6;
     if count_ms - rays_ms > MIN_SAVING_MS {
         LightPlan::AllRays { count_ms, rays_ms }
     } else {
@@ -128,6 +137,10 @@ mod tests {
                 rays_ms: 0.0
             }
         );
+        // 256 samples: 1.0M counts (measured: counting 2.5 s, rays 2.8 s),
+        // 4.1M traces (counting 9.9 s, rays 7.6 s).
+        assert!(counted(plan_light(true, 1_023_842, receivers, 256)));
+        assert!(!counted(plan_light(true, 4_121_282, receivers, 256)));
         // Many samples make every receiver's rays dearer than counting.
         assert!(counted(plan_light(true, 1_023_842, receivers, 4096)));
         // Small savings keep the counting: the 69k-triangle bunny at 40².
