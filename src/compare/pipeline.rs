@@ -478,14 +478,7 @@ pub(crate) struct PlannedRun {
 /// before a sweep, the progress estimate and the shards' plan all come
 /// from it.
 pub(crate) fn scene_runs(scene: &Scene, options: &CompareOptions) -> Result<Vec<PlannedRun>> {
-    let view = crate::render::view_for(
-        scene,
-        &RenderOptions {
-            width: options.width,
-            height: options.height,
-            ..RenderOptions::default()
-        },
-    )?;
+    let view = options.view(scene)?;
     let base = RenderOptions {
         width: Some(view.width),
         height: Some(view.height),

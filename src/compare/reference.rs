@@ -287,14 +287,7 @@ pub(super) fn interior_of(scene: &Scene, options: &CompareOptions) -> Result<Vec
 
 /// The cache key of `scene`'s reference under `options`.
 pub(super) fn reference_key(scene: &Scene, options: &CompareOptions) -> Result<ReferenceKey> {
-    let view = crate::render::view_for(
-        scene,
-        &RenderOptions {
-            width: options.width,
-            height: options.height,
-            ..RenderOptions::default()
-        },
-    )?;
+    let view = options.view(scene)?;
     let mut h = StableHasher::default();
     cache::hash_scene(&mut h, scene);
     Ok(ReferenceKey {

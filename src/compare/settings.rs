@@ -92,6 +92,19 @@ impl Default for CompareOptions {
 }
 
 impl CompareOptions {
+    /// The view every run of `scene` renders: the scene's camera at the
+    /// comparison's size.
+    pub(crate) fn view(&self, scene: &crate::scene::Scene) -> Result<crate::view::View> {
+        crate::render::view_for(
+            scene,
+            &RenderOptions {
+                width: self.width,
+                height: self.height,
+                ..RenderOptions::default()
+            },
+        )
+    }
+
     /// Checks the options before any work starts: the one place of
     /// `compare`'s range checks (the command and the library call it).
     pub fn validate(&self) -> Result<()> {

@@ -182,18 +182,17 @@ impl<'a> SceneCasters<'a> {
 }
 
 impl DepthComplexitySampling {
-    /// Runs light `k`: its term, AOV channels and report, pass by pass
-    /// (`passes.rs`).
+    /// Runs light `k` under its `plan` ([`DepthComplexitySampling::plan`]):
+    /// its term, AOV channels and report, pass by pass (`passes.rs`).
     fn light(
         &self,
         ctx: &ShadowContext,
-        k: usize,
+        (k, plan): (usize, LightPlan),
         casters: &SceneCasters,
         passes: &mut Vec<PassTiming>,
         inspect: Option<(&CounterInspector, Option<&[usize]>)>,
     ) -> Result<(LightTerm, [Vec<f32>; 3], DcsLightReport)> {
         let light = &ctx.scene.lights[k];
-        let plan = self.plan(ctx, k, casters, inspect.is_some());
         if let LightPlan::AllRays { .. } = plan {
             return self.light_by_rays(ctx, k, plan, passes);
         }
@@ -300,9 +299,14 @@ impl DepthComplexitySampling {
             && casters.s_triangles.is_empty()
             && !matches!(self.pattern, SamplePattern::Interleaved { .. })
             && !inspected;
-        let receivers = (0..ctx.gbuffer.len())
-            .filter(|&i| ctx.gbuffer.is_surface(i))
-            .count();
+        // The receivers are counted only where rays are an option.
+        let receivers = if eligible {
+            (0..ctx.gbuffer.len())
+                .filter(|&i| ctx.gbuffer.is_surface(i))
+                .count()
+        } else {
+            0
+        };
         plan::plan_light(
             eligible,
             ctx.geometry.triangles.len(),
@@ -384,8 +388,10 @@ impl DepthComplexitySampling {
         let n = u64::from(self.samples);
         let padded = n.div_ceil(counters::LANES as u64) * counters::LANES as u64;
         let casters = SceneCasters::new(ctx);
-        let counted = (0..ctx.scene.lights.len())
-            .any(|k| matches!(self.plan(ctx, k, &casters, false), LightPlan::Count { .. }));
+        let plans: Vec<LightPlan> = (0..ctx.scene.lights.len())
+            .map(|k| self.plan(ctx, k, &casters, false))
+            .collect();
+        let counted = plans.iter().any(|p| matches!(p, LightPlan::Count { .. }));
         if !counted {
             // Every light traced by rays (the cost choice): none of the
             // counting path's buffers exists.
@@ -492,8 +498,9 @@ impl DepthComplexitySampling {
                 bytes: 0,
             });
         }
-        for k in 0..ctx.scene.lights.len() {
-            let (term, aovs, report) = self.light(ctx, k, &casters, &mut out.passes, None)?;
+        for (k, &plan) in plans.iter().enumerate() {
+            let (term, aovs, report) =
+                self.light(ctx, (k, plan), &casters, &mut out.passes, None)?;
             out.buffers.push(BufferNote {
                 name: format!("cost choice light {k}"),
                 detail: report
@@ -562,7 +569,13 @@ impl DepthComplexitySampling {
         let mut passes = Vec::new();
         let casters = SceneCasters::new(ctx);
         Ok(self
-            .light(ctx, k, &casters, &mut passes, Some((inspect, None)))?
+            .light(
+                ctx,
+                (k, self.plan(ctx, k, &casters, true)),
+                &casters,
+                &mut passes,
+                Some((inspect, None)),
+            )?
             .0)
     }
 }
@@ -600,9 +613,11 @@ impl SampleDecisions for DepthComplexitySampling {
         };
         let mut passes = Vec::new();
         let casters = SceneCasters::new(ctx);
+        // An inspector reads counters: the plan counts.
+        let plan = self.plan(ctx, light, &casters, true);
         self.light(
             ctx,
-            light,
+            (light, plan),
             &casters,
             &mut passes,
             Some((&visit, Some(pixels))),

@@ -82,7 +82,7 @@ impl<'a, 'c> RayPixels<'a, 'c> {
                 ..PixelResult::default()
             };
         }
-        self.tracer.visibility_with(
+        self.tracer.gsample_bundle(
             &g,
             &scratch.samples,
             self.rect,

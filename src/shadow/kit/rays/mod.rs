@@ -326,22 +326,6 @@ impl<'a> ShadowTracer<'a> {
         }
     }
 
-    /// [`ShadowTracer::sample_visibility`] with the caller's buffers, for
-    /// callers that trace many receivers: `V·T` per sample of `samples`
-    /// into `out` (cleared first), and the BVH traversals it took. `rect`
-    /// is the light's parallelogram `(center, u, v)` for a rect light's
-    /// samples (a faster cull, same bits), `None` otherwise.
-    pub fn visibility_with(
-        &self,
-        g: &GSample,
-        samples: &[LightSample],
-        rect: Option<(Vec3, Vec3, Vec3)>,
-        out: &mut Vec<f64>,
-        scratch: &mut Scratch,
-    ) -> u64 {
-        self.gsample_bundle(g, samples, rect, out, scratch)
-    }
-
     /// `V·T` from shading point `g` to each sample (into `out`, cleared
     /// first) and the traversals it took: the values of
     /// [`ShadowTracer::segment`] per sample, the opaque test done for all
@@ -351,8 +335,10 @@ impl<'a> ShadowTracer<'a> {
     ///
     /// `rect` is the light's parallelogram `(center, u, v)` when the
     /// samples come from a rect light: the segments' pyramid then culls
-    /// the tree first ([`Bvh::occluded_hull`], same bits).
-    fn gsample_bundle(
+    /// the tree first ([`Bvh::occluded_hull`], same bits). With the
+    /// caller's `scratch`, for callers that trace many receivers (DCS's
+    /// traced lights).
+    pub fn gsample_bundle(
         &self,
         g: &GSample,
         samples: &[LightSample],
