@@ -150,6 +150,18 @@ fn split_sizes<T>(mut s: &mut [T], sizes: impl Iterator<Item = usize>) -> Vec<&m
 const PIECES: usize = 64;
 
 impl EdgeAdjacency {
+    /// Bytes its arrays hold (lengths, not capacities).
+    pub fn memory_bytes(&self) -> u64 {
+        use std::mem::size_of;
+        (self.positions.len() * size_of::<Vec3>()
+            + self.faces.len() * 4
+            + self.face_vertices.len() * 12
+            + self.edges.len() * size_of::<Edge>()
+            + self.edge_offsets.len() * 4
+            + self.edge_uses.len() * size_of::<EdgeUse>()
+            + self.face_closed.len()) as u64
+    }
+
     /// The uses of edge `e`, in (face slot, edge of the face) order.
     #[inline]
     pub fn uses(&self, e: usize) -> &[EdgeUse] {
@@ -585,6 +597,96 @@ impl EdgeAdjacency {
     }
 }
 
+/// Per object (`0..objects`): is its surface closed, as
+/// [`EdgeAdjacency::face_closed`] says of its faces, and has it a face
+/// welding does not collapse? The same answer as the adjacency over all
+/// triangles (welded per object at the same cells, collapsed faces
+/// dropped, every edge's directions summing to zero), computed without
+/// it: per object, its vertices' welding cells sorted into classes and
+/// its edges, packed into one word each, sorted and summed. Every render
+/// needs closedness (the G-buffer's back faces, enclosed lights); the
+/// adjacency itself only techniques that walk edges, so it is built
+/// when first asked for ([`SceneGeometry::adjacency`]). The transient
+/// memory is one object's: 8 bytes per edge use and 32 per vertex.
+pub fn closed_objects(geometry: &SceneGeometry, objects: usize) -> Vec<bool> {
+    // Each object's triangles as runs of `triangle_object` (one run per
+    // object for concatenated meshes; any order is accepted).
+    let mut runs: Vec<Vec<std::ops::Range<usize>>> = vec![Vec::new(); objects];
+    let mut start = 0;
+    for run in geometry.triangle_object.chunk_by(|a, b| a == b) {
+        if let Some(r) = runs.get_mut(run[0] as usize) {
+            r.push(start..start + run.len());
+        }
+        start += run.len();
+    }
+    let cell = weld_cell(&geometry.positions);
+    runs.into_par_iter()
+        .map(|ranges| surface_closed(geometry, &ranges, cell))
+        .collect()
+}
+
+/// Whether the triangles in `ranges` (one object's) form a closed surface
+/// with at least one face, welded at `cell` ([`closed_objects`]).
+fn surface_closed(geometry: &SceneGeometry, ranges: &[std::ops::Range<usize>], cell: f32) -> bool {
+    let tris = || ranges.iter().flat_map(|r| &geometry.triangles[r.clone()]);
+    let Some((lo, hi)) = tris().flatten().fold(None, |acc: Option<(u32, u32)>, &v| {
+        Some(acc.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
+    }) else {
+        return false;
+    };
+    // The used vertices (ids `lo..=hi`, contiguous for one object's mesh)
+    // sorted by welding cell; a run of equal cells is one class.
+    let span = (hi - lo) as usize + 1;
+    let mut class = vec![u32::MAX; span];
+    for &v in tris().flatten() {
+        class[(v - lo) as usize] = 0;
+    }
+    let mut cells: Vec<([i64; 3], u32)> = (0..span as u32)
+        .filter(|&i| class[i as usize] == 0)
+        .map(|i| (cell_of(geometry.positions[(lo + i) as usize], cell), i))
+        .collect();
+    cells.par_sort_unstable();
+    let mut classes = 0u64;
+    for run in cells.chunk_by(|a, b| a.0 == b.0) {
+        for &(_, i) in run {
+            class[i as usize] = classes as u32;
+        }
+        classes += 1;
+    }
+    drop(cells);
+    if classes > 1 << 31 {
+        // Too many for the packed edges below (never for a mesh that
+        // fits in memory): the adjacency answers instead.
+        let adj = EdgeAdjacency::build_hashed(geometry, |f| {
+            ranges.iter().any(|r| r.contains(&(f as usize)))
+        });
+        return !adj.faces.is_empty() && adj.face_closed.iter().all(|&c| c);
+    }
+    // Each use of an edge as `lo << 32 | hi << 1 | reversed`, sorted: an
+    // edge is a run of equal `lo, hi`, balanced when as many uses are
+    // reversed as not. Faces collapsed by welding have no edges.
+    let mut uses: Vec<u64> = Vec::new();
+    for t in tris() {
+        let c = t.map(|v| class[(v - lo) as usize]);
+        if c[0] == c[1] || c[1] == c[2] || c[0] == c[2] {
+            continue;
+        }
+        for k in 0..3 {
+            let (a, b, d) = face_edge(c, k);
+            uses.push((a as u64) << 32 | (b as u64) << 1 | (d < 0) as u64);
+        }
+    }
+    drop(class);
+    if uses.is_empty() {
+        return false;
+    }
+    uses.par_sort_unstable();
+    uses.chunk_by(|x, y| x >> 1 == y >> 1).all(|run| {
+        let reversed = run.iter().filter(|&&x| x & 1 == 1).count();
+        2 * reversed == run.len()
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -634,6 +736,59 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn closedness_is_the_adjacency_s() {
+        for seed in 0..300 {
+            for shared in [false, true] {
+                let g = geometry(seed, shared);
+                let adj = EdgeAdjacency::build(&g, |_| true);
+                let mut closed = [true; 4];
+                let mut faces = [false; 4];
+                for (slot, &f) in adj.faces.iter().enumerate() {
+                    let o = g.triangle_object[f as usize] as usize;
+                    faces[o] = true;
+                    closed[o] &= adj.face_closed[slot];
+                }
+                let expected: Vec<bool> = (0..4).map(|o| closed[o] && faces[o]).collect();
+                assert_eq!(
+                    closed_objects(&g, 4),
+                    expected,
+                    "seed {seed} shared {shared}"
+                );
+            }
+        }
+        // The random objects are mostly open; a closed one must be seen.
+        let mut g = SceneGeometry::default();
+        let corners = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        g.positions = corners.iter().map(|&c| Vec3::from_array(c)).collect();
+        g.triangles = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        g.triangle_object = vec![0; 4].into();
+        assert_eq!(closed_objects(&g, 1), vec![true]);
+        // Each face with its own copies of the corners: welded, closed.
+        let mut welded = SceneGeometry::default();
+        welded.positions = g
+            .triangles
+            .iter()
+            .flatten()
+            .map(|&i| g.positions[i as usize])
+            .collect();
+        welded.triangles = (0..4u32).map(|f| [3 * f, 3 * f + 1, 3 * f + 2]).collect();
+        welded.triangle_object = vec![0; 4].into();
+        assert_eq!(closed_objects(&welded, 1), vec![true]);
+        // One face flipped: its edges run the same way as their neighbours'.
+        let mut flipped = g.clone();
+        flipped.triangles[3] = [1, 3, 2];
+        assert_eq!(closed_objects(&flipped, 1), vec![false]);
+        g.triangles.pop();
+        g.triangle_object = vec![0; 3].into();
+        assert_eq!(closed_objects(&g, 1), vec![false]);
     }
 
     #[test]

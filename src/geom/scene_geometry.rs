@@ -4,7 +4,7 @@
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Every object's mesh concatenated, with a map back to objects.
 #[derive(Debug, Clone, Default)]
@@ -27,8 +27,10 @@ pub struct SceneGeometry {
     /// often in one direction as in the other)? A closed surface hides
     /// its back faces from any eye outside it.
     pub object_closed: Vec<bool>,
-    /// Welded edge adjacency of all triangles, built once per scene.
-    pub adjacency: super::EdgeAdjacency,
+    /// Welded edge adjacency of all triangles, built on first use
+    /// ([`Self::adjacency`]): only edge-walking techniques need it, and at
+    /// millions of triangles it is the largest structure after the meshes.
+    adjacency: OnceLock<super::EdgeAdjacency>,
     /// Per triangle, its unit geometric normal from the winding (the f64
     /// frame normal normalised, then rounded to f32; [`Self::frame`]); zero
     /// for a sliver.
@@ -117,20 +119,7 @@ impl SceneGeometry {
         }
         g.triangle_material = triangle_material.into();
         g.triangle_object = triangle_object.into();
-        let adjacency = super::EdgeAdjacency::build(&g, |_| true);
-        let mut closed = vec![true; scene.objects.len()];
-        let mut has_faces = vec![false; scene.objects.len()];
-        for (slot, &f) in adjacency.faces.iter().enumerate() {
-            let o = g.triangle_object[f as usize] as usize;
-            has_faces[o] = true;
-            closed[o] &= adjacency.face_closed[slot];
-        }
-        g.object_closed = closed
-            .iter()
-            .zip(&has_faces)
-            .map(|(c, h)| *c && *h)
-            .collect();
-        g.adjacency = adjacency;
+        g.object_closed = super::adjacency::closed_objects(&g, scene.objects.len());
         let unit_normals: Vec<Vec3> = g
             .triangles
             .par_iter()
@@ -143,6 +132,19 @@ impl SceneGeometry {
             .collect();
         g.unit_normals = unit_normals.into();
         g
+    }
+
+    /// The welded edge adjacency of all triangles, built on the first call
+    /// (the same for any caller and thread count).
+    pub fn adjacency(&self) -> &super::EdgeAdjacency {
+        self.adjacency
+            .get_or_init(|| super::EdgeAdjacency::build(self, |_| true))
+    }
+
+    /// Whether [`Self::adjacency`] has been built (`--explain` reports
+    /// it left out when no technique asked for it).
+    pub fn adjacency_built(&self) -> bool {
+        self.adjacency.get().is_some()
     }
 
     /// Triangle `triangle`'s plane and barycentric frame in f64, from its

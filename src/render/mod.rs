@@ -423,6 +423,19 @@ pub fn render_rows(
         },
     ];
     buffers.extend(shadows.buffers);
+    buffers.push(match geometry.adjacency_built() {
+        true => BufferNote {
+            name: "edge adjacency".into(),
+            detail: "welded vertices, edges and their face uses (u32 ids), for silhouettes".into(),
+            bytes: geometry.adjacency().memory_bytes(),
+        },
+        false => BufferNote {
+            name: "edge adjacency".into(),
+            detail: "not built: no pass walked edges (closedness came from a sort per object)"
+                .into(),
+            bytes: 0,
+        },
+    });
     let warnings: Vec<Warning> = (crate::scene::lint::warnings(scene).into_iter())
         .map(Warning::Scene)
         .chain(shadows.warnings)

@@ -875,46 +875,82 @@ fn place(
             format!("{what}: transformed geometry is not finite (values too large)"),
         )
     };
-    for p in &mut mesh.positions {
-        *p = t.linear * *p + t.translate;
+    // In parallel chunks (a scanned or finely tessellated object has
+    // millions of vertices); every error is the one a serial walk meets
+    // first, so the message does not depend on the thread count.
+    use rayon::prelude::*;
+    const CHUNK: usize = 8192;
+    mesh.positions.par_chunks_mut(CHUNK).for_each(|chunk| {
+        for p in chunk {
+            *p = t.linear * *p + t.translate;
+        }
+    });
+    let out_of_range =
+        |p: &Vec3| !p.is_finite() || f64::from(p.abs().max_element()) > MAX_MAGNITUDE;
+    if let Some(i) = mesh
+        .positions
+        .par_iter()
+        .with_min_len(CHUNK)
+        .position_first(out_of_range)
+    {
+        let p = mesh.positions[i];
         if !p.is_finite() {
             return Err(too_big());
         }
-        if f64::from(p.abs().max_element()) > MAX_MAGNITUDE {
-            return Err(ctx.err(
-                span.clone(),
-                format!(
-                    "{what}: a vertex lands at {:?} after the transform, beyond the \
-                     supported range of coordinates, ±{MAX_MAGNITUDE:e}",
-                    p.to_array()
-                ),
-            ));
-        }
+        return Err(ctx.err(
+            span.clone(),
+            format!(
+                "{what}: a vertex lands at {:?} after the transform, beyond the \
+                 supported range of coordinates, ±{MAX_MAGNITUDE:e}",
+                p.to_array()
+            ),
+        ));
     }
-    for n in mesh.normals.iter_mut().flatten() {
-        *n = (t.normal * *n).normalize();
-        if !n.is_finite() {
+    if let Some(normals) = mesh.normals.as_mut() {
+        normals.par_chunks_mut(CHUNK).for_each(|chunk| {
+            for n in chunk {
+                *n = (t.normal * *n).normalize();
+            }
+        });
+        if normals
+            .par_iter()
+            .with_min_len(CHUNK)
+            .any(|n| !n.is_finite())
+        {
             return Err(too_big());
         }
     }
     if t.mirror {
         // Keep counter-clockwise = outside, consistent with the normals.
-        mesh.triangles.iter_mut().for_each(|tri| tri.swap(1, 2));
+        mesh.triangles
+            .par_iter_mut()
+            .with_min_len(CHUNK)
+            .for_each(|tri| tri.swap(1, 2));
     }
     let before = mesh.triangles.len();
-    let mut keep = Vec::with_capacity(before);
-    for (tri, &material) in mesh.triangles.iter().zip(&mesh.material_ids) {
-        let corner = |i: u32| mesh.positions.get(i as usize).copied().ok_or_else(too_big);
-        let [a, b, c] = [corner(tri[0])?, corner(tri[1])?, corner(tri[2])?];
-        let n = (b - a).cross(c - a);
-        if !n.is_finite() {
-            return Err(too_big());
-        }
-        if n != Vec3::ZERO {
-            keep.push((*tri, material));
-        }
+    // Per triangle: `None` for a corner out of range or a non-finite
+    // normal (an error), else whether it has area.
+    let positions = &mesh.positions;
+    let area = |tri: &[u32; 3]| -> Option<bool> {
+        let [a, b, c] = [0, 1, 2].map(|k| positions.get(tri[k] as usize).copied());
+        let n = (b? - a?).cross(c? - a?);
+        n.is_finite().then_some(n != Vec3::ZERO)
+    };
+    let flags: Vec<Option<bool>> = mesh
+        .triangles
+        .par_iter()
+        .with_min_len(CHUNK)
+        .map(area)
+        .collect();
+    if flags.iter().any(Option::is_none) {
+        return Err(too_big());
     }
-    (mesh.triangles, mesh.material_ids) = keep.into_iter().unzip();
+    if flags.contains(&Some(false)) {
+        let mut keep = flags.iter().map(|f| *f == Some(true));
+        mesh.triangles.retain(|_| keep.next().unwrap_or(false));
+        let mut keep = flags.iter().map(|f| *f == Some(true));
+        mesh.material_ids.retain(|_| keep.next().unwrap_or(false));
+    }
     Ok(before - mesh.triangles.len())
 }
 

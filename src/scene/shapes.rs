@@ -6,6 +6,7 @@
 
 use crate::geom::Mesh;
 use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// A UV sphere of radius `r` with its pole axis on +Y.
@@ -22,33 +23,40 @@ use std::f64::consts::PI;
 pub fn sphere(r: f32, segments: u32, rings: u32, material: u32) -> Mesh {
     let cols = segments + 1;
     let mut mesh = Mesh::default();
-    let (mut normals, mut uvs) = (Vec::new(), Vec::new());
-    for k in 0..=rings {
-        let theta = PI * f64::from(k) / f64::from(rings);
-        // The poles are exact: sin(pi) in floating point is not 0.
-        let (sin_t, cos_t) = match k {
-            0 => (0.0, 1.0),
-            _ if k == rings => (0.0, -1.0),
-            _ => theta.sin_cos(),
-        };
-        for m in 0..cols {
-            let phi = 2.0 * PI * f64::from(m) / f64::from(segments);
-            // The seam column (phi = 2 pi) repeats column 0 exactly, so the
-            // mesh has no crack there (sin(2 pi) in floating point is not 0).
-            let (sin_p, cos_p) = if m == segments {
-                (0.0, 1.0)
-            } else {
-                phi.sin_cos()
+    let n = (rings as usize + 1) * cols as usize;
+    let (mut normals, mut uvs) = (vec![Vec3::ZERO; n], vec![Vec2::ZERO; n]);
+    mesh.positions = vec![Vec3::ZERO; n];
+    // Ring by ring in parallel (millions of vertices at fine
+    // tessellations); each vertex is a function of (k, m) alone.
+    let rows = (mesh.positions.par_chunks_mut(cols as usize))
+        .zip(normals.par_chunks_mut(cols as usize))
+        .zip(uvs.par_chunks_mut(cols as usize));
+    rows.enumerate()
+        .for_each(|(k, ((positions, normals), uvs))| {
+            let k = k as u32;
+            let theta = PI * f64::from(k) / f64::from(rings);
+            // The poles are exact: sin(pi) in floating point is not 0.
+            let (sin_t, cos_t) = match k {
+                0 => (0.0, 1.0),
+                _ if k == rings => (0.0, -1.0),
+                _ => theta.sin_cos(),
             };
-            let dir = DVec3::new(sin_t * cos_p, cos_t, -sin_t * sin_p);
-            mesh.positions.push((f64::from(r) * dir).as_vec3());
-            normals.push(dir.normalize().as_vec3());
-            uvs.push(Vec2::new(
-                (phi / (2.0 * PI)) as f32,
-                (1.0 - theta / PI) as f32,
-            ));
-        }
-    }
+            for m in 0..cols {
+                let phi = 2.0 * PI * f64::from(m) / f64::from(segments);
+                // The seam column (phi = 2 pi) repeats column 0 exactly, so the
+                // mesh has no crack there (sin(2 pi) in floating point is not 0).
+                let (sin_p, cos_p) = if m == segments {
+                    (0.0, 1.0)
+                } else {
+                    phi.sin_cos()
+                };
+                let dir = DVec3::new(sin_t * cos_p, cos_t, -sin_t * sin_p);
+                let i = m as usize;
+                positions[i] = (f64::from(r) * dir).as_vec3();
+                normals[i] = dir.normalize().as_vec3();
+                uvs[i] = Vec2::new((phi / (2.0 * PI)) as f32, (1.0 - theta / PI) as f32);
+            }
+        });
     let v = |k: u32, m: u32| k * cols + m;
     for k in 0..rings {
         for m in 0..segments {

@@ -63,7 +63,7 @@ fn exactness(scene: &Scene, w: u32, h: u32, n: u32, closed: bool) -> Exactness {
             .push((i, px.samples.to_vec(), px.counters.to_vec()));
     })
     .expect("dcs runs");
-    let adj = &frame.geometry.adjacency;
+    let adj = frame.geometry.adjacency();
     let edges: Vec<(DVec3, DVec3)> = adj
         .edges
         .iter()

@@ -25,6 +25,7 @@ mod fuzz;
 mod golden;
 mod import;
 mod inputs;
+mod large_series;
 mod library;
 mod light_reached;
 mod light_view;

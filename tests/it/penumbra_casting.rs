@@ -699,7 +699,7 @@ fn boundary_loops_close_open_casters() {
         let obj = open_cube_obj(missing);
         let scene = common::scene_in_scratch("pc-loops", toml, &[("cube.obj", obj.as_bytes())]);
         let g = penumbra::internal::geom::SceneGeometry::new(&scene);
-        let adj = &g.adjacency;
+        let adj = g.adjacency();
         let found = adj.boundary_loops(&g, 0);
         assert_eq!(found.len(), loops, "{missing:?}: {found:?}");
         let mut sum: HashMap<(u32, u32), i32> = HashMap::new();

@@ -25,6 +25,7 @@
 use crate::geom::SceneGeometry;
 use crate::scene::{LightShape, Scene};
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// A light inside or touching a closed caster.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -64,20 +65,56 @@ fn solid_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     2.0 * num.atan2(den)
 }
 
-/// The winding number of object `o` around `p`, times 4π.
-fn winding(geometry: &SceneGeometry, o: usize, p: DVec3) -> f64 {
+/// Object `o`'s triangles.
+fn object_triangles(geometry: &SceneGeometry, o: usize) -> &[[u32; 3]] {
     let first = geometry.object_first_triangle[o] as usize;
     let end = geometry
         .object_first_triangle
         .get(o + 1)
         .map_or(geometry.triangles.len(), |&e| e as usize);
-    geometry.triangles[first..end]
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| geometry.positions[i as usize].as_dvec3() - p);
-            solid_angle(a, b, c)
+    &geometry.triangles[first..end]
+}
+
+/// The winding number of object `o` around `p`, times 4π: 0 without a
+/// sum when `p` is outside the box `bounds` of its vertices (a closed
+/// surface winds zero times around any point outside its convex hull).
+/// The sum runs in parallel over fixed chunks added in order, so it is
+/// the same for any thread count.
+fn winding(geometry: &SceneGeometry, o: usize, bounds: (DVec3, DVec3), p: DVec3) -> f64 {
+    if p.cmplt(bounds.0).any() || p.cmpgt(bounds.1).any() {
+        return 0.0;
+    }
+    let partial: Vec<f64> = object_triangles(geometry, o)
+        .par_chunks(4096)
+        .map(|chunk| {
+            chunk
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|i| geometry.positions[i as usize].as_dvec3() - p);
+                    solid_angle(a, b, c)
+                })
+                .sum::<f64>()
         })
-        .sum()
+        .collect();
+    partial.iter().sum()
+}
+
+/// The box of object `o`'s vertices (those its triangles use).
+fn object_bounds(geometry: &SceneGeometry, o: usize) -> (DVec3, DVec3) {
+    object_triangles(geometry, o)
+        .par_chunks(4096)
+        .map(|chunk| {
+            let mut b = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for &i in chunk.iter().flatten() {
+                let p = geometry.positions[i as usize].as_dvec3();
+                b = (b.0.min(p), b.1.max(p));
+            }
+            b
+        })
+        .reduce(
+            || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |a, b| (a.0.min(b.0), a.1.max(b.1)),
+        )
 }
 
 /// The first closed caster object (in scene order) each light is inside
@@ -86,15 +123,19 @@ pub fn enclosed_lights(scene: &Scene, geometry: &SceneGeometry, eye: DVec3) -> V
     use std::f64::consts::PI;
     let mut found = Vec::new();
     let objects = scene.objects.len();
+    // Bounds of the closed casters only, computed on first need.
+    let mut bounds: Vec<Option<(DVec3, DVec3)>> = vec![None; objects];
     for (k, light) in scene.lights.iter().enumerate() {
         let points = test_points(&light.shape);
         let enclosing = (0..objects).find(|&o| {
-            scene.objects[o].cast_shadows
-                && geometry.object_closed[o]
-                && points
-                    .iter()
-                    .any(|&p| winding(geometry, o, p).abs() > 0.5 * PI)
-                && winding(geometry, o, eye).abs() <= 3.0 * PI
+            if !(scene.objects[o].cast_shadows && geometry.object_closed[o]) {
+                return false;
+            }
+            let b = *bounds[o].get_or_insert_with(|| object_bounds(geometry, o));
+            points
+                .iter()
+                .any(|&p| winding(geometry, o, b, p).abs() > 0.5 * PI)
+                && winding(geometry, o, b, eye).abs() <= 3.0 * PI
         });
         if let Some(o) = enclosing {
             found.push(EnclosedLight {
@@ -131,7 +172,7 @@ pub struct ReachedLight {
 pub fn reached_lights(scene: &Scene, geometry: &SceneGeometry) -> Vec<ReachedLight> {
     let mut found = Vec::new();
     for (k, light) in scene.lights.iter().enumerate() {
-        let reaches: Box<dyn Fn([DVec3; 3]) -> bool> = match light.shape {
+        let reaches: Box<dyn Fn([DVec3; 3]) -> bool + Sync> = match light.shape {
             LightShape::Rect { center, u, v, .. } => {
                 let (c, u, v) = (center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
                 Box::new(move |t| triangle_crosses_rect(t, c, u, v))
@@ -141,11 +182,16 @@ pub fn reached_lights(scene: &Scene, geometry: &SceneGeometry) -> Vec<ReachedLig
                 Box::new(move |t| closest_point_on_triangle(c, t).distance(c) < r)
             }
         };
-        let hit = geometry.triangles.iter().enumerate().find(|&(t, tri)| {
-            let o = geometry.triangle_object[t] as usize;
-            scene.objects.get(o).is_some_and(|o| o.cast_shadows)
-                && reaches(tri.map(|i| geometry.positions[i as usize].as_dvec3()))
-        });
+        // The first in triangle order, whatever the thread count.
+        let hit = geometry
+            .triangles
+            .par_iter()
+            .enumerate()
+            .find_first(|&(t, tri)| {
+                let o = geometry.triangle_object[t] as usize;
+                scene.objects.get(o).is_some_and(|o| o.cast_shadows)
+                    && reaches(tri.map(|i| geometry.positions[i as usize].as_dvec3()))
+            });
         if let Some((t, _)) = hit {
             found.push(ReachedLight {
                 light: k,

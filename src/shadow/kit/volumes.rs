@@ -51,7 +51,7 @@ pub fn caster_adjacency<'a>(
         object.cast_shadows && material.is_opaque()
     };
     if (0..geometry.triangles.len() as u32).all(casts) {
-        Cow::Borrowed(&geometry.adjacency)
+        Cow::Borrowed(geometry.adjacency())
     } else {
         Cow::Owned(EdgeAdjacency::build(geometry, casts))
     }

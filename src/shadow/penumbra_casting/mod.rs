@@ -1000,9 +1000,9 @@ fn open_casters(
     let mut cap_tris = Vec::new();
     let mut boxes = Vec::new();
     for (object, &backs) in open_backs.iter().enumerate().filter(|(_, &b)| b > 0) {
-        let at = |v: u32| geometry.adjacency.positions[v as usize].as_dvec3() - centre;
+        let at = |v: u32| geometry.adjacency().positions[v as usize].as_dvec3() - centre;
         let mut caps = Vec::new();
-        for boundary in geometry.adjacency.boundary_loops(geometry, object as u32) {
+        for boundary in geometry.adjacency().boundary_loops(geometry, object as u32) {
             for i in 1..boundary.len().saturating_sub(1) {
                 let tri = [at(boundary[0]), at(boundary[i + 1]), at(boundary[i])];
                 // A cap with no area is crossed by no segment.
