@@ -9,7 +9,7 @@ count, in interleaved rounds, and prints the medians and the ratios
 
 What is timed, on both sides, is the shadow work alone:
 - Embree: `build_s + trace_s` from its JSON line (BVH build and tracing).
-- penumbra: the sum of its `--timings` lines except `geometry`, `gbuffer`
+- penumbra: the sum of its `--timings` lines except `load`, `geometry`, `gbuffer`
   and `shading` (scene loading, the camera pass and shading are not shadow
   work and the peer has none of them); so every technique's own build
   (BVH, wedges, hierarchies, maps) is counted.
@@ -41,7 +41,7 @@ import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-NOT_SHADOW = {"geometry", "gbuffer", "shading"}
+NOT_SHADOW = {"load", "geometry", "gbuffer", "shading"}
 TIMING = re.compile(r"^\s*([0-9.]+) ms\s+(.*)$")
 
 

@@ -97,7 +97,7 @@ def run_pc(exe, scene, w, h, n, threads, tmp, extra):
         q = NOTE.match(line)
         if q:
             mem[q.group(3)] = float(q.group(1)) * UNIT[q.group(2)]
-    shadow = sum(v for k, v in timings(text).items() if k.split(" ")[0] not in ("geometry", "gbuffer", "shading"))
+    shadow = sum(v for k, v in timings(text).items() if k.split(" ")[0] not in ("load", "geometry", "gbuffer", "shading"))
     return {"sort": sort, "build": build, "cast": cast, "shadow": shadow,
             "hier_mib": mem.get("receiver hierarchy", float("nan")),
             "mask_mib": mem.get("bit masks", float("nan"))}

@@ -19,7 +19,7 @@ For each scene × size × sample count, in interleaved rounds, it runs every
 technique (`penumbra render --timings`) and the embree-rays peer (stream
 mode) on penumbra's own G-buffer, each as its own process, and records the
 shadow-work time (scripts/embree-peer.py's definition: penumbra's passes
-except geometry, G-buffer and shading; Embree's BVH build + trace), every
+except load, geometry, G-buffer and shading; Embree's BVH build + trace), every
 pass's time, the wall time, the CPU time and the peak resident memory of
 the process (wait4). A run longer than --timeout is killed and recorded as
 "timed out" (and that technique is then skipped at more triangles, more
@@ -559,7 +559,7 @@ def main():
             "settings": {"sizes": args.sizes, "samples": args.samples, "techniques": args.techniques,
                          "threads": args.threads, "rounds": args.rounds, "timeout_s": args.timeout,
                          "mem_limit_gib": round(args.mem_limit_bytes / 2**30, 2), "quick": args.quick,
-                         "shadow_work": "penumbra: --timings passes except geometry, gbuffer, shading; "
+                         "shadow_work": "penumbra: --timings passes except load, geometry, gbuffer, shading; "
                                         "Embree: build_s + trace_s (stream mode)"},
             "scenes": [], "checks": [], "records": []}
     m = data["machine"]

@@ -102,7 +102,7 @@ TOML
       # Shadow passes: the technique's own lines of --timings.
       # Shadow passes: every --timings line but geometry, G-buffer and
       # shading (those are the base frame).
-      t=$(awk '$2 == "ms" { if ($3 ~ /^(geometry|gbuffer|shading)$/) o += $1; else s += $1 } END { printf "%.1f %.1f", s, o }' <<<"$out")
+      t=$(awk '$2 == "ms" { if ($3 ~ /^(load|geometry|gbuffer|shading)$/) o += $1; else s += $1 } END { printf "%.1f %.1f", s, o }' <<<"$out")
       times+=("${t% *}"); bases+=("${t#* }")
     done
     med=$(printf '%s\n' "${times[@]}" | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')

@@ -416,7 +416,14 @@ fn run_import(model: &Path, output: &Path) -> Result<Outcome> {
 fn run_render(args: RenderArgs, given: &[(String, String)]) -> Result<Outcome> {
     let plan = RenderPlan::check(args)?;
     let (threads, options) = (plan.threads, &plan.options);
+    let loading = std::time::Instant::now();
     let scene = load_scene(&plan.scene)?;
+    // Reading the scene (files, tessellation, placing) is part of the
+    // geometry preparation users wait for; `--timings` shows it first.
+    if plan.timings || plan.explain {
+        let ms = loading.elapsed().as_secs_f64() * 1e3;
+        write_stderr(&format!("{ms:>12.3} ms  load\n"));
+    }
     warn_unread_options(options, &scene, given);
     if options.progressive.is_some() {
         return run_progressive(&plan, &scene);

@@ -602,12 +602,14 @@ impl EdgeAdjacency {
 /// welding does not collapse? The same answer as the adjacency over all
 /// triangles (welded per object at the same cells, collapsed faces
 /// dropped, every edge's directions summing to zero), computed without
-/// it: per object, its vertices' welding cells sorted into classes and
-/// its edges, packed into one word each, sorted and summed. Every render
-/// needs closedness (the G-buffer's back faces, enclosed lights); the
-/// adjacency itself only techniques that walk edges, so it is built
-/// when first asked for ([`SceneGeometry::adjacency`]). The transient
-/// memory is one object's: 8 bytes per edge use and 32 per vertex.
+/// it: per object, its vertices sorted by a hash of their welding cell
+/// into classes, and its edge uses counting-sorted on their lower class
+/// (as [`EdgeAdjacency::build`] does), each list then checked for
+/// balanced directions. Every render needs closedness (the G-buffer's
+/// back faces, enclosed lights); the adjacency itself only techniques
+/// that walk edges, so it is built when first asked for
+/// ([`SceneGeometry::adjacency`]). The transient memory is one object's:
+/// 4 bytes per edge use, 16 per vertex.
 pub fn closed_objects(geometry: &SceneGeometry, objects: usize) -> Vec<bool> {
     // Each object's triangles as runs of `triangle_object` (one run per
     // object for concatenated meshes; any order is accepted).
@@ -635,55 +637,89 @@ fn surface_closed(geometry: &SceneGeometry, ranges: &[std::ops::Range<usize>], c
         return false;
     };
     // The used vertices (ids `lo..=hi`, contiguous for one object's mesh)
-    // sorted by welding cell; a run of equal cells is one class.
+    // sorted by a hash of their welding cell, a run of equal hashes
+    // holding several cells (a collision) by the cells themselves: a run
+    // of equal cells is one class.
     let span = (hi - lo) as usize + 1;
     let mut class = vec![u32::MAX; span];
     for &v in tris().flatten() {
         class[(v - lo) as usize] = 0;
     }
-    let mut cells: Vec<([i64; 3], u32)> = (0..span as u32)
+    let cell_of_local = |i: u32| cell_of(geometry.positions[(lo + i) as usize], cell);
+    let mut keys: Vec<(u64, u32)> = (0..span as u32)
         .filter(|&i| class[i as usize] == 0)
-        .map(|i| (cell_of(geometry.positions[(lo + i) as usize], cell), i))
+        .map(|i| (key_hash((0, cell_of_local(i))), i))
         .collect();
-    cells.par_sort_unstable();
-    let mut classes = 0u64;
-    for run in cells.chunk_by(|a, b| a.0 == b.0) {
-        for &(_, i) in run {
-            class[i as usize] = classes as u32;
+    keys.par_sort_unstable();
+    let mut classes = 0u32;
+    for run in keys.chunk_by_mut(|a, b| a.0 == b.0) {
+        if run.len() > 1 {
+            run.sort_unstable_by_key(|x| cell_of_local(x.1));
+        }
+        for (j, x) in run.iter().enumerate() {
+            if j > 0 && cell_of_local(x.1) != cell_of_local(run[j - 1].1) {
+                classes += 1;
+            }
+            class[x.1 as usize] = classes;
         }
         classes += 1;
     }
-    drop(cells);
-    if classes > 1 << 31 {
-        // Too many for the packed edges below (never for a mesh that
-        // fits in memory): the adjacency answers instead.
+    drop(keys);
+    let corners = |t: &[u32; 3]| t.map(|v| class[(v - lo) as usize]);
+    let collapsed = |c: [u32; 3]| c[0] == c[1] || c[1] == c[2] || c[0] == c[2];
+    // The edge uses by a counting sort on their lower class, each entry
+    // `hi << 1 | reversed`; an edge is a run of equal `hi` in its lower
+    // class's list, balanced when as many uses are reversed as not.
+    // Faces collapsed by welding have no edges.
+    let n = classes as usize;
+    let mut start = vec![0u32; n + 1];
+    let mut faces = 0usize;
+    for t in tris() {
+        let c = corners(t);
+        if collapsed(c) {
+            continue;
+        }
+        faces += 1;
+        for k in 0..3 {
+            start[face_edge(c, k).0 as usize + 1] += 1;
+        }
+    }
+    if faces == 0 {
+        return false;
+    }
+    if classes >= 1 << 31 || 3 * faces >= u32::MAX as usize {
+        // Too many for the packed entries (never for a mesh that fits in
+        // memory): the adjacency answers instead.
         let adj = EdgeAdjacency::build_hashed(geometry, |f| {
             ranges.iter().any(|r| r.contains(&(f as usize)))
         });
         return !adj.faces.is_empty() && adj.face_closed.iter().all(|&c| c);
     }
-    // Each use of an edge as `lo << 32 | hi << 1 | reversed`, sorted: an
-    // edge is a run of equal `lo, hi`, balanced when as many uses are
-    // reversed as not. Faces collapsed by welding have no edges.
-    let mut uses: Vec<u64> = Vec::new();
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut cursor = start.clone();
+    let mut bucket = vec![0u32; 3 * faces];
     for t in tris() {
-        let c = t.map(|v| class[(v - lo) as usize]);
-        if c[0] == c[1] || c[1] == c[2] || c[0] == c[2] {
+        let c = corners(t);
+        if collapsed(c) {
             continue;
         }
         for k in 0..3 {
             let (a, b, d) = face_edge(c, k);
-            uses.push((a as u64) << 32 | (b as u64) << 1 | (d < 0) as u64);
+            let at = &mut cursor[a as usize];
+            bucket[*at as usize] = b << 1 | (d < 0) as u32;
+            *at += 1;
         }
     }
-    drop(class);
-    if uses.is_empty() {
-        return false;
-    }
-    uses.par_sort_unstable();
-    uses.chunk_by(|x, y| x >> 1 == y >> 1).all(|run| {
-        let reversed = run.iter().filter(|&&x| x & 1 == 1).count();
-        2 * reversed == run.len()
+    drop((cursor, class));
+    (0..n).all(|a| {
+        let list = &mut bucket[start[a] as usize..start[a + 1] as usize];
+        list.sort_unstable();
+        list.chunk_by(|x, y| x >> 1 == y >> 1).all(|run| {
+            let reversed = run.iter().filter(|&&x| x & 1 == 1).count();
+            2 * reversed == run.len()
+        })
     })
 }
 
