@@ -1319,7 +1319,7 @@ mod tests {
         let bvh = Bvh::build(&g, |_| true);
         let (mut hits, mut misses) = (0u32, 0u32);
         for round in 0..400 {
-            let origin = Vec3::new(unit() * 8.0, -1.5 + unit(), unit() * 6.0);
+            let origin = Vec3::new(unit() * 8.0, -4.5 + unit(), unit() * 6.0);
             let center = Vec3::new(unit() * 4.0, 4.0, unit() * 4.0);
             let dirs: Vec<Vec3> = (0..64)
                 .map(|i| {
