@@ -61,9 +61,11 @@ pub const PACKET: usize = 8;
 /// loop's per-node work (lane masks, sort keys, entries) serves one or
 /// two rays there. Half the packets' node visits have one lane, another
 /// eighth two (1.0M triangles, 512², 64 samples: 13.3M and 3.2M of
-/// 25.4M). Callgrind, reference light pass at 256², 64 samples, 1.0M
-/// triangles (the walks only): 1 lane −9.8 % instructions, 2 lanes
-/// −10.4 %.
+/// 25.4M). Callgrind, reference light pass at 256², 64 samples, the
+/// walks only: 1 lane −9.8 %, 2 lanes −10.4 % on 1.0M triangles (81
+/// spheres at 80 segments, instrumented build); as committed, against
+/// the packet loop alone: 1.0M triangles −13.5 %, spheres −5.3 %, bunny
+/// −8.1 %.
 const SINGLE_LANES: u32 = 2;
 
 /// All eight lanes.
