@@ -262,6 +262,12 @@ fn compare_json(
 /// The native module.
 #[pymodule]
 fn _penumbra(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // NumPy's array API is looked up here, once: looked up on first use
+    // (the first render's output arrays), a Ctrl-C landing in the look-up
+    // (it runs NumPy's Python code) became a panic inside `numpy` instead
+    // of the caller's KeyboardInterrupt. An error here is a Python error.
+    numpy::get_array_module(m.py())?;
+    let _ = PyArray1::<f32>::zeros(m.py(), 0, false);
     m.add_class::<NativeScene>()?;
     m.add_function(wrap_pyfunction!(load_scene, m)?)?;
     m.add_function(wrap_pyfunction!(scene_from_toml, m)?)?;
