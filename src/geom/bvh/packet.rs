@@ -46,6 +46,24 @@ use crate::simd::level::{level, Level};
 use crate::simd::{f32x4, f32x8, f64x4};
 use glam::Vec3;
 
+/// Sorts the four `items` by their `keys`, largest first (unused slots
+/// hold `-∞` keys and end last), so that the nearest child is pushed last
+/// and popped first: a five-comparator network with selects instead of an
+/// insertion loop, whose exits the branch predictor missed. The order only
+/// changes the time, never an any-hit answer.
+#[inline(always)]
+fn farthest_first<T: Copy>(keys: &mut [f32; 4], items: &mut [T; 4]) {
+    for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+        let swap = keys[a] < keys[b];
+        let (ka, kb) = (keys[a], keys[b]);
+        let (ia, ib) = (items[a], items[b]);
+        keys[a] = if swap { kb } else { ka };
+        keys[b] = if swap { ka } else { kb };
+        items[a] = if swap { ib } else { ia };
+        items[b] = if swap { ia } else { ib };
+    }
+}
+
 /// A node reached by at least this many lanes tests its four boxes
 /// against all of them at once (`Packet::hit_boxes_lanes`), box by box;
 /// fewer lanes test ray by ray. Measured (spheres and bunny, 512², 64
@@ -703,20 +721,7 @@ impl Bvh {
                 }
             }
             if n_inner > 1 {
-                // Farthest first, so the nearest is pushed last and popped
-                // first: a five-comparator network with selects instead of
-                // an insertion loop, whose exits the branch predictor
-                // missed (the order only changes the time, never an
-                // answer).
-                for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
-                    let swap = inner_keys[a] < inner_keys[b];
-                    let (ka, kb) = (inner_keys[a], inner_keys[b]);
-                    let (ia, ib) = (inner[a], inner[b]);
-                    inner_keys[a] = if swap { kb } else { ka };
-                    inner_keys[b] = if swap { ka } else { kb };
-                    inner[a] = if swap { ib } else { ia };
-                    inner[b] = if swap { ia } else { ib };
-                }
+                farthest_first(&mut inner_keys, &mut inner);
             }
             for &entry in &inner[..n_inner] {
                 let (child, pass) = ((entry >> 32) as u32, entry as u32);
@@ -874,21 +879,8 @@ impl Bvh {
                 }
             }
         }
-        if n_inner == 2 {
-            if inner_keys[0] < inner_keys[1] {
-                inner.swap(0, 1);
-            }
-        } else if n_inner > 2 {
-            // Farthest first (as `packet_occluded`'s network).
-            for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
-                let swap = inner_keys[a] < inner_keys[b];
-                let (ka, kb) = (inner_keys[a], inner_keys[b]);
-                let (ia, ib) = (inner[a], inner[b]);
-                inner_keys[a] = if swap { kb } else { ka };
-                inner_keys[b] = if swap { ka } else { kb };
-                inner[a] = if swap { ib } else { ia };
-                inner[b] = if swap { ia } else { ib };
-            }
+        if n_inner > 1 {
+            farthest_first(&mut inner_keys, &mut inner);
         }
         for &child in &inner[..n_inner] {
             // Cannot overflow (see `STACK`); the check only keeps the
