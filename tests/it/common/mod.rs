@@ -63,7 +63,12 @@ pub fn scene_in_scratch(
     toml: &str,
     files: &[(&str, &[u8])],
 ) -> penumbra::internal::scene::Scene {
-    let dir = scratch_dir(name);
+    // A directory of its own per call: tests running at once may load the
+    // same named scene, and one's clean-up must not remove (or its write
+    // truncate) the file another is reading.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = scratch_dir(&format!("{name}-{call}"));
     for (file, bytes) in files {
         std::fs::write(dir.join(file), bytes).expect("write scratch file");
     }
