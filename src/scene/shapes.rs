@@ -28,6 +28,22 @@ pub fn sphere(r: f32, segments: u32, rings: u32, material: u32) -> Mesh {
     mesh.positions = vec![Vec3::ZERO; n];
     // Ring by ring in parallel (millions of vertices at fine
     // tessellations); each vertex is a function of (k, m) alone.
+    // Each column's (sin, cos) of phi once, not once per ring: the same
+    // values (the same call on the same argument), a ring's worth of
+    // `sin_cos` instead of a sphere's.
+    let columns: Vec<(f64, f64, f64)> = (0..cols)
+        .map(|m| {
+            let phi = 2.0 * PI * f64::from(m) / f64::from(segments);
+            // The seam column (phi = 2 pi) repeats column 0 exactly, so the
+            // mesh has no crack there (sin(2 pi) in floating point is not 0).
+            let (sin_p, cos_p) = if m == segments {
+                (0.0, 1.0)
+            } else {
+                phi.sin_cos()
+            };
+            (phi, sin_p, cos_p)
+        })
+        .collect();
     let rows = (mesh.positions.par_chunks_mut(cols as usize))
         .zip(normals.par_chunks_mut(cols as usize))
         .zip(uvs.par_chunks_mut(cols as usize));
@@ -41,23 +57,16 @@ pub fn sphere(r: f32, segments: u32, rings: u32, material: u32) -> Mesh {
                 _ if k == rings => (0.0, -1.0),
                 _ => theta.sin_cos(),
             };
-            for m in 0..cols {
-                let phi = 2.0 * PI * f64::from(m) / f64::from(segments);
-                // The seam column (phi = 2 pi) repeats column 0 exactly, so the
-                // mesh has no crack there (sin(2 pi) in floating point is not 0).
-                let (sin_p, cos_p) = if m == segments {
-                    (0.0, 1.0)
-                } else {
-                    phi.sin_cos()
-                };
+            for (i, &(phi, sin_p, cos_p)) in columns.iter().enumerate() {
                 let dir = DVec3::new(sin_t * cos_p, cos_t, -sin_t * sin_p);
-                let i = m as usize;
                 positions[i] = (f64::from(r) * dir).as_vec3();
                 normals[i] = dir.normalize().as_vec3();
                 uvs[i] = Vec2::new((phi / (2.0 * PI)) as f32, (1.0 - theta / PI) as f32);
             }
         });
     let v = |k: u32, m: u32| k * cols + m;
+    mesh.triangles
+        .reserve_exact(sphere_triangle_count(segments, rings) as usize);
     for k in 0..rings {
         for m in 0..segments {
             // Along +theta then +phi is counter-clockwise seen from outside:
