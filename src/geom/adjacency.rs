@@ -136,7 +136,7 @@ fn face_edge(corners: [u32; 3], k: usize) -> (u32, u32, i8) {
 }
 
 /// `s` cut into consecutive pieces of the given sizes (the rest dropped).
-fn split_sizes<T>(mut s: &mut [T], sizes: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
+pub(super) fn split_sizes<T>(mut s: &mut [T], sizes: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
     let mut out = Vec::new();
     for n in sizes {
         let (piece, rest) = std::mem::take(&mut s).split_at_mut(n);

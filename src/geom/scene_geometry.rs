@@ -1,6 +1,7 @@
 //! All objects' triangles in one indexed list: what a draw call, a BVH or a
 //! silhouette pass iterates over.
 
+use super::adjacency::split_sizes;
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -99,38 +100,71 @@ impl TriangleFrame {
 
 impl SceneGeometry {
     /// Concatenates the scene's meshes in object order.
+    ///
+    /// Object by object in parallel, each into its own slice of arrays
+    /// sized up front, and the shared per-triangle arrays written in place
+    /// (`Arc<[T]>` from a `Vec` is a copy): at millions of triangles the
+    /// serial copies and their page faults were a third of this step.
     pub fn new(scene: &Scene) -> Self {
+        let objects = &scene.objects;
+        let n_triangles: usize = objects.iter().map(|o| o.mesh.triangles.len()).sum();
+        let n_vertices: usize = objects.iter().map(|o| o.mesh.positions.len()).sum();
         let mut g = SceneGeometry::default();
-        let n_triangles: usize = scene.objects.iter().map(|o| o.mesh.triangles.len()).sum();
-        let n_vertices: usize = scene.objects.iter().map(|o| o.mesh.positions.len()).sum();
-        g.positions.reserve_exact(n_vertices);
-        g.triangles.reserve_exact(n_triangles);
-        let mut triangle_material = Vec::with_capacity(n_triangles);
-        let mut triangle_object = Vec::with_capacity(n_triangles);
-        for (oi, obj) in scene.objects.iter().enumerate() {
-            let base = g.positions.len() as u32;
-            g.object_first_vertex.push(base);
-            g.object_first_triangle.push(g.triangles.len() as u32);
-            g.positions.extend_from_slice(&obj.mesh.positions);
-            g.triangles
-                .extend(obj.mesh.triangles.iter().map(|t| t.map(|i| i + base)));
-            triangle_material.extend_from_slice(&obj.mesh.material_ids);
-            triangle_object.extend(std::iter::repeat_n(oi as u32, obj.mesh.triangles.len()));
+        let (mut first_vertex, mut first_triangle) = (0u32, 0u32);
+        for obj in objects {
+            g.object_first_vertex.push(first_vertex);
+            g.object_first_triangle.push(first_triangle);
+            first_vertex += obj.mesh.positions.len() as u32;
+            first_triangle += obj.mesh.triangles.len() as u32;
         }
-        g.triangle_material = triangle_material.into();
-        g.triangle_object = triangle_object.into();
-        g.object_closed = super::adjacency::closed_objects(&g, scene.objects.len());
-        let unit_normals: Vec<Vec3> = g
-            .triangles
-            .par_iter()
+        g.positions = vec![Vec3::ZERO; n_vertices];
+        g.triangles = vec![[0; 3]; n_triangles];
+        let mut triangle_material = shared_slice(n_triangles);
+        let mut triangle_object = shared_slice(n_triangles);
+        {
+            let vertex_sizes = objects.iter().map(|o| o.mesh.positions.len());
+            let triangle_sizes = || objects.iter().map(|o| o.mesh.triangles.len());
+            let pieces = split_sizes(&mut g.positions, vertex_sizes)
+                .into_iter()
+                .zip(split_sizes(&mut g.triangles, triangle_sizes()))
+                .zip(split_sizes(
+                    mut_slice(&mut triangle_material),
+                    triangle_sizes(),
+                ))
+                .zip(split_sizes(
+                    mut_slice(&mut triangle_object),
+                    triangle_sizes(),
+                ));
+            let firsts = &g.object_first_vertex;
+            pieces
+                .collect::<Vec<_>>()
+                .into_par_iter()
+                .enumerate()
+                .for_each(|(oi, (((positions, triangles), materials), object))| {
+                    let mesh = &objects[oi].mesh;
+                    let base = firsts[oi];
+                    positions.copy_from_slice(&mesh.positions);
+                    for (out, t) in triangles.iter_mut().zip(&mesh.triangles) {
+                        *out = t.map(|i| i + base);
+                    }
+                    materials.copy_from_slice(&mesh.material_ids);
+                    object.fill(oi as u32);
+                });
+        }
+        g.triangle_material = triangle_material;
+        g.triangle_object = triangle_object;
+        g.object_closed = super::adjacency::closed_objects(&g, objects.len());
+        let mut unit_normals = shared_slice(n_triangles);
+        mut_slice(&mut unit_normals)
+            .par_iter_mut()
+            .zip(g.triangles.par_iter())
             .with_min_len(4096)
-            .map(|t| {
+            .for_each(|(n, t)| {
                 let [a, b, c] = t.map(|i| g.positions[i as usize].as_dvec3());
                 // TriangleFrame::new's normal, operation for operation.
-                (b - a).cross(c - a).normalize_or_zero().as_vec3()
-            })
-            .collect();
-        g.unit_normals = unit_normals.into();
+                *n = (b - a).cross(c - a).normalize_or_zero().as_vec3();
+            });
+        g.unit_normals = unit_normals;
         g
     }
 
@@ -165,4 +199,16 @@ impl SceneGeometry {
             (triangle - self.object_first_triangle[o as usize]) as usize,
         )
     }
+}
+
+/// A shared slice of `n` default values, allocated once in place (`Arc<[T]>`
+/// from a `Vec` would copy it), to be filled through [`mut_slice`].
+fn shared_slice<T: Default + Clone>(n: usize) -> Arc<[T]> {
+    std::iter::repeat_n(T::default(), n).collect()
+}
+
+/// The contents of a shared slice this thread has just made (no other
+/// handle exists yet).
+fn mut_slice<T>(shared: &mut Arc<[T]>) -> &mut [T] {
+    Arc::get_mut(shared).expect("a slice made by shared_slice has no other handle")
 }
