@@ -602,14 +602,14 @@ impl EdgeAdjacency {
 /// welding does not collapse? The same answer as the adjacency over all
 /// triangles (welded per object at the same cells, collapsed faces
 /// dropped, every edge's directions summing to zero), computed without
-/// it: per object, its vertices sorted by a hash of their welding cell
-/// into classes, and its edge uses counting-sorted on their lower class
+/// it: per object, its vertices welded into classes by a table of their
+/// welding cells, and its edge uses counting-sorted on their lower class
 /// (as [`EdgeAdjacency::build`] does), each list then checked for
 /// balanced directions. Every render needs closedness (the G-buffer's
 /// back faces, enclosed lights); the adjacency itself only techniques
 /// that walk edges, so it is built when first asked for
 /// ([`SceneGeometry::adjacency`]). The transient memory is one object's:
-/// 4 bytes per edge use, 16 per vertex.
+/// 4 bytes per edge use, about 40 per vertex.
 pub fn closed_objects(geometry: &SceneGeometry, objects: usize) -> Vec<bool> {
     // Each object's triangles as runs of `triangle_object` (one run per
     // object for concatenated meshes; any order is accepted).
@@ -637,34 +637,39 @@ fn surface_closed(geometry: &SceneGeometry, ranges: &[std::ops::Range<usize>], c
         return false;
     };
     // The used vertices (ids `lo..=hi`, contiguous for one object's mesh)
-    // sorted by a hash of their welding cell, a run of equal hashes
-    // holding several cells (a collision) by the cells themselves: a run
-    // of equal cells is one class.
+    // welded into classes of equal cells, numbered in id order, through an
+    // open-addressing table of cells (linear probing, at most half full):
+    // one probe or two per vertex where sorting the cells' hashes cost a
+    // third of this function.
     let span = (hi - lo) as usize + 1;
     let mut class = vec![u32::MAX; span];
     for &v in tris().flatten() {
         class[(v - lo) as usize] = 0;
     }
-    let cell_of_local = |i: u32| cell_of(geometry.positions[(lo + i) as usize], cell);
-    let mut keys: Vec<(u64, u32)> = (0..span as u32)
-        .filter(|&i| class[i as usize] == 0)
-        .map(|i| (key_hash((0, cell_of_local(i))), i))
-        .collect();
-    keys.par_sort_unstable();
-    let mut classes = 0u32;
-    for run in keys.chunk_by_mut(|a, b| a.0 == b.0) {
-        if run.len() > 1 {
-            run.sort_unstable_by_key(|x| cell_of_local(x.1));
+    let used = class.iter().filter(|&&c| c == 0).count();
+    let mask = (2 * used).next_power_of_two().max(16) - 1;
+    let mut slots = vec![u32::MAX; mask + 1];
+    let mut class_cells: Vec<[i64; 3]> = Vec::with_capacity(used);
+    for (i, c) in class.iter_mut().enumerate() {
+        if *c == u32::MAX {
+            continue;
         }
-        for (j, x) in run.iter().enumerate() {
-            if j > 0 && cell_of_local(x.1) != cell_of_local(run[j - 1].1) {
-                classes += 1;
+        let p = cell_of(geometry.positions[lo as usize + i], cell);
+        let mut h = key_hash((0, p)) as usize & mask;
+        *c = loop {
+            match slots[h] {
+                u32::MAX => {
+                    slots[h] = class_cells.len() as u32;
+                    class_cells.push(p);
+                    break slots[h];
+                }
+                k if class_cells[k as usize] == p => break k,
+                _ => h = (h + 1) & mask,
             }
-            class[x.1 as usize] = classes;
-        }
-        classes += 1;
+        };
     }
-    drop(keys);
+    let classes = class_cells.len() as u32;
+    drop((slots, class_cells));
     let corners = |t: &[u32; 3]| t.map(|v| class[(v - lo) as usize]);
     let collapsed = |c: [u32; 3]| c[0] == c[1] || c[1] == c[2] || c[0] == c[2];
     // The edge uses by a counting sort on their lower class, each entry
@@ -713,13 +718,22 @@ fn surface_closed(geometry: &SceneGeometry, ranges: &[std::ops::Range<usize>], c
         }
     }
     drop((cursor, class));
+    // Each lower class's uses summed per upper class (+1 forward, −1
+    // reversed) in a scratch array, the classes touched checked and left
+    // at zero: no sort of the lists.
+    let mut balance = vec![0i32; n];
+    let mut touched = Vec::new();
     (0..n).all(|a| {
-        let list = &mut bucket[start[a] as usize..start[a + 1] as usize];
-        list.sort_unstable();
-        list.chunk_by(|x, y| x >> 1 == y >> 1).all(|run| {
-            let reversed = run.iter().filter(|&&x| x & 1 == 1).count();
-            2 * reversed == run.len()
-        })
+        for &x in &bucket[start[a] as usize..start[a + 1] as usize] {
+            let b = (x >> 1) as usize;
+            touched.push(b);
+            balance[b] += if x & 1 == 1 { -1 } else { 1 };
+        }
+        let balanced = touched.iter().all(|&b| balance[b] == 0);
+        for b in touched.drain(..) {
+            balance[b] = 0;
+        }
+        balanced
     })
 }
 
