@@ -432,8 +432,11 @@ fn classify(prims: &mut [Prim], extent: Extent, depth: u32) -> Item {
     };
     let (mid, left, right) = match split {
         Some(Split::Bins { axis, bin }) => {
+            // `bins(p)[axis] <= bin` on the one axis, without the clamps:
+            // for `bin < BINS − 1` the same answer (see `BinMap::left_of`).
             let map = BinMap::new(&extent.cbounds);
-            partition(prims, |p| map.bins(p)[axis] as usize <= bin)
+            let edge = f32x4::splat((bin + 1) as f32);
+            partition(prims, |p| map.left_of(p, edge, axis))
         }
         Some(Split::Leaf) if n <= MAX_LEAF => return leaf,
         // No useful SAH split (all centroids in one bin, or too deep):
@@ -492,6 +495,16 @@ impl BinMap {
             lo: cbounds.lo,
             scale: f32x4::splat(BINS as f32) / (cbounds.hi - cbounds.lo),
         }
+    }
+
+    /// Whether `bins(p)[axis] <= b`, given `edge` = `b + 1` in every
+    /// lane and `b < BINS − 1`: the scaled offset `v` is below `b + 1`, or
+    /// NaN (bin 0). Below 0 the clamp gives bin 0, at least `b + 1` (≤
+    /// `BINS − 1`) it gives a bin above `b`, and in between `trunc(v) ≤ b`.
+    #[inline(always)]
+    fn left_of(&self, p: &Prim, edge: f32x4, axis: usize) -> bool {
+        let v = (p.centroid() - self.lo) * self.scale;
+        (v.cmp_ge(edge).move_mask() >> axis) & 1 == 0
     }
 
     /// The bins of `p`'s centroid along x, y, z (lane 3: unused).
@@ -780,74 +793,105 @@ fn sah_binned(prims: &[Prim], extent: &Extent) -> Option<(f32, usize, usize)> {
 /// Partitions `prims`, those satisfying `left` first; returns their count
 /// and the extents of both sides. Which order each side ends in does not
 /// matter: binning and bounds do not see it, median splits sort, and
-/// leaves are sorted by triangle index. Large ranges partition stably
-/// over fixed chunks in parallel; others in place by swaps.
+/// leaves are sorted by triangle index. Large ranges partition over
+/// fixed chunks in parallel, the order depending only on the chunks;
+/// others in place by swaps.
 fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool + Sync) -> (usize, Extent, Extent) {
     if prims.len() < PARALLEL_SPLIT {
-        // Hoare's scheme: only misplaced pairs move (a swap per left
-        // triangle before); each triangle is tested and bounded once.
-        let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
-        let (mut i, mut j) = (0, prims.len());
-        loop {
-            while i < j && left(&prims[i]) {
-                l.add(&prims[i]);
-                i += 1;
-            }
-            while i < j && !left(&prims[j - 1]) {
-                r.add(&prims[j - 1]);
-                j -= 1;
-            }
-            if i == j {
-                return (i, l, r);
-            }
-            // `prims[i]` goes right, `prims[j - 1]` left.
-            r.add(&prims[i]);
-            l.add(&prims[j - 1]);
-            prims.swap(i, j - 1);
-            i += 1;
-            j -= 1;
-        }
+        return hoare(prims, &left);
     }
-    let parts: Vec<(Vec<Prim>, Vec<Prim>, Extent, Extent)> = prims
-        .par_chunks(CHUNK)
-        .map(|ps| {
-            // Full capacity up front: growing by doubling copied each
-            // chunk's prims about twice more.
-            let (mut lv, mut rv) = (Vec::with_capacity(ps.len()), Vec::with_capacity(ps.len()));
-            let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
-            for p in ps {
-                if left(p) {
-                    l.add(p);
-                    lv.push(*p);
-                } else {
-                    r.add(p);
-                    rv.push(*p);
-                }
-            }
-            (lv, rv, l, r)
-        })
+    // Each chunk partitions itself in place (in parallel); then the
+    // right triangles that lie before `mid` swap with the left ones after
+    // it, run by run in ascending order. This moved each chunk through two
+    // vectors and back, allocating (and faulting in) twice the range per
+    // level; the result still depends only on the fixed chunks.
+    let n = prims.len();
+    let parts: Vec<(usize, Extent, Extent)> = prims
+        .par_chunks_mut(CHUNK)
+        .map(|ps| hoare(ps, &left))
         .collect();
-    let mid: usize = parts.iter().map(|p| p.0.len()).sum();
+    let mid: usize = parts.iter().map(|p| p.0).sum();
     let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
     for p in &parts {
-        l = l.merge(p.2);
-        r = r.merge(p.3);
+        l = l.merge(p.1);
+        r = r.merge(p.2);
     }
-    // The destination of each chunk's two sides.
-    let (mut dl, mut dr) = prims.split_at_mut(mid);
-    let mut dests = Vec::with_capacity(parts.len());
-    for p in &parts {
-        let (a, rest_l) = std::mem::take(&mut dl).split_at_mut(p.0.len());
-        let (b, rest_r) = std::mem::take(&mut dr).split_at_mut(p.1.len());
-        (dl, dr) = (rest_l, rest_r);
-        dests.push((a, b));
+    // Misplaced runs (start, end): right triangles before `mid`, left
+    // ones after it; both hold the same number of triangles.
+    let (mut wrong_r, mut wrong_l) = (Vec::new(), Vec::new());
+    for (c, p) in parts.iter().enumerate() {
+        let (s, e) = (c * CHUNK, (c * CHUNK + CHUNK).min(n));
+        if s + p.0 < e.min(mid) {
+            wrong_r.push((s + p.0, e.min(mid)));
+        }
+        if s.max(mid) < s + p.0 {
+            wrong_l.push((s.max(mid), s + p.0));
+        }
     }
-    dests
-        .into_par_iter()
-        .zip(parts.par_iter())
-        .for_each(|((a, b), p)| {
-            a.copy_from_slice(&p.0);
-            b.copy_from_slice(&p.1);
-        });
+    // Paired in order into swaps of at most `CHUNK` triangles.
+    let mut swaps = Vec::new();
+    let (mut a, mut b) = (wrong_r.into_iter(), wrong_l.into_iter());
+    let (mut ra, mut rb) = (a.next(), b.next());
+    while let (Some((a0, a1)), Some((b0, b1))) = (ra, rb) {
+        let len = (a1 - a0).min(b1 - b0).min(CHUNK);
+        swaps.push((a0, b0, len));
+        ra = if a0 + len < a1 {
+            Some((a0 + len, a1))
+        } else {
+            a.next()
+        };
+        rb = if b0 + len < b1 {
+            Some((b0 + len, b1))
+        } else {
+            b.next()
+        };
+    }
+    debug_assert!(ra.is_none() && rb.is_none());
+    // Disjoint slices for the swaps: both sides' runs ascend.
+    let (mut before, mut after) = prims.split_at_mut(mid);
+    let (mut at_a, mut at_b) = (0, mid);
+    let mut jobs = Vec::with_capacity(swaps.len());
+    for (a0, b0, len) in swaps {
+        let (x, tail) = std::mem::take(&mut before)
+            .split_at_mut(a0 - at_a)
+            .1
+            .split_at_mut(len);
+        let (y, tail_b) = std::mem::take(&mut after)
+            .split_at_mut(b0 - at_b)
+            .1
+            .split_at_mut(len);
+        (before, after) = (tail, tail_b);
+        (at_a, at_b) = (a0 + len, b0 + len);
+        jobs.push((x, y));
+    }
+    jobs.into_par_iter().for_each(|(x, y)| x.swap_with_slice(y));
     (mid, l, r)
+}
+
+/// Partitions `prims` in place by Hoare's scheme: only misplaced pairs
+/// move (a swap per left triangle before); each triangle is tested and
+/// bounded once. Returns the left count and the extents of both sides.
+#[inline]
+fn hoare(prims: &mut [Prim], left: &impl Fn(&Prim) -> bool) -> (usize, Extent, Extent) {
+    let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
+    let (mut i, mut j) = (0, prims.len());
+    loop {
+        while i < j && left(&prims[i]) {
+            l.add(&prims[i]);
+            i += 1;
+        }
+        while i < j && !left(&prims[j - 1]) {
+            r.add(&prims[j - 1]);
+            j -= 1;
+        }
+        if i == j {
+            return (i, l, r);
+        }
+        // `prims[i]` goes right, `prims[j - 1]` left.
+        r.add(&prims[i]);
+        l.add(&prims[j - 1]);
+        prims.swap(i, j - 1);
+        i += 1;
+        j -= 1;
+    }
 }

@@ -14,19 +14,22 @@
 //!   bins they occupy, and the three axes' sweeps of larger ones run in
 //!   the lanes of one `f32x4`: the same decisions as sweeping every bin.
 //!   Ranges of at least [`PARALLEL_SPLIT`] triangles bin, bound and
-//!   partition (stably) over fixed chunks in parallel; subtrees of at
-//!   least [`PARALLEL_BUILD`] build in parallel with `rayon::join`, each
-//!   into a chunk of nodes of its own (laid out one after another at the
-//!   end, the chunks copied in parallel).
+//!   partition over fixed chunks in parallel (each chunk in place, then
+//!   the right triangles before the split swap with the left ones after
+//!   it: no copy of the range, no allocation); subtrees of at least
+//!   [`PARALLEL_BUILD`] build in parallel with `rayon::join`, each into a
+//!   chunk of nodes of its own (laid out one after another at the end,
+//!   the chunks copied in parallel).
 //! - **Same tree for any thread count**: the chunks are fixed
 //!   ([`CHUNK`] triangles) and their partial bins and bounds are merged in
 //!   chunk order, so every value is computed by the same operations in
-//!   the same order whatever the threads; the parallel partition is
-//!   stable. Bin counts are integers and bounds min / max, so the
-//!   decisions (bins, costs, median splits ordered by centroid then index)
-//!   even depend only on the set of triangles in a range, not on its
-//!   order; leaves are sorted by triangle index; and the node numbering
-//!   follows the chunks of nodes, which depend only on range sizes.
+//!   the same order whatever the threads; the parallel partition's
+//!   result depends only on the chunks. Bin counts are integers and
+//!   bounds min / max, so the decisions (bins, costs, median splits
+//!   ordered by centroid then index) even depend only on the set of
+//!   triangles in a range, not on its order; leaves are sorted by
+//!   triangle index; and the node numbering follows the chunks of nodes,
+//!   which depend only on range sizes.
 //! - **Boxes**: f32, tested four at a time with `simd::f32x4` slabs. The
 //!   test is conservative (Ize 2013: the far distance is scaled by
 //!   `1 + 2γ₃`). An axis along which the direction is exactly 0 is tested
