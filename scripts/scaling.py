@@ -200,7 +200,21 @@ def loop_subdivide(v, f):
 
 def bunny_scenes(levels, work):
     """scenes/bunny.toml with its scan Loop-subdivided `level` times, for each
-    level: (id, path, triangles)."""
+    level: (id, path, triangles). Made in a child process: a child's peak
+    RSS (wait4's ru_maxrss) starts from its parent's RSS at the fork, so
+    the subdivision's arrays, held here, would set a floor under every
+    run's measured peak."""
+    if not levels:
+        return []
+    p = subprocess.run([sys.executable, os.path.abspath(__file__), "--write-bunny-scenes", work,
+                        *map(str, sorted(set(levels)))], capture_output=True, text=True)
+    if p.returncode != 0:
+        sys.exit(f"the models series: {p.stderr.strip() or p.stdout.strip()}")
+    return [tuple(x) for x in json.loads(p.stdout)]
+
+
+def write_bunny_scenes(levels, work):
+    """`bunny_scenes`' work, in the process that runs it."""
     with open(BUNNY_SCENE) as f:
         text = f.read()
     objs = re.findall(r'(?m)^obj = "([^"]+)"$', text)
@@ -598,6 +612,10 @@ def preflight(args):
 
 
 def main():
+    if len(sys.argv) > 2 and sys.argv[1] == "--write-bunny-scenes":
+        # bunny_scenes' child process: the scenes as JSON on stdout.
+        print(json.dumps(write_bunny_scenes([int(x) for x in sys.argv[3:]], sys.argv[2])))
+        return
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  epilog="\n".join(__doc__.split("\n")[1:]),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
