@@ -4,23 +4,11 @@
 //! from counts alone, so the bits must not depend on the thread count.
 
 use crate::common;
-use penumbra::internal::render::{render, with_threads, Render, RenderOptions};
+use crate::common::{
+    dcs_rays_options as options, first_light_traced as traced, first_light_vcoef as vcoef,
+};
+use penumbra::internal::render::{render, with_threads, Render};
 use penumbra::internal::shadow::dcs::RayChoice;
-use penumbra::internal::shadow::{LightTerm, TechniqueOptions};
-use penumbra::Technique;
-
-fn options(technique: &str, side: u32, rays: RayChoice) -> RenderOptions {
-    let mut techniques = TechniqueOptions::default();
-    techniques.dcs.rays = rays;
-    RenderOptions {
-        width: Some(side),
-        height: Some(side),
-        technique: technique.parse::<Technique>().expect("a technique"),
-        samples: 16,
-        options: techniques,
-        ..RenderOptions::default()
-    }
-}
 
 /// One finely tessellated sphere (400 × 400: 319,200 triangles) over a
 /// ground quad under a rect light: at 40² counting's setup alone would
@@ -55,16 +43,6 @@ size = [6.0, 6.0]
 "#,
         &[],
     )
-}
-
-fn traced(r: &Render) -> bool {
-    r.passes.iter().any(|p| p.name == "rays light 0")
-}
-
-fn vcoef(r: &Render) -> &[f32] {
-    match &r.lights[0] {
-        LightTerm::Vcoef(v) | LightTerm::Radiance { vcoef: v, .. } => v,
-    }
 }
 
 /// The dense sphere at 40² is traced; the bunny (69k triangles) at 40²

@@ -8,13 +8,13 @@
 //! and the two against each other but at ties.
 
 use crate::common;
-use penumbra::internal::render::{render, verify_render, Render, RenderOptions};
+use crate::common::{first_light_traced as traced, first_light_vcoef as vcoef};
+use penumbra::internal::render::{render, verify_render};
 use penumbra::internal::shadow::dcs::RayChoice;
 use penumbra::internal::shadow::kit::verify::{EVERY_RELATION, TIE_DISTANCE};
-use penumbra::internal::shadow::{LightTerm, TechniqueOptions};
-use penumbra::Technique;
 
 const SIDE: u32 = 48;
+/// The samples of `common::dcs_rays_options` (held to it in the test).
 const SAMPLES: u32 = 16;
 
 /// The benchmark's tessellation-series scene at `segments` (segments =
@@ -41,29 +41,6 @@ fn tessellated(segments: u32) -> penumbra::internal::scene::Scene {
     common::scene_in_scratch(&format!("large-series-{segments}"), &out.join("\n"), &[])
 }
 
-fn options(technique: &str, rays: RayChoice) -> RenderOptions {
-    let mut techniques = TechniqueOptions::default();
-    techniques.dcs.rays = rays;
-    RenderOptions {
-        width: Some(SIDE),
-        height: Some(SIDE),
-        technique: technique.parse::<Technique>().expect("a technique"),
-        samples: SAMPLES,
-        options: techniques,
-        ..RenderOptions::default()
-    }
-}
-
-fn vcoef(r: &Render) -> &[f32] {
-    match &r.lights[0] {
-        LightTerm::Vcoef(v) | LightTerm::Radiance { vcoef: v, .. } => v,
-    }
-}
-
-fn traced(r: &Render) -> bool {
-    r.passes.iter().any(|p| p.name == "rays light 0")
-}
-
 #[test]
 fn the_million_triangle_point_is_exact_by_both_paths() {
     let scene = tessellated(80);
@@ -71,7 +48,8 @@ fn the_million_triangle_point_is_exact_by_both_paths() {
     assert_eq!(triangles, 1_023_842, "the benchmark's count");
 
     // Counting, certified over every relation.
-    let never = options("dcs", RayChoice::Never);
+    let never = common::dcs_rays_options("dcs", SIDE, RayChoice::Never);
+    assert_eq!(never.samples, SAMPLES);
     let report = verify_render(&scene, &never, EVERY_RELATION).expect("verify runs");
     eprintln!("{report}");
     assert!(report.declared_exact, "{report:?}");
@@ -84,8 +62,16 @@ fn the_million_triangle_point_is_exact_by_both_paths() {
 
     // The default traces this light (1M triangles at 48²): the
     // reference's Vcoef, bit for bit.
-    let auto = render(&scene, &options("dcs", RayChoice::Auto)).unwrap();
-    let reference = render(&scene, &options("reference", RayChoice::Auto)).unwrap();
+    let auto = render(
+        &scene,
+        &common::dcs_rays_options("dcs", SIDE, RayChoice::Auto),
+    )
+    .unwrap();
+    let reference = render(
+        &scene,
+        &common::dcs_rays_options("reference", SIDE, RayChoice::Auto),
+    )
+    .unwrap();
     assert!(traced(&auto), "{:?}", auto.passes);
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(vcoef(&auto)), bits(vcoef(&reference)));

@@ -222,3 +222,36 @@ pub fn matched_sampling(
     }
     (options, pattern)
 }
+
+/// Render options for DCS's cost choice tests: `technique` at `side`²,
+/// 16 samples, with `--dcs-rays` set to `rays`.
+pub fn dcs_rays_options(
+    technique: &str,
+    side: u32,
+    rays: penumbra::internal::shadow::dcs::RayChoice,
+) -> penumbra::internal::render::RenderOptions {
+    let mut techniques = penumbra::internal::shadow::TechniqueOptions::default();
+    techniques.dcs.rays = rays;
+    penumbra::internal::render::RenderOptions {
+        width: Some(side),
+        height: Some(side),
+        technique: technique.parse().expect("a technique"),
+        samples: 16,
+        options: techniques,
+        ..Default::default()
+    }
+}
+
+/// The first light's Vcoef, whichever term the render kept.
+pub fn first_light_vcoef(r: &penumbra::internal::render::Render) -> &[f32] {
+    use penumbra::internal::shadow::LightTerm;
+    match &r.lights[0] {
+        LightTerm::Vcoef(v) | LightTerm::Radiance { vcoef: v, .. } => v,
+    }
+}
+
+/// Whether DCS traced the first light (its cost choice), from the pass
+/// it then runs.
+pub fn first_light_traced(r: &penumbra::internal::render::Render) -> bool {
+    r.passes.iter().any(|p| p.name == "rays light 0")
+}
