@@ -404,16 +404,8 @@ fn cullable_objects(
     };
     (0..scene.objects.len())
         .map(|o| {
-            let tris = geometry.object_first_triangle[o] as usize
-                ..geometry
-                    .object_first_triangle
-                    .get(o + 1)
-                    .map_or(geometry.triangles.len(), |&t| t as usize);
-            let verts = geometry.object_first_vertex[o] as usize
-                ..geometry
-                    .object_first_vertex
-                    .get(o + 1)
-                    .map_or(vertices.len(), |&v| v as usize);
+            let tris = geometry.object_triangle_range(o);
+            let verts = geometry.object_vertex_range(o);
             geometry.object_closed[o]
                 && geometry.triangle_material[tris]
                     .iter()
@@ -444,11 +436,10 @@ fn draw_scene<S: FragmentStage<0>>(
         while end < cull.len() && cull[end] == cull[o] {
             end += 1;
         }
-        let first = geometry.object_first_triangle[o] as usize;
-        let last = geometry
-            .object_first_triangle
-            .get(end)
-            .map_or(geometry.triangles.len(), |&t| t as usize);
+        let (first, last) = (
+            geometry.object_triangle_range(o).start,
+            geometry.object_triangle_range(end - 1).end,
+        );
         let state = RasterState {
             cull: if cull[o] {
                 CullMode::Back

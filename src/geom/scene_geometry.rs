@@ -190,6 +190,22 @@ impl SceneGeometry {
         TriangleFrame::new(t.map(|i| self.positions[i as usize].as_dvec3()))
     }
 
+    /// Object `o`'s triangles, as indices into `triangles`.
+    #[inline]
+    pub fn object_triangle_range(&self, o: usize) -> std::ops::Range<usize> {
+        let end =
+            (self.object_first_triangle.get(o + 1)).map_or(self.triangles.len(), |&t| t as usize);
+        self.object_first_triangle[o] as usize..end
+    }
+
+    /// Object `o`'s vertices, as indices into `positions`.
+    #[inline]
+    pub fn object_vertex_range(&self, o: usize) -> std::ops::Range<usize> {
+        let end =
+            (self.object_first_vertex.get(o + 1)).map_or(self.positions.len(), |&v| v as usize);
+        self.object_first_vertex[o] as usize..end
+    }
+
     /// (object index, triangle index inside that object's mesh).
     #[inline]
     pub fn locate(&self, triangle: u32) -> (usize, usize) {

@@ -431,8 +431,9 @@ pub fn render_rows(
         },
         false => BufferNote {
             name: "edge adjacency".into(),
-            detail: "not built: no pass walked edges (closedness came from a sort per object)"
-                .into(),
+            detail:
+                "not built: no pass walked edges (closedness came from a welding table per object)"
+                    .into(),
             bytes: 0,
         },
     });

@@ -67,12 +67,7 @@ fn solid_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
 
 /// Object `o`'s triangles.
 fn object_triangles(geometry: &SceneGeometry, o: usize) -> &[[u32; 3]] {
-    let first = geometry.object_first_triangle[o] as usize;
-    let end = geometry
-        .object_first_triangle
-        .get(o + 1)
-        .map_or(geometry.triangles.len(), |&e| e as usize);
-    &geometry.triangles[first..end]
+    &geometry.triangles[geometry.object_triangle_range(o)]
 }
 
 /// The winding number of object `o` around `p`, times 4π: 0 without a
