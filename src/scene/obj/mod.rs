@@ -13,6 +13,10 @@
 //! several files, `\` separators and a letter case that differs from the
 //! file on disk, `map_*` options, `Tr` for `d`, and statements we do not
 //! use, which are skipped without a word.
+//!
+//! A plain file (positions and triangles only, as scanners and
+//! subdividers write them) takes a parallel fast path to the same mesh
+//! ([`plain`]); any other falls back to the scan and tobj.
 
 use super::assets::{Assets, TextureKind, DEFAULT_MATERIAL};
 use super::Material;
@@ -24,6 +28,8 @@ use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+
+mod plain;
 
 /// Reads a file referenced from `from:line` (through [`super::input`]: a
 /// missing, unreadable, special or oversized file is an error at the
@@ -612,6 +618,18 @@ pub(super) fn load_obj(
     assets: &mut Assets,
 ) -> Result<Mesh> {
     let text = read_obj_text(path, from, line)?;
+    if let Some(model) = plain::parse(&text) {
+        // No material, normal or texture statement: the general path's
+        // scan would change nothing, and tobj would read no MTL file.
+        let mut material_ids = MaterialIds {
+            material_override,
+            materials: &[],
+            loaded: &[],
+            ids: HashMap::new(),
+        };
+        let merged = merge_models(path, &[model], &mut material_ids, assets)?;
+        return finish_mesh(path, from, line, merged, assets, None);
+    }
     let scan = scan_obj(path, &text)?;
     let dir = path.parent().unwrap_or(Path::new(""));
 
