@@ -62,8 +62,7 @@ pub struct DcsOptions {
 /// Whether DCS may trace shadow rays where they cost less than counting.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum RayChoice {
-    /// Per light and per 4² block of receivers, whichever the cost
-    /// estimate says is cheaper.
+    /// Per light, whichever the cost estimate says is cheaper.
     #[default]
     Auto,
     /// Always count edges.
