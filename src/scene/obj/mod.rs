@@ -642,16 +642,7 @@ pub(super) fn load_obj(
         error: RefCell::new(None),
         loaded: RefCell::new(Vec::new()),
     };
-    // Other fields exist with tobj's optional features (merging, reordering).
-    #[allow(clippy::needless_update)]
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
-    let parsed = tobj::load_obj_buf(&mut scan.text.as_bytes(), &options, |_| {
+    let parsed = tobj::load_obj_buf(&mut scan.text.as_bytes(), &tobj_options(), |_| {
         mtl_loader.load_next()
     });
     if let Some(e) = mtl_loader.error.take() {
@@ -670,6 +661,20 @@ pub(super) fn load_obj(
     };
     let merged = merge_models(path, &models, &mut material_ids, assets)?;
     finish_mesh(path, from, line, merged, assets, scan.bad_normals)
+}
+
+/// How tobj reads every OBJ: triangulated (polygons as fans), one index
+/// per vertex, points and polylines skipped.
+fn tobj_options() -> tobj::LoadOptions {
+    // Other fields exist with tobj's optional features (merging, reordering).
+    #[allow(clippy::needless_update)]
+    tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    }
 }
 
 /// Reads an OBJ file referenced from `from:line` as text; another mesh

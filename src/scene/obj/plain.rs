@@ -210,15 +210,7 @@ mod tests {
     /// tobj's model of `text`, as the general path loads it (the scan
     /// changes nothing in a plain file).
     fn tobj_model(text: &str) -> Option<tobj::Model> {
-        // Other fields exist with tobj's optional features.
-        #[allow(clippy::needless_update)]
-        let options = tobj::LoadOptions {
-            triangulate: true,
-            single_index: true,
-            ignore_points: true,
-            ignore_lines: true,
-            ..Default::default()
-        };
+        let options = super::super::tobj_options();
         let (models, _) =
             tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| Ok(Default::default())).ok()?;
         let [model] = &models[..] else {
