@@ -424,3 +424,53 @@ fn dabrovic_sponza_loads() {
         "{hi}"
     );
 }
+
+/// A plain file (positions and triangles only) takes the parallel path;
+/// the same file with one statement that path does not take (an unused
+/// `vt`) takes the scan and tobj. Both give the same scene, bit for bit:
+/// positions, triangles, materials, no normals or uvs. Large enough for
+/// several of the plain path's 1 MiB chunks, with faces that reuse,
+/// skip and reorder vertices, comments, `s` lines and CRLF ends.
+#[test]
+fn a_plain_obj_loads_as_the_general_path_loads_it() {
+    let dir = Dir::new("plain");
+    let mut text = String::from("# plain\r\n");
+    let n = 60_000u32;
+    let mut state = 12345u64;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 33) as u32
+    };
+    for i in 0..n {
+        let c = |r: u32| (r as f32 / u32::MAX as f32 - 0.5) * 0.01 + (i as f32) * 1e-5;
+        text += &format!("v {} {:e} {}\n", c(next()), c(next()), c(next()));
+        if i % 1000 == 0 {
+            text += "s 1\r\n";
+        }
+    }
+    for _ in 0..90_000 {
+        let pick = |r: u32| 1 + r % (n - 7);
+        let a = pick(next());
+        text += &format!("f {a} {} {}\n", a + 1 + next() % 3, a + 4 + next() % 3);
+    }
+    assert!(text.len() > 3 << 20);
+    dir.write("plain.obj", &text);
+    dir.write("general.obj", format!("{text}vt 0 0\n"));
+    let plain = dir.load("plain.obj").expect("the plain file loads");
+    let general = dir.load("general.obj").expect("the general file loads");
+    let (a, b) = (&plain.objects[0].mesh, &general.objects[0].mesh);
+    let bits = |m: &penumbra::internal::geom::Mesh| -> Vec<[u32; 3]> {
+        m.positions
+            .iter()
+            .map(|p| p.to_array().map(f32::to_bits))
+            .collect()
+    };
+    assert_eq!(bits(a), bits(b));
+    assert_eq!(a.triangles, b.triangles);
+    assert_eq!(a.material_ids, b.material_ids);
+    assert_eq!(a.normals, b.normals);
+    assert_eq!(a.uvs, b.uvs);
+    assert_eq!(a.triangle_count(), 90_000);
+}
