@@ -163,10 +163,25 @@ impl<'a> ShadowTracer<'a> {
             let opaque = scene.materials.get(*m as usize)?.is_opaque();
             o.cast_shadows.then_some(opaque)
         };
-        let (opaque, translucent) = rayon::join(
-            || Bvh::build(geometry, |t| caster(t) == Some(true)),
-            || Bvh::build(geometry, |t| caster(t) == Some(false)),
-        );
+        // Each triangle's class once (its object's and material's
+        // look-ups), then the builds read one byte a triangle; most scenes
+        // have no translucent caster, whose tree is then not built at all.
+        const OPAQUE: u8 = 1;
+        const TRANSLUCENT: u8 = 2;
+        let class: Vec<u8> = (0..geometry.triangles.len() as u32)
+            .into_par_iter()
+            .map(|t| match caster(t) {
+                Some(true) => OPAQUE,
+                Some(false) => TRANSLUCENT,
+                None => 0,
+            })
+            .collect();
+        let build = |wanted: u8| Bvh::build(geometry, |t| class[t as usize] == wanted);
+        let (opaque, translucent) = if class.contains(&TRANSLUCENT) {
+            rayon::join(|| build(OPAQUE), || build(TRANSLUCENT))
+        } else {
+            (build(OPAQUE), Bvh::default())
+        };
         let d = scene_diagonal(scene, geometry);
         ShadowTracer {
             scene,
