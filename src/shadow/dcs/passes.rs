@@ -24,7 +24,7 @@ use super::counters::ChartSamples;
 use super::edges::{CandidateEdge, CandidateEdges, LightShapeForSilhouettes};
 use super::options::{CoverageTest, SilhouetteMode};
 use super::receiver::{Extras, GroupPass, LightPass, PixelResult, Scratch};
-use super::region::{ReceiverBlock, RegionBound};
+use super::region::{ReceiverBlock, ReceiverBoxes, RegionBound};
 use super::settings::{DcsLightReport, DepthComplexitySampling};
 use super::ties::{cap_segment, own_face_change, tied_from_changes, tied_pixels, ExactStart, Tie};
 use crate::error::{Error, Result};
@@ -792,24 +792,21 @@ fn unbounded_near<'u>(
     let in_tile = |r: [usize; 4]| rect_meets(r, ox, oy, TILE_SIZE);
     let mut near: Vec<&UnboundedEdge> = Vec::new();
     let on_screen: Vec<&EdgeCluster> = clusters.iter().filter(|c| in_tile(c.rect)).collect();
+    // The receivers of a `size`² block as one or two boxes.
     let bbox = |x0: usize, y0: usize, size: usize| {
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for y in y0..(y0 + size).min(height) {
-            for x in x0..(x0 + size).min(width) {
-                if let Some(q) = ctx.gbuffer.surface_position(y * width + x) {
-                    let q = q.as_dvec3();
-                    (lo, hi) = (lo.min(q), hi.max(q));
-                }
-            }
-        }
-        (lo.x <= hi.x).then_some((lo, hi))
+        let points = (y0..(y0 + size).min(height)).flat_map(move |y| {
+            (x0..(x0 + size).min(width))
+                .filter_map(move |x| ctx.gbuffer.surface_position(y * width + x))
+                .map(|q| q.as_dvec3())
+        });
+        ReceiverBoxes::of(points)
     };
     // The region's box and per-receiver tests in AVX registers where the
     // CPU has them (the same verdicts, `RegionBound::excludes_box_avx`
     // and `RegionBound::admits_avx`): the facade's lanes are two SSE2
     // halves in a baseline build, even inside the AVX2 copy of this pass.
     let avx = crate::simd::avx::available();
-    let excludes = |region: &RegionBound, (lo, hi): (DVec3, DVec3)| {
+    let excludes_one = |region: &RegionBound, (lo, hi): (DVec3, DVec3)| {
         #[cfg(target_arch = "x86_64")]
         if avx {
             // SAFETY: `avx` is set only where the CPU has AVX, the one
@@ -817,6 +814,9 @@ fn unbounded_near<'u>(
             return unsafe { region.excludes_box_avx(lo, hi) };
         }
         region.excludes_box(lo, hi)
+    };
+    let excludes = |region: &RegionBound, boxes: &ReceiverBoxes| {
+        boxes.as_slice().iter().all(|&b| excludes_one(region, b))
     };
     let mut block_edges: Vec<BlockEdges> = vec![Vec::new(); PER_ROW * PER_ROW];
     let admits = |u: &UnboundedEdge, receivers: &ReceiverBlock| {
@@ -833,13 +833,13 @@ fn unbounded_near<'u>(
     if !on_screen.is_empty() {
         if let Some(b) = bbox(ox, oy, TILE_SIZE) {
             for c in on_screen {
-                if excludes(&c.region, b) {
+                if excludes(&c.region, &b) {
                     continue;
                 }
                 let first = near.len() as u32;
                 let edges = unbounded[c.edges.clone()].iter();
                 let region_of = |u: &'u UnboundedEdge| in_tile(u.rect).then_some(&u.region);
-                keep_regions(avx, edges, region_of, b, &mut near);
+                keep_regions(avx, edges, region_of, &b, &mut near);
                 kept.push((c, first..near.len() as u32));
             }
         }
@@ -858,10 +858,10 @@ fn unbounded_near<'u>(
             let runs = kept
                 .iter()
                 .filter(|(c, run)| {
-                    !run.is_empty() && rect_meets(c.rect, x0, y0, OUTER) && !excludes(&c.region, b)
+                    !run.is_empty() && rect_meets(c.rect, x0, y0, OUTER) && !excludes(&c.region, &b)
                 })
                 .flat_map(|(_, run)| run.clone());
-            narrow(avx, &near, runs, (x0, y0, OUTER), b, &mut outer);
+            narrow(avx, &near, runs, (x0, y0, OUTER), &b, &mut outer);
             if outer.is_empty() {
                 continue;
             }
@@ -881,7 +881,7 @@ fn unbounded_near<'u>(
                         &near,
                         outer.iter().copied(),
                         (xm, ym, MIDDLE),
-                        b,
+                        &b,
                         &mut middle,
                     );
                     if middle.is_empty() {
@@ -892,8 +892,8 @@ fn unbounded_near<'u>(
                             let (x1, y1) = (xm + sx * INNER, ym + sy * INNER);
                             // One read of the block's receivers gives both
                             // their box and their lanes.
-                            let receivers = receiver_block(ctx, x1, y1);
-                            let Some(b) = receivers.bounds() else {
+                            let (receivers, boxes) = receiver_block(ctx, x1, y1);
+                            let Some(b) = boxes else {
                                 continue;
                             };
                             narrow(
@@ -901,7 +901,7 @@ fn unbounded_near<'u>(
                                 &near,
                                 middle.iter().copied(),
                                 (x1, y1, INNER),
-                                b,
+                                &b,
                                 &mut inner,
                             );
                             let cell = (y1 - oy) / INNER * PER_ROW + (x1 - ox) / INNER;
@@ -931,7 +931,7 @@ fn narrow(
     near: &[&UnboundedEdge],
     list: impl Iterator<Item = u32>,
     (x0, y0, size): (usize, usize, usize),
-    b: (DVec3, DVec3),
+    b: &ReceiverBoxes,
     out: &mut Vec<u32>,
 ) {
     let region_of = |k: u32| {
@@ -956,25 +956,30 @@ fn keep_regions<'r, T: Copy>(
     avx: bool,
     items: impl Iterator<Item = T>,
     region_of: impl Fn(T) -> Option<&'r RegionBound>,
-    (lo, hi): (DVec3, DVec3),
+    boxes: &ReceiverBoxes,
     out: &mut Vec<T>,
 ) {
     #[cfg(target_arch = "x86_64")]
     if avx {
         // SAFETY: `avx` is set only where the CPU has AVX, the one
         // requirement of `keep_avx`.
-        return unsafe { RegionBound::keep_avx(items, region_of, lo, hi, out) };
+        return unsafe { RegionBound::keep_avx(items, region_of, boxes, out) };
     }
     let _ = avx;
-    RegionBound::keep_lanes(items, region_of, lo, hi, out)
+    RegionBound::keep_lanes(items, region_of, boxes, out)
 }
 
 /// One 4² block's unbounded edges that may apply: indices into the tile's
 /// near edges, each with the mask of the block's receivers it may affect.
 type BlockEdges = Vec<(u32, u16)>;
 
-/// The receivers of the [`INNER`]² block at pixel `(x0, y0)`.
-fn receiver_block(ctx: &ShadowContext, x0: usize, y0: usize) -> ReceiverBlock {
+/// The receivers of the [`INNER`]² block at pixel `(x0, y0)`, and their
+/// boxes.
+fn receiver_block(
+    ctx: &ShadowContext,
+    x0: usize,
+    y0: usize,
+) -> (ReceiverBlock, Option<ReceiverBoxes>) {
     let (width, height) = (ctx.gbuffer.width as usize, ctx.gbuffer.height as usize);
     let points: [Option<DVec3>; INNER * INNER] = std::array::from_fn(|k| {
         let (x, y) = (x0 + k % INNER, y0 + k / INNER);
@@ -985,7 +990,8 @@ fn receiver_block(ctx: &ShadowContext, x0: usize, y0: usize) -> ReceiverBlock {
             None
         }
     });
-    ReceiverBlock::new(&points)
+    let boxes = ReceiverBoxes::of(points.iter().flatten().copied());
+    (ReceiverBlock::new(&points), boxes)
 }
 
 /// Of the [`INNER`]² block at pixel `(x0, y0)`, the pixels inside the
