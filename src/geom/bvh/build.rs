@@ -248,23 +248,26 @@ impl Bvh {
     /// Builds a BVH over the triangles of `geometry` for which `keep`
     /// (given the triangle index) is true.
     pub fn build(geometry: &SceneGeometry, keep: impl Fn(u32) -> bool + Sync) -> Bvh {
-        // The kept indices first (4 bytes each), then the prims by an
-        // indexed collect: filtering the prims themselves collected them
-        // into a list of vectors and copied them once more.
-        let kept: Vec<u32> = (0..geometry.triangles.len() as u32)
-            .into_par_iter()
-            .filter(|&t| keep(t))
-            .collect();
-        let mut prims: Vec<Prim> = kept
-            .into_par_iter()
-            .map(|t| {
-                let mut bounds = Aabb::EMPTY;
-                for p in corners(geometry, t) {
-                    bounds.grow_point(p);
-                }
-                Prim::new(&bounds, t)
-            })
-            .collect();
+        let prim = |t: u32| {
+            let mut bounds = Aabb::EMPTY;
+            for p in corners(geometry, t) {
+                bounds.grow_point(p);
+            }
+            Prim::new(&bounds, t)
+        };
+        let all = 0..geometry.triangles.len() as u32;
+        // Usually every triangle is kept: then the prims come straight
+        // from the indices (the kept list cost 26–38 ms of 4.1M
+        // triangles' build). Otherwise the kept indices first (4 bytes
+        // each), then the prims by an indexed collect: filtering the prims
+        // themselves collected them into a list of vectors and copied
+        // them once more.
+        let mut prims: Vec<Prim> = if all.clone().into_par_iter().all(&keep) {
+            all.into_par_iter().map(prim).collect()
+        } else {
+            let kept: Vec<u32> = all.into_par_iter().filter(|&t| keep(t)).collect();
+            kept.into_par_iter().map(prim).collect()
+        };
         if prims.is_empty() {
             return Bvh::default();
         }
