@@ -334,7 +334,9 @@ impl ReceiverBlock {
 /// [`RegionBound::new`]). Unused lanes are zero vectors, whose dot is 0
 /// and passes.
 struct Generators4 {
-    groups: Vec<[[f64; 4]; 3]>,
+    /// The first `len` groups hold the generators.
+    groups: [[[f64; 4]; 3]; GENERATOR_GROUPS],
+    len: usize,
     /// Test in AVX registers ([`Generators4::bound_avx`]); set only where
     /// the CPU has AVX, by the v3 copy of [`RegionBound::new`].
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
@@ -352,7 +354,7 @@ macro_rules! generators_bound_kernel {
         let (x, y, z): ($lane, $lane, $lane) = ($splat(n.x), $splat(n.y), $splat(n.z));
         let (low, high): ($lane, $lane) = ($splat(-1e-9), $splat(1e-9));
         let (mut up, mut down) = (true, true);
-        for lanes in &g.groups {
+        for lanes in &g.groups[..g.len] {
             let dot = x
                 .mul($new(lanes[0]))
                 .add(y.mul($new(lanes[1])))
@@ -367,21 +369,33 @@ macro_rules! generators_bound_kernel {
     }};
 }
 
+/// Most lane groups of [`Generators4`]: 32 generators, an edge's two
+/// ends or a box's eight corners against at most four light corners
+/// (a sphere light's eight bounding corners meet only edges).
+const GENERATOR_GROUPS: usize = 8;
+
 impl Generators4 {
-    fn new(generators: &[DVec3]) -> Generators4 {
-        let groups = generators
-            .chunks(4)
-            .map(|g| {
-                let mut lanes = [[0.0; 4]; 3];
-                for (k, d) in g.iter().enumerate() {
-                    for (axis, lane) in lanes.iter_mut().enumerate() {
-                        lane[k] = d[axis];
-                    }
+    /// The generators four to a group, in a fixed array (no allocation
+    /// per region: the allocator was a sixth of the regions' build);
+    /// `None` past [`GENERATOR_GROUPS`] groups.
+    fn new(generators: &[DVec3]) -> Option<Generators4> {
+        let mut groups = [[[0.0; 4]; 3]; GENERATOR_GROUPS];
+        let len = generators.len().div_ceil(4);
+        if len > GENERATOR_GROUPS {
+            return None;
+        }
+        for (lanes, g) in groups.iter_mut().zip(generators.chunks(4)) {
+            for (k, d) in g.iter().enumerate() {
+                for (axis, lane) in lanes.iter_mut().enumerate() {
+                    lane[k] = d[axis];
                 }
-                lanes
-            })
-            .collect();
-        Generators4 { groups, avx: false }
+            }
+        }
+        Some(Generators4 {
+            groups,
+            len,
+            avx: false,
+        })
     }
 
     /// Whether `n` and whether `−n` bound the cone: every generator `d`
@@ -420,6 +434,13 @@ impl Generators4 {
 /// cone whose facets bound a region.
 fn cone_generators(points: &[DVec3], corners: &[DVec3]) -> Vec<DVec3> {
     let mut generators = Vec::with_capacity(points.len() * corners.len());
+    cone_generators_into(points, corners, &mut generators);
+    generators
+}
+
+/// [`cone_generators`] into `generators` (cleared first).
+fn cone_generators_into(points: &[DVec3], corners: &[DVec3], generators: &mut Vec<DVec3>) {
+    generators.clear();
     for &v in points {
         for &x in corners {
             let d = v - x;
@@ -428,23 +449,37 @@ fn cone_generators(points: &[DVec3], corners: &[DVec3]) -> Vec<DVec3> {
             }
         }
     }
-    generators
 }
 
 /// Whether the directions `generators` and `along` all lie in one plane
 /// through the origin (within 1e-7 of it, as the facet filter below
 /// judges a direction to lie on a plane), or there are too few to tell.
 fn coplanar(generators: &[DVec3], along: DVec3) -> bool {
-    let dirs: Vec<DVec3> = generators
-        .iter()
-        .copied()
-        .chain(std::iter::once(along.normalize_or_zero()))
-        .filter(|d| *d != DVec3::ZERO)
-        .collect();
+    let along = along.normalize_or_zero();
+    let dirs = || {
+        generators
+            .iter()
+            .chain(std::iter::once(&along))
+            .filter(|d| **d != DVec3::ZERO)
+    };
+    // A quick no first (nearly every region): were all the unit
+    // directions within 1e-7 of one plane through the origin, any three
+    // would have a determinant of at most 3e-7 (each is a part in the
+    // plane, of length ≤ 1, plus at most 1e-7 along its normal; the
+    // parts in the plane have determinant 0, and each term with one
+    // normal part is at most 1e-7). So three with more than 1e-6 are
+    // not coplanar, as the full test below would find.
+    let mut it = dirs();
+    if let (Some(a), Some(b)) = (it.next(), it.next()) {
+        let ab = a.cross(*b);
+        if it.any(|c| ab.dot(*c).abs() > 1e-6) {
+            return false;
+        }
+    }
     // The normal of the best-spread pair.
     let mut best = DVec3::ZERO;
-    for (k, a) in dirs.iter().enumerate() {
-        for b in &dirs[k + 1..] {
+    for (k, a) in dirs().enumerate() {
+        for b in dirs().skip(k + 1) {
             let n = a.cross(*b);
             if n.length_squared() > best.length_squared() {
                 best = n;
@@ -455,7 +490,7 @@ fn coplanar(generators: &[DVec3], along: DVec3) -> bool {
         return true;
     }
     let n = best.normalize();
-    dirs.iter().all(|d| n.dot(*d).abs() <= 1e-7)
+    dirs().all(|d| n.dot(*d).abs() <= 1e-7)
 }
 
 /// Whether `n` and whether `−n` bound the cone (no generator points more
@@ -463,6 +498,9 @@ fn coplanar(generators: &[DVec3], along: DVec3) -> bool {
 /// unit generator 1e-9 below tilts out of the half-space by 1e-9 per unit
 /// of length, far inside `slack` over any scene-sized distance): four
 /// generators at a time, or one at a time (the scalar twin).
+// One lives on the stack per region build; boxing the large variant would
+// bring back the allocation `Generators4`'s fixed array removed.
+#[allow(clippy::large_enum_variant)]
 enum FacetTest<'a> {
     Simd(Generators4),
     Scalar(&'a [DVec3]),
@@ -470,10 +508,9 @@ enum FacetTest<'a> {
 
 impl<'a> FacetTest<'a> {
     fn new(generators: &'a [DVec3], simd: bool) -> FacetTest<'a> {
-        if simd {
-            FacetTest::Simd(Generators4::new(generators))
-        } else {
-            FacetTest::Scalar(generators)
+        match simd.then(|| Generators4::new(generators)).flatten() {
+            Some(g) => FacetTest::Simd(g),
+            None => FacetTest::Scalar(generators),
         }
     }
 
@@ -510,6 +547,8 @@ impl<'a> FacetTest<'a> {
 thread_local! {
     /// [`RegionBound::new`]'s plane buffer, kept between calls.
     static PLANES: std::cell::Cell<Vec<(DVec3, f64)>> = const { std::cell::Cell::new(Vec::new()) };
+    /// [`RegionBound::new`]'s generator buffer, kept between calls.
+    static GENERATORS: std::cell::Cell<Vec<DVec3>> = const { std::cell::Cell::new(Vec::new()) };
 }
 
 impl RegionBound {
@@ -581,9 +620,11 @@ impl RegionBound {
         simd: bool,
         avx: bool,
     ) -> RegionBound {
-        let generators = cone_generators(&[v0, v1], corners);
+        let mut buffer = GENERATORS.take();
+        cone_generators_into(&[v0, v1], corners, &mut buffer);
+        let generators = &buffer[..];
         let along = v1 - v0;
-        let mut facets = FacetTest::new(&generators, simd);
+        let mut facets = FacetTest::new(generators, simd);
         if let FacetTest::Simd(g) = &mut facets {
             g.avx = avx;
         }
@@ -613,7 +654,7 @@ impl RegionBound {
         // candidates touch the region along one line at most and would
         // be dropped below: not making them saves two thirds of the
         // facet tests.
-        let flat_cone = coplanar(&generators, along);
+        let flat_cone = coplanar(generators, along);
         let mut span = |a: DVec3, b: DVec3| {
             let n = a.cross(b);
             consider(n);
@@ -654,6 +695,7 @@ impl RegionBound {
         }
         let bound = RegionBound::from_planes(planes.clone());
         PLANES.set(planes);
+        GENERATORS.set(buffer);
         bound
     }
 
