@@ -25,16 +25,16 @@ const CALIBRATION_RECEIVERS: f64 = 512.0 * 512.0;
 /// Samples per receiver of the calibration.
 const CALIBRATION_SAMPLES: f64 = 64.0;
 /// The counting path's setup per casting triangle, ns (stencil, ties,
-/// candidate edges, wedge regions: 0.9–2.2 µs on the tessellation series
-/// at 512², 2 threads; the lowest is taken, so that counting is kept
-/// unless rays are surely cheaper).
-const SETUP_NS: f64 = 900.0;
-/// The counter pass per casting triangle at the calibration, ns (1.2–5.5
-/// µs on the series). It grows with the receivers,
-/// and only a little with the samples: the per-tile culling of the
-/// candidate edges, which does not depend on them, dominates (`dcs
-/// --dcs-rays never` on the series, 64 → 256 samples: 1.0–1.3×).
-const COUNT_NS: f64 = 1500.0;
+/// candidate edges, wedge regions: 0.7–2.2 µs on the tessellation series
+/// at 512², 2 threads; fitted with [`COUNT_NS`] and [`RAY_NS`], see
+/// there).
+const SETUP_NS: f64 = 700.0;
+/// The counter pass per casting triangle at the calibration, ns (0.5–2.5
+/// µs on the series). It grows with the receivers, and only a little
+/// with the samples: the per-tile culling of the candidate edges, which
+/// does not depend on them, is much of it (`dcs --dcs-rays never` on the
+/// series, 64 → 256 samples: 1.0–1.3×).
+const COUNT_NS: f64 = 900.0;
 /// The counter pass's growth per calibration's worth of samples.
 const COUNT_PER_SAMPLES: f64 = 0.1;
 /// BVH build per casting triangle, ns (0.45 µs at 4.1M triangles, 2
@@ -48,15 +48,21 @@ const MIN_SAVING_MS: f64 = 50.0;
 /// calibration's 64 samples, ns: 32–133 ns on the scaling benchmark's
 /// three series at 512² and 1024² (AMD EPYC Zen 3, 2 threads: dearer
 /// with more triangles, cheaper where more receivers are lit, since a
-/// lit receiver's segment hull is empty). With [`COUNT_NS`] it was
-/// chosen over a grid of both on the series' 28 measured (scene, size,
-/// samples) points for the least time lost to a wrong choice (4.9 s with
-/// the previous 100 ns and 1.2 µs, 0.24 s now: the 278k-triangle bunny
-/// at 512², 64 samples, is still counted where rays are 1.3× faster),
-/// keeping every case of this module's test. More samples per receiver make each ray cheaper (the
-/// receiver's segments share their cull): the reference's trace per ray
-/// at 256 samples is about 0.7× its cost at 64, so rays scale as
-/// `(64 / N)^¼`.
+/// lit receiver's segment hull is empty). With [`SETUP_NS`] and
+/// [`COUNT_NS`] it was chosen over a grid on the series' 28 measured
+/// (scene, size, samples) points, both paths timed, for the least time
+/// lost to a wrong choice, keeping every case of this module's test:
+/// 0.94 s in all, against 4.6 s with the constants fitted before the
+/// counting path's receivers were bounded by two boxes across depth gaps
+/// (900 ns setup, 1.5 µs counter pass), which traced the 1.0M-triangle
+/// spheres at 1024², 64 samples, where counting is now 1.5–2× faster.
+/// Two misses are left, both on the subdivided bunny, whose counting
+/// costs more per triangle than the spheres': 278k triangles at 512², 64
+/// samples is counted (0.95 s, rays 0.52 s) and 1.1M at 512², 256
+/// samples too (2.75 s, rays 2.24 s). More samples per receiver make
+/// each ray cheaper (the receiver's segments share their cull): the
+/// reference's trace per ray at 256 samples is about 0.7× its cost at
+/// 64, so rays scale as `(64 / N)^¼`.
 const RAY_NS: f64 = 60.0;
 
 /// Per light: count edges, or trace every receiver's rays.
@@ -144,8 +150,8 @@ mod tests {
                 rays_ms: 0.0
             }
         );
-        // 256 samples: 1.0M counts (measured: counting 2.5 s, rays 2.8 s),
-        // 4.1M traces (counting 9.9 s, rays 7.6 s).
+        // 256 samples: 1.0M counts (measured: counting 1.7 s, rays
+        // 3.5 s), 4.1M traces.
         assert!(counted(plan_light(true, 1_023_842, receivers, 256)));
         assert!(!counted(plan_light(true, 4_121_282, receivers, 256)));
         // Many samples make every receiver's rays dearer than counting.
