@@ -775,8 +775,9 @@ pub(super) fn count_tiles(
 /// The unbounded edges that may apply to receivers of `tile`, and per
 /// inner block (row-major, [`PER_ROW`] per row) the indices into them of
 /// those that may apply to its receivers, each with the mask of those
-/// receivers: receivers' bounding boxes of the tile, then of 16², 8² and
-/// 4² blocks, against each edge's screen rectangle and world-space region,
+/// receivers: the receivers' boxes (one, or two across a depth gap:
+/// [`ReceiverBoxes`]) of the tile, then of 16², 8² and 4² blocks, against
+/// each edge's screen rectangle and world-space region,
 /// then the sixteen receivers of a 4² block against the region at once
 /// ([`RegionBound::admits`]).
 #[inline(always)]
@@ -891,7 +892,7 @@ fn unbounded_near<'u>(
                         for sx in 0..MIDDLE / INNER {
                             let (x1, y1) = (xm + sx * INNER, ym + sy * INNER);
                             // One read of the block's receivers gives both
-                            // their box and their lanes.
+                            // their boxes and their lanes.
                             let (receivers, boxes) = receiver_block(ctx, x1, y1);
                             let Some(b) = boxes else {
                                 continue;
