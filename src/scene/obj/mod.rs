@@ -185,14 +185,34 @@ fn find_file(dir: &Path, name: &str) -> Option<std::result::Result<PathBuf, Path
     None
 }
 
-/// Lines as tobj sees them (`BufRead::lines`: `\n` or `\r\n` ends a line),
-/// with their 1-based number and byte range.
-fn lines(text: &str) -> impl Iterator<Item = (usize, Range<usize>, &str)> {
+/// One non-blank line as tobj sees it (`BufRead::lines`: `\n` or `\r\n`
+/// ends a line): its 1-based number, byte range, text, first word and
+/// the words after it.
+struct Statement<'a> {
+    ln: usize,
+    range: Range<usize>,
+    line: &'a str,
+    keyword: &'a str,
+    words: std::str::SplitWhitespace<'a>,
+}
+
+/// The statements of an OBJ or MTL text (blank lines skipped), for both
+/// scans.
+fn statements(text: &str) -> impl Iterator<Item = Statement<'_>> {
     let mut start = 0;
-    text.split('\n').enumerate().map(move |(i, raw)| {
+    text.split('\n').enumerate().filter_map(move |(i, raw)| {
         let range = start..start + raw.len();
         start = range.end + 1;
-        (i + 1, range, raw.strip_suffix('\r').unwrap_or(raw))
+        let line = raw.strip_suffix('\r').unwrap_or(raw);
+        let mut words = line.split_whitespace();
+        let keyword = words.next()?;
+        Some(Statement {
+            ln: i + 1,
+            range,
+            line,
+            keyword,
+            words,
+        })
     })
 }
 
@@ -273,12 +293,15 @@ fn scan_obj<'a>(path: &Path, text: &'a str) -> Result<ObjScan<'a>> {
     let mut mtllibs = Vec::new();
     let mut bad_normals: Option<(usize, usize)> = None;
     let mut edits = Edits::default();
-    for (ln, range, line) in lines(text) {
+    for Statement {
+        ln,
+        range,
+        line,
+        keyword,
+        words,
+    } in statements(text)
+    {
         let err = |msg: String| Error::file(path, Some(ln), msg);
-        let mut words = line.split_whitespace();
-        let Some(keyword) = words.next() else {
-            continue;
-        };
         match keyword {
             "v" | "vt" => {
                 let nums = numbers(words, err)?;
@@ -409,12 +432,15 @@ struct LoadedMtl {
 fn scan_mtl<'a>(path: &Path, text: &'a str) -> Result<(Cow<'a, str>, Vec<MtlLines>)> {
     let mut materials: Vec<MtlLines> = Vec::new();
     let mut edits = Edits::default();
-    for (ln, range, line) in lines(text) {
+    for Statement {
+        ln,
+        range,
+        line,
+        keyword,
+        words,
+    } in statements(text)
+    {
         let err = |msg: String| Error::file(path, Some(ln), msg);
-        let mut words = line.split_whitespace();
-        let Some(keyword) = words.next() else {
-            continue;
-        };
         match keyword {
             "newmtl" if rest_after_keyword(line).is_empty() => {
                 return Err(err("`newmtl` without a name".into()))

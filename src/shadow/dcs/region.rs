@@ -63,32 +63,22 @@ macro_rules! admits_kernel {
 
 /// [`RegionBound::keep_lanes`]' loop over `$lane` lanes: each item whose
 /// region ([`excludes_box_kernel!`]) does not exclude one of the boxes,
-/// into `$out`. One box (most blocks) has its own loop.
+/// into `$out`. (A separate loop for one box was measured: 0.9 % more
+/// instructions in the counter pass, so there is none.)
 macro_rules! keep_kernel {
-    ($lane:ty, $splat:path, $new:path, $items:ident, $region_of:ident, $boxes:ident, $out:ident) => {
-        match $boxes.as_slice() {
-            &[(lo, hi)] => {
-                for item in $items {
-                    if let Some(region) = $region_of(item) {
-                        if !excludes_box_kernel!($lane, $splat, $new, region, lo, hi) {
-                            $out.push(item);
-                        }
-                    }
-                }
-            }
-            boxes => {
-                for item in $items {
-                    if let Some(region) = $region_of(item) {
-                        if boxes.iter().any(|&(lo, hi)| {
-                            !excludes_box_kernel!($lane, $splat, $new, region, lo, hi)
-                        }) {
-                            $out.push(item);
-                        }
-                    }
+    ($lane:ty, $splat:path, $new:path, $items:ident, $region_of:ident, $boxes:ident, $out:ident) => {{
+        let boxes = $boxes.as_slice();
+        for item in $items {
+            if let Some(region) = $region_of(item) {
+                if boxes
+                    .iter()
+                    .any(|&(lo, hi)| !excludes_box_kernel!($lane, $splat, $new, region, lo, hi))
+                {
+                    $out.push(item);
                 }
             }
         }
-    };
+    }};
 }
 
 /// How much smaller two boxes must be than one (the sum of their
