@@ -636,8 +636,13 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
         let t_max = (1.0 - 1e-6) as f32;
         // On-surface bundles also get the receiver's tangent plane, as the
         // reference gives it.
-        let hull =
-            SegmentHull::new(o, &dirs, Some((center, u, v)), tangent).expect("usable bundle");
+        let hull = SegmentHull::new(
+            o,
+            &dirs,
+            Some((center.as_dvec3(), u.as_dvec3(), v.as_dvec3())),
+            tangent,
+        )
+        .expect("usable bundle");
         for limit in [1, 4, 1_000_000] {
             for level in LEVELS {
                 let mut out = vec![true; n];
@@ -658,6 +663,91 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
         }
     }
     assert_bundle_agreement(rays, hits, 20, &mismatches);
+}
+
+/// (d''′) A receiver's hull over the whole light
+/// ([`SegmentHull::over_light`]) holds every segment any sampling of that
+/// light traces: where it meets no leaf, no ray from the origin to any
+/// point of the light is occluded — corners, edges and random points,
+/// computed as the sampler and the reference compute them. Origins as in
+/// the test above (a third on the bunny's surface, offset by the
+/// reference's rule, with its tangent plane: the receiver's own triangle
+/// then lies just behind that plane). Both verdicts must occur.
+#[test]
+fn light_hull_clear_means_every_segment_clear() {
+    use penumbra::internal::geom::bvh::SegmentHull;
+    let (geometry, bvh, lo, size) = bunny_bvh();
+    let verts = &geometry.positions;
+    let mut rng = Rng(777);
+    let mut leaves = Vec::new();
+    let (mut clear, mut blocked, mut rays) = (0usize, 0usize, 0usize);
+    let mut wrong = Vec::new();
+    for trial in 0..4000 {
+        let mut tangent = None;
+        let o = if trial % 3 == 0 {
+            let t =
+                &geometry.triangles[(rng.next_u64() % geometry.triangles.len() as u64) as usize];
+            let [a, b, c] = t.map(|i| verts[i as usize]);
+            let (u, v) = (rng.f64() as f32, rng.f64() as f32);
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            let p = a + (b - a) * u + (c - a) * v;
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
+            tangent = Some(n);
+            p + n * eps
+        } else {
+            lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
+                - size * 0.2
+        };
+        let center =
+            lo + Vec3::new(rng.f64() as f32, 1.2 + rng.f64() as f32, rng.f64() as f32) * size;
+        let u = Vec3::new(rng.f64() as f32, 0.0, rng.f64() as f32 * 0.2) * size.x * 0.5;
+        let v = Vec3::new(rng.f64() as f32 * 0.2, 0.0, rng.f64() as f32) * size.z * 0.5;
+        let rect = (center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
+        let Some(hull) = SegmentHull::over_light(o, rect, tangent) else {
+            continue;
+        };
+        let is_clear = bvh.hull_leaves(&hull, &mut leaves, 0);
+        if is_clear {
+            clear += 1;
+        } else {
+            blocked += 1;
+            continue;
+        }
+        let mut points: Vec<(f64, f64)> = (0..64).map(|_| (rng.f64(), rng.f64())).collect();
+        points.extend(
+            [0.0, 0.5, 1.0]
+                .iter()
+                .flat_map(|&s| [0.0, 0.5, 1.0].map(|t| (s, t))),
+        );
+        let t_max = (1.0 - 1e-6) as f32;
+        for (s, t) in points {
+            let x = (center.as_dvec3()
+                + u.as_dvec3() * (2.0 * s - 1.0)
+                + v.as_dvec3() * (1.0 - 2.0 * t))
+                .as_vec3();
+            let d = (x.as_dvec3() - o.as_dvec3()).as_vec3();
+            rays += 1;
+            if bvh.occluded(o, d, t_max) {
+                wrong.push(format!(
+                    "trial {trial}: o {o:?} light {rect:?} (s, t) ({s}, {t})"
+                ));
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "occluded rays under a clear hull: {wrong:#?}"
+    );
+    assert!(
+        clear >= 200 && blocked >= 200,
+        "both verdicts must occur: {clear} clear, {blocked} not"
+    );
+    assert!(rays > 10_000);
 }
 
 /// (d''') The reference's images do not depend on the segment hull: the

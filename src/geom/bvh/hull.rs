@@ -117,7 +117,7 @@ impl SegmentHull {
     pub fn new(
         origin: Vec3,
         dirs: &[Vec3],
-        rect: Option<(Vec3, Vec3, Vec3)>,
+        rect: Option<(DVec3, DVec3, DVec3)>,
         normal: Option<Vec3>,
     ) -> Option<Self> {
         if !origin.is_finite() {
@@ -167,16 +167,87 @@ impl SegmentHull {
             planes: 0,
         };
         if let Some((center, u, v)) = rect {
-            hull.add_pyramid(
-                origin.as_dvec3(),
-                center.as_dvec3(),
-                u.as_dvec3(),
-                v.as_dvec3(),
-            );
+            hull.add_pyramid(origin.as_dvec3(), center, u, v);
         }
         if let (Some(n), true) = (tangent, facing) {
             // `−n · (p − o) ≤ 0` on every segment.
             hull.push_plane(-n, 0.0);
+        }
+        Some(hull)
+    }
+
+    /// The region of every segment from `origin` to the rect light
+    /// `center ± u ± v`, whatever its samples: the segments of
+    /// [`SegmentHull::new`] for any sample set of that light lie in it, so
+    /// a tree walk that finds no leaf in it proves every such segment
+    /// clear before any sample is drawn. Its box is that of the origin
+    /// and the corners, widened by `1e-6 (|c|∞ + |c − o|∞)` over the
+    /// corners: a traced direction is `x − o` rounded to f32, with `x`
+    /// the f32 rounding of a point of the parallelogram, so it lies
+    /// within `2⁻²³ (|x|∞ + |x − o|∞)` per coordinate of the exact
+    /// `p − o`, which the corners' box holds; the dominant axes come from
+    /// the widened box of the directions, as in [`SegmentHull::new`]. The
+    /// tangent plane is added only when every corner faces `normal` by
+    /// more than `|n|₁` times that widening (then so does every traced
+    /// direction, by [`SegmentHull::new`]'s rule). `None` when the origin
+    /// or the light is not finite.
+    pub fn over_light(
+        origin: Vec3,
+        (center, u, v): (DVec3, DVec3, DVec3),
+        normal: Option<Vec3>,
+    ) -> Option<Self> {
+        let o = origin.as_dvec3();
+        if !(o.is_finite() && center.is_finite() && u.is_finite() && v.is_finite()) {
+            return None;
+        }
+        let corners = [
+            center + u + v,
+            center - u + v,
+            center - u - v,
+            center + u - v,
+        ];
+        let reach = corners
+            .iter()
+            .map(|c| c.abs().max_element() + (*c - o).abs().max_element())
+            .fold(0.0, f64::max);
+        let widen = 1e-6 * reach;
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for c in corners {
+            lo = lo.min(c - o);
+            hi = hi.max(c - o);
+        }
+        let (lo, hi) = (lo - widen, hi + widen);
+        // Rounded outwards to f32 by one more widening step (f32 keeps
+        // 2⁻²⁴ relative, far below `widen`'s 1e-6 of the reach).
+        let (lo, hi) = ((lo - widen).as_vec3(), (hi + widen).as_vec3());
+        if !(lo.is_finite() && hi.is_finite()) {
+            return None;
+        }
+        let axes = dominant_axes(lo, hi);
+        let (lo, hi) = (lo.min(Vec3::ZERO), hi.max(Vec3::ZERO));
+        let mut hull = SegmentHull {
+            origin,
+            org: [
+                f32x4::splat(origin.x),
+                f32x4::splat(origin.y),
+                f32x4::splat(origin.z),
+            ],
+            lo: lo.to_array(),
+            hi: hi.to_array(),
+            axes,
+            normals: [Vec3::ZERO; MAX_PLANES],
+            offsets: [0.0; MAX_PLANES],
+            planes: 0,
+        };
+        hull.add_pyramid(o, center, u, v);
+        if let Some(n) = normal.filter(|n| n.is_finite() && *n != Vec3::ZERO) {
+            let n = n.as_dvec3();
+            // Off by at most `|n|₁ · 2 widen` for a traced direction, and
+            // `SegmentHull::new` asks `n · d > 1e-12 |n| · |d|` on top.
+            let need = n.abs().element_sum() * 4.0 * widen;
+            if corners.iter().all(|c| n.dot(*c - o) > need) {
+                hull.push_plane(-n, 0.0);
+            }
         }
         Some(hull)
     }

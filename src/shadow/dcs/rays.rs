@@ -29,6 +29,9 @@ pub(super) struct RayScratch {
     vt: Vec<f64>,
     visibility: Vec<f32>,
     tracer: TracerScratch,
+    /// Whether the next receiver skips [`ShadowTracer::light_clear`]: set
+    /// when it failed, cleared by a receiver found lit by its rays.
+    skip_light_hull: bool,
 }
 
 impl<'a, 'c> RayPixels<'a, 'c> {
@@ -69,6 +72,25 @@ impl<'a, 'c> RayPixels<'a, 'c> {
         if !g.is_surface() {
             return PixelResult::default();
         }
+        // A receiver whose segments to the whole light meet no caster is
+        // lit by every sample, whichever are drawn: the result below for
+        // `visible == n`, without drawing them. Tried again after a lit
+        // receiver only: in a run of shadowed ones the test finds leaves
+        // and is wasted.
+        if let (Some(rect), false, false) =
+            (self.rect, scratch.skip_light_hull, self.pattern.is_empty())
+        {
+            if self.tracer.light_clear(&g, rect, &mut scratch.tracer) {
+                let eye = self.ctx.view.eye.as_vec3();
+                let point = surface_point(self.ctx.scene, &g, eye);
+                return PixelResult {
+                    vcoef: 1.0,
+                    radiance: self.prepared.unshadowed_direct(&point),
+                    ..PixelResult::default()
+                };
+            }
+            scratch.skip_light_hull = true;
+        }
         let width = (gbuffer.width as usize).max(1);
         let pixel = ((i % width) as u32, (i / width) as u32);
         self.sampler
@@ -97,6 +119,9 @@ impl<'a, 'c> RayPixels<'a, 'c> {
         // f32 in any order, as the counting path's count.
         let visible = scratch.visibility.iter().filter(|&&v| v > 0.0).count() as f32;
         let hidden = n as f32 - visible;
+        if hidden == 0.0 {
+            scratch.skip_light_hull = false;
+        }
         let radiance = if visible == 0.0 {
             Vec3::ZERO
         } else {

@@ -143,6 +143,11 @@ pub struct Scratch {
     skip_hull: bool,
 }
 
+/// A rect light `(center, u, v)` in f64 (exact: the values are f32).
+fn rect_f64((c, u, v): (Vec3, Vec3, Vec3)) -> (DVec3, DVec3, DVec3) {
+    (c.as_dvec3(), u.as_dvec3(), v.as_dvec3())
+}
+
 /// A receiver's rays are traced in blocks of 4 × 2 neighbouring strata
 /// ([`Strata::block_order`]), so each packet of eight covers a compact
 /// patch of the light rather than a thin row of it (sample order when the
@@ -430,7 +435,7 @@ impl<'a> ShadowTracer<'a> {
             // The receiver's own surface is behind its tangent plane: culls
             // its facet and the neighbours curving away (callgrind: −6 %
             // instructions on spheres and bunny).
-            SegmentHull::new(origin, &dirs, rect, Some(g.geo_normal))
+            SegmentHull::new(origin, &dirs, rect.map(rect_f64), Some(g.geo_normal))
         } else {
             None
         };
@@ -479,6 +484,55 @@ impl<'a> ShadowTracer<'a> {
         scratch.occluded = occluded;
         scratch.order = order;
         rays
+    }
+
+    /// Whether every shadow segment from `g` to the rect light `rect`
+    /// `(center, u, v)` is clear, proved before any sample is drawn: no
+    /// BVH leaf meets the region of all of them
+    /// ([`SegmentHull::over_light`]), so [`ShadowTracer::gsample_bundle`]
+    /// would find every sample of this light visible (`V·T` = 1), for any
+    /// sample set. False when it cannot tell that way: not a surface, not
+    /// a receiver, non-opaque casters (whose walk this does not cover),
+    /// no hulls (`with_hull_limit(0)`), or some leaf meets the region.
+    pub fn light_clear(
+        &self,
+        g: &GSample,
+        rect: (Vec3, Vec3, Vec3),
+        scratch: &mut Scratch,
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if runs_v3() {
+            // SAFETY: the CPU has every feature the v3 copy enables
+            // (`runs_v3` checks them), its one requirement.
+            return unsafe { self.light_clear_v3(g, rect, scratch) };
+        }
+        self.light_clear_body(g, rect, scratch)
+    }
+
+    /// [`ShadowTracer::light_clear_body`] compiled for `Level::V3`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn light_clear_v3(&self, g: &GSample, rect: (Vec3, Vec3, Vec3), scratch: &mut Scratch) -> bool {
+        self.light_clear_body(g, rect, scratch)
+    }
+
+    #[inline(always)]
+    fn light_clear_body(
+        &self,
+        g: &GSample,
+        rect: (Vec3, Vec3, Vec3),
+        scratch: &mut Scratch,
+    ) -> bool {
+        if !g.is_surface()
+            || !self.receives(g)
+            || self.translucent.triangle_count() > 0
+            || self.hull_limit == 0
+        {
+            return false;
+        }
+        let origin = self.shadow_origin(g.position, g.geo_normal);
+        SegmentHull::over_light(origin, rect_f64(rect), Some(g.geo_normal))
+            .is_some_and(|hull| self.opaque.hull_leaves(&hull, &mut scratch.leaves, 0))
     }
 
     /// Hard-shadow visibility from light `light`'s centre (a sphere light:
