@@ -215,6 +215,7 @@ impl Bvh {
                 continue;
             };
             let mut mask = boxes(node);
+            self.prefetch_children(node, mask);
             while mask != 0 {
                 let slot = mask.trailing_zeros() as usize;
                 mask &= mask - 1;

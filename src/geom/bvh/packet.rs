@@ -971,7 +971,7 @@ impl Bvh {
     /// leaf's triangles (tested at once) and an inner child's node (popped
     /// soon), so their misses overlap instead of following one another.
     #[inline(always)]
-    fn prefetch_children(&self, node: &Node, mask: u32) {
+    pub(super) fn prefetch_children(&self, node: &Node, mask: u32) {
         #[cfg(target_arch = "x86_64")]
         let mut mask = mask;
         #[cfg(target_arch = "x86_64")]
