@@ -580,6 +580,43 @@ fn ray_bundles_agree_with_single_rays_bit_for_bit() {
     assert_bundle_agreement(rays, hits, 10, &mismatches);
 }
 
+/// A shadow-ray origin and a rect light `(center, u, v)` above the bunny
+/// (`lo`, `size`: its box): on `surface`, a point of a random triangle
+/// offset along its normal by the reference's rule, with that normal as
+/// its tangent plane; else a random point around the box.
+fn origin_and_light(
+    rng: &mut Rng,
+    geometry: &SceneGeometry,
+    lo: Vec3,
+    size: Vec3,
+    surface: bool,
+) -> (Vec3, Option<Vec3>, Vec3, Vec3, Vec3) {
+    let verts = &geometry.positions;
+    let mut tangent = None;
+    let o = if surface {
+        let t = &geometry.triangles[(rng.next_u64() % geometry.triangles.len() as u64) as usize];
+        let [a, b, c] = t.map(|i| verts[i as usize]);
+        let (u, v) = (rng.f64() as f32, rng.f64() as f32);
+        let (u, v) = if u + v > 1.0 {
+            (1.0 - u, 1.0 - v)
+        } else {
+            (u, v)
+        };
+        let p = a + (b - a) * u + (c - a) * v;
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
+        tangent = Some(n);
+        p + n * eps
+    } else {
+        lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
+            - size * 0.2
+    };
+    let center = lo + Vec3::new(rng.f64() as f32, 1.2 + rng.f64() as f32, rng.f64() as f32) * size;
+    let u = Vec3::new(rng.f64() as f32, 0.0, rng.f64() as f32 * 0.2) * size.x * 0.5;
+    let v = Vec3::new(rng.f64() as f32 * 0.2, 0.0, rng.f64() as f32) * size.z * 0.5;
+    (o, tangent, center, u, v)
+}
+
 /// (d'') The per-receiver segment hull ([`Bvh::occluded_hull`]) gives,
 /// ray by ray, exactly `occluded`'s answer, for every candidate limit
 /// (1: nearly always the rays' own walks; 4: the default; 10⁶: always the
@@ -591,37 +628,12 @@ fn ray_bundles_agree_with_single_rays_bit_for_bit() {
 fn hull_bundles_agree_with_single_rays_bit_for_bit() {
     use penumbra::internal::geom::bvh::SegmentHull;
     let (geometry, bvh, lo, size) = bunny_bvh();
-    let verts = &geometry.positions;
     let mut rng = Rng(4242);
     let mut leaves = Vec::new();
     let (mut rays, mut hits, mut mismatches) = (0usize, 0usize, Vec::new());
     for bundle in 0..3000 {
-        let mut tangent = None;
-        let o = if bundle % 3 == 0 {
-            // A point on a triangle, offset along its normal by the
-            // reference's rule.
-            let t =
-                &geometry.triangles[(rng.next_u64() % geometry.triangles.len() as u64) as usize];
-            let [a, b, c] = t.map(|i| verts[i as usize]);
-            let (u, v) = (rng.f64() as f32, rng.f64() as f32);
-            let (u, v) = if u + v > 1.0 {
-                (1.0 - u, 1.0 - v)
-            } else {
-                (u, v)
-            };
-            let p = a + (b - a) * u + (c - a) * v;
-            let n = (b - a).cross(c - a).normalize_or_zero();
-            let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
-            tangent = Some(n);
-            p + n * eps
-        } else {
-            lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
-                - size * 0.2
-        };
-        let center =
-            lo + Vec3::new(rng.f64() as f32, 1.2 + rng.f64() as f32, rng.f64() as f32) * size;
-        let u = Vec3::new(rng.f64() as f32, 0.0, rng.f64() as f32 * 0.2) * size.x * 0.5;
-        let v = Vec3::new(rng.f64() as f32 * 0.2, 0.0, rng.f64() as f32) * size.z * 0.5;
+        let (o, tangent, center, u, v) =
+            origin_and_light(&mut rng, &geometry, lo, size, bundle % 3 == 0);
         let n = 1 + (rng.next_u64() % 70) as usize;
         let dirs: Vec<Vec3> = (0..n)
             .map(|_| {
@@ -677,36 +689,13 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
 fn light_hull_clear_means_every_segment_clear() {
     use penumbra::internal::geom::bvh::SegmentHull;
     let (geometry, bvh, lo, size) = bunny_bvh();
-    let verts = &geometry.positions;
     let mut rng = Rng(777);
     let mut leaves = Vec::new();
     let (mut clear, mut blocked, mut rays) = (0usize, 0usize, 0usize);
     let mut wrong = Vec::new();
     for trial in 0..4000 {
-        let mut tangent = None;
-        let o = if trial % 3 == 0 {
-            let t =
-                &geometry.triangles[(rng.next_u64() % geometry.triangles.len() as u64) as usize];
-            let [a, b, c] = t.map(|i| verts[i as usize]);
-            let (u, v) = (rng.f64() as f32, rng.f64() as f32);
-            let (u, v) = if u + v > 1.0 {
-                (1.0 - u, 1.0 - v)
-            } else {
-                (u, v)
-            };
-            let p = a + (b - a) * u + (c - a) * v;
-            let n = (b - a).cross(c - a).normalize_or_zero();
-            let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
-            tangent = Some(n);
-            p + n * eps
-        } else {
-            lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
-                - size * 0.2
-        };
-        let center =
-            lo + Vec3::new(rng.f64() as f32, 1.2 + rng.f64() as f32, rng.f64() as f32) * size;
-        let u = Vec3::new(rng.f64() as f32, 0.0, rng.f64() as f32 * 0.2) * size.x * 0.5;
-        let v = Vec3::new(rng.f64() as f32 * 0.2, 0.0, rng.f64() as f32) * size.z * 0.5;
+        let (o, tangent, center, u, v) =
+            origin_and_light(&mut rng, &geometry, lo, size, trial % 3 == 0);
         let rect = (center.as_dvec3(), u.as_dvec3(), v.as_dvec3());
         let Some(hull) = SegmentHull::over_light(o, rect, tangent) else {
             continue;

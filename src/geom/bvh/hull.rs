@@ -144,15 +144,28 @@ impl SegmentHull {
                 facing = n.dot(d) > 1e-12 * n.abs().dot(d.abs());
             }
         }
-        let (lo, hi) = (Vec3::from_array(lo), Vec3::from_array(hi));
+        let mut hull =
+            SegmentHull::of_directions(origin, Vec3::from_array(lo), Vec3::from_array(hi))?;
+        if let Some((center, u, v)) = rect {
+            hull.add_pyramid(origin.as_dvec3(), center, u, v);
+        }
+        if let (Some(n), true) = (tangent, facing) {
+            // `−n · (p − o) ≤ 0` on every segment.
+            hull.push_plane(-n, 0.0);
+        }
+        Some(hull)
+    }
+
+    /// The box of the segments from `origin` along directions in `[lo,
+    /// hi]` (which decides the dominant axes), holding the origin, with
+    /// no plane yet; `None` when the box is not finite.
+    fn of_directions(origin: Vec3, lo: Vec3, hi: Vec3) -> Option<Self> {
         if !(lo.is_finite() && hi.is_finite()) {
             return None;
         }
-        // The directions' own box decides the axes; the segments' box
-        // also holds the origin.
         let axes = dominant_axes(lo, hi);
         let (lo, hi) = (lo.min(Vec3::ZERO), hi.max(Vec3::ZERO));
-        let mut hull = SegmentHull {
+        Some(SegmentHull {
             origin,
             org: [
                 f32x4::splat(origin.x),
@@ -165,15 +178,7 @@ impl SegmentHull {
             normals: [Vec3::ZERO; MAX_PLANES],
             offsets: [0.0; MAX_PLANES],
             planes: 0,
-        };
-        if let Some((center, u, v)) = rect {
-            hull.add_pyramid(origin.as_dvec3(), center, u, v);
-        }
-        if let (Some(n), true) = (tangent, facing) {
-            // `−n · (p − o) ≤ 0` on every segment.
-            hull.push_plane(-n, 0.0);
-        }
-        Some(hull)
+        })
     }
 
     /// The region of every segment from `origin` to the rect light
@@ -219,26 +224,8 @@ impl SegmentHull {
         let (lo, hi) = (lo - widen, hi + widen);
         // Rounded outwards to f32 by one more widening step (f32 keeps
         // 2⁻²⁴ relative, far below `widen`'s 1e-6 of the reach).
-        let (lo, hi) = ((lo - widen).as_vec3(), (hi + widen).as_vec3());
-        if !(lo.is_finite() && hi.is_finite()) {
-            return None;
-        }
-        let axes = dominant_axes(lo, hi);
-        let (lo, hi) = (lo.min(Vec3::ZERO), hi.max(Vec3::ZERO));
-        let mut hull = SegmentHull {
-            origin,
-            org: [
-                f32x4::splat(origin.x),
-                f32x4::splat(origin.y),
-                f32x4::splat(origin.z),
-            ],
-            lo: lo.to_array(),
-            hi: hi.to_array(),
-            axes,
-            normals: [Vec3::ZERO; MAX_PLANES],
-            offsets: [0.0; MAX_PLANES],
-            planes: 0,
-        };
+        let mut hull =
+            SegmentHull::of_directions(origin, (lo - widen).as_vec3(), (hi + widen).as_vec3())?;
         hull.add_pyramid(o, center, u, v);
         if let Some(n) = normal.filter(|n| n.is_finite() && *n != Vec3::ZERO) {
             let n = n.as_dvec3();
