@@ -506,15 +506,70 @@ impl Bvh {
             self.occluded_bundle_body(hull.origin, dirs, t_max, out);
             return false;
         }
+        self.occluded_leaves_body(hull.origin, dirs, t_max, out, leaves);
+        true
+    }
+
+    /// [`Bvh::occluded_hull`]'s answers when `leaves` already holds every
+    /// leaf some segment from `origin` along `dirs` may hit (a
+    /// [`Bvh::hull_leaves`] list of a region holding all of them, kept
+    /// within its limit): the rays are tested against those leaves only,
+    /// each lane passing the leaf's own box first, so every answer is the
+    /// ray's own walk's. `out` is cleared first.
+    pub fn occluded_leaves(
+        &self,
+        origin: Vec3,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+        leaves: &mut [(u32, u32)],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if level() == Level::V3 && Level::V3.supported() {
+            // SAFETY: the CPU has every feature the v3 copy enables
+            // (`Level::supported`), its one requirement.
+            return unsafe { self.occluded_leaves_v3(origin, dirs, t_max, out, leaves) };
+        }
+        self.occluded_leaves_body(origin, dirs, t_max, out, leaves)
+    }
+
+    /// [`Bvh::occluded_leaves_body`] compiled for `Level::V3`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn occluded_leaves_v3(
+        &self,
+        origin: Vec3,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+        leaves: &mut [(u32, u32)],
+    ) {
+        self.occluded_leaves_body(origin, dirs, t_max, out, leaves)
+    }
+
+    /// The leaves' test itself, inlined into each level's copy.
+    #[inline(always)]
+    fn occluded_leaves_body(
+        &self,
+        origin: Vec3,
+        dirs: &[Vec3],
+        t_max: f32,
+        out: &mut [bool],
+        leaves: &mut [(u32, u32)],
+    ) {
+        out.fill(false);
+        if self.nodes.is_empty() || !(t_max > 0.0) {
+            return;
+        }
         if leaves.is_empty() {
-            return true;
+            return;
         }
         let mut packet = Packet::empty();
         for (chunk, res) in dirs
             .chunks(super::PACKET)
             .zip(out.chunks_mut(super::PACKET))
         {
-            packet.load(hull.origin, chunk, t_max);
+            packet.load(origin, chunk, t_max);
             if packet.valid == 0 {
                 continue;
             }
@@ -539,6 +594,5 @@ impl Bvh {
                 *r = hit >> lane & 1 == 1;
             }
         }
-        true
     }
 }

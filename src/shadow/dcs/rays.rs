@@ -7,7 +7,7 @@ use crate::gbuffer::GSample;
 use crate::sampling::{LightSampler, PatternSampler};
 use crate::scene::LightShape;
 use crate::shade::{surface_point, LightSample, PreparedLight};
-use crate::shadow::kit::rays::{Scratch as TracerScratch, ShadowTracer};
+use crate::shadow::kit::rays::{LightHull, Scratch as TracerScratch, ShadowTracer};
 use crate::shadow::ShadowContext;
 use glam::Vec3;
 
@@ -29,8 +29,9 @@ pub(super) struct RayScratch {
     vt: Vec<f64>,
     visibility: Vec<f32>,
     tracer: TracerScratch,
-    /// Whether the next receiver skips [`ShadowTracer::light_clear`]: set
-    /// when it failed, cleared by a receiver found lit by its rays.
+    /// Whether the next receiver skips [`ShadowTracer::light_hull`]: set
+    /// when it kept too many leaves, cleared by a receiver found lit by
+    /// its rays.
     skip_light_hull: bool,
 }
 
@@ -72,24 +73,31 @@ impl<'a, 'c> RayPixels<'a, 'c> {
         if !g.is_surface() {
             return PixelResult::default();
         }
-        // A receiver whose segments to the whole light meet no caster is
-        // lit by every sample, whichever are drawn: the result below for
-        // `visible == n`, without drawing them. Tried again after a lit
-        // receiver only: in a run of shadowed ones the test finds leaves
-        // and is wasted.
+        // The tree's leaves in the region of every segment to the whole
+        // light, before any sample is drawn: none, and the receiver is
+        // lit by every sample, whichever are drawn (the result below for
+        // `visible == n`, without drawing them); a few, and the rays are
+        // tested against those only. Tried again after a lit receiver
+        // only: in a run of shadowed ones the walk finds too many and is
+        // wasted.
+        let mut known = LightHull::Unknown;
         if let (Some(rect), false, false) =
             (self.rect, scratch.skip_light_hull, self.pattern.is_empty())
         {
-            if self.tracer.light_clear(&g, rect, &mut scratch.tracer) {
-                let eye = self.ctx.view.eye.as_vec3();
-                let point = surface_point(self.ctx.scene, &g, eye);
-                return PixelResult {
-                    vcoef: 1.0,
-                    radiance: self.prepared.unshadowed_direct(&point),
-                    ..PixelResult::default()
-                };
+            known = self.tracer.light_hull(&g, rect, &mut scratch.tracer);
+            match known {
+                LightHull::Clear => {
+                    let eye = self.ctx.view.eye.as_vec3();
+                    let point = surface_point(self.ctx.scene, &g, eye);
+                    return PixelResult {
+                        vcoef: 1.0,
+                        radiance: self.prepared.unshadowed_direct(&point),
+                        ..PixelResult::default()
+                    };
+                }
+                LightHull::Many => scratch.skip_light_hull = true,
+                LightHull::Few | LightHull::Unknown => {}
             }
-            scratch.skip_light_hull = true;
         }
         let width = (gbuffer.width as usize).max(1);
         let pixel = ((i % width) as u32, (i / width) as u32);
@@ -104,12 +112,13 @@ impl<'a, 'c> RayPixels<'a, 'c> {
                 ..PixelResult::default()
             };
         }
-        self.tracer.gsample_bundle(
+        self.tracer.gsample_bundle_known(
             &g,
             &scratch.samples,
             self.rect,
             &mut scratch.vt,
             &mut scratch.tracer,
+            known,
         );
         scratch.visibility.clear();
         scratch

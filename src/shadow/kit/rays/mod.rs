@@ -143,6 +143,20 @@ pub struct Scratch {
     skip_hull: bool,
 }
 
+/// What [`ShadowTracer::light_hull`] found in the region of a receiver's
+/// segments to a whole rect light.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LightHull {
+    /// It was not looked at.
+    Unknown,
+    /// No leaf: every segment is clear.
+    Clear,
+    /// A few leaves, kept in the scratch space: only they can be hit.
+    Few,
+    /// More than the hull limit: the rays take their own walks.
+    Many,
+}
+
 /// A rect light `(center, u, v)` in f64 (exact: the values are f32).
 fn rect_f64((c, u, v): (Vec3, Vec3, Vec3)) -> (DVec3, DVec3, DVec3) {
     (c.as_dvec3(), u.as_dvec3(), v.as_dvec3())
@@ -366,13 +380,33 @@ impl<'a> ShadowTracer<'a> {
         out: &mut Vec<f64>,
         scratch: &mut Scratch,
     ) -> u64 {
+        self.gsample_bundle_known(g, samples, rect, out, scratch, LightHull::Unknown)
+    }
+
+    /// [`ShadowTracer::gsample_bundle`] for a receiver whose
+    /// [`ShadowTracer::light_hull`] (same `g`, same light, the same
+    /// `scratch` since) gave `known`: with [`LightHull::Few`] the rays are
+    /// tested against the leaves it kept only, with [`LightHull::Many`]
+    /// they take their walks without a hull of their own, with
+    /// [`LightHull::Clear`] none is traced. The same answers as
+    /// [`ShadowTracer::gsample_bundle`] (the light's hull holds every
+    /// segment), in less time.
+    pub fn gsample_bundle_known(
+        &self,
+        g: &GSample,
+        samples: &[LightSample],
+        rect: Option<(Vec3, Vec3, Vec3)>,
+        out: &mut Vec<f64>,
+        scratch: &mut Scratch,
+        known: LightHull,
+    ) -> u64 {
         #[cfg(target_arch = "x86_64")]
         if runs_v3() {
             // SAFETY: the CPU has every feature the v3 copy enables
             // (`runs_v3` checks them), its one requirement.
-            return unsafe { self.gsample_bundle_v3(g, samples, rect, out, scratch) };
+            return unsafe { self.gsample_bundle_v3(g, samples, rect, out, scratch, known) };
         }
-        self.gsample_bundle_body(g, samples, rect, out, scratch)
+        self.gsample_bundle_body(g, samples, rect, out, scratch, known)
     }
 
     /// [`ShadowTracer::gsample_bundle_body`] compiled for `Level::V3`
@@ -387,8 +421,9 @@ impl<'a> ShadowTracer<'a> {
         rect: Option<(Vec3, Vec3, Vec3)>,
         out: &mut Vec<f64>,
         scratch: &mut Scratch,
+        known: LightHull,
     ) -> u64 {
-        self.gsample_bundle_body(g, samples, rect, out, scratch)
+        self.gsample_bundle_body(g, samples, rect, out, scratch, known)
     }
 
     /// [`ShadowTracer::gsample_bundle`] itself, inlined into each level's
@@ -401,6 +436,7 @@ impl<'a> ShadowTracer<'a> {
         rect: Option<(Vec3, Vec3, Vec3)>,
         out: &mut Vec<f64>,
         scratch: &mut Scratch,
+        known: LightHull,
     ) -> u64 {
         out.clear();
         if !g.is_surface() || !self.receives(g) {
@@ -431,7 +467,31 @@ impl<'a> ShadowTracer<'a> {
         // pass at 256², 64 samples: spheres −7.1 %, bunny −4.4 %). A lit
         // receiver, or one whose hull culled, has the next one try again.
         // Same bits either way: only the time changes.
-        let hull = if self.hull_limit > 0 && !scratch.skip_hull {
+        let own_hull = match known {
+            LightHull::Unknown => true,
+            LightHull::Clear => {
+                occluded.fill(false);
+                false
+            }
+            LightHull::Few => {
+                self.opaque.occluded_leaves(
+                    origin,
+                    &dirs,
+                    t_max,
+                    &mut occluded,
+                    &mut scratch.leaves,
+                );
+                false
+            }
+            LightHull::Many => {
+                self.opaque
+                    .occluded_bundle(origin, &dirs, t_max, &mut occluded);
+                false
+            }
+        };
+        let hull = if !own_hull {
+            None
+        } else if self.hull_limit > 0 && !scratch.skip_hull {
             // The receiver's own surface is behind its tangent plane: culls
             // its facet and the neighbours curving away (callgrind: −6 %
             // instructions on spheres and bunny).
@@ -439,8 +499,9 @@ impl<'a> ShadowTracer<'a> {
         } else {
             None
         };
-        match hull {
-            Some(hull) => {
+        match (own_hull, hull) {
+            (false, _) => {}
+            (true, Some(hull)) => {
                 let culled = self.opaque.occluded_hull(
                     &hull,
                     &dirs,
@@ -451,7 +512,7 @@ impl<'a> ShadowTracer<'a> {
                 );
                 scratch.skip_hull = !culled;
             }
-            None => {
+            (true, None) => {
                 self.opaque
                     .occluded_bundle(origin, &dirs, t_max, &mut occluded);
                 scratch.skip_hull = occluded.iter().any(|&o| o);
@@ -486,53 +547,61 @@ impl<'a> ShadowTracer<'a> {
         rays
     }
 
-    /// Whether every shadow segment from `g` to the rect light `rect`
-    /// `(center, u, v)` is clear, proved before any sample is drawn: no
-    /// BVH leaf meets the region of all of them
-    /// ([`SegmentHull::over_light`]), so [`ShadowTracer::gsample_bundle`]
-    /// would find every sample of this light visible (`V·T` = 1), for any
-    /// sample set. False when it cannot tell that way: not a surface, not
-    /// a receiver, non-opaque casters (whose walk this does not cover),
-    /// no hulls (`with_hull_limit(0)`), or some leaf meets the region.
-    pub fn light_clear(
+    /// What the tree holds in the region of every shadow segment from
+    /// `g` to the rect light `rect` `(center, u, v)`, found before any
+    /// sample is drawn ([`SegmentHull::over_light`]: it holds the segments
+    /// of any sample set of that light): no leaf ([`LightHull::Clear`]:
+    /// [`ShadowTracer::gsample_bundle`] would find every sample visible),
+    /// at most the hull limit of them (kept in `scratch`, for
+    /// [`ShadowTracer::gsample_bundle_known`]), or more.
+    /// [`LightHull::Unknown`] when it cannot tell that way: not a surface,
+    /// not a receiver, non-opaque casters (whose walk this does not
+    /// cover), or no hulls (`with_hull_limit(0)`).
+    pub fn light_hull(
         &self,
         g: &GSample,
         rect: (Vec3, Vec3, Vec3),
         scratch: &mut Scratch,
-    ) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if runs_v3() {
-            // SAFETY: the CPU has every feature the v3 copy enables
-            // (`runs_v3` checks them), its one requirement.
-            return unsafe { self.light_clear_v3(g, rect, scratch) };
-        }
-        self.light_clear_body(g, rect, scratch)
-    }
-
-    /// [`ShadowTracer::light_clear_body`] compiled for `Level::V3`.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
-    fn light_clear_v3(&self, g: &GSample, rect: (Vec3, Vec3, Vec3), scratch: &mut Scratch) -> bool {
-        self.light_clear_body(g, rect, scratch)
-    }
-
-    #[inline(always)]
-    fn light_clear_body(
-        &self,
-        g: &GSample,
-        rect: (Vec3, Vec3, Vec3),
-        scratch: &mut Scratch,
-    ) -> bool {
+    ) -> LightHull {
         if !g.is_surface()
             || !self.receives(g)
             || self.translucent.triangle_count() > 0
             || self.hull_limit == 0
         {
-            return false;
+            return LightHull::Unknown;
         }
         let origin = self.shadow_origin(g.position, g.geo_normal);
-        SegmentHull::over_light(origin, rect_f64(rect), Some(g.geo_normal))
-            .is_some_and(|hull| self.opaque.hull_leaves(&hull, &mut scratch.leaves, 0))
+        let Some(hull) = SegmentHull::over_light(origin, rect_f64(rect), Some(g.geo_normal)) else {
+            return LightHull::Unknown;
+        };
+        #[cfg(target_arch = "x86_64")]
+        let few = if runs_v3() {
+            // SAFETY: the CPU has every feature the v3 copy enables
+            // (`runs_v3` checks them), its one requirement.
+            unsafe { self.light_leaves_v3(&hull, scratch) }
+        } else {
+            self.light_leaves_body(&hull, scratch)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let few = self.light_leaves_body(&hull, scratch);
+        match (few, scratch.leaves.is_empty()) {
+            (true, true) => LightHull::Clear,
+            (true, false) => LightHull::Few,
+            (false, _) => LightHull::Many,
+        }
+    }
+
+    /// [`ShadowTracer::light_leaves_body`] compiled for `Level::V3`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt")]
+    fn light_leaves_v3(&self, hull: &SegmentHull, scratch: &mut Scratch) -> bool {
+        self.light_leaves_body(hull, scratch)
+    }
+
+    #[inline(always)]
+    fn light_leaves_body(&self, hull: &SegmentHull, scratch: &mut Scratch) -> bool {
+        self.opaque
+            .hull_leaves(hull, &mut scratch.leaves, self.hull_limit)
     }
 
     /// Hard-shadow visibility from light `light`'s centre (a sphere light:
