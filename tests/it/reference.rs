@@ -617,6 +617,14 @@ fn origin_and_light(
     (o, tangent, center, u, v)
 }
 
+/// The traced direction from `o` to the point `(s, t)` of the rect light
+/// `(center, u, v)`, rounded as the sampler and the reference round it.
+fn segment_dir(o: Vec3, (center, u, v): (Vec3, Vec3, Vec3), (s, t): (f64, f64)) -> Vec3 {
+    let x = (center.as_dvec3() + u.as_dvec3() * (2.0 * s - 1.0) + v.as_dvec3() * (1.0 - 2.0 * t))
+        .as_vec3();
+    (x.as_dvec3() - o.as_dvec3()).as_vec3()
+}
+
 /// (d'') The per-receiver segment hull ([`Bvh::occluded_hull`]) gives,
 /// ray by ray, exactly `occluded`'s answer, for every candidate limit
 /// (1: nearly always the rays' own walks; 4: the default; 10⁶: always the
@@ -636,14 +644,7 @@ fn hull_bundles_agree_with_single_rays_bit_for_bit() {
             origin_and_light(&mut rng, &geometry, lo, size, bundle % 3 == 0);
         let n = 1 + (rng.next_u64() % 70) as usize;
         let dirs: Vec<Vec3> = (0..n)
-            .map(|_| {
-                let (s, t) = (rng.f64(), rng.f64());
-                let x = (center.as_dvec3()
-                    + u.as_dvec3() * (2.0 * s - 1.0)
-                    + v.as_dvec3() * (1.0 - 2.0 * t))
-                    .as_vec3();
-                (x.as_dvec3() - o.as_dvec3()).as_vec3()
-            })
+            .map(|_| segment_dir(o, (center, u, v), (rng.f64(), rng.f64())))
             .collect();
         let t_max = (1.0 - 1e-6) as f32;
         // On-surface bundles also get the receiver's tangent plane, as the
@@ -719,13 +720,7 @@ fn light_hull_holds_every_segment() {
         );
         let dirs: Vec<Vec3> = points
             .iter()
-            .map(|&(s, t)| {
-                let x = (center.as_dvec3()
-                    + u.as_dvec3() * (2.0 * s - 1.0)
-                    + v.as_dvec3() * (1.0 - 2.0 * t))
-                    .as_vec3();
-                (x.as_dvec3() - o.as_dvec3()).as_vec3()
-            })
+            .map(|&st| segment_dir(o, (center, u, v), st))
             .collect();
         let t_max = (1.0 - 1e-6) as f32;
         let mut out = vec![true; dirs.len()];
