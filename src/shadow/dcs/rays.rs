@@ -29,10 +29,6 @@ pub(super) struct RayScratch {
     vt: Vec<f64>,
     visibility: Vec<f32>,
     tracer: TracerScratch,
-    /// Whether the next receiver skips [`ShadowTracer::light_hull`]: set
-    /// when it kept too many leaves, cleared by a receiver found lit by
-    /// its rays.
-    skip_light_hull: bool,
 }
 
 impl<'a, 'c> RayPixels<'a, 'c> {
@@ -77,27 +73,20 @@ impl<'a, 'c> RayPixels<'a, 'c> {
         // light, before any sample is drawn: none, and the receiver is
         // lit by every sample, whichever are drawn (the result below for
         // `visible == n`, without drawing them); a few, and the rays are
-        // tested against those only. Tried again after a lit receiver
-        // only: in a run of shadowed ones the walk finds too many and is
-        // wasted.
-        let mut known = LightHull::Unknown;
-        if let (Some(rect), false, false) =
-            (self.rect, scratch.skip_light_hull, self.pattern.is_empty())
-        {
-            known = self.tracer.light_hull(&g, rect, &mut scratch.tracer);
-            match known {
-                LightHull::Clear => {
-                    let eye = self.ctx.view.eye.as_vec3();
-                    let point = surface_point(self.ctx.scene, &g, eye);
-                    return PixelResult {
-                        vcoef: 1.0,
-                        radiance: self.prepared.unshadowed_direct(&point),
-                        ..PixelResult::default()
-                    };
-                }
-                LightHull::Many => scratch.skip_light_hull = true,
-                LightHull::Few | LightHull::Unknown => {}
-            }
+        // tested against those only (the tracer skips the walk in runs
+        // of shadowed receivers, where it finds too many).
+        let known = match (self.rect, self.pattern.is_empty()) {
+            (Some(rect), false) => self.tracer.light_hull(&g, rect, &mut scratch.tracer),
+            _ => LightHull::Unknown,
+        };
+        if known == LightHull::Clear {
+            let eye = self.ctx.view.eye.as_vec3();
+            let point = surface_point(self.ctx.scene, &g, eye);
+            return PixelResult {
+                vcoef: 1.0,
+                radiance: self.prepared.unshadowed_direct(&point),
+                ..PixelResult::default()
+            };
         }
         let width = (gbuffer.width as usize).max(1);
         let pixel = ((i % width) as u32, (i / width) as u32);
@@ -112,7 +101,7 @@ impl<'a, 'c> RayPixels<'a, 'c> {
                 ..PixelResult::default()
             };
         }
-        self.tracer.gsample_bundle_known(
+        self.tracer.gsample_bundle(
             &g,
             &scratch.samples,
             self.rect,
@@ -128,9 +117,6 @@ impl<'a, 'c> RayPixels<'a, 'c> {
         // f32 in any order, as the counting path's count.
         let visible = scratch.visibility.iter().filter(|&&v| v > 0.0).count() as f32;
         let hidden = n as f32 - visible;
-        if hidden == 0.0 {
-            scratch.skip_light_hull = false;
-        }
         let radiance = if visible == 0.0 {
             Vec3::ZERO
         } else {

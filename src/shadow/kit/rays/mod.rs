@@ -141,6 +141,10 @@ pub struct Scratch {
     /// Whether the next receiver skips its segment hull (see
     /// `gsample_bundle`).
     skip_hull: bool,
+    /// Whether the next receiver skips the light's hull
+    /// ([`ShadowTracer::light_hull`]): set when it kept too many leaves,
+    /// cleared by a receiver whose rays find it lit.
+    skip_light_hull: bool,
 }
 
 /// What [`ShadowTracer::light_hull`] found in the region of a receiver's
@@ -354,7 +358,14 @@ impl<'a> ShadowTracer<'a> {
         let mut scratch = Scratch::default();
         let n = samples.len().min(out.len());
         let mut vt = Vec::with_capacity(n);
-        self.gsample_bundle(g, &samples[..n], None, &mut vt, &mut scratch);
+        self.gsample_bundle(
+            g,
+            &samples[..n],
+            None,
+            &mut vt,
+            &mut scratch,
+            LightHull::Unknown,
+        );
         for (o, v) in out.iter_mut().zip(vt) {
             *o = v as f32;
         }
@@ -369,29 +380,15 @@ impl<'a> ShadowTracer<'a> {
     ///
     /// `rect` is the light's parallelogram `(center, u, v)` when the
     /// samples come from a rect light: the segments' pyramid then culls
-    /// the tree first ([`Bvh::occluded_hull`], same bits). With the
-    /// caller's `scratch`, for callers that trace many receivers (DCS's
-    /// traced lights).
+    /// the tree first ([`Bvh::occluded_hull`], same bits). `known` is what
+    /// [`ShadowTracer::light_hull`] found for this receiver and light
+    /// (with this `scratch` since), or [`LightHull::Unknown`]: with
+    /// [`LightHull::Few`] the rays are tested against the leaves it kept
+    /// only, with [`LightHull::Many`] they take their walks without a hull
+    /// of their own, with [`LightHull::Clear`] none is traced; the same
+    /// answers in each case (the light's hull holds every segment). With
+    /// the caller's `scratch`, for callers that trace many receivers.
     pub fn gsample_bundle(
-        &self,
-        g: &GSample,
-        samples: &[LightSample],
-        rect: Option<(Vec3, Vec3, Vec3)>,
-        out: &mut Vec<f64>,
-        scratch: &mut Scratch,
-    ) -> u64 {
-        self.gsample_bundle_known(g, samples, rect, out, scratch, LightHull::Unknown)
-    }
-
-    /// [`ShadowTracer::gsample_bundle`] for a receiver whose
-    /// [`ShadowTracer::light_hull`] (same `g`, same light, the same
-    /// `scratch` since) gave `known`: with [`LightHull::Few`] the rays are
-    /// tested against the leaves it kept only, with [`LightHull::Many`]
-    /// they take their walks without a hull of their own, with
-    /// [`LightHull::Clear`] none is traced. The same answers as
-    /// [`ShadowTracer::gsample_bundle`] (the light's hull holds every
-    /// segment), in less time.
-    pub fn gsample_bundle_known(
         &self,
         g: &GSample,
         samples: &[LightSample],
@@ -460,63 +457,26 @@ impl<'a> ShadowTracer<'a> {
                 .map(|&k| (samples[k as usize].x.as_dvec3() - origin.as_dvec3()).as_vec3()),
         );
         occluded.resize(dirs.len(), false);
-        // A receiver after one whose hull kept too many leaves, or whose
-        // rays (taking the whole walk) found an occluder, skips its hull:
-        // receivers in shadow come in runs, and for them building the
-        // hull and walking it only to give up is wasted (callgrind, light
-        // pass at 256², 64 samples: spheres −7.1 %, bunny −4.4 %). A lit
-        // receiver, or one whose hull culled, has the next one try again.
-        // Same bits either way: only the time changes.
-        let own_hull = match known {
-            LightHull::Unknown => true,
-            LightHull::Clear => {
-                occluded.fill(false);
-                false
+        match known {
+            LightHull::Clear => occluded.fill(false),
+            LightHull::Few => self.opaque.occluded_leaves(
+                origin,
+                &dirs,
+                t_max,
+                &mut occluded,
+                &mut scratch.leaves,
+            ),
+            LightHull::Many => self
+                .opaque
+                .occluded_bundle(origin, &dirs, t_max, &mut occluded),
+            LightHull::Unknown => {
+                self.receiver_hull_walk(g, origin, rect, &dirs, t_max, &mut occluded, scratch)
             }
-            LightHull::Few => {
-                self.opaque.occluded_leaves(
-                    origin,
-                    &dirs,
-                    t_max,
-                    &mut occluded,
-                    &mut scratch.leaves,
-                );
-                false
-            }
-            LightHull::Many => {
-                self.opaque
-                    .occluded_bundle(origin, &dirs, t_max, &mut occluded);
-                false
-            }
-        };
-        let hull = if !own_hull {
-            None
-        } else if self.hull_limit > 0 && !scratch.skip_hull {
-            // The receiver's own surface is behind its tangent plane: culls
-            // its facet and the neighbours curving away (callgrind: −6 %
-            // instructions on spheres and bunny).
-            SegmentHull::new(origin, &dirs, rect.map(rect_f64), Some(g.geo_normal))
-        } else {
-            None
-        };
-        match (own_hull, hull) {
-            (false, _) => {}
-            (true, Some(hull)) => {
-                let culled = self.opaque.occluded_hull(
-                    &hull,
-                    &dirs,
-                    t_max,
-                    &mut occluded,
-                    &mut scratch.leaves,
-                    self.hull_limit,
-                );
-                scratch.skip_hull = !culled;
-            }
-            (true, None) => {
-                self.opaque
-                    .occluded_bundle(origin, &dirs, t_max, &mut occluded);
-                scratch.skip_hull = occluded.iter().any(|&o| o);
-            }
+        }
+        // A receiver its rays find lit has the next one try the light's
+        // hull again (`light_hull`).
+        if !occluded.iter().any(|&o| o) {
+            scratch.skip_light_hull = false;
         }
         out.resize(samples.len(), 0.0);
         let rays = if self.translucent.triangle_count() == 0 {
@@ -547,13 +507,64 @@ impl<'a> ShadowTracer<'a> {
         rays
     }
 
+    /// The rays' answers into `occluded` by the receiver's own segment
+    /// hull (built from its drawn directions) or their walks, when the
+    /// light's hull was not looked at.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn receiver_hull_walk(
+        &self,
+        g: &GSample,
+        origin: Vec3,
+        rect: Option<(Vec3, Vec3, Vec3)>,
+        dirs: &[Vec3],
+        t_max: f32,
+        occluded: &mut [bool],
+        scratch: &mut Scratch,
+    ) {
+        // A receiver after one whose hull kept too many leaves, or whose
+        // rays (taking the whole walk) found an occluder, skips its hull:
+        // receivers in shadow come in runs, and for them building the
+        // hull and walking it only to give up is wasted (callgrind, light
+        // pass at 256², 64 samples: spheres −7.1 %, bunny −4.4 %). A lit
+        // receiver, or one whose hull culled, has the next one try again.
+        // Same bits either way: only the time changes.
+        let hull = if self.hull_limit > 0 && !scratch.skip_hull {
+            // The receiver's own surface is behind its tangent plane: culls
+            // its facet and the neighbours curving away (callgrind: −6 %
+            // instructions on spheres and bunny).
+            SegmentHull::new(origin, dirs, rect.map(rect_f64), Some(g.geo_normal))
+        } else {
+            None
+        };
+        match hull {
+            Some(hull) => {
+                let culled = self.opaque.occluded_hull(
+                    &hull,
+                    dirs,
+                    t_max,
+                    occluded,
+                    &mut scratch.leaves,
+                    self.hull_limit,
+                );
+                scratch.skip_hull = !culled;
+            }
+            None => {
+                self.opaque.occluded_bundle(origin, dirs, t_max, occluded);
+                scratch.skip_hull = occluded.iter().any(|&o| o);
+            }
+        }
+    }
+
     /// What the tree holds in the region of every shadow segment from
     /// `g` to the rect light `rect` `(center, u, v)`, found before any
     /// sample is drawn ([`SegmentHull::over_light`]: it holds the segments
     /// of any sample set of that light): no leaf ([`LightHull::Clear`]:
     /// [`ShadowTracer::gsample_bundle`] would find every sample visible),
     /// at most the hull limit of them (kept in `scratch`, for
-    /// [`ShadowTracer::gsample_bundle_known`]), or more.
+    /// [`ShadowTracer::gsample_bundle`]), or more; then the next receivers
+    /// skip this walk ([`LightHull::Unknown`]) until one is found lit: in
+    /// a run of shadowed receivers it is wasted.
     /// [`LightHull::Unknown`] when it cannot tell that way: not a surface,
     /// not a receiver, non-opaque casters (whose walk this does not
     /// cover), or no hulls (`with_hull_limit(0)`).
@@ -563,7 +574,8 @@ impl<'a> ShadowTracer<'a> {
         rect: (Vec3, Vec3, Vec3),
         scratch: &mut Scratch,
     ) -> LightHull {
-        if !g.is_surface()
+        if scratch.skip_light_hull
+            || !g.is_surface()
             || !self.receives(g)
             || self.translucent.triangle_count() > 0
             || self.hull_limit == 0
@@ -587,7 +599,10 @@ impl<'a> ShadowTracer<'a> {
         match (few, scratch.leaves.is_empty()) {
             (true, true) => LightHull::Clear,
             (true, false) => LightHull::Few,
-            (false, _) => LightHull::Many,
+            (false, _) => {
+                scratch.skip_light_hull = true;
+                LightHull::Many
+            }
         }
     }
 

@@ -3,7 +3,7 @@
 //! kept apart because it speaks the technique interface's types, which
 //! the tracer itself, held by the shadow cache, must not import.
 
-use super::{Scratch, ShadowTracer};
+use super::{LightHull, Scratch, ShadowTracer};
 use crate::sampling::{LightSampler, PatternSampler, SamplePattern};
 use crate::scene::LightShape;
 use crate::shade::{surface_point, PreparedLight};
@@ -84,7 +84,14 @@ impl ShadowTracer<'_> {
                         *v = 1.0;
                         continue;
                     }
-                    rays += self.gsample_bundle(&g, &samples, rect, &mut vts, &mut scratch);
+                    rays += self.gsample_bundle(
+                        &g,
+                        &samples,
+                        rect,
+                        &mut vts,
+                        &mut scratch,
+                        LightHull::Unknown,
+                    );
                     // Sized once and written in place: with `push` (which
                     // may reallocate) the running sum went through memory
                     // on every sample.
