@@ -45,9 +45,9 @@ size = [6.0, 6.0]
     )
 }
 
-/// The dense sphere at 40² is traced; the bunny (69k triangles) at 40²
-/// would save less than the least saving that replaces counting, so it
-/// is counted. The explanation says which, with both estimates.
+/// The dense sphere at 40² is traced; the flowers (7.8k triangles) at 40²
+/// would save less than the least saving that replaces counting, so they
+/// are counted. The explanation says which, with both estimates.
 #[test]
 fn the_plan_follows_the_estimated_costs() {
     let small = render(&dense_sphere(), &options("dcs", 40, RayChoice::Auto)).unwrap();
@@ -66,8 +66,8 @@ fn the_plan_follows_the_estimated_costs() {
         note(&small)
     );
     assert!(!small.passes.iter().any(|p| p.name.starts_with("counters")));
-    let bunny = common::shipped("bunny.toml");
-    let counted = render(&bunny, &options("dcs", 40, RayChoice::Auto)).unwrap();
+    let flowers = common::shipped("flowers.toml");
+    let counted = render(&flowers, &options("dcs", 40, RayChoice::Auto)).unwrap();
     assert!(!traced(&counted));
     assert!(
         note(&counted).starts_with("counted: estimated"),
@@ -77,6 +77,48 @@ fn the_plan_follows_the_estimated_costs() {
     let never = render(&dense_sphere(), &options("dcs", 40, RayChoice::Never)).unwrap();
     assert!(!traced(&never));
     assert!(note(&never).starts_with("counted (rays not an option"));
+    // `always` traces the flowers, to the counted bits.
+    let always = render(&flowers, &options("dcs", 40, RayChoice::Always)).unwrap();
+    assert!(traced(&always));
+    assert!(
+        note(&always).contains("--dcs-rays always"),
+        "{}",
+        note(&always)
+    );
+    // Both exact: they differ only at ties.
+    let differing = vcoef(&always)
+        .iter()
+        .zip(vcoef(&counted))
+        .filter(|(a, c)| a != c)
+        .count();
+    assert!(
+        differing <= vcoef(&always).len() / 100,
+        "{differing} pixels differ"
+    );
+}
+
+/// The cost probe runs where its bounds leave the choice open (the bunny,
+/// 69k triangles, at 160²: estimated rays at most 50 ms, counting at least
+/// 88 ms but possibly far more), and what it finds, hence the plan and the
+/// image, is the same on 1 and 3 threads.
+#[test]
+fn the_probe_is_the_same_on_any_thread_count() {
+    let bunny = common::shipped("bunny.toml");
+    let o = options("dcs", 160, RayChoice::Auto);
+    let run = |threads| with_threads(Some(threads), || render(&bunny, &o).unwrap()).unwrap();
+    let (one, three) = (run(1), run(3));
+    let note = |r: &Render| {
+        r.explain
+            .buffers
+            .iter()
+            .find(|b| b.name == "cost choice light 0")
+            .map(|b| b.detail.clone())
+            .expect("a cost-choice note")
+    };
+    assert!(note(&one).contains("probe of"), "{}", note(&one));
+    assert!(one.passes.iter().any(|p| p.name.starts_with("cost probe")));
+    assert_eq!(note(&one), note(&three));
+    assert_eq!(common::render_bits(&one), common::render_bits(&three));
 }
 
 /// A traced light's Vcoef is the reference's bit for bit (the same keyed

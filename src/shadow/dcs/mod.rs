@@ -47,6 +47,7 @@ pub mod faces;
 pub mod options;
 mod passes;
 pub mod plan;
+pub mod probe;
 pub mod rays;
 mod receiver;
 pub mod region;
@@ -288,9 +289,10 @@ impl DepthComplexitySampling {
         k: usize,
         casters: &SceneCasters,
         inspected: bool,
+        passes: &mut Vec<PassTiming>,
     ) -> LightPlan {
         let light = &ctx.scene.lights[k];
-        let eligible = self.rays == RayChoice::Auto
+        let eligible = self.rays != RayChoice::Never
             && self.silhouettes == SilhouetteMode::WholeLight
             && self.coverage == CoverageTest::Exact
             && self.mode == DcsMode::Direct
@@ -307,12 +309,29 @@ impl DepthComplexitySampling {
         } else {
             0
         };
-        plan::plan_light(
-            eligible,
-            ctx.geometry.triangles.len(),
-            receivers,
-            self.samples,
-        )
+        let triangles = ctx.geometry.triangles.len();
+        let probed = eligible
+            && self.rays == RayChoice::Auto
+            && plan::needs_probe(triangles, receivers, self.samples);
+        let probe = probed.then(|| {
+            timed(passes, format!("cost probe light {k}"), || {
+                probe::probe(ctx.scene, ctx.geometry, light, ctx.gbuffer, receivers)
+            })
+        });
+        let plan = plan::plan_light(eligible, triangles, receivers, self.samples, probe);
+        match plan {
+            LightPlan::Count {
+                count_ms,
+                rays_ms,
+                probe,
+            } if eligible && self.rays == RayChoice::Always => LightPlan::AllRays {
+                count_ms,
+                rays_ms,
+                forced: true,
+                probe,
+            },
+            plan => plan,
+        }
     }
 
     /// Light `k` with every receiver traced by rays (the plan's
@@ -389,7 +408,7 @@ impl DepthComplexitySampling {
         let padded = n.div_ceil(counters::LANES as u64) * counters::LANES as u64;
         let casters = SceneCasters::new(ctx);
         let plans: Vec<LightPlan> = (0..ctx.scene.lights.len())
-            .map(|k| self.plan(ctx, k, &casters, false))
+            .map(|k| self.plan(ctx, k, &casters, false, &mut out.passes))
             .collect();
         let counted = plans.iter().any(|p| matches!(p, LightPlan::Count { .. }));
         if !counted {
@@ -571,7 +590,7 @@ impl DepthComplexitySampling {
         Ok(self
             .light(
                 ctx,
-                (k, self.plan(ctx, k, &casters, true)),
+                (k, self.plan(ctx, k, &casters, true, &mut passes)),
                 &casters,
                 &mut passes,
                 Some((inspect, None)),
@@ -614,7 +633,7 @@ impl SampleDecisions for DepthComplexitySampling {
         let mut passes = Vec::new();
         let casters = SceneCasters::new(ctx);
         // An inspector reads counters: the plan counts.
-        let plan = self.plan(ctx, light, &casters, true);
+        let plan = self.plan(ctx, light, &casters, true, &mut passes);
         self.light(
             ctx,
             (light, plan),

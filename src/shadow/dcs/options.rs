@@ -67,6 +67,9 @@ pub enum RayChoice {
     Auto,
     /// Always count edges.
     Never,
+    /// Trace every receiver's shadow rays wherever rays are an option (the
+    /// traced path alone, for studying it and the cost choice).
+    Always,
 }
 
 impl RayChoice {
@@ -75,6 +78,7 @@ impl RayChoice {
         match self {
             RayChoice::Auto => "auto",
             RayChoice::Never => "never",
+            RayChoice::Always => "always",
         }
     }
 }

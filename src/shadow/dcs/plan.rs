@@ -6,9 +6,10 @@
 //! occluders are counted (`D = 0`) or its shadow ray finds none, up to
 //! ties, and both weigh each sample's light by it (the direct mode), so
 //! the image stays the exact one either way. The choice is made from
-//! counts alone (casting triangles, receivers, samples), never from
-//! clocks or scheduling, so it is the same for any thread count and SIMD
-//! level.
+//! counts alone (casting triangles, receivers, samples, and where they
+//! leave it open the [probe](super::probe)'s integer counts on a fixed
+//! sample of receivers and edges), never from clocks or scheduling, so it
+//! is the same for any thread count and SIMD level.
 //!
 //! Why per light and not per block of receivers: the counting path's
 //! setup (stencil, start-count ties, candidate edges, wedge regions) and
@@ -20,50 +21,70 @@
 //! the choice that pays is whether to build the counting path at all
 //! (`docs/algorithms/dcs.md`, "Cost choice").
 
-/// The cost model's calibration: 512² receivers at 64 samples.
-const CALIBRATION_RECEIVERS: f64 = 512.0 * 512.0;
-/// Samples per receiver of the calibration.
-const CALIBRATION_SAMPLES: f64 = 64.0;
-/// The counting path's setup per casting triangle, ns (stencil, ties,
-/// candidate edges, wedge regions: 0.7–2.2 µs on the tessellation series
-/// at 512², 2 threads; fitted with [`COUNT_NS`] and [`RAY_NS`], see
-/// there).
-const SETUP_NS: f64 = 700.0;
-/// The counter pass per casting triangle at the calibration, ns (0.5–2.5
-/// µs on the series). It grows with the receivers, and only a little
-/// with the samples: the per-tile culling of the candidate edges, which
-/// does not depend on them, is much of it (`dcs --dcs-rays never` on the
-/// series, 64 → 256 samples: 1.0–1.3×).
-const COUNT_NS: f64 = 900.0;
-/// The counter pass's growth per calibration's worth of samples.
-const COUNT_PER_SAMPLES: f64 = 0.1;
-/// BVH build per casting triangle, ns (0.45 µs at 4.1M triangles, 2
-/// threads).
-const BVH_NS: f64 = 450.0;
+/// The counting path's cost per casting triangle, ns: its setup (stencil,
+/// start-count ties, candidate edges, wedge regions) and the per-tile
+/// culling of the candidate edges, which do not depend on the samples.
+///
+/// This and the other constants below were fitted together on the
+/// scaling benchmark's 31 (scene, size, samples) points, both paths
+/// timed (`--dcs-rays never` and `always`, 2 threads, AMD EPYC Zen 3)
+/// and the probe's figures read at each: with them the choice is right at
+/// every point, against 2.8 s lost to wrong choices by the estimate
+/// before the probe, which saw only triangles, receivers and samples
+/// (`docs/algorithms/dcs.md`, "Cost choice").
+const COUNT_TRIANGLE_NS: f64 = 1200.0;
+/// The counter pass per (receiver, edge) pair at 64 samples, ns; it grows
+/// as the fourth root of the samples (the pair's setup is shared by them).
+const COUNT_PAIR_NS: f64 = 56.0;
+/// BVH build per casting triangle, ns.
+const BVH_NS: f64 = 310.0;
+/// One shadow ray of a penumbra receiver at 64 samples and 1M triangles,
+/// ns. Rays grow dearer as the fourth root of the triangles (deeper
+/// walks, more cache misses) and cheaper as the fourth root of the
+/// samples (a receiver's packets share their culls).
+const RAY_PENUMBRA_NS: f64 = 138.0;
+/// The same for the other receivers: lit ones are answered by one walk of
+/// the light's hull, umbra ones stop at their first hit.
+const RAY_OTHER_NS: f64 = 23.0;
+/// The probe's bounds when it is not run: penumbra receivers between
+/// these fractions of the receivers (0.19–0.6 on the scaling series)...
+const PENUMBRA_FRACTION: [f64; 2] = [0.15, 0.65];
+/// ... and (receiver, edge) pairs between these multiples of the
+/// receivers (7–200 on the series).
+const PAIRS_PER_RECEIVER: [f64; 2] = [5.0, 250.0];
 /// The least estimated saving for which rays replace the counting the
 /// user asked for, ms: smaller differences are within the estimate's
 /// error, and below it every scene keeps the algorithm it names.
 const MIN_SAVING_MS: f64 = 50.0;
-/// One shadow ray on average over a frame's receivers at the
-/// calibration's 64 samples, ns: 32–133 ns on the scaling benchmark's
-/// three series at 512² and 1024² (AMD EPYC Zen 3, 2 threads: dearer
-/// with more triangles, cheaper where more receivers are lit, since a
-/// lit receiver's segment hull is empty). With [`SETUP_NS`] and
-/// [`COUNT_NS`] it was chosen over a grid on the series' 28 measured
-/// (scene, size, samples) points, both paths timed, for the least time
-/// lost to a wrong choice, keeping every case of this module's test:
-/// 0.94 s in all, against 4.6 s with the constants fitted before the
-/// counting path's receivers were bounded by two boxes across depth gaps
-/// (900 ns setup, 1.5 µs counter pass), which traced the 1.0M-triangle
-/// spheres at 1024², 64 samples, where counting is now 1.5–2× faster.
-/// Two misses are left, both on the subdivided bunny, whose counting
-/// costs more per triangle than the spheres': 278k triangles at 512², 64
-/// samples is counted (0.95 s, rays 0.52 s) and 1.1M at 512², 256
-/// samples too (2.75 s, rays 2.24 s). More samples per receiver make
-/// each ray cheaper (the receiver's segments share their cull): the
-/// reference's trace per ray at 256 samples is about 0.7× its cost at
-/// 64, so rays scale as `(64 / N)^¼`.
-const RAY_NS: f64 = 60.0;
+
+/// The counting path's estimated time, ms.
+fn count_ms(casters: f64, samples: f64, pairs: f64) -> f64 {
+    (casters * COUNT_TRIANGLE_NS + pairs * COUNT_PAIR_NS * (samples / 64.0).powf(0.25)) * 1e-6
+}
+
+/// The BVH build and every receiver's rays, estimated, ms.
+fn rays_ms(casters: f64, receivers: f64, samples: f64, penumbra: f64) -> f64 {
+    let per_ray = (64.0 / samples).powf(0.25) * (casters / 1e6).powf(0.25);
+    let other = (receivers - penumbra).max(0.0);
+    let rays = samples * per_ray * (penumbra * RAY_PENUMBRA_NS + other * RAY_OTHER_NS);
+    (casters * BVH_NS + rays) * 1e-6
+}
+
+/// Whether the [probe](super::probe) can change the choice: the counting
+/// path's and the rays' estimates, over the bounds the probe would
+/// narrow ([`PENUMBRA_FRACTION`], [`PAIRS_PER_RECEIVER`]), fall on both
+/// sides. Otherwise the choice holds whatever it would find, and it is
+/// not run (nor the caster adjacency it reads, which rays do not need).
+pub fn needs_probe(casters: usize, receivers: usize, samples: u32) -> bool {
+    let (t, r, n) = (casters as f64, receivers as f64, f64::from(samples));
+    let count = PAIRS_PER_RECEIVER.map(|k| count_ms(t, n, k * r));
+    let rays = PENUMBRA_FRACTION.map(|f| rays_ms(t, r, n, f * r));
+    let surely_rays = count[0] - rays[1] > MIN_SAVING_MS;
+    let surely_count = count[1] - rays[0] <= MIN_SAVING_MS;
+    !(surely_rays || surely_count)
+}
+
+pub use super::probe::ProbeEstimate;
 
 /// Per light: count edges, or trace every receiver's rays.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,6 +95,8 @@ pub enum LightPlan {
         count_ms: f64,
         /// The rays' estimated time, ms (0 when they were not an option).
         rays_ms: f64,
+        /// What the probe found, when rays were an option.
+        probe: Option<ProbeEstimate>,
     },
     /// Every receiver by rays: no stencil, wedge or counter is built.
     AllRays {
@@ -81,49 +104,99 @@ pub enum LightPlan {
         count_ms: f64,
         /// The BVH build and rays' estimated time, ms.
         rays_ms: f64,
+        /// Asked for (`--dcs-rays always`) rather than estimated cheaper.
+        forced: bool,
+        /// What the probe found.
+        probe: Option<ProbeEstimate>,
     },
 }
 
 impl LightPlan {
     /// What `--explain` says of it.
     pub fn describe(&self) -> String {
+        let found = |probe: Option<ProbeEstimate>| {
+            probe.map_or_else(
+                || "no probe: the choice holds over its bounds".into(),
+                |p| p.describe(),
+            )
+        };
         match *self {
             LightPlan::Count { rays_ms: 0.0, .. } => {
                 "counted (rays not an option here: --dcs-rays never, or a light, caster or setting \
                  the ray path does not serve)"
                     .into()
             }
-            LightPlan::Count { count_ms, rays_ms } => format!(
+            LightPlan::Count {
+                count_ms,
+                rays_ms,
+                probe,
+            } => format!(
                 "counted: estimated {count_ms:.0} ms against {rays_ms:.0} ms for every receiver's \
-                 shadow rays"
+                 shadow rays ({})",
+                found(probe)
             ),
-            LightPlan::AllRays { count_ms, rays_ms } => format!(
-                "every receiver traced by shadow rays: estimated {rays_ms:.0} ms against \
-                 {count_ms:.0} ms for counting; no stencil, wedge or counter built"
+            LightPlan::AllRays {
+                count_ms,
+                rays_ms,
+                forced,
+                probe,
+            } => format!(
+                "every receiver traced by shadow rays: {}; no stencil, wedge or counter built",
+                if forced {
+                    "--dcs-rays always".into()
+                } else {
+                    format!(
+                        "estimated {rays_ms:.0} ms against {count_ms:.0} ms for counting ({})",
+                        found(probe)
+                    )
+                }
             ),
         }
     }
 }
 
-/// The per-light choice from the casting triangles, the receivers and
-/// the samples per receiver; `eligible` says whether rays may be used at
-/// all. Rays when they save at least [`MIN_SAVING_MS`] by the estimate.
-pub fn plan_light(eligible: bool, casters: usize, receivers: usize, samples: u32) -> LightPlan {
+/// The per-light choice from the casting triangles, the receivers, the
+/// samples per receiver and the probe's findings (`None`: not run, see
+/// [`needs_probe`]; the bounds' middle stands in); `eligible` says whether
+/// rays may be used at all. Rays when they save at least
+/// [`MIN_SAVING_MS`] by the estimate.
+pub fn plan_light(
+    eligible: bool,
+    casters: usize,
+    receivers: usize,
+    samples: u32,
+    probe: Option<ProbeEstimate>,
+) -> LightPlan {
     if !eligible {
         return LightPlan::Count {
             count_ms: 0.0,
             rays_ms: 0.0,
+            probe: None,
         };
     }
     let (t, r, n) = (casters as f64, receivers as f64, f64::from(samples));
-    let per_samples = (1.0 - COUNT_PER_SAMPLES) + COUNT_PER_SAMPLES * n / CALIBRATION_SAMPLES;
-    let count_ms = t * (SETUP_NS + COUNT_NS * r / CALIBRATION_RECEIVERS * per_samples) * 1e-6;
-    let per_ray = RAY_NS * (CALIBRATION_SAMPLES / n).powf(0.25);
-    let rays_ms = (t * BVH_NS + r * n * per_ray) * 1e-6;
+    let (pairs, penumbra) = match probe {
+        Some(p) => (p.pairs, p.penumbra),
+        None => (
+            r * PAIRS_PER_RECEIVER.iter().product::<f64>().sqrt(),
+            r * PENUMBRA_FRACTION.iter().sum::<f64>() / 2.0,
+        ),
+    };
+    let count_ms = count_ms(t, n, pairs);
+    let rays_ms = rays_ms(t, r, n, penumbra);
     if count_ms - rays_ms > MIN_SAVING_MS {
-        LightPlan::AllRays { count_ms, rays_ms }
+        LightPlan::AllRays {
+            count_ms,
+            rays_ms,
+            forced: false,
+            probe,
+        }
     } else {
-        LightPlan::Count { count_ms, rays_ms }
+        LightPlan::Count {
+            count_ms,
+            rays_ms,
+            probe,
+        }
     }
 }
 
@@ -131,34 +204,87 @@ pub fn plan_light(eligible: bool, casters: usize, receivers: usize, samples: u32
 mod tests {
     use super::*;
 
+    /// What the probe found on a scene of the scaling series (the spheres'
+    /// receivers at 512²: 188,044; the bunny's: 170,138).
+    fn found(pairs: f64, penumbra: f64) -> Option<ProbeEstimate> {
+        Some(ProbeEstimate {
+            pairs,
+            penumbra,
+            receivers_sampled: 256,
+            edges_sampled: 13_000,
+        })
+    }
+
+    fn counted(p: LightPlan) -> bool {
+        matches!(p, LightPlan::Count { .. })
+    }
+
     #[test]
-    fn plan_counts_small_scenes_and_traces_large_ones() {
-        // The spheres scene's receivers at 512².
-        let receivers = 188_250;
-        let counted = |p: LightPlan| matches!(p, LightPlan::Count { .. });
-        // 512², 64 samples: the tessellation series' 61k and 253k count,
-        // 1.0M and 4.1M trace.
-        assert!(counted(plan_light(true, 61_562, receivers, 64)));
-        assert!(counted(plan_light(true, 252_722, receivers, 64)));
-        assert!(!counted(plan_light(true, 1_023_842, receivers, 64)));
-        assert!(!counted(plan_light(true, 4_121_282, receivers, 64)));
-        // Not eligible: always counted.
+    fn the_plan_follows_the_probe() {
+        // 253k-triangle spheres and 278k-triangle bunny at 512², 64
+        // samples: the same triangles and receivers, but the bunny's
+        // pairs per penumbra receiver are five times the spheres' and its
+        // penumbra a third: measured, the spheres count in 0.58 s against
+        // 0.83 s of rays, the bunny traces in 0.42 s against 0.65 s.
+        let spheres = found(2_323_027.0, 100_741.0);
+        let bunny = found(3_685_737.0, 34_553.0);
+        assert!(counted(plan_light(true, 252_722, 188_044, 64, spheres)));
+        assert!(!counted(plan_light(true, 277_806, 170_138, 64, bunny)));
+        // The 4.0M spheres at 1024², 256 samples: counted (10.2 s against
+        // 15.2 s); at 512², 64 samples rays need no probe.
+        let dense = found(156_417_251.0, 450_721.0);
+        assert!(counted(plan_light(true, 4_043_552, 749_387, 256, dense)));
+        assert!(!needs_probe(4_043_552, 187_384, 64));
+        assert!(!counted(plan_light(true, 4_043_552, 187_384, 64, None)));
+        // Not eligible: always counted, with no estimate.
         assert_eq!(
-            plan_light(false, 4_121_282, receivers, 64),
+            plan_light(false, 4_121_282, 188_044, 64, None),
             LightPlan::Count {
                 count_ms: 0.0,
-                rays_ms: 0.0
+                rays_ms: 0.0,
+                probe: None,
             }
         );
-        // 256 samples: 1.0M counts (measured: counting 1.7 s, rays
-        // 3.5 s), 4.1M traces.
-        assert!(counted(plan_light(true, 1_023_842, receivers, 256)));
-        assert!(!counted(plan_light(true, 4_121_282, receivers, 256)));
-        // Many samples make every receiver's rays dearer than counting.
-        assert!(counted(plan_light(true, 1_023_842, receivers, 4096)));
-        // Small savings keep the counting: the 69k-triangle bunny at 40².
-        assert!(counted(plan_light(true, 69_451, 40 * 40, 16)));
+        // Small savings keep the counting: 30k triangles at 40².
+        assert!(counted(plan_light(
+            true,
+            30_000,
+            40 * 40,
+            16,
+            found(8_000.0, 400.0)
+        )));
         // A 320k-triangle sphere at 40² saves far more.
-        assert!(!counted(plan_light(true, 320_000, 40 * 40, 16)));
+        assert!(!counted(plan_light(
+            true,
+            320_000,
+            40 * 40,
+            16,
+            found(8_000.0, 400.0)
+        )));
+    }
+
+    #[test]
+    fn no_probe_where_its_bounds_agree() {
+        // Every figure the probe could find within its bounds gives the
+        // same choice as the bounds' middle, where it is not run.
+        for (t, r, n) in [
+            (4_043_552, 187_384, 64),
+            (10_000_000, 262_144, 16),
+            (2_000, 262_144, 64),
+            (500, 1_048_576, 1024),
+        ] {
+            if needs_probe(t, r, n) {
+                continue;
+            }
+            let middle = counted(plan_light(true, t, r, n, None));
+            let rf = r as f64;
+            for pairs in PAIRS_PER_RECEIVER {
+                for penumbra in PENUMBRA_FRACTION {
+                    let p = found(pairs * rf, penumbra * rf);
+                    assert_eq!(counted(plan_light(true, t, r, n, p)), middle, "{t} {r} {n}");
+                }
+            }
+        }
+        assert!(needs_probe(277_806, 170_138, 64));
     }
 }
