@@ -29,7 +29,7 @@
 /// scaling benchmark's 31 (scene, size, samples) points, both paths
 /// timed (`--dcs-rays never` and `always`, 2 threads, AMD EPYC Zen 3)
 /// and the probe's figures read at each: with them the choice is right at
-/// every point, against 2.8 s lost to wrong choices by the estimate
+/// every point, against 13.0 s lost to wrong choices by the estimate
 /// before the probe, which saw only triangles, receivers and samples
 /// (`docs/algorithms/dcs.md`, "Cost choice").
 const COUNT_TRIANGLE_NS: f64 = 1200.0;
