@@ -45,6 +45,16 @@ size = [6.0, 6.0]
     )
 }
 
+/// What `--explain` says of light 0's cost choice.
+fn note(r: &Render) -> String {
+    r.explain
+        .buffers
+        .iter()
+        .find(|b| b.name == "cost choice light 0")
+        .map(|b| b.detail.clone())
+        .expect("a cost-choice note")
+}
+
 /// The dense sphere at 40² is traced; the flowers (7.8k triangles) at 40²
 /// would save less than the least saving that replaces counting, so they
 /// are counted. The explanation says which, with both estimates.
@@ -52,14 +62,6 @@ size = [6.0, 6.0]
 fn the_plan_follows_the_estimated_costs() {
     let small = render(&dense_sphere(), &options("dcs", 40, RayChoice::Auto)).unwrap();
     assert!(traced(&small));
-    let note = |r: &Render| {
-        r.explain
-            .buffers
-            .iter()
-            .find(|b| b.name == "cost choice light 0")
-            .map(|b| b.detail.clone())
-            .expect("a cost-choice note")
-    };
     assert!(
         note(&small).starts_with("every receiver traced"),
         "{}",
@@ -107,14 +109,6 @@ fn the_probe_is_the_same_on_any_thread_count() {
     let o = options("dcs", 160, RayChoice::Auto);
     let run = |threads| with_threads(Some(threads), || render(&bunny, &o).unwrap()).unwrap();
     let (one, three) = (run(1), run(3));
-    let note = |r: &Render| {
-        r.explain
-            .buffers
-            .iter()
-            .find(|b| b.name == "cost choice light 0")
-            .map(|b| b.detail.clone())
-            .expect("a cost-choice note")
-    };
     assert!(note(&one).contains("probe of"), "{}", note(&one));
     assert!(one.passes.iter().any(|p| p.name.starts_with("cost probe")));
     assert_eq!(note(&one), note(&three));

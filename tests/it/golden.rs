@@ -29,11 +29,20 @@ const HEIGHT: u32 = 48;
 const SAMPLES: u32 = 16;
 const AOVS: &str = "depth,position,normal,albedo,mask,vcoef";
 
-/// One render to hash: a shipped scene and a technique with its defaults.
+/// One render to hash: a shipped scene and a technique with its defaults,
+/// or with `extra` arguments under its own record name.
 struct Run {
     scene: String,
     technique: String,
+    /// The record's name for it: the technique's, or `technique:variant`.
+    name: String,
+    extra: &'static [&'static str],
 }
+
+/// Variants recorded beside a technique's defaults: DCS's counting path
+/// alone, which its cost choice replaces by rays on small renders of
+/// scenes of many triangles (the shipped 61k–69k ones at this size).
+const VARIANTS: [(&str, &str, &[&str]); 1] = [("dcs", "dcs:counted", &["--dcs-rays", "never"])];
 
 fn binary() -> &'static str {
     env!("CARGO_BIN_EXE_penumbra")
@@ -77,13 +86,14 @@ fn scenes() -> Vec<String> {
 /// Renders `run` into `dir` and returns its record entries (item → hash);
 /// a refused combination is recorded as refused.
 fn hash_run(run: &Run, dir: &Path) -> BTreeMap<String, String> {
-    let stem = format!("{}-{}", run.scene, run.technique);
+    let stem = format!("{}-{}", run.scene, run.name.replace(':', "-"));
     let png = dir.join(format!("{stem}.png"));
     let exr = dir.join(format!("{stem}.exr"));
     let out = Command::new(binary())
         .current_dir(repo())
         .args(["render", &format!("scenes/{}.toml", run.scene)])
         .args(["--technique", &run.technique])
+        .args(run.extra)
         .args(["--samples", &SAMPLES.to_string()])
         .args([
             "--width",
@@ -122,10 +132,19 @@ fn render_record() -> Vec<String> {
     let runs: Vec<Run> = scenes()
         .into_iter()
         .flat_map(|scene| {
-            techniques.iter().map(move |technique| Run {
+            let defaults = techniques.iter().map(|technique| Run {
                 scene: scene.clone(),
                 technique: technique.clone(),
-            })
+                name: technique.clone(),
+                extra: &[],
+            });
+            let variants = VARIANTS.iter().map(|&(technique, name, extra)| Run {
+                scene: scene.clone(),
+                technique: technique.to_owned(),
+                name: name.to_owned(),
+                extra,
+            });
+            defaults.chain(variants).collect::<Vec<_>>()
         })
         .collect();
     let dir = common::ScratchDir::new("golden");
@@ -140,7 +159,7 @@ fn render_record() -> Vec<String> {
                 let entries = hash_run(run, &dir.0);
                 let mut lines = lines.lock().expect("no worker panicked");
                 for (item, hash) in entries {
-                    lines.push(format!("{} {} {} {}", run.scene, run.technique, item, hash));
+                    lines.push(format!("{} {} {} {}", run.scene, run.name, item, hash));
                 }
             });
         }

@@ -22,13 +22,15 @@
 //! The test is therefore: a silhouette from `p`, and the edge's projection
 //! from `p` onto the light's plane meets the light.
 //!
-//! Deterministic: the sample is a stride over pixels and edges fixed by
-//! their counts, and the sums are integers, so the plan is the same for
-//! any thread count and SIMD level.
+//! Deterministic: the receivers are a stride over the pixels, the edges
+//! those of one triangle per block at a hashed place, both fixed by the
+//! counts, and the sums are integers, so the plan is the same for any
+//! thread count and SIMD level.
 
 use crate::gbuffer::GBuffer;
 use crate::geom::SceneGeometry;
 use crate::scene::{Light, LightShape, Scene};
+use crate::shadow::kit::light_frame::{RectFrame, RectProjection};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -82,117 +84,39 @@ struct ProbeEdge {
 /// the first (`0 > −1`) and not of the second (`0 > 1`).
 const EVERYWHERE: [[f32; 4]; 2] = [[0.0, 0.0, 0.0, -1.0], [0.0, 0.0, 0.0, 1.0]];
 
-/// The light as seen from one receiver: its centre, unit in-plane axes,
-/// half extents and the unit normal towards the light.
-struct LightFrame {
-    centre: Vec3,
-    axes: [Vec3; 2],
-    half: [f32; 2],
-    up: Vec3,
+/// The light's projection from receiver `p` (the counting path's own,
+/// [`RectProjection`]): a rect light as it is, a sphere light as the
+/// square around its disc facing `p`. `None` when `p` does not see the
+/// light's emitting side (no rays are traced and no edge counted there).
+fn projection(light: &Light, p: Vec3) -> Option<RectProjection> {
+    let frame = match light.shape {
+        LightShape::Rect {
+            center,
+            u,
+            v,
+            two_sided,
+        } => {
+            if !two_sided && u.cross(v).dot(p - center) <= 0.0 {
+                return None;
+            }
+            RectFrame::new(center.as_dvec3(), u.as_dvec3(), v.as_dvec3())
+        }
+        LightShape::Sphere { center, radius } => {
+            let [s, t] = orthonormal((center - p).normalize_or_zero());
+            RectFrame::new(
+                center.as_dvec3(),
+                (s * radius).as_dvec3(),
+                (t * radius).as_dvec3(),
+            )
+        }
+    };
+    RectProjection::new(&frame, p.as_dvec3())
 }
 
-impl LightFrame {
-    /// `None` when `p` does not see the light's emitting side (no rays
-    /// are traced and no edge counted there).
-    fn seen_from(light: &Light, p: Vec3) -> Option<LightFrame> {
-        match light.shape {
-            LightShape::Rect {
-                center,
-                u,
-                v,
-                two_sided,
-            } => {
-                let emit = u.cross(v).normalize_or_zero();
-                let mut up = -emit;
-                let h = up.dot(center - p);
-                if h <= 0.0 {
-                    if !two_sided {
-                        return None;
-                    }
-                    up = emit;
-                }
-                Some(LightFrame {
-                    centre: center,
-                    axes: [u.normalize_or_zero(), v.normalize_or_zero()],
-                    half: [u.length(), v.length()],
-                    up,
-                })
-            }
-            LightShape::Sphere { center, radius } => {
-                let up = (center - p).normalize_or_zero();
-                let [s, t] = orthonormal(up);
-                Some(LightFrame {
-                    centre: center,
-                    axes: [s, t],
-                    half: [radius, radius],
-                    up,
-                })
-            }
-        }
-    }
-
-    /// Whether the segment `a b`, projected from `p` onto the light's
-    /// plane, meets the light.
-    fn meets(&self, p: Vec3, a: Vec3, b: Vec3) -> bool {
-        let height = self.up.dot(self.centre - p);
-        if !(height > 0.0) {
-            return false;
-        }
-        // Keep the part of the edge strictly between p's level and the
-        // light's plane (only occluders there can block p's rays).
-        let (ha, hb) = (self.up.dot(a - p), self.up.dot(b - p));
-        let low = height * 1e-4;
-        let (mut t0, mut t1) = (0.0f32, 1.0f32);
-        for (bound, above) in [(low, true), (height, false)] {
-            let (fa, fb) = if above {
-                (ha - bound, hb - bound)
-            } else {
-                (bound - ha, bound - hb)
-            };
-            if fa < 0.0 && fb < 0.0 {
-                return false;
-            }
-            if fa < 0.0 {
-                t0 = t0.max(fa / (fa - fb));
-            } else if fb < 0.0 {
-                t1 = t1.min(fa / (fa - fb));
-            }
-        }
-        if t0 > t1 {
-            return false;
-        }
-        let project = |t: f32| {
-            let x = a + (b - a) * t;
-            let h = self.up.dot(x - p).max(low);
-            let q = p + (x - p) * (height / h) - self.centre;
-            [
-                self.axes[0].dot(q) / self.half[0],
-                self.axes[1].dot(q) / self.half[1],
-            ]
-        };
-        segment_meets_square(project(t0), project(t1))
-    }
-}
-
-/// Whether the segment `s t` meets the square `[−1, 1]²`.
-fn segment_meets_square(s: [f32; 2], t: [f32; 2]) -> bool {
-    if s[0].max(t[0]) < -1.0
-        || s[0].min(t[0]) > 1.0
-        || s[1].max(t[1]) < -1.0
-        || s[1].min(t[1]) > 1.0
-    {
-        return false;
-    }
-    // The square's corners on both sides of the segment's line (or on it).
-    let d = [t[0] - s[0], t[1] - s[1]];
-    let side = |x: f32, y: f32| d[0] * (y - s[1]) - d[1] * (x - s[0]);
-    let sides = [
-        side(-1.0, -1.0),
-        side(1.0, -1.0),
-        side(1.0, 1.0),
-        side(-1.0, 1.0),
-    ];
-    sides.iter().any(|&v| v >= 0.0) && sides.iter().any(|&v| v <= 0.0)
+/// Whether the edge `a b`, projected from the receiver onto the light's
+/// plane (clipped to the slab between them), meets the light.
+fn meets(projection: &RectProjection, a: Vec3, b: Vec3) -> bool {
+    projection.edge(a.as_dvec3(), b.as_dvec3()).is_some()
 }
 
 /// Two unit vectors completing `n` to an orthonormal frame.
@@ -370,12 +294,12 @@ pub fn probe(
     let per_receiver: Vec<u64> = receivers
         .par_iter()
         .map(|&p| {
-            let Some(frame) = LightFrame::seen_from(light, p) else {
+            let Some(projection) = projection(light, p) else {
                 return 0;
             };
             edges
                 .iter()
-                .filter(|e| silhouette_from(e, p) && frame.meets(p, e.a, e.b))
+                .filter(|e| silhouette_from(e, p) && meets(&projection, e.a, e.b))
                 .count() as u64
         })
         .collect();
@@ -392,9 +316,9 @@ pub fn probe(
 mod tests {
     use super::*;
 
-    /// `meets` against a brute force: points along the edge, each
-    /// projected from `p` through onto the light's plane, tested against
-    /// the rectangle. Random edges around and above random receivers;
+    /// `projection` and `meets` against a brute force: points along the
+    /// edge, each projected from `p` through onto the light's plane,
+    /// tested against the rectangle. Random edges around and above random receivers;
     /// cases within a small margin of the rectangle's border are skipped
     /// (the brute force's spacing cannot settle them).
     #[test]
@@ -424,27 +348,29 @@ mod tests {
             let towards = p + (Vec3::new(0.2, 4.0, -0.1) - p) * (next() * 1.4 - 0.2);
             let a = towards + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 1.5;
             let b = a + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 2.0;
-            let frame = LightFrame::seen_from(&light, p).expect("below the light");
-            let height = frame.up.dot(frame.centre - p);
+            let centre = Vec3::new(0.2, 4.0, -0.1);
+            let (up, axes, half) = (Vec3::Y, [Vec3::X, Vec3::Z], [0.7, 0.5]);
+            let height = up.dot(centre - p);
             // Distance of the edge's points' projections from the
             // rectangle (negative inside), over 4000 points.
             let mut nearest = f32::INFINITY;
             for k in 0..=4000 {
                 let x = a + (b - a) * (k as f32 / 4000.0);
-                let h = frame.up.dot(x - p);
-                if h <= height * 1e-4 || h > height {
+                let h = up.dot(x - p);
+                if h <= 0.0 || h > height {
                     continue;
                 }
-                let q = p + (x - p) * (height / h) - frame.centre;
-                let s = frame.axes[0].dot(q).abs() - frame.half[0];
-                let t = frame.axes[1].dot(q).abs() - frame.half[1];
+                let q = p + (x - p) * (height / h) - centre;
+                let s = axes[0].dot(q).abs() - half[0];
+                let t = axes[1].dot(q).abs() - half[1];
                 nearest = nearest.min(s.max(t));
             }
             if nearest.abs() < 0.02 {
                 continue;
             }
             let inside = nearest < 0.0;
-            assert_eq!(frame.meets(p, a, b), inside, "p {p} a {a} b {b}");
+            let projection = projection(&light, p).expect("below the light");
+            assert_eq!(meets(&projection, a, b), inside, "p {p} a {a} b {b}");
             if inside {
                 met += 1;
             } else {
@@ -452,15 +378,5 @@ mod tests {
             }
         }
         assert!(met > 200 && missed > 200, "{met} met, {missed} missed");
-    }
-
-    #[test]
-    fn segments_and_the_square() {
-        assert!(segment_meets_square([-2.0, 0.0], [2.0, 0.0]));
-        assert!(segment_meets_square([0.0, 0.0], [0.1, 0.1]));
-        assert!(!segment_meets_square([-2.0, 1.5], [2.0, 1.5]));
-        // Crosses the square's bounding box but passes its corner.
-        assert!(!segment_meets_square([0.5, 2.0], [2.0, 0.5]));
-        assert!(segment_meets_square([0.0, 2.0], [2.0, 0.0]));
     }
 }
