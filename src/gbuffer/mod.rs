@@ -145,6 +145,10 @@ pub struct GBuffer {
     unit_normals: Arc<[Vec3]>,
     triangle_material: Arc<[u32]>,
     triangle_object: Arc<[u32]>,
+    /// After [`GBuffer::keep_rows`], the whole frame's surface positions
+    /// in pixel order ([`GBuffer::frame_surfaces`]); `None` for a whole
+    /// frame.
+    frame_surfaces: Option<Vec<Vec3>>,
 }
 
 impl GBuffer {
@@ -165,6 +169,7 @@ impl GBuffer {
             unit_normals: Arc::from([]),
             triangle_material: Arc::from([]),
             triangle_object: Arc::from([]),
+            frame_surfaces: None,
         }
     }
 
@@ -199,11 +204,25 @@ impl GBuffer {
     /// (`render --tiles`, [`crate::cluster::tiles`]) shades and traces
     /// only its own rows; the pixels inside keep their bits.
     pub fn keep_rows(&mut self, rows: std::ops::Range<u32>) {
+        if self.frame_surfaces.is_none() {
+            self.frame_surfaces = Some(self.frame_surfaces().collect());
+        }
         let width = self.width as usize;
         for (y, row) in self.points.chunks_mut(width).enumerate() {
             if !rows.contains(&(y as u32)) {
                 row.fill(GPoint::BACKGROUND);
             }
+        }
+    }
+
+    /// The whole frame's surface positions in pixel order, also after
+    /// [`GBuffer::keep_rows`] made a band: decisions made for the whole
+    /// frame (DCS's cost choice) read them, so that every band of a frame
+    /// makes the one the whole frame makes and its pixels keep their bits.
+    pub fn frame_surfaces(&self) -> Box<dyn Iterator<Item = Vec3> + '_> {
+        match &self.frame_surfaces {
+            Some(positions) => Box::new(positions.iter().copied()),
+            None => Box::new((0..self.len()).filter_map(|i| self.surface_position(i))),
         }
     }
 

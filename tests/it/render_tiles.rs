@@ -93,6 +93,23 @@ fn bands_assemble_the_single_render_bytes_for_every_technique() {
     check_scene("spheres.toml", 96, 200, 4, |_| {});
 }
 
+/// DCS's cost choice is the whole frame's in every band: at 96×256 the
+/// spheres' frame is counted, while a band alone (a quarter of the
+/// receivers) would be traced, and the two paths' bits differ at ties and
+/// in the depth-complexity layers.
+#[test]
+fn bands_make_the_frames_cost_choice() {
+    let scene = common::shipped("spheres.toml");
+    let dir = common::scratch_dir("tiles-dcs-plan");
+    let o = options("dcs".parse().expect("the dcs technique"), 96, 256);
+    let paths = parts(&scene, &o, 4, &dir).expect("bands");
+    let want = whole(&scene, &o, &dir);
+    let got = merged(&paths, &dir).expect("merge");
+    assert!(got.0 == want.0, "PNG differs");
+    assert!(got.1 == want.1, "EXR differs");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn bands_with_textures_opacity_and_small_chunks() {
     // Penumbra casting with chunks that straddle band boundaries (48 does

@@ -301,11 +301,10 @@ impl DepthComplexitySampling {
             && casters.s_triangles.is_empty()
             && !matches!(self.pattern, SamplePattern::Interleaved { .. })
             && !inspected;
-        // The receivers are counted only where rays are an option.
+        // The receivers are counted only where rays are an option, over
+        // the whole frame (a band of it must make the frame's choice).
         let receivers = if eligible {
-            (0..ctx.gbuffer.len())
-                .filter(|&i| ctx.gbuffer.is_surface(i))
-                .count()
+            ctx.gbuffer.frame_surfaces().count()
         } else {
             0
         };

@@ -126,10 +126,11 @@ fn orthonormal(n: Vec3) -> [Vec3; 2] {
     [s, n.cross(s)]
 }
 
-/// The sampled edge's place in its block of `stride` edges: one edge per
-/// block at a hashed offset, not a plain stride, which meshes made in
-/// strips would alias (every third edge of a strip of quads is a
-/// diagonal, a silhouette almost nowhere).
+/// The drawn triangle's place in its block of `stride` triangles: a
+/// hashed offset, not a plain stride, which would alias with the strips
+/// meshes are made of (an even stride over a strip of quads draws the
+/// same one of each quad's two triangles, and so the same kinds of edges:
+/// the diagonals, say, silhouettes almost nowhere).
 fn sample_offset(block: usize, stride: usize) -> usize {
     let mut x = (block as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
     x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -262,7 +263,7 @@ fn sampled_edges(
 }
 
 /// Probes `light` over the casting triangles of `scene` at the surface
-/// receivers of `gbuffer` (`surfaces` of them).
+/// receivers of `gbuffer`'s whole frame (`surfaces` of them).
 pub fn probe(
     scene: &Scene,
     geometry: &SceneGeometry,
@@ -285,12 +286,10 @@ pub fn probe(
     let sampled = (triangles / TRIANGLES_PER_EDGE).clamp(MIN_EDGES, EDGES);
     let edge_stride = (triangles * 3 / 2).div_ceil(sampled);
     let (edges, edge_weight) = sampled_edges(geometry, &casts, light, edge_stride);
+    // The whole frame's receivers, also in a band of it (the band must
+    // make the frame's choice).
     let pixel_stride = surfaces.div_ceil(RECEIVERS);
-    let receivers: Vec<Vec3> = (0..gbuffer.len())
-        .filter(|&i| gbuffer.is_surface(i))
-        .step_by(pixel_stride)
-        .map(|i| gbuffer.sample(i).position)
-        .collect();
+    let receivers: Vec<Vec3> = gbuffer.frame_surfaces().step_by(pixel_stride).collect();
     let per_receiver: Vec<u64> = receivers
         .par_iter()
         .map(|&p| {
