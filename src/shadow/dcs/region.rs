@@ -41,15 +41,15 @@ macro_rules! admits_kernel {
                     .add($splat(n.z).mul(z))
             };
             let mut out = 0;
-            if let Some((faces, slack)) = &$bound.dihedral {
+            if let Some((faces, slack)) = $bound.dihedral() {
                 let d0 = dot(faces[0].0).sub($splat(faces[0].1));
                 let d1 = dot(faces[1].0).sub($splat(faces[1].1));
-                let (up, down) = ($splat(*slack), $splat(-*slack));
+                let (up, down) = ($splat(slack), $splat(-slack));
                 let front = d0.cmp_gt(up).bitand(d1.cmp_gt(up));
                 let behind = d0.cmp_lt(down).bitand(d1.cmp_lt(down));
                 out = front.bitor(behind).move_mask();
             }
-            for &(n, h) in &$bound.planes {
+            for (n, h) in $bound.planes() {
                 if out == 0xF {
                     break;
                 }
@@ -163,14 +163,16 @@ impl ReceiverBoxes {
 /// penumbra region.
 #[derive(Debug, Clone, Default)]
 pub struct RegionBound {
-    planes: Vec<(DVec3, f64)>,
-    /// The same planes four to a group, structure-of-arrays, for the
-    /// tests ([`Planes4`]).
+    /// The planes four to a group, structure-of-arrays ([`Planes4`]):
+    /// the only copy (one region per candidate edge, a million of them at
+    /// 4M triangles), read plane by plane by [`RegionBound::planes`].
     quads: Vec<Planes4>,
+    /// How many planes `quads` holds.
+    count: usize,
     /// The edge's two face planes when it only matters where they
-    /// disagree (see [`RegionBound::with_dihedral`]), and the slack.
-    dihedral: Option<([(DVec3, f64); 2], f64)>,
-    /// The same test in SoA lanes ([`Dihedral4`]).
+    /// disagree (see [`RegionBound::with_dihedral`]), and the slack, in
+    /// SoA lanes ([`Dihedral4`]); [`RegionBound::dihedral`] reads them
+    /// back.
     dihedral4: Option<Dihedral4>,
 }
 
@@ -585,11 +587,31 @@ impl RegionBound {
             })
             .collect();
         RegionBound {
-            planes,
             quads,
-            dihedral: None,
+            count: planes.len(),
             dihedral4: None,
         }
+    }
+
+    /// The planes `(n, h)`, in their order: lane `k` of group `i` is plane
+    /// `4 i + k` (the same values as built).
+    #[inline(always)]
+    pub fn planes(&self) -> impl Iterator<Item = (DVec3, f64)> + '_ {
+        (0..self.count).map(|i| {
+            let (q, k) = (&self.quads[i / 4], i % 4);
+            (DVec3::new(q.n[0][k], q.n[1][k], q.n[2][k]), q.h[k])
+        })
+    }
+
+    /// The two face planes and the slack of
+    /// [`RegionBound::with_dihedral`], read back from their lanes (face
+    /// `f` is lane `2 f`).
+    #[inline(always)]
+    fn dihedral(&self) -> Option<([(DVec3, f64); 2], f64)> {
+        self.dihedral4.as_ref().map(|d| {
+            let face = |l: usize| (DVec3::new(d.n[0][l], d.n[1][l], d.n[2][l]), d.h[l]);
+            ([face(0), face(2)], d.slack[0])
+        })
     }
 
     /// The bound of edge `v0 v1` against a light inside the convex hull of
@@ -787,7 +809,6 @@ impl RegionBound {
     /// both (beyond `slack`): where the edge is not a silhouette, its
     /// multiplicity is 0 and it changes no counter.
     pub fn with_dihedral(mut self, faces: [(DVec3, f64); 2], slack: f64) -> RegionBound {
-        self.dihedral = Some((faces, slack));
         self.dihedral4 = Some(Dihedral4::new(faces, slack));
         self
     }
@@ -797,7 +818,7 @@ impl RegionBound {
     /// (the scalar twin of [`Dihedral4::excludes`]).
     #[cfg(test)]
     fn dihedral_excludes(&self, d: [(f64, f64); 2]) -> bool {
-        match self.dihedral {
+        match self.dihedral() {
             Some((_, slack)) => {
                 let front = d.iter().all(|&(lo, _)| lo > slack);
                 let behind = d.iter().all(|&(_, hi)| hi < -slack);
@@ -837,7 +858,7 @@ impl RegionBound {
     /// definition [`RegionBound::admits`] is tested against.
     #[cfg(test)]
     fn excludes_point(&self, p: DVec3) -> bool {
-        if let Some((faces, _)) = self.dihedral {
+        if let Some((faces, _)) = self.dihedral() {
             let d = faces.map(|(n, h)| {
                 let d = n.dot(p) - h;
                 (d, d)
@@ -846,7 +867,7 @@ impl RegionBound {
                 return true;
             }
         }
-        self.planes.iter().any(|&(n, h)| n.dot(p) < h)
+        self.planes().any(|(n, h)| n.dot(p) < h)
     }
 
     /// Whether the whole box `[lo, hi]` is outside the region
@@ -934,13 +955,13 @@ impl RegionBound {
                 pick(n.z, lo.z, hi.z),
             )
         };
-        if let Some((faces, _)) = self.dihedral {
+        if let Some((faces, _)) = self.dihedral() {
             let d = faces.map(|(n, h)| (n.dot(far(n, false)) - h, n.dot(far(n, true)) - h));
             if self.dihedral_excludes(d) {
                 return true;
             }
         }
-        self.planes.iter().any(|&(n, h)| {
+        self.planes().any(|(n, h)| {
             // The box corner furthest along n.
             let far = DVec3::new(
                 if n.x >= 0.0 { hi.x } else { lo.x },
@@ -953,12 +974,12 @@ impl RegionBound {
 
     /// Number of bounding planes (0: no rejection possible).
     pub fn len(&self) -> usize {
-        self.planes.len()
+        self.count
     }
 
     /// Whether there is no bounding plane.
     pub fn is_empty(&self) -> bool {
-        self.planes.is_empty()
+        self.count == 0
     }
 }
 
@@ -1004,9 +1025,8 @@ mod tests {
                 let p = q + (q - x) * t;
                 // 1e-9 of slack for the rounding of p itself.
                 let outside = bound
-                    .planes
-                    .iter()
-                    .any(|&(n, h)| n.dot(p) < h - 1e-9 * (1.0 + p.length()));
+                    .planes()
+                    .any(|(n, h)| n.dot(p) < h - 1e-9 * (1.0 + p.length()));
                 assert!(!outside, "shadow ray point {p} rejected");
             }
             rejected += usize::from(bound.excludes_point(DVec3::new(20.0, 0.0, 0.0)));
@@ -1076,9 +1096,8 @@ mod tests {
                     .lerp(corners[3].lerp(corners[2], u(&mut s)), u(&mut s));
                 let p = a + (a - x) * (4.0 * u(&mut s));
                 let outside = bound
-                    .planes
-                    .iter()
-                    .any(|&(n, h)| n.dot(p) < h - 1e-9 * (1.0 + p.length()));
+                    .planes()
+                    .any(|(n, h)| n.dot(p) < h - 1e-9 * (1.0 + p.length()));
                 assert!(!outside, "shadow ray point {p} of the box rejected");
             }
             rejected += usize::from(bound.excludes_point(c + DVec3::Y * 10.0));
@@ -1169,7 +1188,7 @@ mod tests {
                     1e-9,
                 );
             }
-            assert_eq!(bound.quads.len(), bound.planes.len().div_ceil(4));
+            assert_eq!(bound.quads.len(), bound.len().div_ceil(4));
             for k in 0..200 {
                 let c = DVec3::new(4.0 * rng(&mut s), 3.0 * rng(&mut s), 4.0 * rng(&mut s));
                 let r = DVec3::new(rng(&mut s), rng(&mut s), rng(&mut s)).abs();
@@ -1243,8 +1262,7 @@ mod tests {
     #[test]
     fn constructors_match_the_scalar_twins() {
         let bits = |b: &RegionBound| -> Vec<[u64; 4]> {
-            b.planes
-                .iter()
+            b.planes()
                 .map(|(n, h)| [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), h.to_bits()])
                 .collect()
         };
@@ -1281,5 +1299,33 @@ mod tests {
             planes += fast.len();
         }
         assert!(planes > 4000, "{planes} planes");
+    }
+
+    /// The planes and the dihedral faces are stored once, in their SoA
+    /// lanes; reading them back gives the values built, bit for bit and
+    /// in order, for every plane count (partial last groups included).
+    #[test]
+    fn planes_and_faces_read_back_as_built() {
+        let bits = |(n, h): (DVec3, f64)| [n.x, n.y, n.z, h].map(f64::to_bits);
+        let mut s = 5u64;
+        for count in 0..10 {
+            let planes: Vec<(DVec3, f64)> = (0..count)
+                .map(|_| {
+                    let n = DVec3::new(rng(&mut s), rng(&mut s), -0.0 * rng(&mut s));
+                    (n, rng(&mut s))
+                })
+                .collect();
+            let faces = [
+                (DVec3::new(rng(&mut s), -0.0, 1.0), rng(&mut s)),
+                (DVec3::X, -0.0),
+            ];
+            let bound = RegionBound::from_planes(planes.clone()).with_dihedral(faces, 1e-7);
+            assert_eq!(bound.len(), count);
+            let back: Vec<_> = bound.planes().map(bits).collect();
+            assert_eq!(back, planes.iter().map(|&p| bits(p)).collect::<Vec<_>>());
+            let (read, slack) = bound.dihedral().expect("faces set");
+            assert_eq!(read.map(bits), faces.map(bits));
+            assert_eq!(slack.to_bits(), 1e-7f64.to_bits());
+        }
     }
 }
