@@ -99,6 +99,42 @@ fn the_plan_follows_the_estimated_costs() {
     );
 }
 
+/// `--explain` itemises the counting path's largest per-light structures
+/// (the unbounded edges' regions, the tie recount's table) only where the
+/// light is counted, with their bytes: at least the regions' fixed part per
+/// edge and the table's four bytes per triangle.
+#[test]
+fn explain_itemises_the_counted_paths_regions_and_ties() {
+    let flowers = common::shipped("flowers.toml");
+    let counted = render(&flowers, &options("dcs", 40, RayChoice::Never)).unwrap();
+    let item = |r: &Render, name: &str| {
+        r.explain
+            .buffers
+            .iter()
+            .find(|b| b.name == name)
+            .map(|b| (b.detail.clone(), b.bytes))
+    };
+    let (detail, bytes) = item(&counted, "edge regions light 0").expect("a regions note");
+    let edges: u64 = detail
+        .split_whitespace()
+        .next()
+        .and_then(|n| n.parse().ok())
+        .expect("the note starts with the edge count");
+    assert!(edges > 0, "{detail}");
+    assert!(bytes >= edges * 256, "{bytes} bytes for {edges} edges");
+    let (_, tie_bytes) = item(&counted, "start-count ties light 0").expect("a ties note");
+    let triangles = penumbra::internal::geom::SceneGeometry::new(&flowers)
+        .triangles
+        .len() as u64;
+    assert!(
+        tie_bytes >= 4 * triangles,
+        "{tie_bytes} bytes, {triangles} triangles"
+    );
+    let traced = render(&dense_sphere(), &options("dcs", 40, RayChoice::Always)).unwrap();
+    assert!(item(&traced, "edge regions light 0").is_none());
+    assert!(item(&traced, "start-count ties light 0").is_none());
+}
+
 /// The cost probe runs where its bounds leave the choice open (the bunny,
 /// 69k triangles, at 160²: estimated rays at most 50 ms, counting at least
 /// 88 ms but possibly far more), and what it finds, hence the plan and the

@@ -93,6 +93,14 @@ pub struct FaceTree {
 const STACK: usize = 3 * 15 + 2;
 
 impl FaceTree {
+    /// Bytes of the tree: face ids and corners, and the node levels.
+    pub fn bytes(&self) -> u64 {
+        let nodes: usize = self.levels.iter().map(Vec::capacity).sum();
+        (self.ids.capacity() * 4
+            + self.tris.capacity() * std::mem::size_of::<[Vec3; 3]>()
+            + nodes * std::mem::size_of::<Node4>()) as u64
+    }
+
     /// The tree over the triangles of `geometry` for which `keep` is true.
     pub fn build(geometry: &SceneGeometry, keep: impl Fn(u32) -> bool + Sync) -> FaceTree {
         // In parallel where it is per face (the sort's keys are unique, so

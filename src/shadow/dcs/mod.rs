@@ -262,6 +262,9 @@ impl DepthComplexitySampling {
             wedge_triangles: wedges.wedges.zfail.triangles.len()
                 + wedges.wedges.zpass.triangles.len(),
             plan: Some(plan),
+            region_bytes: wedges.region_bytes(),
+            tie_bytes: exact.bytes(),
+            tie_tree: exact.built(),
             ..DcsLightReport::default()
         };
         let (mut vcoef, mut radiance, aovs) = assemble(grid, results, with_radiance, &mut report);
@@ -544,6 +547,29 @@ impl DepthComplexitySampling {
                 reports.push(report);
                 continue;
             }
+            out.buffers.push(BufferNote {
+                name: format!("start-count ties light {k}"),
+                detail: if report.tie_tree {
+                    "u32 caster group and weight per triangle; a face tree (f32 corners, 4-wide \
+                     nodes) for the tied receivers' exact recounts"
+                        .into()
+                } else {
+                    "u32 caster group and weight per triangle; no face tree: no receiver needed \
+                     a recount"
+                        .into()
+                },
+                bytes: report.tie_bytes,
+            });
+            out.buffers.push(BufferNote {
+                name: format!("edge regions light {k}"),
+                detail: format!(
+                    "{} edges without a bounded wedge: each its f64 world-space region \
+                     (planes in 4-lane groups, its two face planes) and screen rectangle, \
+                     and their clusters' regions",
+                    report.unbounded_edges
+                ),
+                bytes: report.region_bytes,
+            });
             out.buffers.push(BufferNote {
                 name: format!("wedge membership light {k}"),
                 detail: format!(

@@ -429,6 +429,31 @@ pub(super) struct LightWedges {
     pub clusters: Vec<EdgeCluster>,
 }
 
+impl LightWedges {
+    /// Bytes of the unbounded edges' and clusters' regions and of the
+    /// halves' edge ids (the wedges' own triangles are counted with the
+    /// membership pairs they make).
+    pub fn region_bytes(&self) -> u64 {
+        let unbounded: usize = self
+            .unbounded
+            .iter()
+            .map(|u| {
+                std::mem::size_of::<UnboundedEdge>() - std::mem::size_of::<RegionBound>()
+                    + u.region.bytes()
+            })
+            .sum();
+        let clusters: usize = self
+            .clusters
+            .iter()
+            .map(|c| {
+                std::mem::size_of::<EdgeCluster>() - std::mem::size_of::<RegionBound>()
+                    + c.region.bytes()
+            })
+            .sum();
+        (unbounded + clusters + 4 * (self.zfail_edge.len() + self.zpass_edge.len())) as u64
+    }
+}
+
 /// The wedge of every candidate edge of `groups` from the light `bound`
 /// (centre `point`), or, for an edge without a bounded wedge, its
 /// [`UnboundedEdge`].

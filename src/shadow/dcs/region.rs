@@ -972,6 +972,11 @@ impl RegionBound {
         })
     }
 
+    /// Bytes the bound holds: its own and its plane groups'.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of::<RegionBound>() + self.quads.capacity() * std::mem::size_of::<Planes4>()
+    }
+
     /// Number of bounding planes (0: no rejection possible).
     pub fn len(&self) -> usize {
         self.count

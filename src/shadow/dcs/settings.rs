@@ -56,4 +56,11 @@ pub struct DcsLightReport {
     pub traced_pixels: usize,
     /// The light's plan: counted, or every receiver traced.
     pub plan: Option<super::plan::LightPlan>,
+    /// Bytes of the unbounded edges' regions, their clusters' and the
+    /// halves' edge ids.
+    pub region_bytes: u64,
+    /// Bytes of the start-count tie recount (group table, face tree).
+    pub tie_bytes: u64,
+    /// Whether the tie recount built its face tree.
+    pub tie_tree: bool,
 }

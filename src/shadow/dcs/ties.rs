@@ -203,6 +203,17 @@ impl<'a> ExactStart<'a> {
         self.tree();
     }
 
+    /// Bytes held: the per-triangle group table, and the face tree when a
+    /// recount built it.
+    pub fn bytes(&self) -> u64 {
+        self.table.capacity() as u64 * 4 + self.tree.get().map_or(0, FaceTree::bytes)
+    }
+
+    /// Whether a recount built the face tree.
+    pub fn built(&self) -> bool {
+        self.tree.get().is_some()
+    }
+
     /// The tree over the groups' faces, built on first use.
     fn tree(&self) -> &FaceTree {
         self.tree
