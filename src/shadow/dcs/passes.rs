@@ -434,22 +434,15 @@ impl LightWedges {
     /// halves' edge ids (the wedges' own triangles are counted with the
     /// membership pairs they make).
     pub fn region_bytes(&self) -> u64 {
-        let unbounded: usize = self
-            .unbounded
-            .iter()
-            .map(|u| {
-                std::mem::size_of::<UnboundedEdge>() - std::mem::size_of::<RegionBound>()
-                    + u.region.bytes()
-            })
-            .sum();
-        let clusters: usize = self
-            .clusters
-            .iter()
-            .map(|c| {
-                std::mem::size_of::<EdgeCluster>() - std::mem::size_of::<RegionBound>()
-                    + c.region.bytes()
-            })
-            .sum();
+        // Each item's own size, its region's inline part included, and its
+        // region's plane groups.
+        fn held<'r, T: 'r>(regions: impl Iterator<Item = &'r RegionBound>) -> usize {
+            regions
+                .map(|r| std::mem::size_of::<T>() - std::mem::size_of::<RegionBound>() + r.bytes())
+                .sum()
+        }
+        let unbounded = held::<UnboundedEdge>(self.unbounded.iter().map(|u| &u.region));
+        let clusters = held::<EdgeCluster>(self.clusters.iter().map(|c| &c.region));
         (unbounded + clusters + 4 * (self.zfail_edge.len() + self.zpass_edge.len())) as u64
     }
 }
