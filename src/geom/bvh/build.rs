@@ -1,7 +1,7 @@
 //! The BVH build: binned SAH collapsed into 4-wide nodes, the same tree
 //! for any thread count (see the parent module's documentation).
 
-use super::{Bvh, Node, MAX_LEAF, SAH_MAX_DEPTH};
+use super::{Bvh, Node, MAX_LEAF, SAH_MAX_DEPTH, SAH_TRAVERSAL};
 use crate::geom::SceneGeometry;
 use crate::simd::{f32x4, i32x4};
 use glam::Vec3;
@@ -602,7 +602,8 @@ impl Bins {
 const PAIRED: usize = 128;
 
 /// Best binned-SAH split, `None` when the centroids cannot be separated.
-/// Costs: traversal 1, triangle 1 (relative to the parent's area).
+/// Costs: traversal [`SAH_TRAVERSAL`], triangle 1 (relative to the
+/// parent's area).
 fn sah_split(prims: &[Prim], extent: &Extent) -> Option<Split> {
     let (cost, axis, bin) = if prims.len() <= SMALL {
         sah_small(prims, extent)
@@ -610,9 +611,9 @@ fn sah_split(prims: &[Prim], extent: &Extent) -> Option<Split> {
         sah_binned(prims, extent)
     }?;
     let area = extent.bounds.aabb().half_area();
-    // Leaf cost n vs split cost 1 + (A_l n_l + A_r n_r) / A.
+    // Leaf cost n vs split cost t + (A_l n_l + A_r n_r) / A.
     let leaf_cost = prims.len() as f32;
-    if area > 0.0 && 1.0 + cost / area >= leaf_cost {
+    if area > 0.0 && SAH_TRAVERSAL + cost / area >= leaf_cost {
         return Some(Split::Leaf);
     }
     Some(Split::Bins { axis, bin })

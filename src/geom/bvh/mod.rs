@@ -46,7 +46,7 @@
 //!   counts as inside (inclusive), so two triangles sharing an edge never
 //!   both miss a ray through it. Leaves keep their corners as an array of
 //!   structures, tested one triangle at a time: nearly all leaves a ray
-//!   reaches hold one or two triangles, where a four-lane leaf test
+//!   reached held one or two triangles when this was measured, where a four-lane leaf test
 //!   costs more than the scalar one with its early exit (measured: see
 //!   `packet`'s module docs).
 
@@ -62,8 +62,14 @@ use crate::simd::f32x4;
 use glam::Vec3;
 use std::ops::Range;
 
-/// Most triangles in a leaf.
-pub const MAX_LEAF: usize = 4;
+/// Most triangles in a leaf. With [`SAH_TRAVERSAL`] 2, leaves of up to
+/// eight against four with cost 1: the shadow-ray BVH builds 4–10 % faster
+/// and its rays take 0–4 % less on 1M–4.1M triangles, the same on the
+/// 278k bunny (512², 64 samples, two interleaved runs each).
+pub const MAX_LEAF: usize = 8;
+
+/// The SAH's cost of a traversal step, relative to one triangle test.
+pub(super) const SAH_TRAVERSAL: f32 = 2.0;
 
 /// Binary depth from which splits become object-median splits: bounds the
 /// tree depth (hence the traversal stack) for any input, including
