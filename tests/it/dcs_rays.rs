@@ -135,6 +135,85 @@ fn explain_itemises_the_counted_paths_regions_and_ties() {
     assert!(item(&traced, "start-count ties light 0").is_none());
 }
 
+/// An open grid of 20,000 triangles (100 × 100 quads, its vertices
+/// shared) over a ground quad: its only edges that change a count are its
+/// boundary's, which have one face. The probe counts them as silhouettes
+/// from everywhere, as the counting path does, so its pairs are of the
+/// order of the counting path's own; dropping them (as a closed object's
+/// unmatched edges, its seams, are dropped) left it near none.
+#[test]
+fn the_probe_counts_an_open_objects_boundary() {
+    let n = 100;
+    let mut obj = String::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5);
+            obj += &format!("v {x} 0 {z}\n");
+        }
+    }
+    let at = |i: usize, j: usize| j * (n + 1) + i + 1;
+    for j in 0..n {
+        for i in 0..n {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            obj += &format!("f {a} {d} {c}\nf {a} {c} {b}\n");
+        }
+    }
+    let scene = common::scene_in_scratch(
+        "dcs-rays-open-grid",
+        r#"
+[scene]
+name = "open-grid"
+[camera]
+eye = [0.0, 3.0, 3.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 50.0
+width = 256
+height = 256
+[[light]]
+type = "rect"
+center = [0.3, 4.0, 0.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 0.0, 1.0]
+radiance = [8.0, 8.0, 8.0]
+[[object]]
+obj = "grid.obj"
+scale = 1.5
+translate = [0.0, 1.2, 0.0]
+[[object]]
+shape = "quad"
+size = [6.0, 6.0]
+"#,
+        &[("grid.obj", obj.as_bytes())],
+    );
+    let number_before = |text: &str, tail: &str| -> f64 {
+        let end = text
+            .find(tail)
+            .unwrap_or_else(|| panic!("{tail:?} in {text}"));
+        text[..end]
+            .split_whitespace()
+            .last()
+            .and_then(|w| w.parse().ok())
+            .unwrap_or_else(|| panic!("a number before {tail:?} in {text}"))
+    };
+    let auto = render(&scene, &options("dcs", 256, RayChoice::Auto)).unwrap();
+    let probed = number_before(&note(&auto), " (receiver, edge) pairs");
+    let counted = render(&scene, &options("dcs", 256, RayChoice::Never)).unwrap();
+    let membership = counted
+        .explain
+        .buffers
+        .iter()
+        .find(|b| b.name == "wedge membership light 0")
+        .expect("a membership note");
+    let pairs = number_before(&membership.detail, " (pixel, unbounded edge) pairs")
+        + (membership.bytes / 8) as f64;
+    assert!(pairs > 1000.0, "{}", membership.detail);
+    assert!(
+        probed > 0.3 * pairs && probed < 3.0 * pairs,
+        "probe {probed} against the counting path's {pairs} pairs"
+    );
+}
+
 /// The cost probe runs where its bounds leave the choice open (the bunny,
 /// 69k triangles, at 160²: estimated rays at most 50 ms, counting at least
 /// 88 ms but possibly far more), and what it finds, hence the plan and the

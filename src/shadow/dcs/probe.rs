@@ -237,10 +237,18 @@ fn sampled_edges(
             next += 1;
         }
         // One face on the other side: manifold. More (non-manifold): a
-        // silhouette from everywhere. None: a boundary, or faces meeting
-        // at copies of the edge's vertices; not told apart, so dropped,
-        // and the others weigh for them.
+        // silhouette from everywhere. None: on a closed object, faces
+        // meeting at copies of the edge's vertices (a sphere's seam), so
+        // dropped, and the others weigh for them; on an open one, most
+        // likely its boundary, a silhouette from everywhere, as the
+        // counting path has it (an interior's walls: dropping them had
+        // the probe find a fifth of `dabrovic.toml`'s pairs).
+        let open = |t: usize| {
+            let object = geometry.triangle_object.get(t).copied().unwrap_or(0) as usize;
+            !geometry.object_closed.get(object).copied().unwrap_or(true)
+        };
         let planes = match &others[start..next] {
+            [] if open(t) => EVERYWHERE,
             [] => {
                 unmatched += 1;
                 continue;
