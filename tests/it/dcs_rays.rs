@@ -45,14 +45,20 @@ size = [6.0, 6.0]
     )
 }
 
-/// What `--explain` says of light 0's cost choice.
-fn note(r: &Render) -> String {
+/// `--explain`'s buffer note `name`: its detail and bytes.
+fn buffer(r: &Render, name: &str) -> Option<(String, u64)> {
     r.explain
         .buffers
         .iter()
-        .find(|b| b.name == "cost choice light 0")
-        .map(|b| b.detail.clone())
+        .find(|b| b.name == name)
+        .map(|b| (b.detail.clone(), b.bytes))
+}
+
+/// What `--explain` says of light 0's cost choice.
+fn note(r: &Render) -> String {
+    buffer(r, "cost choice light 0")
         .expect("a cost-choice note")
+        .0
 }
 
 /// The dense sphere at 40² is traced; the flowers (7.8k triangles) at 40²
@@ -107,14 +113,7 @@ fn the_plan_follows_the_estimated_costs() {
 fn explain_itemises_the_counted_paths_regions_and_ties() {
     let flowers = common::shipped("flowers.toml");
     let counted = render(&flowers, &options("dcs", 40, RayChoice::Never)).unwrap();
-    let item = |r: &Render, name: &str| {
-        r.explain
-            .buffers
-            .iter()
-            .find(|b| b.name == name)
-            .map(|b| (b.detail.clone(), b.bytes))
-    };
-    let (detail, bytes) = item(&counted, "edge regions light 0").expect("a regions note");
+    let (detail, bytes) = buffer(&counted, "edge regions light 0").expect("a regions note");
     let edges: u64 = detail
         .split_whitespace()
         .next()
@@ -122,7 +121,7 @@ fn explain_itemises_the_counted_paths_regions_and_ties() {
         .expect("the note starts with the edge count");
     assert!(edges > 0, "{detail}");
     assert!(bytes >= edges * 256, "{bytes} bytes for {edges} edges");
-    let (_, tie_bytes) = item(&counted, "start-count ties light 0").expect("a ties note");
+    let (_, tie_bytes) = buffer(&counted, "start-count ties light 0").expect("a ties note");
     let triangles = penumbra::internal::geom::SceneGeometry::new(&flowers)
         .triangles
         .len() as u64;
@@ -131,8 +130,8 @@ fn explain_itemises_the_counted_paths_regions_and_ties() {
         "{tie_bytes} bytes, {triangles} triangles"
     );
     let traced = render(&dense_sphere(), &options("dcs", 40, RayChoice::Always)).unwrap();
-    assert!(item(&traced, "edge regions light 0").is_none());
-    assert!(item(&traced, "start-count ties light 0").is_none());
+    assert!(buffer(&traced, "edge regions light 0").is_none());
+    assert!(buffer(&traced, "start-count ties light 0").is_none());
 }
 
 /// An open grid of 20,000 triangles (100 × 100 quads, its vertices
@@ -199,15 +198,9 @@ size = [6.0, 6.0]
     let auto = render(&scene, &options("dcs", 256, RayChoice::Auto)).unwrap();
     let probed = number_before(&note(&auto), " (receiver, edge) pairs");
     let counted = render(&scene, &options("dcs", 256, RayChoice::Never)).unwrap();
-    let membership = counted
-        .explain
-        .buffers
-        .iter()
-        .find(|b| b.name == "wedge membership light 0")
-        .expect("a membership note");
-    let pairs = number_before(&membership.detail, " (pixel, unbounded edge) pairs")
-        + (membership.bytes / 8) as f64;
-    assert!(pairs > 1000.0, "{}", membership.detail);
+    let (detail, bytes) = buffer(&counted, "wedge membership light 0").expect("a membership note");
+    let pairs = number_before(&detail, " (pixel, unbounded edge) pairs") + (bytes / 8) as f64;
+    assert!(pairs > 1000.0, "{detail}");
     assert!(
         probed > 0.3 * pairs && probed < 3.0 * pairs,
         "probe {probed} against the counting path's {pairs} pairs"

@@ -320,20 +320,14 @@ impl DepthComplexitySampling {
                 probe::probe(ctx.scene, ctx.geometry, light, ctx.gbuffer, receivers)
             })
         });
-        let plan = plan::plan_light(eligible, triangles, receivers, self.samples, probe);
-        match plan {
-            LightPlan::Count {
-                count_ms,
-                rays_ms,
-                probe,
-            } if eligible && self.rays == RayChoice::Always => LightPlan::AllRays {
-                count_ms,
-                rays_ms,
-                forced: true,
-                probe,
-            },
-            plan => plan,
-        }
+        plan::plan_light(
+            eligible,
+            self.rays,
+            triangles,
+            receivers,
+            self.samples,
+            probe,
+        )
     }
 
     /// Light `k` with every receiver traced by rays (the plan's

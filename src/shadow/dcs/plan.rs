@@ -21,6 +21,8 @@
 //! the choice that pays is whether to build the counting path at all
 //! (`docs/algorithms/dcs.md`, "Cost choice").
 
+use super::options::RayChoice;
+
 /// The counting path's cost per casting triangle, ns: its setup (stencil,
 /// start-count ties, candidate edges, wedge regions) and the per-tile
 /// culling of the candidate edges, which do not depend on the samples.
@@ -159,9 +161,11 @@ impl LightPlan {
 /// samples per receiver and the probe's findings (`None`: not run, see
 /// [`needs_probe`]; the bounds' middle stands in); `eligible` says whether
 /// rays may be used at all. Rays when they save at least
-/// [`MIN_SAVING_MS`] by the estimate.
+/// [`MIN_SAVING_MS`] by the estimate, or wherever they may be used with
+/// [`RayChoice::Always`] (`forced` where the estimate would count).
 pub fn plan_light(
     eligible: bool,
+    choice: RayChoice,
     casters: usize,
     receivers: usize,
     samples: u32,
@@ -184,11 +188,12 @@ pub fn plan_light(
     };
     let count_ms = count_ms(t, n, pairs);
     let rays_ms = rays_ms(t, r, n, penumbra);
-    if count_ms - rays_ms > MIN_SAVING_MS {
+    let saves = count_ms - rays_ms > MIN_SAVING_MS;
+    if saves || choice == RayChoice::Always {
         LightPlan::AllRays {
             count_ms,
             rays_ms,
-            forced: false,
+            forced: !saves,
             probe,
         }
     } else {
@@ -219,6 +224,23 @@ mod tests {
         matches!(p, LightPlan::Count { .. })
     }
 
+    /// `--dcs-rays always` traces wherever rays may be used, saying so
+    /// (`forced`) where the estimate would count, and never where they
+    /// may not.
+    #[test]
+    fn always_traces_where_rays_may_be_used() {
+        let small = (true, 7_800, 1_600, 64);
+        let plan = |eligible, choice| plan_light(eligible, choice, small.1, small.2, small.3, None);
+        assert!(counted(plan(small.0, RayChoice::Auto)));
+        assert!(matches!(
+            plan(true, RayChoice::Always),
+            LightPlan::AllRays { forced: true, .. }
+        ));
+        assert!(counted(plan(false, RayChoice::Always)));
+        let large = plan_light(true, RayChoice::Always, 4_043_552, 187_384, 64, None);
+        assert!(matches!(large, LightPlan::AllRays { forced: false, .. }));
+    }
+
     #[test]
     fn the_plan_follows_the_probe() {
         // 253k-triangle spheres and 278k-triangle bunny at 512², 64
@@ -228,17 +250,45 @@ mod tests {
         // 0.83 s of rays, the bunny traces in 0.42 s against 0.65 s.
         let spheres = found(2_323_027.0, 100_741.0);
         let bunny = found(3_685_737.0, 34_553.0);
-        assert!(counted(plan_light(true, 252_722, 188_044, 64, spheres)));
-        assert!(!counted(plan_light(true, 277_806, 170_138, 64, bunny)));
+        assert!(counted(plan_light(
+            true,
+            RayChoice::Auto,
+            252_722,
+            188_044,
+            64,
+            spheres
+        )));
+        assert!(!counted(plan_light(
+            true,
+            RayChoice::Auto,
+            277_806,
+            170_138,
+            64,
+            bunny
+        )));
         // The 4.0M spheres at 1024², 256 samples: counted (10.2 s against
         // 15.2 s); at 512², 64 samples rays need no probe.
         let dense = found(156_417_251.0, 450_721.0);
-        assert!(counted(plan_light(true, 4_043_552, 749_387, 256, dense)));
+        assert!(counted(plan_light(
+            true,
+            RayChoice::Auto,
+            4_043_552,
+            749_387,
+            256,
+            dense
+        )));
         assert!(!needs_probe(4_043_552, 187_384, 64));
-        assert!(!counted(plan_light(true, 4_043_552, 187_384, 64, None)));
+        assert!(!counted(plan_light(
+            true,
+            RayChoice::Auto,
+            4_043_552,
+            187_384,
+            64,
+            None
+        )));
         // Not eligible: always counted, with no estimate.
         assert_eq!(
-            plan_light(false, 4_121_282, 188_044, 64, None),
+            plan_light(false, RayChoice::Auto, 4_121_282, 188_044, 64, None),
             LightPlan::Count {
                 count_ms: 0.0,
                 rays_ms: 0.0,
@@ -248,6 +298,7 @@ mod tests {
         // Small savings keep the counting: 30k triangles at 40².
         assert!(counted(plan_light(
             true,
+            RayChoice::Auto,
             30_000,
             40 * 40,
             16,
@@ -256,6 +307,7 @@ mod tests {
         // A 320k-triangle sphere at 40² saves far more.
         assert!(!counted(plan_light(
             true,
+            RayChoice::Auto,
             320_000,
             40 * 40,
             16,
@@ -280,12 +332,16 @@ mod tests {
                 continue;
             }
             checked += 1;
-            let middle = counted(plan_light(true, t, r, n, None));
+            let middle = counted(plan_light(true, RayChoice::Auto, t, r, n, None));
             let rf = r as f64;
             for pairs in PAIRS_PER_RECEIVER {
                 for penumbra in PENUMBRA_FRACTION {
                     let p = found(pairs * rf, penumbra * rf);
-                    assert_eq!(counted(plan_light(true, t, r, n, p)), middle, "{t} {r} {n}");
+                    assert_eq!(
+                        counted(plan_light(true, RayChoice::Auto, t, r, n, p)),
+                        middle,
+                        "{t} {r} {n}"
+                    );
                 }
             }
         }
