@@ -776,6 +776,14 @@ const PER_ROW: usize = TILE_SIZE / INNER;
 const OUTERS_PER_ROW: usize = TILE_SIZE / OUTER;
 /// …and per tile.
 const OUTERS: usize = OUTERS_PER_ROW * OUTERS_PER_ROW;
+// `unbounded_near` keeps an edge's 16² blocks as the bits of a `u16`.
+const _: () = assert!(OUTERS <= 16);
+/// [`MIDDLE`] blocks per [`OUTER`] block's row, and per block.
+const MIDDLES_PER_ROW: usize = OUTER / MIDDLE;
+const MIDDLES: usize = MIDDLES_PER_ROW * MIDDLES_PER_ROW;
+/// [`INNER`] blocks per [`MIDDLE`] block's row, and per block.
+const INNERS_PER_ROW: usize = MIDDLE / INNER;
+const INNERS: usize = INNERS_PER_ROW * INNERS_PER_ROW;
 
 /// Every receiver's results, tile by tile in parallel: its (pixel, edge)
 /// pairs from `tiles` (taken), the `unbounded` edges that may apply and
@@ -946,8 +954,13 @@ fn unbounded_near<'u>(
         // side twice instead of once tests ~40 % fewer boxes (on
         // `spheres.toml` half of a 16² block's edges reach its 4² blocks,
         // a fifth of those pass).
-        let middle_xy = |m: usize| (x0 + m % 2 * MIDDLE, y0 + m / 2 * MIDDLE);
-        let middle_boxes: [Option<ReceiverBoxes>; 4] = std::array::from_fn(|m| {
+        let middle_xy = |m: usize| {
+            (
+                x0 + m % MIDDLES_PER_ROW * MIDDLE,
+                y0 + m / MIDDLES_PER_ROW * MIDDLE,
+            )
+        };
+        let middle_boxes: [Option<ReceiverBoxes>; MIDDLES] = std::array::from_fn(|m| {
             let (xm, ym) = middle_xy(m);
             bbox(xm, ym, MIDDLE)
         });
@@ -955,9 +968,12 @@ fn unbounded_near<'u>(
         // their lanes; `inner_xy(m, s)` is 4² block `s` of 8² block `m`.
         let inner_xy = |m: usize, s: usize| {
             let (xm, ym) = middle_xy(m);
-            (xm + s % 2 * INNER, ym + s / 2 * INNER)
+            (
+                xm + s % INNERS_PER_ROW * INNER,
+                ym + s / INNERS_PER_ROW * INNER,
+            )
         };
-        let inner_blocks: [[(ReceiverBlock, Option<ReceiverBoxes>); 4]; 4] =
+        let inner_blocks: [[(ReceiverBlock, Option<ReceiverBoxes>); INNERS]; MIDDLES] =
             std::array::from_fn(|m| {
                 std::array::from_fn(|s| {
                     if middle_boxes[m].is_none() {
