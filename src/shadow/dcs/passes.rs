@@ -896,11 +896,13 @@ fn unbounded_near<'u>(
     // its list of regions (~0.7 kB each, megabytes per tile at 1M
     // triangles) out of cache again. The tests, and the order of each
     // list (ascending in `near`), are the same.
-    let outer_xy = |o: usize| {
-        (
-            ox + o % OUTERS_PER_ROW * OUTER,
-            oy + o / OUTERS_PER_ROW * OUTER,
-        )
+    let outer_xy = |o: usize| sub_block((ox, oy), o, OUTERS_PER_ROW, OUTER);
+    // Whether an edge's (or a cluster's) screen rectangle meets the
+    // `size`² block at `(x, y)` and its region admits the block's boxes.
+    let meets = |rect: [usize; 4], region: &RegionBound, (x, y), size, boxes: &Option<_>| {
+        boxes
+            .as_ref()
+            .is_some_and(|b| rect_meets(rect, x, y, size) && !excludes(region, b))
     };
     let outer_boxes: [Option<ReceiverBoxes>; OUTERS] = std::array::from_fn(|o| {
         let (x0, y0) = outer_xy(o);
@@ -914,11 +916,8 @@ fn unbounded_near<'u>(
             continue;
         }
         let cluster_reach = (0..OUTERS).fold(0u16, |m, o| {
-            let (x0, y0) = outer_xy(o);
-            let meets = outer_boxes[o]
-                .as_ref()
-                .is_some_and(|b| rect_meets(c.rect, x0, y0, OUTER) && !excludes(&c.region, b));
-            m | u16::from(meets) << o
+            let admits = meets(c.rect, &c.region, outer_xy(o), OUTER, &outer_boxes[o]);
+            m | u16::from(admits) << o
         });
         if cluster_reach == 0 {
             continue;
@@ -930,11 +929,8 @@ fn unbounded_near<'u>(
             while blocks != 0 {
                 let o = blocks.trailing_zeros() as usize;
                 blocks &= blocks - 1;
-                let (x0, y0) = outer_xy(o);
-                let meets = outer_boxes[o]
-                    .as_ref()
-                    .is_some_and(|b| rect_meets(u.rect, x0, y0, OUTER) && !excludes(&u.region, b));
-                m |= u16::from(meets) << o;
+                let admits = meets(u.rect, &u.region, outer_xy(o), OUTER, &outer_boxes[o]);
+                m |= u16::from(admits) << o;
             }
             reach[k as usize] = m;
         }
@@ -954,25 +950,14 @@ fn unbounded_near<'u>(
         // side twice instead of once tests ~40 % fewer boxes (on
         // `spheres.toml` half of a 16² block's edges reach its 4² blocks,
         // a fifth of those pass).
-        let middle_xy = |m: usize| {
-            (
-                x0 + m % MIDDLES_PER_ROW * MIDDLE,
-                y0 + m / MIDDLES_PER_ROW * MIDDLE,
-            )
-        };
+        let middle_xy = |m: usize| sub_block((x0, y0), m, MIDDLES_PER_ROW, MIDDLE);
         let middle_boxes: [Option<ReceiverBoxes>; MIDDLES] = std::array::from_fn(|m| {
             let (xm, ym) = middle_xy(m);
             bbox(xm, ym, MIDDLE)
         });
         // One read of a 4² block's receivers gives both their boxes and
         // their lanes; `inner_xy(m, s)` is 4² block `s` of 8² block `m`.
-        let inner_xy = |m: usize, s: usize| {
-            let (xm, ym) = middle_xy(m);
-            (
-                xm + s % INNERS_PER_ROW * INNER,
-                ym + s / INNERS_PER_ROW * INNER,
-            )
-        };
+        let inner_xy = |m: usize, s: usize| sub_block(middle_xy(m), s, INNERS_PER_ROW, INNER);
         let inner_blocks: [[(ReceiverBlock, Option<ReceiverBoxes>); INNERS]; MIDDLES] =
             std::array::from_fn(|m| {
                 std::array::from_fn(|s| {
@@ -986,19 +971,12 @@ fn unbounded_near<'u>(
         for &k in &edges {
             let u = near[k as usize];
             for (m, middle_box) in middle_boxes.iter().enumerate() {
-                let (xm, ym) = middle_xy(m);
-                let Some(b) = middle_box else {
-                    continue;
-                };
-                if !rect_meets(u.rect, xm, ym, MIDDLE) || excludes(&u.region, b) {
+                if !meets(u.rect, &u.region, middle_xy(m), MIDDLE, middle_box) {
                     continue;
                 }
                 for (s, (receivers, boxes)) in inner_blocks[m].iter().enumerate() {
                     let (x1, y1) = inner_xy(m, s);
-                    let Some(b) = boxes else {
-                        continue;
-                    };
-                    if !rect_meets(u.rect, x1, y1, INNER) || excludes(&u.region, b) {
+                    if !meets(u.rect, &u.region, (x1, y1), INNER, boxes) {
                         continue;
                     }
                     let mask = rect_mask(u.rect, x1, y1) & admits(u, receivers);
@@ -1011,6 +989,13 @@ fn unbounded_near<'u>(
         }
     }
     (near, block_edges)
+}
+
+/// The corner of sub-block `k` (row-major, `per_row` to a row) of side
+/// `size` in the block whose corner is `(x0, y0)`.
+#[inline(always)]
+fn sub_block((x0, y0): (usize, usize), k: usize, per_row: usize, size: usize) -> (usize, usize) {
+    (x0 + k % per_row * size, y0 + k / per_row * size)
 }
 
 /// Whether the screen rectangle `r` (`[x0, y0, x1, y1)`) meets the
