@@ -54,6 +54,18 @@ fn buffer(r: &Render, name: &str) -> Option<(String, u64)> {
         .map(|b| (b.detail.clone(), b.bytes))
 }
 
+/// The number written just before `tail` in an `--explain` note.
+fn number_before(text: &str, tail: &str) -> f64 {
+    let end = text
+        .find(tail)
+        .unwrap_or_else(|| panic!("{tail:?} in {text}"));
+    text[..end]
+        .split_whitespace()
+        .last()
+        .and_then(|w| w.parse().ok())
+        .unwrap_or_else(|| panic!("a number before {tail:?} in {text}"))
+}
+
 /// What `--explain` says of light 0's cost choice.
 fn note(r: &Render) -> String {
     buffer(r, "cost choice light 0")
@@ -114,11 +126,7 @@ fn explain_itemises_the_counted_paths_regions_and_ties() {
     let flowers = common::shipped("flowers.toml");
     let counted = render(&flowers, &options("dcs", 40, RayChoice::Never)).unwrap();
     let (detail, bytes) = buffer(&counted, "edge regions light 0").expect("a regions note");
-    let edges: u64 = detail
-        .split_whitespace()
-        .next()
-        .and_then(|n| n.parse().ok())
-        .expect("the note starts with the edge count");
+    let edges = number_before(&detail, " edges without a bounded wedge") as u64;
     assert!(edges > 0, "{detail}");
     assert!(bytes >= edges * 256, "{bytes} bytes for {edges} edges");
     let (_, tie_bytes) = buffer(&counted, "start-count ties light 0").expect("a ties note");
@@ -185,16 +193,6 @@ size = [6.0, 6.0]
 "#,
         &[("grid.obj", obj.as_bytes())],
     );
-    let number_before = |text: &str, tail: &str| -> f64 {
-        let end = text
-            .find(tail)
-            .unwrap_or_else(|| panic!("{tail:?} in {text}"));
-        text[..end]
-            .split_whitespace()
-            .last()
-            .and_then(|w| w.parse().ok())
-            .unwrap_or_else(|| panic!("a number before {tail:?} in {text}"))
-    };
     let auto = render(&scene, &options("dcs", 256, RayChoice::Auto)).unwrap();
     let probed = number_before(&note(&auto), " (receiver, edge) pairs");
     let counted = render(&scene, &options("dcs", 256, RayChoice::Never)).unwrap();

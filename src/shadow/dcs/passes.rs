@@ -957,25 +957,20 @@ fn unbounded_near<'u>(
         });
         // One read of a 4² block's receivers gives both their boxes and
         // their lanes; `inner_xy(m, s)` is 4² block `s` of 8² block `m`.
+        // Read when an edge first reaches the block's 8² block.
         let inner_xy = |m: usize, s: usize| sub_block(middle_xy(m), s, INNERS_PER_ROW, INNER);
-        let inner_blocks: [[(ReceiverBlock, Option<ReceiverBoxes>); INNERS]; MIDDLES] =
-            std::array::from_fn(|m| {
-                std::array::from_fn(|s| {
-                    if middle_boxes[m].is_none() {
-                        return (ReceiverBlock::new(&[None; INNER * INNER]), None);
-                    }
-                    let (x1, y1) = inner_xy(m, s);
-                    receiver_block(ctx, x1, y1)
-                })
-            });
+        let mut inner_blocks: [[Option<(ReceiverBlock, Option<ReceiverBoxes>)>; INNERS]; MIDDLES] =
+            [[None; INNERS]; MIDDLES];
         for &k in &edges {
             let u = near[k as usize];
             for (m, middle_box) in middle_boxes.iter().enumerate() {
                 if !meets(u.rect, &u.region, middle_xy(m), MIDDLE, middle_box) {
                     continue;
                 }
-                for (s, (receivers, boxes)) in inner_blocks[m].iter().enumerate() {
+                for (s, inner) in inner_blocks[m].iter_mut().enumerate() {
                     let (x1, y1) = inner_xy(m, s);
+                    let (receivers, boxes) =
+                        inner.get_or_insert_with(|| receiver_block(ctx, x1, y1));
                     if !meets(u.rect, &u.region, (x1, y1), INNER, boxes) {
                         continue;
                     }

@@ -224,6 +224,18 @@ mod tests {
         matches!(p, LightPlan::Count { .. })
     }
 
+    /// Whether the default choice (`--dcs-rays auto`, rays allowed)
+    /// counts.
+    fn auto_counts(
+        casters: usize,
+        receivers: usize,
+        samples: u32,
+        probe: Option<ProbeEstimate>,
+    ) -> bool {
+        let plan = plan_light(true, RayChoice::Auto, casters, receivers, samples, probe);
+        counted(plan)
+    }
+
     /// `--dcs-rays always` traces wherever rays may be used, saying so
     /// (`forced`) where the estimate would count, and never where they
     /// may not.
@@ -250,42 +262,14 @@ mod tests {
         // 0.83 s of rays, the bunny traces in 0.42 s against 0.65 s.
         let spheres = found(2_323_027.0, 100_741.0);
         let bunny = found(3_685_737.0, 34_553.0);
-        assert!(counted(plan_light(
-            true,
-            RayChoice::Auto,
-            252_722,
-            188_044,
-            64,
-            spheres
-        )));
-        assert!(!counted(plan_light(
-            true,
-            RayChoice::Auto,
-            277_806,
-            170_138,
-            64,
-            bunny
-        )));
+        assert!(auto_counts(252_722, 188_044, 64, spheres));
+        assert!(!auto_counts(277_806, 170_138, 64, bunny));
         // The 4.0M spheres at 1024², 256 samples: counted (10.2 s against
         // 15.2 s); at 512², 64 samples rays need no probe.
         let dense = found(156_417_251.0, 450_721.0);
-        assert!(counted(plan_light(
-            true,
-            RayChoice::Auto,
-            4_043_552,
-            749_387,
-            256,
-            dense
-        )));
+        assert!(auto_counts(4_043_552, 749_387, 256, dense));
         assert!(!needs_probe(4_043_552, 187_384, 64));
-        assert!(!counted(plan_light(
-            true,
-            RayChoice::Auto,
-            4_043_552,
-            187_384,
-            64,
-            None
-        )));
+        assert!(!auto_counts(4_043_552, 187_384, 64, None));
         // Not eligible: always counted, with no estimate.
         assert_eq!(
             plan_light(false, RayChoice::Auto, 4_121_282, 188_044, 64, None),
@@ -296,23 +280,9 @@ mod tests {
             }
         );
         // Small savings keep the counting: 30k triangles at 40².
-        assert!(counted(plan_light(
-            true,
-            RayChoice::Auto,
-            30_000,
-            40 * 40,
-            16,
-            found(8_000.0, 400.0)
-        )));
+        assert!(auto_counts(30_000, 40 * 40, 16, found(8_000.0, 400.0)));
         // A 320k-triangle sphere at 40² saves far more.
-        assert!(!counted(plan_light(
-            true,
-            RayChoice::Auto,
-            320_000,
-            40 * 40,
-            16,
-            found(8_000.0, 400.0)
-        )));
+        assert!(!auto_counts(320_000, 40 * 40, 16, found(8_000.0, 400.0)));
     }
 
     #[test]
@@ -332,16 +302,12 @@ mod tests {
                 continue;
             }
             checked += 1;
-            let middle = counted(plan_light(true, RayChoice::Auto, t, r, n, None));
+            let middle = auto_counts(t, r, n, None);
             let rf = r as f64;
             for pairs in PAIRS_PER_RECEIVER {
                 for penumbra in PENUMBRA_FRACTION {
                     let p = found(pairs * rf, penumbra * rf);
-                    assert_eq!(
-                        counted(plan_light(true, RayChoice::Auto, t, r, n, p)),
-                        middle,
-                        "{t} {r} {n}"
-                    );
+                    assert_eq!(auto_counts(t, r, n, p), middle, "{t} {r} {n}");
                 }
             }
         }
