@@ -959,8 +959,7 @@ fn unbounded_near<'u>(
         // their lanes; `inner_xy(m, s)` is 4² block `s` of 8² block `m`.
         // Read when an edge first reaches the block's 8² block.
         let inner_xy = |m: usize, s: usize| sub_block(middle_xy(m), s, INNERS_PER_ROW, INNER);
-        let mut inner_blocks: [[Option<(ReceiverBlock, Option<ReceiverBoxes>)>; INNERS]; MIDDLES] =
-            [[None; INNERS]; MIDDLES];
+        let mut inner_blocks: [[Option<InnerBlock>; INNERS]; MIDDLES] = [[None; INNERS]; MIDDLES];
         for &k in &edges {
             let u = near[k as usize];
             for (m, middle_box) in middle_boxes.iter().enumerate() {
@@ -1019,6 +1018,9 @@ fn keep_regions<'r, T: Copy>(
     let _ = avx;
     RegionBound::keep_lanes(items, region_of, boxes, out)
 }
+
+/// A 4² block's receivers as lanes, and their boxes (`None`: no receiver).
+type InnerBlock = (ReceiverBlock, Option<ReceiverBoxes>);
 
 /// One 4² block's unbounded edges that may apply: indices into the tile's
 /// near edges, each with the mask of the block's receivers it may affect.
