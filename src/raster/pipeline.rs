@@ -5,9 +5,12 @@ use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
 use super::fragment::FragmentStage;
 use super::fragment::NoFragmentStage;
 use super::framebuffer::{Framebuffer, TileGrid};
-use super::setup::{setup_polygon, setup_quad, QuadExtra, SetupTriangle, Viewport, NO_QUAD};
+use super::setup::{setup_polygon, setup_quad, Viewport};
 use super::state::{CullMode, RasterState};
-use super::tile::{CountingPass, DepthShifts, TileJob, TileStats, MAX_DEPTH_SHIFTS};
+use super::tile::{
+    CountingPass, DepthShifts, SetupList, SetupPart, TileJob, TileStats, CHUNK_LOCAL_BITS,
+    MAX_DEPTH_SHIFTS,
+};
 use super::vertex::ClipVertex;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -37,9 +40,9 @@ impl std::ops::AddAssign for DrawStats {
     }
 }
 
-/// One setup work item's output: its set-up triangles, their merged
-/// quads' extras and their `(tile, chunk-local triangle)` pairs.
-type SetupChunk<const N: usize> = (Vec<SetupTriangle<N>>, Vec<QuadExtra>, Vec<(u32, u32)>);
+/// One setup work item's output: its set-up triangles and their merged
+/// quads' extras, and their `(tile, SetupList number)` pairs.
+type SetupChunk<const N: usize> = (SetupPart<N>, Vec<(u32, u32)>);
 
 /// Triangles per setup work item: large enough to amortise scheduling,
 /// small enough to balance two to many cores.
@@ -195,15 +198,15 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
         first_primitive,
         grid,
     };
-    // Setup, then the chunk's (tile, triangle) pairs with chunk-local
-    // triangle numbers: binning's edge tests run in parallel too.
-    let chunks: Vec<SetupChunk<N>> = triangles
+    // Setup, then the chunk's (tile, triangle) pairs: binning's edge tests
+    // run in parallel too.
+    let (parts, runs): (Vec<SetupPart<N>>, Vec<Vec<(u32, u32)>>) = triangles
         .par_chunks(SETUP_CHUNK)
         .enumerate()
         .map(|(chunk, tris)| setup_stage.chunk(chunk, tris))
-        .collect();
-    let (setup, quads, runs) = concatenate_chunks(chunks);
+        .unzip();
     let bins = TileBins::from_pairs(&grid, &runs);
+    let setup = SetupList { chunks: &parts };
 
     let counting = counting.map(|c| CountingPass { shifts, ..c });
     let stats = framebuffer
@@ -215,8 +218,7 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
             let job = TileJob {
                 tile,
                 origin: grid.tile_origin(tile),
-                triangles: &setup,
-                quads: &quads,
+                setup,
                 bin: bins.tile(tile),
                 state,
                 stage,
@@ -231,7 +233,7 @@ fn draw_inner<const N: usize, S: FragmentStage<N>>(
 
     Ok(DrawStats {
         triangles: triangles.len(),
-        setup_triangles: setup.len(),
+        setup_triangles: parts.iter().map(|(tris, _)| tris.len()).sum(),
         binned: bins.len(),
         fragments: stats.fragments,
         passed: stats.passed,
@@ -252,6 +254,17 @@ fn check_draw_input<const N: usize>(
                 "{} tile targets for {} tiles",
                 target_count,
                 grid.tile_count()
+            ),
+        ));
+    }
+    // `SetupList` numbers hold the chunk in their high bits.
+    let most = SETUP_CHUNK << (32 - CHUNK_LOCAL_BITS);
+    if triangles.len() > most {
+        return Err(Error::param(
+            "triangles",
+            format!(
+                "{} triangles in one draw; at most {most} can be drawn at once",
+                triangles.len()
             ),
         ));
     }
@@ -333,62 +346,13 @@ impl<const N: usize> SetupStage<'_, N> {
         }
         let mut pairs = Vec::with_capacity(out.len() * 2);
         tile_pairs(&self.grid, &out, &quads, &mut pairs);
-        (out, quads, pairs)
-    }
-}
-
-/// The chunks in order: triangle and quad numbers become global, and each
-/// chunk's setup output is copied into its own part of one list, the
-/// chunks in parallel (one serial copy took ~7 ms of a 1024² shadow
-/// volume's ~55). Returns the triangles, the quads' extras and the
-/// chunks' `(tile, triangle)` pairs.
-#[allow(clippy::type_complexity)]
-fn concatenate_chunks<const N: usize>(
-    chunks: Vec<SetupChunk<N>>,
-) -> (Vec<SetupTriangle<N>>, Vec<QuadExtra>, Vec<Vec<(u32, u32)>>) {
-    let (mut first, mut first_quad) = (Vec::with_capacity(chunks.len()), Vec::new());
-    let (mut total, mut total_quads) = (0usize, 0usize);
-    for (tris, chunk_quads, _) in &chunks {
-        first.push(total);
-        first_quad.push(total_quads as u32);
-        total += tris.len();
-        total_quads += chunk_quads.len();
-    }
-    let mut setup: Vec<SetupTriangle<N>> = Vec::with_capacity(total);
-    {
-        // The list's parts, one per chunk, in order.
-        let mut parts = Vec::with_capacity(chunks.len());
-        let mut rest = &mut setup.spare_capacity_mut()[..total];
-        for (tris, _, _) in &chunks {
-            let (part, tail) = rest.split_at_mut(tris.len());
-            parts.push(part);
-            rest = tail;
-        }
-        chunks.par_iter().zip(parts).zip(&first_quad).for_each(
-            |(((tris, _, _), part), &offset)| {
-                for (slot, &t) in part.iter_mut().zip(tris) {
-                    let mut t = t;
-                    if offset > 0 && t.quad != NO_QUAD {
-                        t.quad += offset;
-                    }
-                    slot.write(t);
-                }
-            },
-        );
-    }
-    // SAFETY: the parts split `0..total` of the spare capacity (reserved
-    // above) and each chunk's part is exactly as long as its triangles,
-    // every one of which the loop writes: every slot below `total` is
-    // initialised. `SetupTriangle` is `Copy`, so no drop is skipped.
-    unsafe { setup.set_len(total) };
-    let mut quads = Vec::with_capacity(total_quads);
-    let mut runs = Vec::with_capacity(chunks.len());
-    for ((_, chunk_quads, mut pairs), &first) in chunks.into_iter().zip(&first) {
+        // `SetupList` numbers (`check_draw_input` bounds the chunk count;
+        // at most 7 triangles per input fit the local bits).
+        debug_assert!(out.len() < 1 << CHUNK_LOCAL_BITS);
+        let base = (chunk as u32) << CHUNK_LOCAL_BITS;
         for p in &mut pairs {
-            p.1 += first as u32;
+            p.1 |= base;
         }
-        quads.extend(chunk_quads);
-        runs.push(pairs);
+        ((out, quads), pairs)
     }
-    (setup, quads, runs)
 }

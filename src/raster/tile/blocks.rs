@@ -89,7 +89,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
             }
         };
         for &ti in self.bin {
-            let t = &self.triangles[ti as usize];
+            let (t, _) = self.setup.get(ti);
             let Some(clip) = clip_to_tile(t.bbox, tx, ty) else {
                 continue;
             };

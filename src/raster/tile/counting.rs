@@ -270,7 +270,7 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         // pass.
         let mut bounds: Option<DepthBounds> = None;
         for &ti in self.bin {
-            let t = &self.triangles[ti as usize];
+            let (t, quads) = self.setup.get(ti);
             let Some(clip) = clip_to_tile(t.bbox, tx, ty) else {
                 continue;
             };
@@ -278,19 +278,23 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
                 self.small(t, clip, ds, target, &mut stats);
                 continue;
             }
-            self.count_triangle(&walk, t, clip, ds, &mut bounds, &mut stats);
+            let quad = quads.get(t.quad as usize);
+            self.count_triangle(&walk, t, quad, clip, ds, &mut bounds, &mut stats);
         }
         stats
     }
 
     /// One triangle (or merged quad) larger than 8×8 pixels, clipped to
     /// `clip` inside the tile: the whole rectangle's verdicts first, then
-    /// band by band, each band's rows as exact spans.
+    /// band by band, each band's rows as exact spans. `quad`: the extras
+    /// of a merged quad.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn count_triangle<T: Fn(f32x8, f32x8) -> i32x8>(
         &self,
         walk: &CountingWalk<T>,
         t: &SetupTriangle<N>,
+        quad: Option<&QuadExtra>,
         clip: [i32; 4],
         ds: &mut DepthStencilTile,
         bounds: &mut Option<DepthBounds>,
@@ -300,7 +304,6 @@ impl<const N: usize, S: FragmentStage<N>> TileJob<'_, N, S> {
         let c = walk.pass;
         // A merged quad has a fourth edge, a second depth plane and a
         // diagonal that says which plane a pixel takes.
-        let quad = self.quads.get(t.quad as usize);
         let edges = [
             t.edges[0],
             t.edges[1],

@@ -9,6 +9,38 @@ use crate::raster::setup::{QuadExtra, SetupTriangle};
 use crate::raster::state::{CompareFunc, RasterState, StencilFace, StencilOp};
 use crate::simd::i32x8;
 
+/// Bits of a [`SetupList`] number that count within a chunk: a setup
+/// chunk makes at most 7 triangles per input triangle (a clipped polygon
+/// has at most 9 corners), so at most `7 × 2048 < 2^14`.
+pub(crate) const CHUNK_LOCAL_BITS: u32 = 14;
+
+/// One setup work item's output: its set-up triangles and their merged
+/// quads' extras (a triangle's `quad` indexes its own chunk's).
+pub(crate) type SetupPart<const N: usize> = (Vec<SetupTriangle<N>>, Vec<QuadExtra>);
+
+/// A draw's set-up triangles, left in the chunks setup made them in rather
+/// than copied into one list: at 1024² a shadow volume's list is ~40 MB,
+/// which the allocator maps afresh for every draw (above its 32 MiB
+/// threshold), so each draw page-faulted all of it in. A triangle is
+/// numbered `chunk << CHUNK_LOCAL_BITS | index in chunk`, which orders
+/// triangles as the input does.
+#[derive(Clone, Copy)]
+pub(crate) struct SetupList<'a, const N: usize> {
+    pub chunks: &'a [SetupPart<N>],
+}
+
+impl<'a, const N: usize> SetupList<'a, N> {
+    /// Triangle `number`, and the quad extras of its chunk.
+    #[inline(always)]
+    pub fn get(&self, number: u32) -> (&'a SetupTriangle<N>, &'a [QuadExtra]) {
+        let (tris, quads) = &self.chunks[(number >> CHUNK_LOCAL_BITS) as usize];
+        (
+            &tris[(number & ((1 << CHUNK_LOCAL_BITS) - 1)) as usize],
+            quads,
+        )
+    }
+}
+
 /// Side of a block, and lanes per row of it.
 pub(crate) const BLOCK: i32 = 8;
 
@@ -40,9 +72,9 @@ pub struct TileStats {
 pub(crate) struct TileJob<'a, const N: usize, S: FragmentStage<N>> {
     pub tile: usize,
     pub origin: (i32, i32),
-    pub triangles: &'a [SetupTriangle<N>],
-    /// Extras of the merged quads among `triangles` (counting passes).
-    pub quads: &'a [QuadExtra],
+    /// The draw's set-up triangles, in the chunks setup made them in.
+    pub setup: SetupList<'a, N>,
+    /// The tile's triangles, as [`SetupList`] numbers, in draw order.
     pub bin: &'a [u32],
     pub state: &'a RasterState,
     pub stage: &'a S,

@@ -20,7 +20,10 @@ mod depth_bounds;
 #[forbid(unsafe_code)]
 mod job;
 
-pub(crate) use job::{CountingPass, DepthShifts, TileJob, TileStats, MAX_DEPTH_SHIFTS};
+pub(crate) use job::{
+    CountingPass, DepthShifts, SetupList, SetupPart, TileJob, TileStats, CHUNK_LOCAL_BITS,
+    MAX_DEPTH_SHIFTS,
+};
 
 use super::fragment::FragmentStage;
 use super::framebuffer::DepthStencilTile;
