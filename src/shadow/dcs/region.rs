@@ -571,7 +571,7 @@ thread_local! {
 
 impl RegionBound {
     /// The bound of `planes`, with their SoA groups.
-    fn from_planes(planes: Vec<(DVec3, f64)>) -> RegionBound {
+    fn from_planes(planes: &[(DVec3, f64)]) -> RegionBound {
         let quads = planes
             .chunks(4)
             .map(|group| {
@@ -733,7 +733,7 @@ impl RegionBound {
                 on.any(|d| first.cross(*d).length_squared() > 1e-14)
             });
         }
-        let bound = RegionBound::from_planes(planes.clone());
+        let bound = RegionBound::from_planes(&planes);
         PLANES.set(planes);
         GENERATORS.set((buffer, tags));
         bound
@@ -802,7 +802,7 @@ impl RegionBound {
                 consider(x.cross(a));
             }
         }
-        RegionBound::from_planes(planes)
+        RegionBound::from_planes(&planes)
     }
 
     /// Also excludes receivers in front of both face planes or behind
@@ -1066,8 +1066,8 @@ mod tests {
         assert!(ReceiverBoxes::of(std::iter::empty()).is_none());
         // A region that holds only the far cluster (above y = 1) is kept
         // by the two boxes, and one far below both is not.
-        let up = RegionBound::from_planes(vec![(DVec3::Y, 1.0)]);
-        let down = RegionBound::from_planes(vec![(-DVec3::Y, 10.0)]);
+        let up = RegionBound::from_planes(&[(DVec3::Y, 1.0)]);
+        let down = RegionBound::from_planes(&[(-DVec3::Y, 10.0)]);
         let items = [(0, Some(&up)), (1, Some(&down)), (2, None)];
         let mut kept = Vec::new();
         RegionBound::keep_lanes(items.into_iter(), |(_, r)| r, &two, &mut kept);
@@ -1180,7 +1180,7 @@ mod tests {
             };
             if round % 7 == 0 {
                 // Zero and negative-zero normal components.
-                bound = RegionBound::from_planes(vec![
+                bound = RegionBound::from_planes(&[
                     (DVec3::new(0.0, 1.0, -0.0), 0.5),
                     (DVec3::new(-0.0, -0.0, -1.0), -0.25),
                     (DVec3::new(0.6, -0.0, 0.8), rng(&mut s)),
@@ -1324,7 +1324,7 @@ mod tests {
                 (DVec3::new(rng(&mut s), -0.0, 1.0), rng(&mut s)),
                 (DVec3::X, -0.0),
             ];
-            let bound = RegionBound::from_planes(planes.clone()).with_dihedral(faces, 1e-7);
+            let bound = RegionBound::from_planes(&planes).with_dihedral(faces, 1e-7);
             assert_eq!(bound.len(), count);
             let back: Vec<_> = bound.planes().map(bits).collect();
             assert_eq!(back, planes.iter().map(|&p| bits(p)).collect::<Vec<_>>());
