@@ -1,7 +1,7 @@
 //! The draw call: vertex outputs → clip → setup → bin → tiles in parallel.
 
 use super::bin::{tile_pairs, TileBins};
-use super::clip::{clip_triangle, vertex_code, CLIP_PLANES};
+use super::clip::{clip_triangle, vertex_code, CLIP_PLANES, MAX_CLIPPED_VERTICES};
 use super::fragment::FragmentStage;
 use super::fragment::NoFragmentStage;
 use super::framebuffer::{Framebuffer, TileGrid};
@@ -47,6 +47,10 @@ type SetupChunk<const N: usize> = (SetupPart<N>, Vec<(u32, u32)>);
 /// Triangles per setup work item: large enough to amortise scheduling,
 /// small enough to balance two to many cores.
 const SETUP_CHUNK: usize = 2048;
+
+// A chunk's set-up triangles are numbered in `CHUNK_LOCAL_BITS`: a
+// clipped polygon fans into at most `MAX_CLIPPED_VERTICES − 2` of them.
+const _: () = assert!((MAX_CLIPPED_VERTICES - 2) * SETUP_CHUNK < 1 << CHUNK_LOCAL_BITS);
 
 /// Rasterizes indexed triangles into `framebuffer` and the stage's targets.
 ///
@@ -346,8 +350,8 @@ impl<const N: usize> SetupStage<'_, N> {
         }
         let mut pairs = Vec::with_capacity(out.len() * 2);
         tile_pairs(&self.grid, &out, &quads, &mut pairs);
-        // `SetupList` numbers (`check_draw_input` bounds the chunk count;
-        // at most 7 triangles per input fit the local bits).
+        // `SetupList` numbers (`check_draw_input` bounds the chunk count,
+        // and the fan bound above the count within a chunk).
         debug_assert!(out.len() < 1 << CHUNK_LOCAL_BITS);
         let base = (chunk as u32) << CHUNK_LOCAL_BITS;
         for p in &mut pairs {
