@@ -776,7 +776,7 @@ const PER_ROW: usize = TILE_SIZE / INNER;
 const OUTERS_PER_ROW: usize = TILE_SIZE / OUTER;
 /// …and per tile.
 const OUTERS: usize = OUTERS_PER_ROW * OUTERS_PER_ROW;
-// `unbounded_near` keeps an edge's 16² blocks as the bits of a `u16`.
+// `unbounded_near` keeps a cluster's 16² blocks as the bits of a `u16`.
 const _: () = assert!(OUTERS <= 16);
 /// [`MIDDLE`] blocks per [`OUTER`] block's row, and per block.
 const MIDDLES_PER_ROW: usize = OUTER / MIDDLE;
@@ -908,9 +908,10 @@ fn unbounded_near<'u>(
         let (x0, y0) = outer_xy(o);
         bbox(x0, y0, OUTER)
     });
-    // Bit `o` of `reach[k]`: near edge `k` may apply to 16² block `o`
-    // (its cluster's region and its own admit the block's receivers).
-    let mut reach = vec![0u16; near.len()];
+    // Per 16² block, the near edges that may apply to it (their
+    // cluster's region and their own admit the block's receivers), in
+    // ascending order as `near`.
+    let mut outer_edges: [Vec<u32>; OUTERS] = std::array::from_fn(|_| Vec::new());
     for (c, run) in &kept {
         if run.is_empty() {
             continue;
@@ -919,29 +920,19 @@ fn unbounded_near<'u>(
             let admits = meets(c.rect, &c.region, outer_xy(o), OUTER, &outer_boxes[o]);
             m | u16::from(admits) << o
         });
-        if cluster_reach == 0 {
-            continue;
-        }
         for k in run.clone() {
             let u = near[k as usize];
-            let mut m = 0u16;
             let mut blocks = cluster_reach;
             while blocks != 0 {
                 let o = blocks.trailing_zeros() as usize;
                 blocks &= blocks - 1;
-                let admits = meets(u.rect, &u.region, outer_xy(o), OUTER, &outer_boxes[o]);
-                m |= u16::from(admits) << o;
+                if meets(u.rect, &u.region, outer_xy(o), OUTER, &outer_boxes[o]) {
+                    outer_edges[o].push(k);
+                }
             }
-            reach[k as usize] = m;
         }
     }
-    let mut edges = Vec::new();
-    for (o, outer_box) in outer_boxes.iter().enumerate() {
-        if outer_box.is_none() {
-            continue;
-        }
-        edges.clear();
-        edges.extend((0..near.len() as u32).filter(|&k| reach[k as usize] >> o & 1 == 1));
+    for (o, edges) in outer_edges.iter().enumerate() {
         if edges.is_empty() {
             continue;
         }
@@ -960,7 +951,7 @@ fn unbounded_near<'u>(
         // Read when an edge first reaches the block's 8² block.
         let inner_xy = |m: usize, s: usize| sub_block(middle_xy(m), s, INNERS_PER_ROW, INNER);
         let mut inner_blocks: [[Option<InnerBlock>; INNERS]; MIDDLES] = [[None; INNERS]; MIDDLES];
-        for &k in &edges {
+        for &k in edges {
             let u = near[k as usize];
             for (m, middle_box) in middle_boxes.iter().enumerate() {
                 if !meets(u.rect, &u.region, middle_xy(m), MIDDLE, middle_box) {
