@@ -1,6 +1,7 @@
 //! The BVH build: binned SAH collapsed into 4-wide nodes, the same tree
 //! for any thread count (see the parent module's documentation).
 
+use super::leaf::LeafCorners;
 use super::{Bvh, Node, MAX_LEAF, SAH_MAX_DEPTH, SAH_TRAVERSAL};
 use crate::geom::SceneGeometry;
 use crate::simd::{f32x4, i32x4};
@@ -285,7 +286,17 @@ impl Bvh {
         // holds one of the two.
         let ids: Vec<u32> = prims.par_iter().map(Prim::id).collect();
         drop(prims);
-        let tris = ids.par_iter().map(|&t| corners(geometry, t)).collect();
+        // The leaves in leaf order, each `(first, count)`: they tile it.
+        let mut leaves: Vec<(u32, u32)> = nodes
+            .par_iter()
+            .flat_map_iter(|n: &Node| {
+                (0..4)
+                    .filter(|&s| n.count[s] > 0)
+                    .map(move |s| (n.child[s], n.count[s]))
+            })
+            .collect();
+        leaves.par_sort_unstable();
+        let tris = LeafCorners::build(&leaves, |i| corners(geometry, ids[i]));
         Bvh { nodes, tris, ids }
     }
 }

@@ -413,10 +413,10 @@ impl Bvh {
         self.walk(
             |node| hull.hit_boxes(node),
             |index, slot, range| {
-                let Some(tris) = self.tris.get(range) else {
+                let Some(tris) = self.tris.leaf(range.start, range.len()) else {
                     return true;
                 };
-                if tris.iter().any(|t| hull.may_touch(t)) {
+                if tris.iter().any(|t| hull.may_touch(&t)) {
                     if leaves.len() == limit {
                         full = true;
                         return false;

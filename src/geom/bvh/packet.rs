@@ -546,7 +546,7 @@ impl Packet {
     /// same bits; `tests` holds the two equal.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    fn hit_triangles_avx(&self, tris: &[[Vec3; 3]], through: u32) -> u32 {
+    fn hit_triangles_avx(&self, tris: impl Iterator<Item = [Vec3; 3]>, through: u32) -> u32 {
         use crate::simd::avx::{F32x8, F64x4};
         let woop = self.woop();
         let [sx, sy, sz] = woop.shear.map(|v| F32x8::load(&v.to_array()));
@@ -849,7 +849,9 @@ impl Bvh {
                 .to_array()
                 // A NaN key counts as the lowest real one.
                 .map(|k| k.max(f32::MIN));
-            if let Some(leaf) = self.lane_children(ray, node, index, mask, keys, stack, &mut top) {
+            if let Some(leaf) =
+                self.lane_children(ray, packet.avx, node, index, mask, keys, stack, &mut top)
+            {
                 return Some(leaf);
             }
         }
@@ -908,7 +910,9 @@ impl Bvh {
             // Only the order: a NaN key (none is expected: `Ray::new`
             // leaves no `0 · ∞`) changes no answer.
             let keys = near.to_array();
-            if let Some(leaf) = self.lane_children(ray, node, index, mask, keys, stack, &mut top) {
+            if let Some(leaf) =
+                self.lane_children(ray, packet.avx, node, index, mask, keys, stack, &mut top)
+            {
                 return Some(leaf);
             }
         }
@@ -923,6 +927,7 @@ impl Bvh {
     fn lane_children(
         &self,
         ray: &Ray,
+        avx: bool,
         node: &Node,
         index: u32,
         mut mask: u32,
@@ -944,14 +949,11 @@ impl Bvh {
                 n_inner += 1;
                 continue;
             }
-            let first = node.child[slot] as usize;
-            let Some(tris) = self.tris.get(first..first + count) else {
+            let Some(leaf) = self.tris.leaf(node.child[slot] as usize, count) else {
                 continue;
             };
-            for tri in tris {
-                if ray.intersect(tri).is_some() {
-                    return Some((index, slot));
-                }
+            if ray.hits_leaf(leaf, avx) {
+                return Some((index, slot));
             }
         }
         if n_inner > 1 {
@@ -984,7 +986,7 @@ impl Bvh {
             let line = if node.count[slot] == 0 {
                 self.nodes.as_ptr().wrapping_add(child).cast::<i8>()
             } else {
-                self.tris.as_ptr().wrapping_add(child).cast::<i8>()
+                self.tris.leaf_ptr(child).cast::<i8>()
             };
             // SAFETY: a prefetch is a hint that never faults and reads
             // nothing into the program, whatever the address;
@@ -1035,7 +1037,7 @@ impl Bvh {
     fn triangle_hits(&self, packet: &Packet, node: &Node, slot: usize, through: u32) -> u32 {
         let first = node.child[slot] as usize;
         let count = node.count[slot] as usize;
-        let Some(tris) = self.tris.get(first..first + count) else {
+        let Some(leaf) = self.tris.leaf(first, count) else {
             return 0;
         };
         let mut hit = 0;
@@ -1045,15 +1047,8 @@ impl Bvh {
             while lanes != 0 {
                 let lane = lanes.trailing_zeros();
                 lanes &= lanes - 1;
-                let ray = &packet.rays[lane as usize];
-                // A plain loop rather than `Iterator::any`, which is not
-                // inlined and so would run at the baseline level in the v3
-                // copy (`simd::level`).
-                for tri in tris {
-                    if ray.intersect(tri).is_some() {
-                        hit |= 1 << lane;
-                        break;
-                    }
+                if packet.rays[lane as usize].hits_leaf(leaf, packet.avx) {
+                    hit |= 1 << lane;
                 }
             }
             return hit;
@@ -1063,10 +1058,10 @@ impl Bvh {
             // SAFETY: `avx` is set only when `simd::avx::available()`
             // found AVX on this CPU, the one requirement of the
             // `target_feature` function.
-            return unsafe { packet.hit_triangles_avx(tris, through) };
+            return unsafe { packet.hit_triangles_avx(leaf.iter(), through) };
         }
-        for tri in tris {
-            hit |= packet.hit_triangle(tri) & through;
+        for tri in leaf.iter() {
+            hit |= packet.hit_triangle(&tri) & through;
             if through & !hit == 0 {
                 break;
             }
@@ -1382,7 +1377,7 @@ mod tests {
                     }
                 }
                 // SAFETY: AVX is available (checked above).
-                let avx = unsafe { packet.hit_triangles_avx(&tris, through) };
+                let avx = unsafe { packet.hit_triangles_avx(tris.iter().copied(), through) };
                 assert_eq!(
                     avx, facade,
                     "round {round}: {dirs:?} from {origin:?} at {tris:?}"
