@@ -184,7 +184,9 @@ fn sampled_edges(
             })
         })
         .collect();
-    drawn.sort_unstable();
+    // The entries are distinct (a face draws each edge once), so the
+    // parallel sort's order is the one order.
+    drawn.par_sort_unstable();
     let bits = (drawn.len() * 16).next_power_of_two();
     let bit = |a: u32, b: u32| {
         let h =
@@ -205,8 +207,13 @@ fn sampled_edges(
             for (k, v) in faces.iter().enumerate() {
                 for e in 0..3 {
                     let (a, b) = (v[e], v[(e + 1) % 3]);
+                    // Only edges running from the greater vertex can be a
+                    // drawn edge backwards: half of them, before hashing.
+                    if a <= b {
+                        continue;
+                    }
                     let h = bit(a, b);
-                    if filter[h / 64] & 1 << (h % 64) == 0 || a <= b {
+                    if filter[h / 64] & 1 << (h % 64) == 0 {
                         continue;
                     }
                     let t = chunk * SCAN_CHUNK + k;
@@ -219,7 +226,8 @@ fn sampled_edges(
             found
         })
         .collect();
-    others.sort_unstable();
+    // Distinct pairs: the one order, as above.
+    others.par_sort_unstable();
     let (centre, radius) = match light.shape {
         LightShape::Rect { center, u, v, .. } => (center, (u + v).length().max((u - v).length())),
         LightShape::Sphere { center, radius } => (center, radius),
@@ -229,43 +237,55 @@ fn sampled_edges(
         let n = geometry.unit_normals[t];
         [n.x, n.y, n.z, n.dot(position(triangles[t][0]))]
     };
-    let mut edges = Vec::new();
+    // One face on the other side: manifold. More (non-manifold): a
+    // silhouette from everywhere. None: on a closed object, faces meeting
+    // at copies of the edge's vertices (a sphere's seam), so dropped, and
+    // the others weigh for them; on an open one, most likely its
+    // boundary, a silhouette from everywhere, as the counting path has it
+    // (an interior's walls: dropping them had the probe find a fifth of
+    // `dabrovic.toml`'s pairs).
+    let open = |t: usize| {
+        let object = geometry.triangle_object.get(t).copied().unwrap_or(0) as usize;
+        !geometry.object_closed.get(object).copied().unwrap_or(true)
+    };
+    // Each drawn edge's other faces, its run of `others` (sorted by drawn
+    // index), in one merge; the edges are then built in parallel.
+    let mut runs = Vec::with_capacity(drawn.len());
     let (mut next, mut unmatched) = (0, 0usize);
-    for (i, &(a, b, t)) in drawn.iter().enumerate() {
+    for (i, &(_, _, t)) in drawn.iter().enumerate() {
         let start = next;
         while next < others.len() && others[next].0 == i {
             next += 1;
         }
-        // One face on the other side: manifold. More (non-manifold): a
-        // silhouette from everywhere. None: on a closed object, faces
-        // meeting at copies of the edge's vertices (a sphere's seam), so
-        // dropped, and the others weigh for them; on an open one, most
-        // likely its boundary, a silhouette from everywhere, as the
-        // counting path has it (an interior's walls: dropping them had
-        // the probe find a fifth of `dabrovic.toml`'s pairs).
-        let open = |t: usize| {
-            let object = geometry.triangle_object.get(t).copied().unwrap_or(0) as usize;
-            !geometry.object_closed.get(object).copied().unwrap_or(true)
-        };
-        let planes = match &others[start..next] {
-            [] if open(t) => EVERYWHERE,
-            [] => {
-                unmatched += 1;
-                continue;
-            }
-            [(_, u)] => [plane(t), plane(*u)],
-            _ => EVERYWHERE,
-        };
-        let [s0, s1] = planes.map(|[x, y, z, d]| Vec3::new(x, y, z).dot(centre) - d);
-        if s0.abs() > radius && s1.abs() > radius && (s0 > 0.0) == (s1 > 0.0) {
-            continue;
-        }
-        edges.push(ProbeEdge {
-            planes,
-            a: position(a),
-            b: position(b),
-        });
+        unmatched += usize::from(start == next && !open(t));
+        runs.push(start..next);
     }
+    let run = |i: usize| {
+        runs.get(i)
+            .and_then(|r| others.get(r.clone()))
+            .unwrap_or(&[])
+    };
+    let edges: Vec<ProbeEdge> = drawn
+        .par_iter()
+        .enumerate()
+        .filter_map(|(i, &(a, b, t))| {
+            let planes = match run(i) {
+                [] if open(t) => EVERYWHERE,
+                [] => return None,
+                [(_, u)] => [plane(t), plane(*u)],
+                _ => EVERYWHERE,
+            };
+            let [s0, s1] = planes.map(|[x, y, z, d]| Vec3::new(x, y, z).dot(centre) - d);
+            if s0.abs() > radius && s1.abs() > radius && (s0 > 0.0) == (s1 > 0.0) {
+                return None;
+            }
+            Some(ProbeEdge {
+                planes,
+                a: position(a),
+                b: position(b),
+            })
+        })
+        .collect();
     let weight = stride as f64 * drawn.len() as f64 / (drawn.len() - unmatched).max(1) as f64;
     (edges, weight)
 }
