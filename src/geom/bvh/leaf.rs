@@ -11,7 +11,7 @@
 //! operations per lane as [`Ray::intersect`], so the same verdicts.
 
 use super::{Ray, MAX_LEAF};
-use crate::simd::f32x8;
+use crate::simd::{f32x8, f64x4};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -191,28 +191,16 @@ impl Ray {
         let cx = (c[kx] - sx * c[kz]).widen();
         let cy = (c[ky] - sy * c[kz]).widen();
         let (akz, bkz, ckz) = (a[kz].widen(), b[kz].widen(), c[kz].widen());
-        let sz = crate::simd::f64x4::splat(f64::from(self.shear.z));
-        let zero = crate::simd::f64x4::ZERO;
-        let t_max = crate::simd::f64x4::splat(f64::from(self.t_max));
+        let sz = f64x4::splat(f64::from(self.shear.z));
+        let t_max = f64x4::splat(f64::from(self.t_max));
         let lanes = leaf.lanes();
         let mut mask = 0;
         for h in 0..2 {
             if lanes >> (4 * h) == 0 {
                 break;
             }
-            let u = cx[h] * by[h] - cy[h] * bx[h];
-            let v = ax[h] * cy[h] - ay[h] * cx[h];
-            let w = bx[h] * ay[h] - by[h] * ax[h];
-            let negative = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
-            let positive = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
-            let det = u + v + w;
-            let t_scaled = u * (sz * akz[h]) + v * (sz * bkz[h]) + w * (sz * ckz[h]);
-            let limit = t_max * det;
-            let ahead = det.cmp_gt(zero).blend(
-                t_scaled.cmp_gt(zero) & t_scaled.cmp_lt(limit),
-                t_scaled.cmp_lt(zero) & t_scaled.cmp_gt(limit),
-            );
-            mask |= (ahead & !(negative & positive)).move_mask() << (4 * h);
+            let xy = [ax[h], ay[h], bx[h], by[h], cx[h], cy[h]];
+            mask |= watertight_lanes(xy, [akz[h], bkz[h], ckz[h]], sz, t_max) << (4 * h);
             if mask & lanes != 0 {
                 break;
             }
@@ -247,7 +235,6 @@ impl Ray {
         let cy = c[ky].sub(sy.mul(c[kz])).widen();
         let (akz, bkz, ckz) = (a[kz].widen(), b[kz].widen(), c[kz].widen());
         let sz = F64x4::splat(f64::from(self.shear.z));
-        let zero = F64x4::splat(0.0);
         let t_max = F64x4::splat(f64::from(self.t_max));
         let lanes = leaf.lanes();
         let mut mask = 0;
@@ -255,22 +242,8 @@ impl Ray {
             if lanes >> (4 * h) == 0 {
                 break;
             }
-            let u = cx[h].mul(by[h]).sub(cy[h].mul(bx[h]));
-            let v = ax[h].mul(cy[h]).sub(ay[h].mul(cx[h]));
-            let w = bx[h].mul(ay[h]).sub(by[h].mul(ax[h]));
-            let negative = u.cmp_lt(zero).bitor(v.cmp_lt(zero)).bitor(w.cmp_lt(zero));
-            let positive = u.cmp_gt(zero).bitor(v.cmp_gt(zero)).bitor(w.cmp_gt(zero));
-            let det = u.add(v).add(w);
-            let t_scaled = u
-                .mul(sz.mul(akz[h]))
-                .add(v.mul(sz.mul(bkz[h])))
-                .add(w.mul(sz.mul(ckz[h])));
-            let limit = t_max.mul(det);
-            let ahead = det.cmp_gt(zero).blend(
-                t_scaled.cmp_gt(zero).bitand(t_scaled.cmp_lt(limit)),
-                t_scaled.cmp_lt(zero).bitand(t_scaled.cmp_gt(limit)),
-            );
-            mask |= ahead.and_not(negative.bitand(positive)).move_mask() << (4 * h);
+            let xy = [ax[h], ay[h], bx[h], by[h], cx[h], cy[h]];
+            mask |= watertight_lanes_avx(xy, [akz[h], bkz[h], ckz[h]], sz, t_max) << (4 * h);
             if mask & lanes != 0 {
                 break;
             }
@@ -279,20 +252,72 @@ impl Ray {
     }
 }
 
+/// The watertight test's f64 stage on four lanes, `Ray::intersect`'s
+/// steps after the shear: from the sheared corners' `[ax, ay, bx, by, cx,
+/// cy]`, their depths `[a[kz], b[kz], c[kz]]` (before the shear), the
+/// shear's `sz` and `t_max`, bit `i` set where lane `i` hits. The edge
+/// functions are exact in sign (products of two f32 in f64), a point on an
+/// edge counts as inside, and `det = 0` fails both branches of the
+/// distance test as `intersect` returns `None` there. Shared by the
+/// single-ray leaf test and the packets' eight-lane triangle test.
+#[inline(always)]
+pub(super) fn watertight_lanes(xy: [f64x4; 6], kz: [f64x4; 3], sz: f64x4, t_max: f64x4) -> u32 {
+    let [ax, ay, bx, by, cx, cy] = xy;
+    let [akz, bkz, ckz] = kz;
+    let zero = f64x4::ZERO;
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let negative = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
+    let positive = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
+    let det = u + v + w;
+    let t_scaled = u * (sz * akz) + v * (sz * bkz) + w * (sz * ckz);
+    let limit = t_max * det;
+    let ahead = det.cmp_gt(zero).blend(
+        t_scaled.cmp_gt(zero) & t_scaled.cmp_lt(limit),
+        t_scaled.cmp_lt(zero) & t_scaled.cmp_gt(limit),
+    );
+    (ahead & !(negative & positive)).move_mask()
+}
+
+/// [`watertight_lanes`] in AVX registers: the same operations in the same
+/// order (each `simd::avx` operation is its facade namesake's), so the
+/// same bits.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+pub(super) fn watertight_lanes_avx(
+    xy: [crate::simd::avx::F64x4; 6],
+    kz: [crate::simd::avx::F64x4; 3],
+    sz: crate::simd::avx::F64x4,
+    t_max: crate::simd::avx::F64x4,
+) -> u32 {
+    use crate::simd::avx::F64x4;
+    let [ax, ay, bx, by, cx, cy] = xy;
+    let [akz, bkz, ckz] = kz;
+    let zero = F64x4::splat(0.0);
+    let u = cx.mul(by).sub(cy.mul(bx));
+    let v = ax.mul(cy).sub(ay.mul(cx));
+    let w = bx.mul(ay).sub(by.mul(ax));
+    let negative = u.cmp_lt(zero).bitor(v.cmp_lt(zero)).bitor(w.cmp_lt(zero));
+    let positive = u.cmp_gt(zero).bitor(v.cmp_gt(zero)).bitor(w.cmp_gt(zero));
+    let det = u.add(v).add(w);
+    let t_scaled = u
+        .mul(sz.mul(akz))
+        .add(v.mul(sz.mul(bkz)))
+        .add(w.mul(sz.mul(ckz)));
+    let limit = t_max.mul(det);
+    let ahead = det.cmp_gt(zero).blend(
+        t_scaled.cmp_gt(zero).bitand(t_scaled.cmp_lt(limit)),
+        t_scaled.cmp_lt(zero).bitand(t_scaled.cmp_gt(limit)),
+    );
+    ahead.and_not(negative.bitand(positive)).move_mask()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Uniform values in `[−0.5, 0.5]` from a seeded LCG.
-    fn centred_units(seed: u64) -> impl FnMut() -> f32 {
-        let mut state = seed;
-        move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 32) as u32 as f32 / u32::MAX as f32 - 0.5
-        }
-    }
+    use crate::geom::bvh::centred_units;
 
     /// Leaves of one to eight triangles, stored as the tree stores them
     /// (several leaves in one buffer, so a leaf's spare lanes read its

@@ -503,6 +503,19 @@ pub fn intersect_triangle(
     Ray::new(origin, dir, t_max)?.intersect(tri)
 }
 
+/// Uniform values in `[−0.5, 0.5]` from a seeded LCG (the tests' random
+/// rays, boxes and triangles).
+#[cfg(test)]
+pub(super) fn centred_units(seed: u64) -> impl FnMut() -> f32 {
+    let mut state = seed;
+    move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 32) as u32 as f32 / u32::MAX as f32 - 0.5
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::build::{corners, PARALLEL_SPLIT};

@@ -60,6 +60,9 @@
 //! `Rel::new`'s differences, and `Ray::intersect`. `tests/it/reference.rs` holds the
 //! two against each other ray by ray.
 
+use super::leaf::watertight_lanes;
+#[cfg(target_arch = "x86_64")]
+use super::leaf::watertight_lanes_avx;
 use super::{Bvh, Node, Ray, Rel, FAR_SCALE, STACK};
 use crate::simd::level::{level, Level};
 use crate::simd::{f32x4, f32x8, f64x4};
@@ -513,25 +516,12 @@ impl Packet {
         let cx = (pick(c, 0) - sx * ckz).widen();
         let cy = (pick(c, 1) - sy * ckz).widen();
         let (akz, bkz, ckz, sz) = (akz.widen(), bkz.widen(), ckz.widen(), sz.widen());
-        let zero = f64x4::ZERO;
         let t_max = f64x4::splat(f64::from(self.t_max));
         let mut mask = 0;
         for h in 0..2 {
-            let u = cx[h] * by[h] - cy[h] * bx[h];
-            let v = ax[h] * cy[h] - ay[h] * cx[h];
-            let w = bx[h] * ay[h] - by[h] * ax[h];
-            let negative = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
-            let positive = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
-            let det = u + v + w;
-            let t_scaled = u * (sz[h] * akz[h]) + v * (sz[h] * bkz[h]) + w * (sz[h] * ckz[h]);
-            let limit = t_max * det;
-            let ahead = det.cmp_gt(zero).blend(
-                t_scaled.cmp_gt(zero) & t_scaled.cmp_lt(limit),
-                t_scaled.cmp_lt(zero) & t_scaled.cmp_gt(limit),
-            );
-            // `det = 0` fails both branches of `ahead`: no separate test.
-            let hit = ahead & !(negative & positive);
-            mask |= hit.move_mask() << (4 * h);
+            let xy = [ax[h], ay[h], bx[h], by[h], cx[h], cy[h]];
+            let kz = [akz[h], bkz[h], ckz[h]];
+            mask |= watertight_lanes(xy, kz, sz[h], t_max) << (4 * h);
         }
         mask
     }
@@ -554,7 +544,6 @@ impl Packet {
             .pick
             .map(|[is0, is1]| [F32x8::from_lanes(is0), F32x8::from_lanes(is1)]);
         let sz = sz.widen();
-        let zero = F64x4::splat(0.0);
         let t_max = F64x4::splat(f64::from(self.t_max));
         let mut hit = 0;
         for tri in tris {
@@ -581,22 +570,9 @@ impl Packet {
             let (akz, bkz, ckz) = (akz.widen(), bkz.widen(), ckz.widen());
             let mut mask = 0;
             for h in 0..2 {
-                let u = cx[h].mul(by[h]).sub(cy[h].mul(bx[h]));
-                let v = ax[h].mul(cy[h]).sub(ay[h].mul(cx[h]));
-                let w = bx[h].mul(ay[h]).sub(by[h].mul(ax[h]));
-                let negative = u.cmp_lt(zero).bitor(v.cmp_lt(zero)).bitor(w.cmp_lt(zero));
-                let positive = u.cmp_gt(zero).bitor(v.cmp_gt(zero)).bitor(w.cmp_gt(zero));
-                let det = u.add(v).add(w);
-                let t_scaled = u
-                    .mul(sz[h].mul(akz[h]))
-                    .add(v.mul(sz[h].mul(bkz[h])))
-                    .add(w.mul(sz[h].mul(ckz[h])));
-                let limit = t_max.mul(det);
-                let ahead = det.cmp_gt(zero).blend(
-                    t_scaled.cmp_gt(zero).bitand(t_scaled.cmp_lt(limit)),
-                    t_scaled.cmp_lt(zero).bitand(t_scaled.cmp_gt(limit)),
-                );
-                mask |= ahead.and_not(negative.bitand(positive)).move_mask() << (4 * h);
+                let xy = [ax[h], ay[h], bx[h], by[h], cx[h], cy[h]];
+                let kz = [akz[h], bkz[h], ckz[h]];
+                mask |= watertight_lanes_avx(xy, kz, sz[h], t_max) << (4 * h);
             }
             hit |= mask & through;
             if through & !hit == 0 {
@@ -1073,6 +1049,7 @@ impl Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::bvh::centred_units;
 
     /// The bits of everything `Ray::new` computes.
     fn ray_bits(r: &Ray) -> Vec<u32> {
@@ -1086,17 +1063,6 @@ mod tests {
         v.extend(r.k.map(|k| k as u32));
         v.extend(r.shear.to_array().map(f32::to_bits));
         v
-    }
-
-    /// Uniform values in `[−0.5, 0.5]` from a seeded LCG.
-    fn centred_units(seed: u64) -> impl FnMut() -> f32 {
-        let mut state = seed;
-        move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 32) as u32 as f32 / u32::MAX as f32 - 0.5
-        }
     }
 
     /// A node with 1 to 4 random leaf boxes (flat ones every seventh
