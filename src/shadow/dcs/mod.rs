@@ -51,6 +51,7 @@ pub mod probe;
 pub mod rays;
 mod receiver;
 pub mod region;
+mod sample_lanes;
 #[forbid(unsafe_code)]
 pub mod settings;
 #[forbid(unsafe_code)]

@@ -3,6 +3,7 @@
 //! cost choice ([`super::plan`]).
 
 use super::receiver::PixelResult;
+use super::sample_lanes;
 use crate::gbuffer::GSample;
 use crate::sampling::{LightSampler, PatternSampler};
 use crate::scene::LightShape;
@@ -55,6 +56,26 @@ impl<'a, 'c> RayPixels<'a, 'c> {
         }
     }
 
+    /// The samples of the pixel at `pixel` (receiver `g`): a rect light's
+    /// stratified grid four at a time where [`sample_lanes`] applies, the
+    /// same bits as [`LightSampler::samples_with`], which makes the others.
+    fn draw_samples(&self, g: &GSample, pixel: (u32, u32), out: &mut Vec<LightSample>) {
+        let n = self.pattern.len();
+        if let (LightSampler::Rect { center, u, v, area }, Some((strata, key))) =
+            (self.sampler, self.pattern.jittered(pixel))
+        {
+            if sample_lanes::rect_rows_apply(strata, n) {
+                out.clear();
+                out.resize(n as usize, LightSample::default());
+                if sample_lanes::rect_rows(strata, key, (center, u, v, area), out) {
+                    return;
+                }
+            }
+        }
+        self.sampler
+            .samples_with(&self.pattern, g.position, pixel, out);
+    }
+
     /// Pixel `i`'s result from its samples' shadow rays (the reference's
     /// origin and test), resolved as the counting path resolves opaque
     /// counts in the direct mode: Vcoef = visible / N; the direct light 0
@@ -90,8 +111,7 @@ impl<'a, 'c> RayPixels<'a, 'c> {
         }
         let width = (gbuffer.width as usize).max(1);
         let pixel = ((i % width) as u32, (i / width) as u32);
-        self.sampler
-            .samples_with(&self.pattern, g.position, pixel, &mut scratch.samples);
+        self.draw_samples(&g, pixel, &mut scratch.samples);
         let n = scratch.samples.len();
         if n == 0 {
             // Inside a sphere light: no defined Vcoef (as the counting
