@@ -84,9 +84,41 @@ fn chart_rows_avx2(
     key: u64,
     a: u32,
     (i0, j0, w): (u32, u32, usize),
-    (inv_a, inv_b): (f64, f64),
+    inv: (f64, f64),
     xs: &mut [f32],
     ys: &mut [f32],
+) {
+    use crate::simd::avx::F64x4;
+    let (two, one) = (F64x4::splat(2.0), F64x4::splat(1.0));
+    let rows = xs.len() / w.max(1);
+    jittered_rows_avx2(key, a, (i0, j0, w), inv, rows, |at, s, t| {
+        if let (Some(xs), Some(ys)) = (xs.get_mut(at..at + 4), ys.get_mut(at..at + 4)) {
+            xs.copy_from_slice(&two.mul(s).sub(one).to_f32_array());
+            ys.copy_from_slice(&one.sub(two.mul(t)).to_f32_array());
+        }
+    });
+}
+
+/// The jittered grid's `(s, t)` four cells at a time, with AVX2: cells
+/// `i0 .. i0 + w` of `rows` rows from `j0` of a grid `a` cells wide (`w`
+/// a multiple of 4; `inv` = `(1 / a, 1 / b)`, both sides powers of two)
+/// under the pixel's sample `key`, each step handed to `f` with its
+/// first cell's place in row-after-row order. `s = (i + ξ) · inv_a`, `t =
+/// (j + ξ') · inv_b` with `(ξ, ξ')` = [`uniform_pair`]`(key, j a + i)`:
+/// SplitMix64 on 64-bit lanes (its 64-bit products from 32-bit ones), the
+/// 32-bit integers to f64 exactly by the 2⁵² bias, then the scalar code's
+/// f64 operations in its order, so the scalar walk's bits. Shared by
+/// [`chart_rows`] and `sample_lanes`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+#[inline]
+pub(super) fn jittered_rows_avx2(
+    key: u64,
+    a: u32,
+    (i0, j0, w): (u32, u32, usize),
+    (inv_a, inv_b): (f64, f64),
+    rows: usize,
+    mut f: impl FnMut(usize, crate::simd::avx::F64x4, crate::simd::avx::F64x4),
 ) {
     use crate::sampling::{GOLDEN, MIX_1, MIX_2};
     use crate::simd::avx::{F64x4, U64x4};
@@ -101,7 +133,7 @@ fn chart_rows_avx2(
     let to_unit = |h: U64x4| h.high_half_to_f64().mul(scale);
     let golden_2 = GOLDEN.wrapping_mul(2);
     let (golden, golden_8) = (U64x4::splat(GOLDEN), U64x4::splat(GOLDEN.wrapping_mul(8)));
-    let (two, one, four) = (F64x4::splat(2.0), F64x4::splat(1.0), F64x4::splat(4.0));
+    let four = F64x4::splat(4.0);
     let (inv_a, inv_b) = (F64x4::splat(inv_a), F64x4::splat(inv_b));
     let first_col = F64x4::new([
         f64::from(i0),
@@ -109,8 +141,7 @@ fn chart_rows_avx2(
         f64::from(i0 + 2),
         f64::from(i0 + 3),
     ]);
-    let rows = xs.chunks_exact_mut(w).zip(ys.chunks_exact_mut(w));
-    for (j, (xs, ys)) in (j0..).zip(rows) {
+    for (r, j) in (0..rows).zip(j0..) {
         // Lane `l` of cell `k = k0 + l` hashes `key + (2k + 1) G` and
         // `key + (2k + 2) G`: from the row's first cell's, steps of `2G`
         // per lane and `8G` per four cells (wrapping, as the scalar
@@ -125,13 +156,14 @@ fn chart_rows_avx2(
         ]);
         let row = F64x4::splat(f64::from(j));
         let mut col = first_col;
-        for (xs, ys) in xs.chunks_exact_mut(4).zip(ys.chunks_exact_mut(4)) {
+        for step in (0..w).step_by(4) {
             let xi = to_unit(mix(hash));
             let xi2 = to_unit(mix(hash.wrapping_add(golden)));
-            let s = col.add(xi).mul(inv_a);
-            let t = row.add(xi2).mul(inv_b);
-            xs.copy_from_slice(&two.mul(s).sub(one).to_f32_array());
-            ys.copy_from_slice(&one.sub(two.mul(t)).to_f32_array());
+            f(
+                r * w + step,
+                col.add(xi).mul(inv_a),
+                row.add(xi2).mul(inv_b),
+            );
             hash = hash.wrapping_add(golden_8);
             col = col.add(four);
         }

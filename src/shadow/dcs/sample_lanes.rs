@@ -48,7 +48,8 @@ pub(super) fn rect_rows(
     false
 }
 
-/// [`rect_rows`] with AVX2, four cells per step.
+/// [`rect_rows`] with AVX2, four cells per step (`(s, t)` by
+/// [`super::chart_lanes::jittered_rows_avx2`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
 fn rect_rows_avx2(
@@ -57,50 +58,20 @@ fn rect_rows_avx2(
     (center, u, v, area): (DVec3, DVec3, DVec3, f32),
     out: &mut [LightSample],
 ) {
-    use crate::sampling::{GOLDEN, MIX_1, MIX_2};
-    use crate::simd::avx::{F64x4, U64x4};
-    // SplitMix64's output function, four lanes at once (`mix64`).
-    let mix = |z: U64x4| {
-        let z = z.xor(z.shr::<30>()).wrapping_mul(MIX_1);
-        let z = z.xor(z.shr::<27>()).wrapping_mul(MIX_2);
-        z.xor(z.shr::<31>())
-    };
-    // `(h >> 32) as f64 × 2⁻³²`, as `uniform_pair`.
-    let scale = F64x4::splat(1.0 / 4_294_967_296.0);
-    let to_unit = |h: U64x4| h.high_half_to_f64().mul(scale);
-    let golden_2 = GOLDEN.wrapping_mul(2);
-    let (golden, golden_8) = (U64x4::splat(GOLDEN), U64x4::splat(GOLDEN.wrapping_mul(8)));
-    let (two, one, four) = (F64x4::splat(2.0), F64x4::splat(1.0), F64x4::splat(4.0));
-    let a = strata.a;
-    let inv_a = F64x4::splat(1.0 / f64::from(a));
-    let inv_b = F64x4::splat(1.0 / f64::from(strata.b));
+    use crate::simd::avx::F64x4;
+    let (two, one) = (F64x4::splat(2.0), F64x4::splat(1.0));
     let splat3 = |p: DVec3| [F64x4::splat(p.x), F64x4::splat(p.y), F64x4::splat(p.z)];
     let (c, u, v) = (splat3(center), splat3(u), splat3(v));
-    for (j, row) in (0u32..).zip(out.chunks_exact_mut(a as usize)) {
-        // Lane `l` of cell `k = k0 + l` hashes `key + (2k + 1) G` and
-        // `key + (2k + 2) G`: from the row's first cell's, steps of `2G`
-        // per lane and `8G` per four cells (wrapping, as the scalar
-        // products).
-        let k0 = u64::from(j * a);
-        let first = key.wrapping_add((2 * k0 + 1).wrapping_mul(GOLDEN));
-        let mut hash = U64x4::new([
-            first,
-            first.wrapping_add(golden_2),
-            first.wrapping_add(golden_2.wrapping_mul(2)),
-            first.wrapping_add(golden_2.wrapping_mul(3)),
-        ]);
-        let t_row = F64x4::splat(f64::from(j));
-        let mut col = F64x4::new([0.0, 1.0, 2.0, 3.0]);
-        for cells in row.chunks_exact_mut(4) {
-            let xi = to_unit(mix(hash));
-            let xi2 = to_unit(mix(hash.wrapping_add(golden)));
-            let s = col.add(xi).mul(inv_a);
-            let t = t_row.add(xi2).mul(inv_b);
-            let (ks, kt) = (two.mul(s).sub(one), one.sub(two.mul(t)));
-            // `center + u · ks + v · kt` per axis, in that order.
-            let axis = |k: usize| c[k].add(u[k].mul(ks)).add(v[k].mul(kt)).to_f32_array();
-            let (x, y, z) = (axis(0), axis(1), axis(2));
-            let (s, t) = (s.to_f32_array(), t.to_f32_array());
+    let (a, b) = (strata.a, strata.b);
+    let inv = (1.0 / f64::from(a), 1.0 / f64::from(b));
+    let cells = (0, 0, a as usize);
+    super::chart_lanes::jittered_rows_avx2(key, a, cells, inv, b as usize, |at, s, t| {
+        let (ks, kt) = (two.mul(s).sub(one), one.sub(two.mul(t)));
+        // `center + u · ks + v · kt` per axis, in that order.
+        let axis = |k: usize| c[k].add(u[k].mul(ks)).add(v[k].mul(kt)).to_f32_array();
+        let (x, y, z) = (axis(0), axis(1), axis(2));
+        let (s, t) = (s.to_f32_array(), t.to_f32_array());
+        if let Some(cells) = out.get_mut(at..at + 4) {
             for (l, cell) in cells.iter_mut().enumerate() {
                 *cell = LightSample {
                     x: Vec3::new(x[l], y[l], z[l]),
@@ -108,10 +79,8 @@ fn rect_rows_avx2(
                     inv_pdf_area: area,
                 };
             }
-            hash = hash.wrapping_add(golden_8);
-            col = col.add(four);
         }
-    }
+    });
 }
 
 #[cfg(test)]
