@@ -60,16 +60,12 @@ impl<'a, 'c> RayPixels<'a, 'c> {
     /// stratified grid four at a time where [`sample_lanes`] applies, the
     /// same bits as [`LightSampler::samples_with`], which makes the others.
     fn draw_samples(&self, g: &GSample, pixel: (u32, u32), out: &mut Vec<LightSample>) {
-        let n = self.pattern.len();
         if let (LightSampler::Rect { center, u, v, area }, Some((strata, key))) =
             (self.sampler, self.pattern.jittered(pixel))
         {
-            if sample_lanes::rect_rows_apply(strata, n) {
-                out.clear();
-                out.resize(n as usize, LightSample::default());
-                if sample_lanes::rect_rows(strata, key, (center, u, v, area), out) {
-                    return;
-                }
+            let n = self.pattern.len();
+            if sample_lanes::rect_rows(strata, key, n, (center, u, v, area), out) {
+                return;
             }
         }
         self.sampler

@@ -18,33 +18,33 @@ use crate::sampling::Strata;
 use crate::shade::LightSample;
 use glam::{DVec3, Vec2, Vec3};
 
-/// Whether [`rect_rows`] can make a receiver's `n` samples on `strata`.
-pub(super) fn rect_rows_apply(strata: Strata, n: u32) -> bool {
-    strata.count() == n
-        && strata.a.is_power_of_two()
-        && strata.b.is_power_of_two()
-        && strata.a.is_multiple_of(4)
-}
-
-/// The samples of the jittered grid `strata` under the pixel's `key` on
-/// the rect `center ± u ± v` of inverse pdf `area`, in sample order into
-/// `out` (as long as the grid; [`rect_rows_apply`] must hold). `false`,
-/// with `out` untouched, where the CPU lacks AVX2 (or `PENUMBRA_SIMD`
-/// forces the baseline): the caller's scalar walk makes them then.
+/// The `n` samples of the jittered grid `strata` under the pixel's `key`
+/// on the rect `center ± u ± v` of inverse pdf `area`, in sample order
+/// into `out` (cleared first), when this kernel can make them: the grid
+/// is one the chart points' walk takes
+/// ([`super::chart_lanes::chart_rows_apply`]) and the CPU has AVX2 (and
+/// `PENUMBRA_SIMD` does not force the baseline). `false`, with `out`
+/// untouched, otherwise: the caller's scalar sampler makes them then.
 pub(super) fn rect_rows(
     strata: Strata,
     key: u64,
+    n: u32,
     (center, u, v, area): (DVec3, DVec3, DVec3, f32),
-    out: &mut [LightSample],
+    out: &mut Vec<LightSample>,
 ) -> bool {
+    if !super::chart_lanes::chart_rows_apply(strata, n) {
+        return false;
+    }
     #[cfg(target_arch = "x86_64")]
     if crate::simd::level::runs_v3() {
+        out.clear();
+        out.resize(n as usize, LightSample::default());
         // SAFETY: `runs_v3` checked that the CPU has x86-64-v3's
         // features, AVX and AVX2 among them: the kernel's one requirement.
         unsafe { rect_rows_avx2(strata, key, (center, u, v, area), out) };
         return true;
     }
-    let _ = (strata, key, center, u, v, area, out);
+    let _ = (key, center, u, v, area, out);
     false
 }
 
@@ -117,11 +117,14 @@ mod tests {
                     let Some((strata, key)) = patterns.jittered(pixel) else {
                         panic!("a jittered pattern");
                     };
-                    assert!(rect_rows_apply(strata, n), "{n}");
+                    assert!(
+                        super::super::chart_lanes::chart_rows_apply(strata, n),
+                        "{n}"
+                    );
                     let mut want = Vec::new();
                     sampler.samples_with(&patterns, glam::Vec3::ZERO, pixel, &mut want);
-                    let mut got = vec![LightSample::default(); n as usize];
-                    if !rect_rows(strata, key, (center, u, v, area), &mut got) {
+                    let mut got = Vec::new();
+                    if !rect_rows(strata, key, n, (center, u, v, area), &mut got) {
                         eprintln!("no AVX2 on this CPU: nothing to check");
                         return;
                     }
