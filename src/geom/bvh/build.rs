@@ -2,7 +2,7 @@
 //! for any thread count (see the parent module's documentation).
 
 use super::leaf::LeafCorners;
-use super::{Bvh, Node, MAX_LEAF, SAH_MAX_DEPTH, SAH_TRAVERSAL};
+use super::{Bvh, Node, ALWAYS_LEAF, MAX_LEAF, SAH_MAX_DEPTH, SAH_TRAVERSAL};
 use crate::geom::SceneGeometry;
 use crate::simd::{f32x4, i32x4};
 use glam::Vec3;
@@ -436,7 +436,7 @@ fn classify(prims: &mut [Prim], extent: Extent, depth: u32) -> Item {
         depth,
         cut: None,
     };
-    if n == 1 {
+    if n <= ALWAYS_LEAF {
         return leaf;
     }
     let split = if depth < SAH_MAX_DEPTH {
@@ -652,28 +652,6 @@ fn sah_small(prims: &[Prim], extent: &Extent) -> Option<(f32, usize, usize)> {
         *k = map.bins(p);
     }
     let cbounds = &extent.cbounds.aabb();
-    if n == 2 {
-        // The general case's arithmetic for two triangles: every axis
-        // that separates them has the same sides, hence the same cost
-        // (addition commutes), so the first one wins.
-        let area = |p: &Prim| {
-            Box4 {
-                lo: p.lo(),
-                hi: p.hi,
-            }
-            .half_area()
-        };
-        let axis = (0..3)
-            .find(|&axis| cbounds.hi[axis] > cbounds.lo[axis] && keys[0][axis] != keys[1][axis])?;
-        let (first, second) = if keys[0][axis] < keys[1][axis] {
-            (0, 1)
-        } else {
-            (1, 0)
-        };
-        let right = area(&prims[second]) * 1.0;
-        let cost = area(&prims[first]) * 1.0 + right;
-        return Some((cost, axis, keys[first][axis] as usize));
-    }
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
         if !(cbounds.hi[axis] > cbounds.lo[axis]) {
