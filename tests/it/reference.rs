@@ -1371,3 +1371,80 @@ fn strata_block_order_is_a_permutation_of_compact_blocks() {
         }
     }
 }
+
+/// (d'''') The receiver's tangent plane culls the ground it lies on even
+/// where its rays run more along the ground than away from it (the light
+/// low and far to the side, so the rays' dominant axis is not the
+/// ground's normal and the exact "behind" rule cannot drop it): the
+/// ground is bigger than the general margin allows for, but its corners
+/// lie behind the plane by the shadow-ray offset, far beyond the
+/// watertight test's rounding (`TANGENT_MARGIN`). Receivers on
+/// `bunny.toml`'s ground, offset by the reference's rule, in a tree of
+/// the ground alone: the light's hull finds no leaf, and no ray from such
+/// a receiver to the light hits the ground.
+#[test]
+fn tangent_plane_culls_the_receivers_ground() {
+    use penumbra::internal::geom::bvh::SegmentHull;
+    let (geometry, _, lo, size) = bunny_bvh();
+    let ground: Vec<u32> = (0..geometry.triangles.len() as u32)
+        .filter(|&t| geometry.triangle_object[t as usize] == 0)
+        .collect();
+    assert_eq!(ground.len(), 2, "bunny.toml's ground is one quad");
+    let bvh = Bvh::build(&geometry, |t| geometry.triangle_object[t as usize] == 0);
+    let verts = &geometry.positions;
+    let mut rng = Rng(31337);
+    let mut leaves = Vec::new();
+    let (mut sideways, mut rays) = (0usize, 0usize);
+    for trial in 0..2000 {
+        let t = &geometry.triangles[ground[trial % 2] as usize];
+        let [a, b, c] = t.map(|i| verts[i as usize]);
+        let (u, v) = (rng.f64() as f32, rng.f64() as f32);
+        let (u, v) = if u + v > 1.0 {
+            (1.0 - u, 1.0 - v)
+        } else {
+            (u, v)
+        };
+        let p = a + (b - a) * u + (c - a) * v;
+        let mut n = (b - a).cross(c - a).normalize_or_zero();
+        if n.y < 0.0 {
+            n = -n;
+        }
+        let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
+        let o = p + n * eps;
+        // Low and far to the side: rays closer to the ground than to its
+        // normal for most receivers.
+        let side = if trial % 2 == 0 { 1.0 } else { -1.0 };
+        let center = Vec3::new(
+            side * (0.6 + 0.3 * rng.f64() as f32) * size.x,
+            lo.y + (0.05 + 0.3 * rng.f64() as f32) * size.y,
+            lo.z + rng.f64() as f32 * size.z,
+        );
+        let (lu, lv) = (
+            Vec3::new(0.0, 0.05, 0.0) * size.y,
+            Vec3::new(0.0, 0.0, 0.1) * size.z,
+        );
+        let rect = (center.as_dvec3(), lu.as_dvec3(), lv.as_dvec3());
+        let hull = SegmentHull::over_light(o, rect, Some(n)).expect("usable hull");
+        assert!(bvh.hull_leaves(&hull, &mut leaves, 1_000_000));
+        let dirs: Vec<Vec3> = (0..16)
+            .map(|_| segment_dir(o, (center, lu, lv), (rng.f64(), rng.f64())))
+            .collect();
+        sideways += usize::from(dirs.iter().all(|d| d.x.abs() > d.y.abs().max(d.z.abs())));
+        for d in &dirs {
+            rays += 1;
+            assert!(
+                !bvh.occluded(o, *d, (1.0 - 1e-6) as f32),
+                "trial {trial}: a ray hit the ground"
+            );
+        }
+        assert!(
+            leaves.is_empty(),
+            "trial {trial}: the hull kept the receiver's own ground (o {o:?}, light {rect:?})"
+        );
+    }
+    assert!(
+        sideways > 1000,
+        "most bundles must run along the ground: {sideways} of 2000"
+    );
+    assert!(rays == 32_000);
+}

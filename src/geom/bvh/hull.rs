@@ -69,6 +69,25 @@ fn dominant_axes(lo: Vec3, hi: Vec3) -> u32 {
 /// five times the rounding bound of the module docs.
 const HULL_MARGIN: f32 = 1e-5;
 
+/// The receiver's tangent plane culls a triangle only when each corner
+/// `v` lies behind it by more than `TANGENT_MARGIN × |n|₁ × |v − o|∞`
+/// (`n` the plane's normal as stored, `o` the apex). A tighter margin
+/// than the other planes', because no rounding of the plane enters it:
+/// the watertight test's verdict is the exact one for corners moved by at
+/// most `5 ε |v − o|∞` per coordinate (`v − o` rounded, the shear's
+/// product, difference and constant; module docs), which moves `n · v`
+/// by at most `5 ε |n|₁ |v − o|∞`, and the f32 plane value here errs by
+/// at most `4 ε |n|₁ |v − o|∞`: `TANGENT_MARGIN` is 1.9 times their sum
+/// (`ε = 2⁻²⁴`). Every segment leaves `o` on the plane's front side
+/// (`n · d > 0`, checked where the plane is added), so a triangle behind
+/// it by that much is hit by none. This is what culls a ground the
+/// receiver lies on where its rays are more horizontal than vertical
+/// (`behind` needs the dominant axis to be the ground's normal): the
+/// shadow-ray offset `ε_p ≥ 10⁻⁶ D` exceeds `10⁻⁶ |v − o|∞` for an
+/// axis-aligned ground, where the general margin (`HULL_MARGIN × R`, `R`
+/// up to the ground's size) kept it, and its rays were tested against it.
+const TANGENT_MARGIN: f32 = 1e-6;
+
 /// Most bounding planes: four sides, the cap and the receiver's tangent
 /// plane.
 const MAX_PLANES: usize = 6;
@@ -92,6 +111,9 @@ pub struct SegmentHull {
     normals: [Vec3; MAX_PLANES],
     offsets: [f32; MAX_PLANES],
     planes: usize,
+    /// The receiver's tangent plane `n · (p − o) ≥ 0` (`n` as stored),
+    /// culling with [`TANGENT_MARGIN`]: `TANGENT_MARGIN × |n|₁` here.
+    tangent: Option<(Vec3, f32)>,
 }
 
 impl SegmentHull {
@@ -151,7 +173,7 @@ impl SegmentHull {
         }
         if let (Some(n), true) = (tangent, facing) {
             // `−n · (p − o) ≤ 0` on every segment.
-            hull.push_plane(-n, 0.0);
+            hull.push_tangent(n);
         }
         Some(hull)
     }
@@ -178,6 +200,7 @@ impl SegmentHull {
             normals: [Vec3::ZERO; MAX_PLANES],
             offsets: [0.0; MAX_PLANES],
             planes: 0,
+            tangent: None,
         })
     }
 
@@ -233,7 +256,7 @@ impl SegmentHull {
             // `SegmentHull::new` asks `n · d > 1e-12 |n| · |d|` on top.
             let need = n.abs().element_sum() * 4.0 * widen;
             if corners.iter().all(|c| n.dot(*c - o) > need) {
-                hull.push_plane(-n, 0.0);
+                hull.push_tangent(n);
             }
         }
         Some(hull)
@@ -282,6 +305,16 @@ impl SegmentHull {
         self.push_plane(cap, cap.dot(c - o) + slack);
     }
 
+    /// The receiver's tangent plane with normal `n` through the apex,
+    /// once every segment is known to leave the apex on its front side:
+    /// [`TANGENT_MARGIN`]'s test, and the general one as before.
+    fn push_tangent(&mut self, n: DVec3) {
+        // `−n · (p − o) ≤ 0` on every segment.
+        self.push_plane(-n, 0.0);
+        let n = n.as_vec3();
+        self.tangent = Some((n, TANGENT_MARGIN * n.abs().element_sum()));
+    }
+
     fn push_plane(&mut self, normal: DVec3, offset: f64) {
         if self.planes < MAX_PLANES {
             self.normals[self.planes] = normal.as_vec3();
@@ -319,6 +352,21 @@ impl SegmentHull {
             out = out
                 | rel.lo[axis].cmp_gt(f32x4::splat(self.hi[axis]) + margin)
                 | rel.hi[axis].cmp_lt(f32x4::splat(self.lo[axis]) - margin);
+        }
+        if let Some((n, scale)) = self.tangent {
+            // The box corner with the greatest `n · (p − o)` behind the
+            // plane by the margin of its farthest coordinate: so is every
+            // corner of every triangle inside.
+            let pick = |axis: usize, k: f32| {
+                let r = if k >= 0.0 { rel.hi[axis] } else { rel.lo[axis] };
+                r * f32x4::splat(k)
+            };
+            let most = pick(0, n.x) + pick(1, n.y) + pick(2, n.z);
+            let mut far = f32x4::ZERO;
+            for axis in 0..3 {
+                far = far.max(rel.lo[axis].abs().max(rel.hi[axis].abs()));
+            }
+            out |= most.cmp_lt(far * f32x4::splat(-scale));
         }
         for j in 0..self.planes {
             let n = self.normals[j];
@@ -386,6 +434,11 @@ impl SegmentHull {
         for j in 0..self.planes {
             let (n, d) = (self.normals[j], self.offsets[j] + margin);
             if r.iter().all(|v| n.dot(*v) > d) {
+                return false;
+            }
+        }
+        if let Some((n, scale)) = self.tangent {
+            if r.iter().all(|v| n.dot(*v) < -scale * v.abs().max_element()) {
                 return false;
             }
         }
