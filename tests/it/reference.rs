@@ -595,18 +595,9 @@ fn origin_and_light(
     let mut tangent = None;
     let o = if surface {
         let t = &geometry.triangles[(rng.next_u64() % geometry.triangles.len() as u64) as usize];
-        let [a, b, c] = t.map(|i| verts[i as usize]);
-        let (u, v) = (rng.f64() as f32, rng.f64() as f32);
-        let (u, v) = if u + v > 1.0 {
-            (1.0 - u, 1.0 - v)
-        } else {
-            (u, v)
-        };
-        let p = a + (b - a) * u + (c - a) * v;
-        let n = (b - a).cross(c - a).normalize_or_zero();
-        let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
+        let (p, n) = point_on(rng, t.map(|i| verts[i as usize]));
         tangent = Some(n);
-        p + n * eps
+        p + n * shadow_offset(p, size)
     } else {
         lo + Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32) * size * 1.4
             - size * 0.2
@@ -615,6 +606,24 @@ fn origin_and_light(
     let u = Vec3::new(rng.f64() as f32, 0.0, rng.f64() as f32 * 0.2) * size.x * 0.5;
     let v = Vec3::new(rng.f64() as f32 * 0.2, 0.0, rng.f64() as f32) * size.z * 0.5;
     (o, tangent, center, u, v)
+}
+
+/// A uniform random point of triangle `[a, b, c]` and the triangle's unit
+/// normal (by its winding).
+fn point_on(rng: &mut Rng, [a, b, c]: [Vec3; 3]) -> (Vec3, Vec3) {
+    let (u, v) = (rng.f64() as f32, rng.f64() as f32);
+    let (u, v) = if u + v > 1.0 {
+        (1.0 - u, 1.0 - v)
+    } else {
+        (u, v)
+    };
+    let p = a + (b - a) * u + (c - a) * v;
+    (p, (b - a).cross(c - a).normalize_or_zero())
+}
+
+/// The reference's shadow-ray offset at `p` in a scene of extent `size`.
+fn shadow_offset(p: Vec3, size: Vec3) -> f32 {
+    (1e-5 * p.abs().max_element()).max(1e-6 * size.length())
 }
 
 /// The traced direction from `o` to the point `(s, t)` of the rect light
@@ -1397,20 +1406,9 @@ fn tangent_plane_culls_the_receivers_ground() {
     let (mut sideways, mut rays) = (0usize, 0usize);
     for trial in 0..2000 {
         let t = &geometry.triangles[ground[trial % 2] as usize];
-        let [a, b, c] = t.map(|i| verts[i as usize]);
-        let (u, v) = (rng.f64() as f32, rng.f64() as f32);
-        let (u, v) = if u + v > 1.0 {
-            (1.0 - u, 1.0 - v)
-        } else {
-            (u, v)
-        };
-        let p = a + (b - a) * u + (c - a) * v;
-        let mut n = (b - a).cross(c - a).normalize_or_zero();
-        if n.y < 0.0 {
-            n = -n;
-        }
-        let eps = (1e-5 * p.abs().max_element()).max(1e-6 * size.length());
-        let o = p + n * eps;
+        let (p, n) = point_on(&mut rng, t.map(|i| verts[i as usize]));
+        let n = if n.y < 0.0 { -n } else { n };
+        let o = p + n * shadow_offset(p, size);
         // Low and far to the side: rays closer to the ground than to its
         // normal for most receivers.
         let side = if trial % 2 == 0 { 1.0 } else { -1.0 };
