@@ -88,9 +88,9 @@ const HULL_MARGIN: f32 = 1e-5;
 /// up to the ground's size) kept it, and its rays were tested against it.
 const TANGENT_MARGIN: f32 = 1e-6;
 
-/// Most bounding planes: four sides, the cap and the receiver's tangent
-/// plane.
-const MAX_PLANES: usize = 6;
+/// Most bounding planes: four sides and the cap (the receiver's tangent
+/// plane is kept apart, with its own margin).
+const MAX_PLANES: usize = 5;
 
 /// The convex region holding every shadow segment of one receiver: the
 /// box of the origin and the sample points, and for a rect light the
@@ -129,8 +129,8 @@ impl SegmentHull {
     /// on the positive side of the plane through `o` with normal `n`, and
     /// the receiver's own surface, through `o − ε n`, on the other, so its
     /// triangles around the receiver (a facet of a convex object facing the
-    /// light, and its neighbours curving away) are culled with the usual
-    /// margin. `n · d` is decided in f64 from the f32 values (the products
+    /// light, and its neighbours curving away) are culled, with
+    /// [`TANGENT_MARGIN`]. `n · d` is decided in f64 from the f32 values (the products
     /// are exact, the two sums round by at most 2⁻⁵² relative), against a
     /// threshold far above that rounding; the plane is `n` itself, as
     /// stored, so no tilt enters the margin argument. No plane when a
@@ -172,7 +172,7 @@ impl SegmentHull {
             hull.add_pyramid(origin.as_dvec3(), center, u, v);
         }
         if let (Some(n), true) = (tangent, facing) {
-            // `−n · (p − o) ≤ 0` on every segment.
+            // `n · (p − o) ≥ 0` on every segment.
             hull.push_tangent(n);
         }
         Some(hull)
@@ -306,11 +306,12 @@ impl SegmentHull {
     }
 
     /// The receiver's tangent plane with normal `n` through the apex,
-    /// once every segment is known to leave the apex on its front side:
-    /// [`TANGENT_MARGIN`]'s test, and the general one as before.
+    /// once every segment is known to leave the apex on its front side
+    /// (`n · (p − o) ≥ 0` on every segment), tested with
+    /// [`TANGENT_MARGIN`] alone: whatever the general margin would cull
+    /// (`10⁻⁵` of the L1 reach), this one culls too (`10⁻⁶ |n|₁` of the
+    /// largest coordinate, `|n|₁ ≤ √3`).
     fn push_tangent(&mut self, n: DVec3) {
-        // `−n · (p − o) ≤ 0` on every segment.
-        self.push_plane(-n, 0.0);
         let n = n.as_vec3();
         self.tangent = Some((n, TANGENT_MARGIN * n.abs().element_sum()));
     }
@@ -341,11 +342,11 @@ impl SegmentHull {
                 rel.hi[k].cmp_gt(f32x4::ZERO).move_mask()
             };
         }
-        // L1 distance bound of each box from the origin, and the margin.
-        let mut reach = f32x4::ZERO;
-        for axis in 0..3 {
-            reach += rel.lo[axis].abs().max(rel.hi[axis].abs());
-        }
+        // Each box's largest coordinate from the origin per axis: their
+        // sum bounds its L1 distance (the planes' margin), their maximum
+        // its farthest coordinate (the tangent plane's).
+        let extent = [0, 1, 2].map(|axis| rel.lo[axis].abs().max(rel.hi[axis].abs()));
+        let reach = extent[0] + extent[1] + extent[2];
         let margin = reach * f32x4::splat(HULL_MARGIN);
         let mut out = f32x4::ZERO.cmp_gt(f32x4::ZERO);
         for axis in 0..3 {
@@ -362,10 +363,7 @@ impl SegmentHull {
                 r * f32x4::splat(k)
             };
             let most = pick(0, n.x) + pick(1, n.y) + pick(2, n.z);
-            let mut far = f32x4::ZERO;
-            for axis in 0..3 {
-                far = far.max(rel.lo[axis].abs().max(rel.hi[axis].abs()));
-            }
+            let far = extent[0].max(extent[1]).max(extent[2]);
             out |= most.cmp_lt(far * f32x4::splat(-scale));
         }
         for j in 0..self.planes {
