@@ -1403,7 +1403,7 @@ fn tangent_plane_culls_the_receivers_ground() {
     let verts = &geometry.positions;
     let mut rng = Rng(31337);
     let mut leaves = Vec::new();
-    let (mut sideways, mut rays) = (0usize, 0usize);
+    let mut sideways = 0usize;
     for trial in 0..2000 {
         let t = &geometry.triangles[ground[trial % 2] as usize];
         let (p, n) = point_on(&mut rng, t.map(|i| verts[i as usize]));
@@ -1429,7 +1429,6 @@ fn tangent_plane_culls_the_receivers_ground() {
             .collect();
         sideways += usize::from(dirs.iter().all(|d| d.x.abs() > d.y.abs().max(d.z.abs())));
         for d in &dirs {
-            rays += 1;
             assert!(
                 !bvh.occluded(o, *d, (1.0 - 1e-6) as f32),
                 "trial {trial}: a ray hit the ground"
@@ -1444,5 +1443,4 @@ fn tangent_plane_culls_the_receivers_ground() {
         sideways > 1000,
         "most bundles must run along the ground: {sideways} of 2000"
     );
-    assert!(rays == 32_000);
 }
